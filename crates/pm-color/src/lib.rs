@@ -1,0 +1,157 @@
+//! Colour vocabulary: linear RGB triples, Ward's RGBE shared-exponent encoding
+//! ("Real Pixels", Graphics Gems II, 1991) and the sRGB transfer curve.
+//!
+//! Every radiometric quantity in this project is a linear RGB triple, one value per
+//! channel: power in W, irradiance in W m^-2, radiance in W sr^-1 m^-2, reflectance
+//! unitless. This crate knows nothing about which of those a triple holds; the field
+//! names and doc comments of the users say so.
+
+use glam::Vec3;
+
+/// A linear RGB triple. The unit is the caller's (see the crate doc).
+pub type Rgb = Vec3;
+
+/// Mean of the three channels: the scalar used for power-proportional choices and
+/// Russian roulette (Jensen's photon maps use the channel average, not luminance,
+/// so that a photon's expected power is preserved per channel).
+#[inline]
+pub fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) * (1.0 / 3.0)
+}
+
+/// Rec. 709 luminance Y of a linear RGB triple (for display-oriented contrast tests).
+#[inline]
+pub fn luminance(c: Rgb) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// True when every channel is finite and not negative.
+#[inline]
+pub fn is_valid(c: Rgb) -> bool {
+    c.is_finite() && c.min_element() >= 0.0
+}
+
+/// Ward's RGBE encoding of a non-negative RGB triple in 4 bytes: an 8-bit mantissa per
+/// channel and one shared 8-bit exponent (bias 128).
+///
+/// Error bound (stated and tested): for the largest channel m the decoded value is
+/// within m/256 (relative error <= 0.39%); every other channel is within m/128 in
+/// absolute terms (so small channels of a saturated colour may lose all precision).
+/// Values below 2^-128 encode as 0; values above 2^127 saturate to the largest
+/// representable triple. NaN and negative inputs encode as 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[repr(transparent)]
+pub struct Rgbe(pub [u8; 4]);
+
+impl Rgbe {
+    /// The encoding of black.
+    pub const ZERO: Rgbe = Rgbe([0; 4]);
+
+    /// Encode (truncating mantissas; [`Rgbe::decode`] adds half a step back).
+    pub fn encode(c: Rgb) -> Rgbe {
+        let clean = |v: f32| if v.is_finite() && v > 0.0 { v } else if v == f32::INFINITY { f32::MAX } else { 0.0 };
+        let (r, g, b) = (clean(c.x), clean(c.y), clean(c.z));
+        let m = r.max(g).max(b);
+        if m < 2f32.powi(-128) {
+            return Rgbe::ZERO;
+        }
+        // m = mant * 2^e with mant in [0.5, 1).
+        let (mut e, _) = frexp(m);
+        if e > 127 {
+            return Rgbe([255, 255, 255, 255]);
+        }
+        // Scale so the largest channel maps into [128, 256).
+        let mut scale = ldexp(256.0, -e);
+        if (m * scale) as u32 >= 256 {
+            // Rounding of frexp at the top of the range: move up one exponent.
+            e += 1;
+            scale = ldexp(256.0, -e);
+        }
+        let q = |v: f32| ((v * scale) as u32).min(255) as u8;
+        Rgbe([q(r), q(g), q(b), (e + 128) as u8])
+    }
+
+    /// Decode to linear RGB. A zero mantissa decodes to exactly 0 so that black and
+    /// pure primaries survive the round trip.
+    pub fn decode(self) -> Rgb {
+        let [r, g, b, e] = self.0;
+        if e == 0 {
+            return Rgb::ZERO;
+        }
+        let f = ldexp(1.0, e as i32 - (128 + 8));
+        let d = |c: u8| if c == 0 { 0.0 } else { (c as f32 + 0.5) * f };
+        Rgb::new(d(r), d(g), d(b))
+    }
+}
+
+/// Split a positive finite float into mantissa in [0.5, 1) and exponent.
+fn frexp(x: f32) -> (i32, f32) {
+    let e = x.log2().floor() as i32 + 1;
+    (e, x * 2f32.powi(-e))
+}
+
+/// x * 2^e without overflow in the intermediate power for |e| up to ~260.
+fn ldexp(x: f32, e: i32) -> f32 {
+    let half = e / 2;
+    x * 2f32.powi(half) * 2f32.powi(e - half)
+}
+
+/// sRGB transfer function (IEC 61966-2-1): linear [0,1] to encoded [0,1].
+pub fn srgb_encode(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// Inverse sRGB transfer: encoded [0,1] to linear [0,1] (glTF base-colour textures are sRGB).
+pub fn srgb_decode(v: f32) -> f32 {
+    if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn rgbe_zero_and_primaries_round_trip_exactly_in_zero_channels() {
+        assert_eq!(Rgbe::encode(Rgb::ZERO).decode(), Rgb::ZERO);
+        let red = Rgbe::encode(Rgb::new(3.0, 0.0, 0.0)).decode();
+        assert_eq!((red.y, red.z), (0.0, 0.0));
+        assert!((red.x - 3.0).abs() / 3.0 < 1.0 / 256.0);
+    }
+
+    #[test]
+    fn rgbe_extremes() {
+        // Tiny: below the representable range goes to zero, just above survives.
+        assert_eq!(Rgbe::encode(Rgb::splat(1e-39)).decode(), Rgb::ZERO);
+        let tiny = Rgb::splat(1e-30);
+        let d = Rgbe::encode(tiny).decode();
+        assert!(((d.x - tiny.x) / tiny.x).abs() < 1.0 / 256.0, "{d:?}");
+        // Huge: 1e38 is representable, infinity saturates to a finite value.
+        let huge = Rgb::new(1e38, 5e37, 0.0);
+        let d = Rgbe::encode(huge).decode();
+        assert!(((d.x - huge.x) / huge.x).abs() < 1.0 / 256.0, "{d:?}");
+        assert!(Rgbe::encode(Rgb::splat(f32::INFINITY)).decode().is_finite());
+        assert_eq!(Rgbe::encode(Rgb::new(f32::NAN, -1.0, 0.0)).decode(), Rgb::ZERO);
+    }
+
+    proptest! {
+        #[test]
+        fn rgbe_error_within_stated_bound(r in 0f32..1e6, g in 0f32..1e6, b in 0f32..1e6, s in -100i32..100) {
+            let c = Rgb::new(r, g, b) * 2f32.powi(s);
+            prop_assume!(c.max_element() > 1e-37 && c.max_element() < 1e37);
+            let d = Rgbe::encode(c).decode();
+            let m = c.max_element();
+            for i in 0..3 {
+                let err = (d[i] - c[i]).abs();
+                let bound = if c[i] == m { m / 256.0 } else { m / 128.0 };
+                prop_assert!(err <= bound * 1.0001, "channel {i}: {c:?} -> {d:?}");
+            }
+        }
+
+        #[test]
+        fn srgb_round_trip(v in 0f32..1.0) {
+            prop_assert!((srgb_decode(srgb_encode(v)) - v).abs() < 1e-5);
+        }
+    }
+}

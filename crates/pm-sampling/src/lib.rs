@@ -1,0 +1,230 @@
+//! Sampling vocabulary: a deterministic low-discrepancy sample stream keyed by an
+//! index (a photon or a pixel sample, never a thread), and the warps from the unit
+//! square to the domains light transport integrates over (pbrt-v4 chapter A.5).
+//!
+//! The sample stream is Owen-scrambled Sobol' (Burley 2020, "Practical Hash-based
+//! Owen Scrambling", via `sobol_burley`), which is limited to 2^16 points per seed and
+//! 256 dimensions: the stream re-seeds every 2^16 indices and falls back to hashed
+//! white noise past dimension 255. This crate does no I/O and holds no global state.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
+
+/// Largest f32 below 1, so that warps never receive exactly 1.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// 64-bit mixing function (SplitMix64 finaliser), used to derive seeds from indices.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A stream of samples in [0,1) for one index (photon, pixel sample, ...). Each call
+/// advances one dimension. Equal (seed, index) give equal streams on every thread.
+#[derive(Clone, Debug)]
+pub struct Sampler {
+    seed: u32,
+    index: u32,
+    noise_key: u64,
+    dim: u32,
+}
+
+impl Sampler {
+    /// Sobol' dimensions available before the stream falls back to hashed noise.
+    pub const SOBOL_DIMS: u32 = 256;
+
+    /// The stream for `index` within the sequence named by `seed`.
+    pub fn new(seed: u64, index: u64) -> Sampler {
+        let block = index >> 16;
+        let block_seed = mix64(seed ^ mix64(block.wrapping_add(0x9e37_79b9_7f4a_7c15)));
+        Sampler {
+            seed: block_seed as u32,
+            index: (index & 0xffff) as u32,
+            noise_key: mix64(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ index),
+            dim: 0,
+        }
+    }
+
+    /// The next sample in [0, 1).
+    #[inline]
+    pub fn next_1d(&mut self) -> f32 {
+        let d = self.dim;
+        self.dim += 1;
+        if d < Self::SOBOL_DIMS {
+            sobol_burley::sample(self.index, d, self.seed).min(ONE_MINUS_EPSILON)
+        } else {
+            let h = mix64(self.noise_key ^ (d as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            ((h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)).min(ONE_MINUS_EPSILON)
+        }
+    }
+
+    /// The next two samples as a point in [0,1)^2.
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        Vec2::new(self.next_1d(), self.next_1d())
+    }
+}
+
+/// An orthonormal basis around a unit normal (Duff et al. 2017, "Building an
+/// Orthonormal Basis, Revisited"): returns (tangent, bitangent).
+#[inline]
+pub fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+/// Express a local direction (z = normal) in world space around `n`.
+#[inline]
+pub fn to_world(local: Vec3, n: Vec3) -> Vec3 {
+    let (t, b) = basis(n);
+    t * local.x + b * local.y + n * local.z
+}
+
+/// Concentric map of the unit square to the unit disk (Shirley and Chiu 1997).
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Cosine-weighted direction on the hemisphere around +z (Malley's method);
+/// pdf = cos(theta) / pi [sr^-1].
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`cosine_hemisphere`] [sr^-1].
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform direction on the unit sphere; pdf = 1 / (4 pi) [sr^-1].
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Uniform direction in the cone of half-angle acos(cos_max) around +z;
+/// pdf = 1 / (2 pi (1 - cos_max)) [sr^-1].
+pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_t = 1.0 - u.x * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+/// Density of [`uniform_cone`] [sr^-1].
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (TAU * (1.0 - cos_max))
+}
+
+/// Uniform barycentrics (b0, b1) on a triangle (pbrt-v4's area-preserving warp,
+/// Heitz 2019 "A Low-Distortion Map Between Triangle and Square").
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    let (b0, b1);
+    if u.x < u.y {
+        b0 = u.x / 2.0;
+        b1 = u.y - b0;
+    } else {
+        b1 = u.y / 2.0;
+        b0 = u.x - b1;
+    }
+    Vec2::new(b0, b1)
+}
+
+/// Choose an index from a discrete distribution by a cumulative table (last entry is
+/// the total, entries non-decreasing). Returns the index; u in [0,1).
+pub fn sample_cdf(cdf: &[f64], u: f32) -> usize {
+    let total = *cdf.last().unwrap_or(&0.0);
+    let target = u as f64 * total;
+    let i = cdf.partition_point(|&c| c <= target);
+    i.min(cdf.len().saturating_sub(1))
+}
+
+/// 4 pi: the solid angle of the sphere [sr].
+pub const FOUR_PI: f32 = 2.0 * TAU;
+/// pi, re-exported for radiometric formulas (E = pi L for a uniform hemisphere).
+pub const PI_F32: f32 = PI;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn streams_are_keyed_by_index_not_call_order() {
+        let a: Vec<f32> = { let mut s = Sampler::new(7, 123_456); (0..300).map(|_| s.next_1d()).collect() };
+        let _other = { let mut s = Sampler::new(7, 5); s.next_1d() };
+        let b: Vec<f32> = { let mut s = Sampler::new(7, 123_456); (0..300).map(|_| s.next_1d()).collect() };
+        assert_eq!(a, b);
+        assert!(a.iter().all(|&x| (0.0..1.0).contains(&x)));
+    }
+
+    #[test]
+    fn stratified_first_dimension_has_low_discrepancy() {
+        // 1024 consecutive indices fall one in each of 1024 strata (Sobol' property,
+        // preserved by Owen scrambling).
+        let mut hits = vec![0u32; 1024];
+        for i in 0..1024 {
+            let x = Sampler::new(3, i).next_1d();
+            hits[(x * 1024.0) as usize] += 1;
+        }
+        assert!(hits.iter().all(|&h| h == 1));
+    }
+
+    #[test]
+    fn cosine_hemisphere_mean_cos_is_two_thirds() {
+        // E[cos] under pdf cos/pi is 2/3.
+        let n = 1 << 14;
+        let mean: f64 = (0..n).map(|i| { let mut s = Sampler::new(1, i); cosine_hemisphere(s.next_2d()).z as f64 }).sum::<f64>() / n as f64;
+        assert!((mean - 2.0 / 3.0).abs() < 1e-3, "{mean}");
+    }
+
+    #[test]
+    fn cdf_sampling_respects_weights_and_zero_entries() {
+        let cdf = [1.0, 1.0, 4.0];
+        assert_eq!(sample_cdf(&cdf, 0.0), 0);
+        assert_eq!(sample_cdf(&cdf, 0.24), 0);
+        assert_eq!(sample_cdf(&cdf, 0.26), 2);
+        assert_eq!(sample_cdf(&cdf, ONE_MINUS_EPSILON), 2);
+    }
+
+    proptest! {
+        #[test]
+        fn basis_is_orthonormal(x in -1f32..1.0, y in -1f32..1.0, z in -1f32..1.0) {
+            let n = Vec3::new(x, y, z);
+            prop_assume!(n.length() > 1e-3);
+            let n = n.normalize();
+            let (t, b) = basis(n);
+            prop_assert!((t.length() - 1.0).abs() < 1e-4 && (b.length() - 1.0).abs() < 1e-4);
+            prop_assert!(t.dot(n).abs() < 1e-4 && b.dot(n).abs() < 1e-4 && t.dot(b).abs() < 1e-4);
+        }
+
+        #[test]
+        fn warps_stay_in_domain(u in 0f32..1.0, v in 0f32..1.0, c in -1f32..0.999) {
+            let u2 = Vec2::new(u, v);
+            prop_assert!(concentric_disk(u2).length() <= 1.0 + 1e-5);
+            prop_assert!((uniform_sphere(u2).length() - 1.0).abs() < 1e-4);
+            let w = uniform_cone(u2, c);
+            prop_assert!(w.z >= c - 1e-5);
+            let b = uniform_triangle(u2);
+            prop_assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+        }
+    }
+}
