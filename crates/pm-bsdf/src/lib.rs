@@ -1,0 +1,317 @@
+//! The scattering models of the scene (one place for all of them): Lambertian
+//! diffuse, perfect mirror, smooth dielectric (glass, solid or thin-walled), and GGX
+//! microfacet glossy reflection (conductor, and dielectric over a diffuse base).
+//!
+//! Conventions (pbrt-v4, chapter 9): `wo` and `wi` are unit vectors pointing away
+//! from the surface; `n` is the unit shading normal on the side the geometry was
+//! defined with. `f` is the BSDF value [sr^-1]; a sample's `weight` is
+//! f |cos theta_i| / pdf (unitless per channel), which is what a photon's power or a
+//! path's throughput is multiplied by. This crate knows nothing of scenes, photons
+//! or files.
+
+use glam::{Vec2, Vec3};
+use pm_color::Rgb;
+use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
+
+/// Schlick reflectance at normal incidence of a dielectric coat (IOR 1.5).
+const COAT_F0: f32 = 0.04;
+
+/// One scattering model. Built once per material by the scene crate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bsdf {
+    /// Lambertian diffuse: f = rho / pi.
+    Lambert {
+        /// Hemispherical reflectance rho in [0,1] per channel.
+        rho: Rgb,
+    },
+    /// Perfect specular reflection with reflectance `r` (glTF metallic, roughness ~ 0).
+    Mirror {
+        /// Reflectance in [0,1] per channel.
+        r: Rgb,
+    },
+    /// Smooth dielectric with Fresnel reflection and refraction (total internal
+    /// reflection included).
+    Glass {
+        /// Index of refraction of the inside relative to the outside (n2 / n1).
+        eta: f32,
+        /// Transmittance colour in [0,1] per channel (glTF base colour).
+        tint: Rgb,
+        /// Thin-walled (no `KHR_materials_volume`): transmitted light is not bent.
+        thin: bool,
+    },
+    /// GGX microfacet conductor with Schlick Fresnel (glTF metallic, rough).
+    Conductor {
+        /// Reflectance at normal incidence per channel.
+        f0: Rgb,
+        /// GGX roughness alpha = roughness^2.
+        alpha: f32,
+    },
+    /// Lambertian base under a GGX dielectric coat with F0 = 0.04 (glTF dielectric
+    /// with roughness below the diffuse threshold).
+    Plastic {
+        /// Diffuse reflectance of the base per channel.
+        rho: Rgb,
+        /// GGX roughness alpha = roughness^2.
+        alpha: f32,
+    },
+}
+
+/// A sampled scattering direction.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    /// Incident direction (pointing away from the surface).
+    pub wi: Vec3,
+    /// f |cos theta_i| / pdf per channel (for specular lobes: the lobe's reflectance
+    /// or transmittance divided by its selection probability).
+    pub weight: Rgb,
+    /// Solid-angle density of `wi` [sr^-1]; for specular lobes the discrete selection
+    /// probability (pbrt's convention: not comparable with non-specular pdfs).
+    pub pdf: f32,
+    /// True for a delta lobe (mirror, glass).
+    pub specular: bool,
+    /// True when `wi` is on the other side of the surface from `wo`.
+    pub transmitted: bool,
+}
+
+impl Bsdf {
+    /// True when every lobe is a Dirac delta (photons are not stored here; the
+    /// renderer recurses instead of estimating).
+    pub fn is_specular(&self) -> bool {
+        matches!(self, Bsdf::Mirror { .. } | Bsdf::Glass { .. })
+    }
+
+    /// Diffuse-like albedo used to turn irradiance E into outgoing radiance
+    /// L = albedo / pi * E where a full BSDF evaluation is not wanted (Christensen
+    /// 1999 section 2.2; the "radiance estimate" of final-gather ray hits). Exact for
+    /// Lambert; for glossy surfaces it is the directional albedo at normal incidence,
+    /// an approximation that ignores the lobe's shape.
+    pub fn diffuse_albedo(&self) -> Rgb {
+        match *self {
+            Bsdf::Lambert { rho } => rho,
+            Bsdf::Plastic { rho, .. } => rho * (1.0 - COAT_F0) + Rgb::splat(COAT_F0),
+            Bsdf::Conductor { f0, .. } => f0,
+            Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
+        }
+    }
+
+    /// BSDF value f(wo, wi) [sr^-1]; zero for delta lobes.
+    pub fn f(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+        let (t, b) = basis(n);
+        let lo = to_local(wo, t, b, n);
+        let li = to_local(wi, t, b, n);
+        if lo.z * li.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let (lo, li) = if lo.z < 0.0 { (-lo, -li) } else { (lo, li) };
+        match *self {
+            Bsdf::Lambert { rho } => rho * FRAC_1_PI,
+            Bsdf::Conductor { f0, alpha } => ggx_f(lo, li, alpha, f0),
+            Bsdf::Plastic { rho, alpha } => plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0)),
+            Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
+        }
+    }
+
+    /// Solid-angle density of sampling `wi` given `wo` [sr^-1]; zero for delta lobes.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        let (t, b) = basis(n);
+        let lo = to_local(wo, t, b, n);
+        let li = to_local(wi, t, b, n);
+        if lo.z * li.z <= 0.0 {
+            return 0.0;
+        }
+        let (lo, li) = if lo.z < 0.0 { (-lo, -li) } else { (lo, li) };
+        match *self {
+            Bsdf::Lambert { .. } => cosine_hemisphere_pdf(li.z),
+            Bsdf::Conductor { alpha, .. } => ggx_pdf(lo, li, alpha),
+            Bsdf::Plastic { alpha, .. } => {
+                let ps = plastic_spec_prob(lo);
+                ps * ggx_pdf(lo, li, alpha) + (1.0 - ps) * cosine_hemisphere_pdf(li.z)
+            }
+            Bsdf::Mirror { .. } | Bsdf::Glass { .. } => 0.0,
+        }
+    }
+
+    /// Importance-sample an incident direction. `u` picks the direction, `uc` the lobe.
+    /// Returns `None` when the sample carries no energy (below the horizon, or a
+    /// degenerate microfacet configuration).
+    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        let (t, b) = basis(n);
+        let lo_raw = to_local(wo, t, b, n);
+        if lo_raw.z == 0.0 || !lo_raw.is_finite() {
+            return None;
+        }
+        // Work on the side of wo; flip back at the end.
+        let side = lo_raw.z.signum();
+        let lo = lo_raw * Vec3::new(1.0, 1.0, side);
+        let world = |l: Vec3| to_world(l * Vec3::new(1.0, 1.0, side), t, b, n);
+        let s = match *self {
+            Bsdf::Lambert { rho } => {
+                let li = cosine_hemisphere(u);
+                if li.z <= 0.0 {
+                    return None;
+                }
+                BsdfSample { wi: world(li), weight: rho, pdf: cosine_hemisphere_pdf(li.z), specular: false, transmitted: false }
+            }
+            Bsdf::Mirror { r } => {
+                let li = Vec3::new(-lo.x, -lo.y, lo.z);
+                BsdfSample { wi: world(li), weight: r, pdf: 1.0, specular: true, transmitted: false }
+            }
+            Bsdf::Glass { eta, tint, thin } => sample_glass(lo_raw, eta, tint, thin, uc, |l| to_world(l, t, b, n))?,
+            Bsdf::Conductor { f0, alpha } => {
+                let li = reflect(lo, ggx_sample_h(u, alpha));
+                if li.z <= 0.0 {
+                    return None;
+                }
+                let pdf = ggx_pdf(lo, li, alpha);
+                if pdf <= 0.0 {
+                    return None;
+                }
+                BsdfSample { wi: world(li), weight: ggx_f(lo, li, alpha, f0) * li.z / pdf, pdf, specular: false, transmitted: false }
+            }
+            Bsdf::Plastic { rho, alpha } => {
+                let ps = plastic_spec_prob(lo);
+                let li = if uc < ps { reflect(lo, ggx_sample_h(u, alpha)) } else { cosine_hemisphere(u) };
+                if li.z <= 0.0 {
+                    return None;
+                }
+                let pdf = ps * ggx_pdf(lo, li, alpha) + (1.0 - ps) * cosine_hemisphere_pdf(li.z);
+                if pdf <= 0.0 {
+                    return None;
+                }
+                let f = plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0));
+                BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false }
+            }
+        };
+        (s.wi.is_finite() && s.weight.is_finite()).then_some(s)
+    }
+}
+
+#[inline]
+fn to_local(v: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
+    Vec3::new(v.dot(t), v.dot(b), v.dot(n))
+}
+
+#[inline]
+fn to_world(l: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
+    (t * l.x + b * l.y + n * l.z).normalize_or_zero()
+}
+
+#[inline]
+fn reflect(wo: Vec3, h: Vec3) -> Vec3 {
+    2.0 * wo.dot(h) * h - wo
+}
+
+/// Unpolarised Fresnel reflectance of a smooth dielectric interface (pbrt-v4 eq.
+/// 9.5). `cos_i` is measured on the incident side, `eta` = n_t / n_i. Returns 1 on
+/// total internal reflection.
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_parl * r_parl + r_perp * r_perp)
+}
+
+/// Smooth glass in the local frame; `lo.z` < 0 means wo is inside the object.
+fn sample_glass(lo: Vec3, eta: f32, tint: Rgb, thin: bool, uc: f32, world: impl Fn(Vec3) -> Vec3) -> Option<BsdfSample> {
+    let entering = lo.z > 0.0;
+    let eta_rel = if thin || entering { eta } else { 1.0 / eta };
+    let cos_o = lo.z.abs();
+    let mut r = fresnel_dielectric(cos_o, eta_rel);
+    if thin && r < 1.0 {
+        // Thin slab: multiple internal bounces between two parallel faces,
+        // R' = R + T^2 R / (1 - R^2) = 2R / (1 + R) (pbrt-v4 ThinDielectricBxDF).
+        r += (1.0 - r) * (1.0 - r) * r / (1.0 - r * r);
+    }
+    if uc < r {
+        let li = Vec3::new(-lo.x, -lo.y, lo.z);
+        return Some(BsdfSample { wi: world(li), weight: Rgb::ONE, pdf: r, specular: true, transmitted: false });
+    }
+    let li = if thin {
+        -lo
+    } else {
+        // Snell refraction about the normal on wo's side.
+        let n_side = Vec3::new(0.0, 0.0, lo.z.signum());
+        let cos_i = cos_o;
+        let sin2_t = (1.0 - cos_i * cos_i) / (eta_rel * eta_rel);
+        if sin2_t >= 1.0 {
+            return None; // unreachable: r == 1 under total internal reflection
+        }
+        let cos_t = (1.0 - sin2_t).sqrt();
+        -lo / eta_rel + (cos_i / eta_rel - cos_t) * n_side
+    };
+    // Radiance is scaled by 1/eta^2 across a refracting interface, but photon power
+    // and importance are not; this crate returns the power (adjoint) weight, which is
+    // also what the renderer needs for radiance when it traces from the eye with
+    // symmetric throughput (both ends of a closed glass object cancel).
+    Some(BsdfSample { wi: world(li), weight: tint, pdf: 1.0 - r, specular: true, transmitted: true })
+}
+
+/// GGX normal distribution D(h) [sr^-1] (Walter et al. 2007, eq. 33).
+fn ggx_d(cos_h: f32, alpha: f32) -> f32 {
+    let a2 = alpha * alpha;
+    let c2 = cos_h * cos_h;
+    let d = c2 * (a2 - 1.0) + 1.0;
+    a2 / (PI * d * d)
+}
+
+/// Smith masking G1 for GGX (Walter et al. 2007, eq. 34).
+fn ggx_g1(cos_v: f32, alpha: f32) -> f32 {
+    let a2 = alpha * alpha;
+    let c2 = cos_v * cos_v;
+    2.0 * cos_v / (cos_v + (a2 + (1.0 - a2) * c2).max(0.0).sqrt())
+}
+
+fn schlick(f0: Rgb, cos: f32) -> Rgb {
+    let m = (1.0 - cos.clamp(0.0, 1.0)).powi(5);
+    f0 + (Rgb::ONE - f0) * m
+}
+
+/// GGX microfacet reflection f = D G F / (4 cos_o cos_i), both directions above the surface.
+fn ggx_f(lo: Vec3, li: Vec3, alpha: f32, f0: Rgb) -> Rgb {
+    let h = (lo + li).normalize_or_zero();
+    if h == Vec3::ZERO || lo.z <= 0.0 || li.z <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let d = ggx_d(h.z, alpha);
+    let g = ggx_g1(lo.z, alpha) * ggx_g1(li.z, alpha);
+    schlick(f0, lo.dot(h)) * (d * g / (4.0 * lo.z * li.z))
+}
+
+/// Sample a half vector from D(h) cos(theta_h).
+fn ggx_sample_h(u: Vec2, alpha: f32) -> Vec3 {
+    let a2 = alpha * alpha;
+    let cos2 = ((1.0 - u.x) / (1.0 + (a2 - 1.0) * u.x)).clamp(0.0, 1.0);
+    let cos_t = cos2.sqrt();
+    let sin_t = (1.0 - cos2).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+/// Solid-angle pdf of `li` under half-vector sampling: D(h) cos_h / (4 |lo.h|).
+fn ggx_pdf(lo: Vec3, li: Vec3, alpha: f32) -> f32 {
+    let h = (lo + li).normalize_or_zero();
+    let lh = lo.dot(h);
+    if h.z <= 0.0 || lh <= 0.0 {
+        return 0.0;
+    }
+    ggx_d(h.z, alpha) * h.z / (4.0 * lh)
+}
+
+/// Diffuse base under the coat, attenuated by the light the coat reflects.
+fn plastic_diffuse(rho: Rgb, lo: Vec3) -> Rgb {
+    rho * (FRAC_1_PI * (1.0 - schlick(Rgb::splat(COAT_F0), lo.z).x))
+}
+
+/// Probability of sampling the coat lobe: its Fresnel weight, kept away from 0 and 1.
+fn plastic_spec_prob(lo: Vec3) -> f32 {
+    schlick(Rgb::splat(COAT_F0), lo.z).x.clamp(0.1, 0.9)
+}
+
+#[cfg(test)]
+mod tests;
