@@ -49,7 +49,15 @@ impl Rgbe {
 
     /// Encode (truncating mantissas; [`Rgbe::decode`] adds half a step back).
     pub fn encode(c: Rgb) -> Rgbe {
-        let clean = |v: f32| if v.is_finite() && v > 0.0 { v } else if v == f32::INFINITY { f32::MAX } else { 0.0 };
+        let clean = |v: f32| {
+            if v.is_finite() && v > 0.0 {
+                v
+            } else if v == f32::INFINITY {
+                f32::MAX
+            } else {
+                0.0
+            }
+        };
         let (r, g, b) = (clean(c.x), clean(c.y), clean(c.z));
         let m = r.max(g).max(b);
         if m < 2f32.powi(-128) {
@@ -99,12 +107,20 @@ fn ldexp(x: f32, e: i32) -> f32 {
 /// sRGB transfer function (IEC 61966-2-1): linear [0,1] to encoded [0,1].
 pub fn srgb_encode(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// Inverse sRGB transfer: encoded [0,1] to linear [0,1] (glTF base-colour textures are sRGB).
 pub fn srgb_decode(v: f32) -> f32 {
-    if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 #[cfg(test)]
@@ -132,7 +148,10 @@ mod tests {
         let d = Rgbe::encode(huge).decode();
         assert!(((d.x - huge.x) / huge.x).abs() < 1.0 / 256.0, "{d:?}");
         assert!(Rgbe::encode(Rgb::splat(f32::INFINITY)).decode().is_finite());
-        assert_eq!(Rgbe::encode(Rgb::new(f32::NAN, -1.0, 0.0)).decode(), Rgb::ZERO);
+        assert_eq!(
+            Rgbe::encode(Rgb::new(f32::NAN, -1.0, 0.0)).decode(),
+            Rgb::ZERO
+        );
     }
 
     proptest! {

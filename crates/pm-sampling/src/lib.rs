@@ -74,7 +74,10 @@ pub fn basis(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1f32.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 /// Express a local direction (z = normal) in world space around `n`.
@@ -93,7 +96,10 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     let (r, theta) = if o.x.abs() > o.y.abs() {
         (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
     } else {
-        (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
     };
     r * Vec2::new(theta.cos(), theta.sin())
 }
@@ -169,9 +175,18 @@ mod tests {
 
     #[test]
     fn streams_are_keyed_by_index_not_call_order() {
-        let a: Vec<f32> = { let mut s = Sampler::new(7, 123_456); (0..300).map(|_| s.next_1d()).collect() };
-        let _other = { let mut s = Sampler::new(7, 5); s.next_1d() };
-        let b: Vec<f32> = { let mut s = Sampler::new(7, 123_456); (0..300).map(|_| s.next_1d()).collect() };
+        let a: Vec<f32> = {
+            let mut s = Sampler::new(7, 123_456);
+            (0..300).map(|_| s.next_1d()).collect()
+        };
+        let _other = {
+            let mut s = Sampler::new(7, 5);
+            s.next_1d()
+        };
+        let b: Vec<f32> = {
+            let mut s = Sampler::new(7, 123_456);
+            (0..300).map(|_| s.next_1d()).collect()
+        };
         assert_eq!(a, b);
         assert!(a.iter().all(|&x| (0.0..1.0).contains(&x)));
     }
@@ -192,7 +207,13 @@ mod tests {
     fn cosine_hemisphere_mean_cos_is_two_thirds() {
         // E[cos] under pdf cos/pi is 2/3.
         let n = 1 << 14;
-        let mean: f64 = (0..n).map(|i| { let mut s = Sampler::new(1, i); cosine_hemisphere(s.next_2d()).z as f64 }).sum::<f64>() / n as f64;
+        let mean: f64 = (0..n)
+            .map(|i| {
+                let mut s = Sampler::new(1, i);
+                cosine_hemisphere(s.next_2d()).z as f64
+            })
+            .sum::<f64>()
+            / n as f64;
         assert!((mean - 2.0 / 3.0).abs() < 1e-3, "{mean}");
     }
 

@@ -1,0 +1,587 @@
+//! glTF 2.0 (.gltf with embedded or external buffers, and .glb) to [`Scene`].
+//!
+//! Every input check happens here, once; the rest of the workspace trusts a `Scene`.
+
+use crate::light::Light;
+use crate::{Camera, LightKind, Material, Scene, Texture, Triangle};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use pm_bsdf::Bsdf;
+use pm_color::{Rgb, srgb_decode};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Why a scene file could not be loaded. The message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// The scene file.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The glTF crate rejected the document or its buffers.
+    #[error("{path}: not a valid glTF 2.0 file: {message}")]
+    Gltf {
+        /// The scene file.
+        path: PathBuf,
+        /// What the parser said.
+        message: String,
+    },
+    /// The document parsed but its content is unusable.
+    #[error("{path}: {message}")]
+    Content {
+        /// The scene file.
+        path: PathBuf,
+        /// The problem, naming the mesh, accessor or node.
+        message: String,
+    },
+}
+
+/// Below this roughness a metal is a perfect mirror.
+const MIRROR_ROUGHNESS: f32 = 0.05;
+/// At or above this roughness a dielectric is treated as Lambertian (its coat's
+/// highlight is spread over the hemisphere); below it, a GGX-coated diffuse base.
+const DIFFUSE_ROUGHNESS: f32 = 0.5;
+/// GGX alpha is clamped from below: near-delta microfacet lobes are numerically
+/// unstable and better served by the mirror model.
+const MIN_ALPHA: f32 = 0.02;
+
+const SUPPORTED_EXTENSIONS: [&str; 5] = [
+    "KHR_lights_punctual",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_volume",
+];
+
+/// Load a glTF 2.0 scene. Problems that do not stop loading are in `Scene::warnings`.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let gltf_err = |e: gltf::Error| SceneError::Gltf {
+        path: path.to_owned(),
+        message: e.to_string(),
+    };
+    let content = |message: String| SceneError::Content {
+        path: path.to_owned(),
+        message,
+    };
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(gltf_err)?;
+    let base_dir = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone())
+        .map_err(gltf_err)?;
+    let doc = gltf.document;
+
+    let mut hasher = blake3::Hasher::new();
+    hasher.update(&bytes);
+    for b in &buffers {
+        hasher.update(&b.0);
+    }
+    let content_hash = *hasher.finalize().as_bytes();
+
+    let mut warnings = Vec::new();
+    for ext in doc.extensions_used() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            warnings.push(format!("extension {ext} is not supported and is ignored"));
+        }
+    }
+
+    // Textures: decode only images used as base colour.
+    let mut textures = Vec::new();
+    let mut texture_of_image = std::collections::HashMap::new();
+    let mut materials = Vec::new();
+    for (i, m) in doc.materials().enumerate() {
+        let name = m
+            .name()
+            .map_or_else(|| format!("material #{i}"), str::to_owned);
+        let pbr = m.pbr_metallic_roughness();
+        let bc = pbr.base_color_factor();
+        let mut base = Rgb::new(bc[0], bc[1], bc[2]);
+        if !base.is_finite() || base.min_element() < 0.0 {
+            return Err(content(format!(
+                "material '{name}': baseColorFactor {bc:?} is not a colour"
+            )));
+        }
+        if base.max_element() > 1.0 {
+            warnings.push(format!(
+                "material '{name}': albedo {base} above 1 clamped to 1"
+            ));
+            base = base.min(Rgb::ONE);
+        }
+        let metallic = pbr.metallic_factor();
+        let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
+        let alpha = (roughness * roughness).max(MIN_ALPHA);
+        let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+        let bsdf = if transmission > 0.0 {
+            if transmission < 1.0 {
+                warnings.push(format!(
+                    "material '{name}': partial transmission {transmission} treated as full"
+                ));
+            }
+            let thin = m.volume().is_none_or(|v| v.thickness_factor() <= 0.0);
+            let eta = m.ior().unwrap_or(1.5);
+            if !(eta.is_finite() && eta >= 1.0) {
+                return Err(content(format!(
+                    "material '{name}': ior {eta} must be >= 1"
+                )));
+            }
+            Bsdf::Glass {
+                eta,
+                tint: base,
+                thin,
+            }
+        } else if metallic >= 0.5 {
+            if roughness < MIRROR_ROUGHNESS {
+                Bsdf::Mirror { r: base }
+            } else {
+                Bsdf::Conductor { f0: base, alpha }
+            }
+        } else if roughness >= DIFFUSE_ROUGHNESS {
+            Bsdf::Lambert { rho: base }
+        } else {
+            Bsdf::Plastic { rho: base, alpha }
+        };
+        let base_texture = match pbr.base_color_texture() {
+            None => None,
+            Some(info) => {
+                if info.tex_coord() != 0 {
+                    warnings.push(format!("material '{name}': base colour texture uses TEXCOORD_{}; TEXCOORD_0 is used", info.tex_coord()));
+                }
+                let image = info.texture().source();
+                let idx = match texture_of_image.get(&image.index()) {
+                    Some(&t) => t,
+                    None => {
+                        let data = gltf::image::Data::from_source(
+                            image.source(),
+                            Some(base_dir),
+                            &buffers,
+                        )
+                        .map_err(|e| {
+                            content(format!("material '{name}': base colour image: {e}"))
+                        })?;
+                        textures.push(decode_texture(&data).ok_or_else(|| {
+                            content(format!(
+                                "material '{name}': unsupported image format {:?}",
+                                data.format
+                            ))
+                        })?);
+                        texture_of_image.insert(image.index(), textures.len() as u32 - 1);
+                        textures.len() as u32 - 1
+                    }
+                };
+                Some(idx)
+            }
+        };
+        if m.emissive_texture().is_some() {
+            warnings.push(format!(
+                "material '{name}': emissive texture ignored (emissiveFactor used)"
+            ));
+        }
+        let ef = m.emissive_factor();
+        let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
+        if !pm_color::is_valid(emission) {
+            return Err(content(format!(
+                "material '{name}': emission {emission} is not a non-negative finite colour"
+            )));
+        }
+        materials.push(Material {
+            name,
+            bsdf,
+            base_texture,
+            emission,
+            double_sided: m.double_sided(),
+        });
+    }
+    // glTF's default material (primitives without one): white-ish diffuse.
+    let default_material = materials.len() as u32;
+    materials.push(Material {
+        name: "default".into(),
+        bsdf: Bsdf::Lambert {
+            rho: Rgb::splat(0.8),
+        },
+        base_texture: None,
+        emission: Rgb::ZERO,
+        double_sided: false,
+    });
+
+    let scene = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .ok_or_else(|| content("the file has no scene".into()))?;
+    let mut triangles = Vec::new();
+    let mut lights = Vec::new();
+    let mut camera = None;
+    let mut skipped_degenerate = 0usize;
+    let mut warned_modes = BTreeSet::new();
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> =
+        scene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    stack.reverse();
+    while let Some((node, parent, depth)) = stack.pop() {
+        if depth > 256 {
+            return Err(content(
+                "node hierarchy deeper than 256 levels (a cycle?)".into(),
+            ));
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(content(format!(
+                "node {}: transform is not finite",
+                node.index()
+            )));
+        }
+        let node_name = node
+            .name()
+            .map_or_else(|| format!("node #{}", node.index()), str::to_owned);
+        if let Some(mesh) = node.mesh() {
+            let normal_m = Mat3::from_mat4(world).inverse().transpose();
+            for (pi, prim) in mesh.primitives().enumerate() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    if warned_modes.insert(format!("{:?}", prim.mode())) {
+                        warnings.push(format!(
+                            "primitives of mode {:?} are skipped (only triangles are rendered)",
+                            prim.mode()
+                        ));
+                    }
+                    continue;
+                }
+                let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
+                let first = triangles.len();
+                let material = prim
+                    .material()
+                    .index()
+                    .map_or(default_material, |i| i as u32);
+                let skipped =
+                    read_primitive(&prim, &buffers, world, normal_m, material, &mut triangles)
+                        .map_err(|m| content(format!("{what}: {m}")))?;
+                skipped_degenerate += skipped;
+                let mat = &materials[material as usize];
+                if mat.emission.max_element() > 0.0 && triangles.len() > first {
+                    let tris: Vec<u32> = (first as u32..triangles.len() as u32).collect();
+                    let mut cdf = Vec::with_capacity(tris.len());
+                    let mut acc = 0.0f64;
+                    for &t in &tris {
+                        acc += triangles[t as usize].area as f64;
+                        cdf.push(acc);
+                    }
+                    lights.push(Light {
+                        name: format!("{node_name} ({})", mat.name),
+                        kind: LightKind::Area {
+                            tris,
+                            cdf,
+                            area: acc as f32,
+                            emission: mat.emission,
+                            two_sided: mat.double_sided,
+                        },
+                        power: Rgb::ZERO,
+                    });
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            let position = world.transform_point3(Vec3::ZERO);
+            let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+            let c = light.color();
+            let value = Rgb::new(c[0], c[1], c[2]) * light.intensity();
+            if !pm_color::is_valid(value) {
+                return Err(content(format!(
+                    "light '{node_name}': intensity x colour {value} is not a non-negative finite colour"
+                )));
+            }
+            if light.range().is_some() {
+                warnings.push(format!(
+                    "light '{node_name}': range is ignored (inverse-square falloff is physical)"
+                ));
+            }
+            let kind = match light.kind() {
+                gltf::khr_lights_punctual::Kind::Point => LightKind::Point {
+                    position,
+                    intensity: value,
+                },
+                gltf::khr_lights_punctual::Kind::Spot {
+                    inner_cone_angle,
+                    outer_cone_angle,
+                } => {
+                    if axis == Vec3::ZERO {
+                        return Err(content(format!(
+                            "light '{node_name}': degenerate orientation"
+                        )));
+                    }
+                    let outer = outer_cone_angle.clamp(1e-4, std::f32::consts::FRAC_PI_2);
+                    let inner = inner_cone_angle.clamp(0.0, outer);
+                    LightKind::Spot {
+                        position,
+                        direction: axis,
+                        intensity: value,
+                        cos_inner: inner.cos(),
+                        cos_outer: outer.cos(),
+                    }
+                }
+                gltf::khr_lights_punctual::Kind::Directional => {
+                    if axis == Vec3::ZERO {
+                        return Err(content(format!(
+                            "light '{node_name}': degenerate orientation"
+                        )));
+                    }
+                    LightKind::Directional {
+                        direction: axis,
+                        irradiance: value,
+                        center: Vec3::ZERO,
+                        radius: 0.0,
+                    }
+                }
+            };
+            lights.push(Light {
+                name: node_name.clone(),
+                kind,
+                power: Rgb::ZERO,
+            });
+        }
+        if camera.is_none() {
+            if let Some(cam) = node.camera() {
+                match cam.projection() {
+                    gltf::camera::Projection::Perspective(p) => {
+                        let r = Mat3::from_mat4(world);
+                        let forward = (r * -Vec3::Z).normalize_or_zero();
+                        let up0 = (r * Vec3::Y).normalize_or_zero();
+                        let right = forward.cross(up0).normalize_or_zero();
+                        let up = right.cross(forward);
+                        let yfov = p.yfov();
+                        if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                            return Err(content(format!(
+                                "camera on '{node_name}': degenerate orientation or yfov {yfov}"
+                            )));
+                        }
+                        camera = Some(Camera {
+                            position: world.transform_point3(Vec3::ZERO),
+                            forward,
+                            up,
+                            right,
+                            yfov,
+                            aspect: p.aspect_ratio(),
+                        });
+                    }
+                    gltf::camera::Projection::Orthographic(_) => {
+                        warnings.push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
+                    }
+                }
+            }
+        }
+        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+            stack.push((child, world, depth + 1));
+        }
+    }
+    if skipped_degenerate > 0 {
+        warnings.push(format!("{skipped_degenerate} zero-area triangles skipped"));
+    }
+    Ok(Scene::build(
+        triangles,
+        materials,
+        textures,
+        lights,
+        camera,
+        content_hash,
+        warnings,
+    ))
+}
+
+/// Append one primitive's triangles in world space. Returns the number of degenerate
+/// triangles skipped; errors name what is wrong with the accessors.
+fn read_primitive(
+    prim: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    world: Mat4,
+    normal_m: Mat3,
+    material: u32,
+    out: &mut Vec<Triangle>,
+) -> Result<usize, String> {
+    use gltf::accessor::{DataType, Dimensions};
+    let check = |sem: &str,
+                 acc: gltf::Accessor,
+                 dims: Dimensions,
+                 types: &[DataType]|
+     -> Result<(), String> {
+        if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
+            return Err(format!(
+                "{sem} accessor {} is {:?} {:?}, expected {dims:?} of {types:?}",
+                acc.index(),
+                acc.dimensions(),
+                acc.data_type()
+            ));
+        }
+        if acc.sparse().is_some() {
+            return Err(format!(
+                "{sem} accessor {} is sparse, which is not supported",
+                acc.index()
+            ));
+        }
+        let Some(view) = acc.view() else {
+            return Err(format!("{sem} accessor {} has no buffer view", acc.index()));
+        };
+        let buf_len = buffers.get(view.buffer().index()).map_or(0, |b| b.0.len());
+        let elem = acc.size();
+        let stride = view.stride().unwrap_or(elem);
+        let need = view.offset()
+            + acc.offset()
+            + if acc.count() == 0 {
+                0
+            } else {
+                (acc.count() - 1) * stride + elem
+            };
+        if view.offset() + view.length() > buf_len || need > view.offset() + view.length() {
+            return Err(format!(
+                "{sem} accessor {} reads past the end of its buffer ({need} bytes needed, {buf_len} available)",
+                acc.index()
+            ));
+        }
+        Ok(())
+    };
+    let pos_acc = prim
+        .get(&gltf::Semantic::Positions)
+        .ok_or("has no POSITION attribute")?;
+    check("POSITION", pos_acc, Dimensions::Vec3, &[DataType::F32])?;
+    let normal_acc = prim.get(&gltf::Semantic::Normals);
+    if let Some(a) = normal_acc.clone() {
+        check("NORMAL", a, Dimensions::Vec3, &[DataType::F32])?;
+    }
+    let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
+    if let Some(a) = uv_acc.clone() {
+        check(
+            "TEXCOORD_0",
+            a,
+            Dimensions::Vec2,
+            &[DataType::F32, DataType::U8, DataType::U16],
+        )?;
+    }
+    if let Some(a) = prim.indices() {
+        check(
+            "indices",
+            a,
+            Dimensions::Scalar,
+            &[DataType::U8, DataType::U16, DataType::U32],
+        )?;
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or("POSITION cannot be read")?
+        .map(|p| world.transform_point3(Vec3::from(p)))
+        .collect();
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(format!(
+            "vertex {i} has a position that is not finite (NaN or Inf, or overflow after the node transform)"
+        ));
+    }
+    let normals: Option<Vec<Vec3>> = if normal_acc.is_some() {
+        reader.read_normals().map(|it| {
+            it.map(|n| (normal_m * Vec3::from(n)).normalize_or_zero())
+                .collect()
+        })
+    } else {
+        None
+    };
+    let uvs: Option<Vec<Vec2>> = if uv_acc.is_some() {
+        reader
+            .read_tex_coords(0)
+            .map(|it| it.into_f32().map(Vec2::from).collect())
+    } else {
+        None
+    };
+    for (what, len) in [
+        ("NORMAL", normals.as_ref().map(Vec::len)),
+        ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
+    ] {
+        if let Some(len) = len {
+            if len != positions.len() {
+                return Err(format!(
+                    "{what} has {len} entries but POSITION has {}",
+                    positions.len()
+                ));
+            }
+        }
+    }
+    let indices: Vec<u32> = match reader.read_indices() {
+        Some(it) => it.into_u32().collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    if indices.len() % 3 != 0 {
+        return Err(format!("{} indices is not a multiple of 3", indices.len()));
+    }
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+        return Err(format!(
+            "index {bad} is out of range ({} vertices)",
+            positions.len()
+        ));
+    }
+    // A mirroring transform reverses the winding; keep counter-clockwise = front.
+    let flip = Mat3::from_mat4(world).determinant() < 0.0;
+    let mut skipped = 0;
+    for tri in indices.chunks_exact(3) {
+        let [a, b, c] = if flip {
+            [tri[0], tri[2], tri[1]]
+        } else {
+            [tri[0], tri[1], tri[2]]
+        }
+        .map(|i| i as usize);
+        let p = [positions[a], positions[b], positions[c]];
+        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+        let area = 0.5 * cross.length();
+        let ng = cross.normalize_or_zero();
+        if !(area > 0.0) || ng == Vec3::ZERO || !area.is_finite() {
+            skipped += 1;
+            continue;
+        }
+        let n = normals.as_ref().and_then(|ns| {
+            let n = [ns[a], ns[b], ns[c]];
+            // Zero-length normals carry no information: fall back to the face normal.
+            n.iter()
+                .all(|v| *v != Vec3::ZERO && v.is_finite())
+                .then_some(n)
+        });
+        let uv = uvs.as_ref().map(|u| [u[a], u[b], u[c]]);
+        out.push(Triangle {
+            p,
+            n,
+            uv,
+            ng,
+            area,
+            material,
+        });
+    }
+    Ok(skipped)
+}
+
+fn decode_texture(data: &gltf::image::Data) -> Option<Texture> {
+    use gltf::image::Format;
+    let channels = match data.format {
+        Format::R8 => 1,
+        Format::R8G8 => 2,
+        Format::R8G8B8 => 3,
+        Format::R8G8B8A8 => 4,
+        _ => return None,
+    };
+    let n = (data.width * data.height) as usize;
+    if n == 0 || data.pixels.len() < n * channels {
+        return None;
+    }
+    let texels = (0..n)
+        .map(|i| {
+            let px = &data.pixels[i * channels..];
+            let c = |k: usize| {
+                srgb_decode(
+                    px[k.min(channels - 1).min(if channels == 2 { 0 } else { k })] as f32 / 255.0,
+                )
+            };
+            Rgb::new(c(0), c(1), c(2))
+        })
+        .collect();
+    Some(Texture {
+        width: data.width,
+        height: data.height,
+        texels,
+    })
+}

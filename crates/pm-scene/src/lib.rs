@@ -1,0 +1,368 @@
+//! The scene: triangles, materials, lights and camera loaded from glTF 2.0, and the
+//! ray queries every stage needs (closest hit and shadow-ray occlusion on an obvhs
+//! compressed wide BVH, Ylitie et al. 2017).
+//!
+//! Units (see README): lengths are the glTF file's metres; emission of emissive
+//! triangles is radiance L_e [W sr^-1 m^-2 per channel] = emissiveFactor x
+//! KHR_materials_emissive_strength; KHR_lights_punctual point and spot intensities
+//! are radiant intensity I [W sr^-1 per channel] = intensity x colour; directional
+//! light intensity is irradiance E [W m^-2 per channel] on a surface facing it.
+//!
+//! This crate knows nothing about photons, photon maps or files other than glTF. A
+//! `Scene` is immutable after loading and `Send + Sync`, so one instance serves all
+//! rayon threads, and later the per-frame real-time and image-space modes.
+
+mod geometry;
+mod gltf_load;
+mod light;
+
+pub use geometry::{intersect_triangle, offset_ray_origin};
+pub use gltf_load::{SceneError, load};
+pub use light::{EmittedRay, Light, LightKind, Target, spot_falloff};
+
+use glam::{Vec2, Vec3};
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+
+/// A triangle's shading data, in the order the file listed them (the triangle id).
+#[derive(Clone, Debug)]
+pub struct Triangle {
+    /// World-space vertices [m].
+    pub p: [Vec3; 3],
+    /// World-space unit vertex normals, when the file had usable ones.
+    pub n: Option<[Vec3; 3]>,
+    /// Texture coordinates (TEXCOORD_0), when present.
+    pub uv: Option<[Vec2; 3]>,
+    /// Unit geometric normal from the winding (counter-clockwise = front).
+    pub ng: Vec3,
+    /// Area [m^2].
+    pub area: f32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A linear-RGB texture (base colour, decoded from sRGB).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major linear RGB reflectance.
+    pub texels: Vec<Rgb>,
+}
+
+impl Texture {
+    /// Bilinear lookup with repeat wrapping (glTF's default sampler).
+    pub fn sample(&self, uv: Vec2) -> Rgb {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        if !x.is_finite() || !y.is_finite() {
+            return self.texels[0];
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: i64, j: i64| self.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+        let (i, j) = (x0 as i64, y0 as i64);
+        (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
+            + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy
+    }
+}
+
+/// A surface material: its scattering model and emission.
+#[derive(Clone, Debug)]
+pub struct Material {
+    /// Name from the file (or "material #i").
+    pub name: String,
+    /// Scattering model with the base colour factor applied.
+    pub bsdf: Bsdf,
+    /// Base colour texture (index into [`Scene::textures`]) multiplied into the BSDF colour.
+    pub base_texture: Option<u32>,
+    /// Emitted radiance L_e [W sr^-1 m^-2 per channel].
+    pub emission: Rgb,
+    /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
+    pub double_sided: bool,
+}
+
+/// A pinhole camera (glTF perspective camera).
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// Eye position [m].
+    pub position: Vec3,
+    /// Unit viewing direction (the camera's -Z axis).
+    pub forward: Vec3,
+    /// Unit up vector (the camera's +Y axis).
+    pub up: Vec3,
+    /// Unit right vector (the camera's +X axis).
+    pub right: Vec3,
+    /// Vertical field of view [rad].
+    pub yfov: f32,
+    /// Width / height from the file, if it gave one.
+    pub aspect: Option<f32>,
+}
+
+impl Camera {
+    /// Unit direction of the ray through film position (sx, sy) in [0,1]^2, with
+    /// (0,0) the top-left corner (row 0 is the top row) and `aspect` = width/height.
+    pub fn ray_direction(&self, sx: f32, sy: f32, aspect: f32) -> Vec3 {
+        let tan_y = (0.5 * self.yfov).tan();
+        let x = (2.0 * sx - 1.0) * tan_y * aspect;
+        let y = (1.0 - 2.0 * sy) * tan_y;
+        (self.forward + self.right * x + self.up * y).normalize()
+    }
+
+    /// Inverse of [`Camera::ray_direction`]: film position of a world point, if in front.
+    pub fn project(&self, p: Vec3, aspect: f32) -> Option<Vec2> {
+        let v = p - self.position;
+        let z = v.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let tan_y = (0.5 * self.yfov).tan();
+        let x = v.dot(self.right) / (z * tan_y * aspect);
+        let y = v.dot(self.up) / (z * tan_y);
+        Some(Vec2::new(0.5 * (x + 1.0), 0.5 * (1.0 - y)))
+    }
+}
+
+/// A ray-surface intersection.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    /// Distance along the (unit) ray direction [m].
+    pub t: f32,
+    /// Triangle id (index into [`Scene::triangles`]).
+    pub tri: u32,
+    /// Barycentric coordinates of the hit point.
+    pub b: [f32; 3],
+    /// Hit point, interpolated from the vertices [m].
+    pub p: Vec3,
+    /// Unit geometric normal (winding order; not flipped toward the ray).
+    pub ng: Vec3,
+    /// Unit shading normal, on the same side as `ng`.
+    pub ns: Vec3,
+    /// Texture coordinates (zero when the mesh has none).
+    pub uv: Vec2,
+}
+
+/// Axis-aligned bounds [m].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// Length of the diagonal [m]; the unit for radii "relative to the scene".
+    pub fn diagonal(&self) -> f32 {
+        (self.max - self.min).length()
+    }
+    /// Centre point.
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+}
+
+/// Triangle vertices in BVH order, with the id they map back to.
+#[derive(Clone, Copy, Debug)]
+struct BvhTri {
+    p: [Vec3; 3],
+    id: u32,
+}
+
+/// A loaded scene. Immutable, `Send + Sync`.
+pub struct Scene {
+    /// Triangles in file order; the triangle id indexes this.
+    pub triangles: Vec<Triangle>,
+    /// Materials; index 0.. as in the file, plus a default at the end.
+    pub materials: Vec<Material>,
+    /// Base-colour textures.
+    pub textures: Vec<Texture>,
+    /// Light sources (emissive meshes and punctual lights).
+    pub lights: Vec<Light>,
+    /// The first camera found in the scene, if any.
+    pub camera: Option<Camera>,
+    /// Bounds of all triangles.
+    pub bounds: Bounds,
+    /// blake3 of the glTF file and every buffer it references: the identity that
+    /// photon-map headers record so maps from another scene are refused.
+    pub content_hash: [u8; 32],
+    /// Problems that did not stop loading, each reported once.
+    pub warnings: Vec<String>,
+    bvh: Option<obvhs::cwbvh::CwBvh>,
+    bvh_tris: Vec<BvhTri>,
+}
+
+impl Scene {
+    /// Build the acceleration structure over `triangles` (degenerate ones must
+    /// already be removed).
+    pub(crate) fn build(
+        triangles: Vec<Triangle>,
+        materials: Vec<Material>,
+        textures: Vec<Texture>,
+        lights: Vec<Light>,
+        camera: Option<Camera>,
+        content_hash: [u8; 32],
+        warnings: Vec<String>,
+    ) -> Scene {
+        let mut bounds = Bounds {
+            min: Vec3::splat(f32::INFINITY),
+            max: Vec3::splat(f32::NEG_INFINITY),
+        };
+        for t in &triangles {
+            for p in t.p {
+                bounds.min = bounds.min.min(p);
+                bounds.max = bounds.max.max(p);
+            }
+        }
+        if triangles.is_empty() {
+            bounds = Bounds {
+                min: Vec3::ZERO,
+                max: Vec3::ZERO,
+            };
+        }
+        let (bvh, bvh_tris) = if triangles.is_empty() {
+            (None, Vec::new())
+        } else {
+            let tris: Vec<obvhs::triangle::Triangle> = triangles
+                .iter()
+                .map(|t| obvhs::triangle::Triangle {
+                    v0: t.p[0].into(),
+                    v1: t.p[1].into(),
+                    v2: t.p[2].into(),
+                })
+                .collect();
+            let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+                &tris,
+                obvhs::BvhBuildParams::medium_build(),
+                &mut std::time::Duration::default(),
+            );
+            let bvh_tris = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| BvhTri {
+                    p: triangles[i as usize].p,
+                    id: i,
+                })
+                .collect();
+            (Some(bvh), bvh_tris)
+        };
+        let mut scene = Scene {
+            triangles,
+            materials,
+            textures,
+            lights,
+            camera,
+            bounds,
+            content_hash,
+            warnings,
+            bvh,
+            bvh_tris,
+        };
+        light::finish_lights(&mut scene);
+        scene
+    }
+
+    /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
+    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = obvhs::ray::Ray::new(o.into(), d.into(), 0.0, t_max);
+        let mut hit = obvhs::ray::RayHit::none();
+        let mut best_b = [0.0; 3];
+        let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
+            match intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax) {
+                Some((t, b)) => {
+                    best_b = b;
+                    t
+                }
+                None => f32::INFINITY,
+            }
+        });
+        // ray_traverse may test triangles after the best one; recompute barycentrics
+        // for the recorded closest primitive.
+        if !found {
+            return None;
+        }
+        let bt = &self.bvh_tris[hit.primitive_id as usize];
+        let (t, b) = intersect_triangle(o, d, &bt.p, f32::INFINITY).unwrap_or((hit.t, best_b));
+        Some(self.make_hit(bt.id, t, b))
+    }
+
+    /// True when something blocks the segment from `o` along unit `d` before `t_max`.
+    pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
+        let Some(bvh) = self.bvh.as_ref() else {
+            return false;
+        };
+        let ray = obvhs::ray::Ray::new(o.into(), d.into(), 0.0, t_max);
+        !bvh.ray_traverse_miss(ray, |r, id| {
+            intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax).map_or(f32::INFINITY, |h| h.0)
+        })
+    }
+
+    /// The hit record of triangle `tri` at barycentrics `b`, t along the ray.
+    pub fn make_hit(&self, tri: u32, t: f32, b: [f32; 3]) -> Hit {
+        let tr = &self.triangles[tri as usize];
+        let p = tr.p[0] * b[0] + tr.p[1] * b[1] + tr.p[2] * b[2];
+        let ng = tr.ng;
+        let ns = match tr.n {
+            Some(n) => {
+                let ns = (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or_zero();
+                if ns == Vec3::ZERO {
+                    ng
+                } else if ns.dot(ng) < 0.0 {
+                    -ns
+                } else {
+                    ns
+                }
+            }
+            None => ng,
+        };
+        let uv = tr
+            .uv
+            .map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
+        Hit {
+            t,
+            tri,
+            b,
+            p,
+            ng,
+            ns,
+            uv,
+        }
+    }
+
+    /// The material of a hit's triangle.
+    pub fn material(&self, hit: &Hit) -> &Material {
+        &self.materials[self.triangles[hit.tri as usize].material as usize]
+    }
+
+    /// The BSDF at a hit, with the base-colour texture applied.
+    pub fn bsdf(&self, hit: &Hit) -> Bsdf {
+        let m = self.material(hit);
+        match m.base_texture {
+            Some(t) => m.bsdf.tinted(self.textures[t as usize].sample(hit.uv)),
+            None => m.bsdf,
+        }
+    }
+
+    /// Radiance emitted at a hit toward `wo` [W sr^-1 m^-2]: the front face emits, and
+    /// the back too when the material is double-sided.
+    pub fn emitted(&self, hit: &Hit, wo: Vec3) -> Rgb {
+        let m = self.material(hit);
+        if m.emission == Rgb::ZERO || (!m.double_sided && wo.dot(hit.ng) <= 0.0) {
+            Rgb::ZERO
+        } else {
+            m.emission
+        }
+    }
+
+    /// Sum of the power of all lights [W per channel].
+    pub fn total_power(&self) -> Rgb {
+        self.lights.iter().map(|l| l.power).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,319 @@
+//! Light sources and the sampling of emitted rays (photon emission, Jensen 1996;
+//! pbrt-v4 section 12 for the emission distributions).
+
+use crate::Scene;
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_sampling::{
+    FOUR_PI, Sampler, concentric_disk, cosine_hemisphere, sample_cdf, to_world, uniform_cone,
+    uniform_cone_pdf, uniform_sphere,
+};
+use std::f32::consts::{PI, TAU};
+
+/// What kind of emitter a light is, with its parameters in world space.
+#[derive(Clone, Debug)]
+pub enum LightKind {
+    /// The emissive triangles of one mesh primitive instance.
+    Area {
+        /// Triangle ids.
+        tris: Vec<u32>,
+        /// Cumulative triangle areas [m^2] for uniform-by-area sampling.
+        cdf: Vec<f64>,
+        /// Total area [m^2].
+        area: f32,
+        /// Emitted radiance L_e [W sr^-1 m^-2 per channel].
+        emission: Rgb,
+        /// Both faces emit.
+        two_sided: bool,
+    },
+    /// Isotropic point light.
+    Point {
+        /// Position [m].
+        position: Vec3,
+        /// Radiant intensity I [W sr^-1 per channel].
+        intensity: Rgb,
+    },
+    /// Spot light with the glTF cone falloff: (t)^2 with t the linear ramp of
+    /// cos(theta) between the outer and inner cone (KHR_lights_punctual spec).
+    Spot {
+        /// Position [m].
+        position: Vec3,
+        /// Unit axis (the light node's -Z).
+        direction: Vec3,
+        /// Radiant intensity on the axis I [W sr^-1 per channel].
+        intensity: Rgb,
+        /// cos(inner cone angle).
+        cos_inner: f32,
+        /// cos(outer cone angle).
+        cos_outer: f32,
+    },
+    /// Distant light: parallel rays.
+    Directional {
+        /// Unit direction the light travels (the node's -Z).
+        direction: Vec3,
+        /// Irradiance E on a surface facing the light [W m^-2 per channel].
+        irradiance: Rgb,
+        /// Centre of the scene's bounding sphere [m].
+        center: Vec3,
+        /// Radius of the scene's bounding sphere [m]: photons start on a disk this big.
+        radius: f32,
+    },
+}
+
+/// A light source.
+#[derive(Clone, Debug)]
+pub struct Light {
+    /// Name from the file (node or material name).
+    pub name: String,
+    /// Parameters.
+    pub kind: LightKind,
+    /// Emitted power Phi [W per channel]; for directional lights the power crossing
+    /// the scene's bounding disk, E pi R^2.
+    pub power: Rgb,
+}
+
+/// A ray leaving a light, with the power it carries if it were the only sample.
+#[derive(Clone, Copy, Debug)]
+pub struct EmittedRay {
+    /// Start point [m], already offset off an emitting surface.
+    pub origin: Vec3,
+    /// Unit direction.
+    pub dir: Vec3,
+    /// Phi-hat = L_e cos / (pdf_pos pdf_dir) (or its punctual analogue) [W per channel]:
+    /// the photon's power before dividing by the number emitted and the light's
+    /// selection probability.
+    pub power: Rgb,
+}
+
+/// A sphere that bounds an object photons can be aimed at (the bounding-sphere form
+/// of Jensen's projection maps).
+#[derive(Clone, Copy, Debug)]
+pub struct Target {
+    /// Centre [m].
+    pub center: Vec3,
+    /// Radius [m].
+    pub radius: f32,
+}
+
+impl Light {
+    /// Sample an emitted ray distributed like the light's emission (so every sample
+    /// carries the same power: exact importance sampling of emitted power).
+    pub fn sample_emission(&self, scene: &Scene, s: &mut Sampler) -> Option<EmittedRay> {
+        self.sample_emission_toward(scene, s, &[])
+    }
+
+    /// Sample an emitted ray; with `targets`, aim it at one of the spheres (chosen
+    /// uniformly) and weight by the mixture density of all of them, so the estimate
+    /// of any light path that starts toward a target stays unbiased. Rays that would
+    /// carry no power return `None`.
+    pub fn sample_emission_toward(
+        &self,
+        scene: &Scene,
+        s: &mut Sampler,
+        targets: &[Target],
+    ) -> Option<EmittedRay> {
+        let u_pos = s.next_2d();
+        let u_sel = s.next_1d();
+        let u_dir = s.next_2d();
+        let u_tgt = s.next_1d();
+        let pick = |u: f32| &targets[((u * targets.len() as f32) as usize).min(targets.len() - 1)];
+        // Mixture density over the cones from `o` to each target [sr^-1]; 0 outside all.
+        let cone_pdf = |o: Vec3, d: Vec3| -> f32 {
+            let mut pdf = 0.0;
+            for t in targets {
+                if let Some(cos_max) = cone_cos(o, t) {
+                    if d.dot((t.center - o).normalize()) >= cos_max {
+                        pdf += uniform_cone_pdf(cos_max);
+                    }
+                }
+            }
+            pdf / targets.len() as f32
+        };
+        let cone_dir = |o: Vec3, t: &Target| -> Option<Vec3> {
+            let cos_max = cone_cos(o, t)?;
+            Some(to_world(
+                uniform_cone(u_dir, cos_max),
+                (t.center - o).normalize(),
+            ))
+        };
+        match &self.kind {
+            LightKind::Area {
+                tris,
+                cdf,
+                area,
+                emission,
+                two_sided,
+            } => {
+                let tri = &scene.triangles[tris[sample_cdf(cdf, u_sel)] as usize];
+                let b = pm_sampling::uniform_triangle(u_pos);
+                let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
+                let (n, sides) = if *two_sided && u_tgt < 0.5 && targets.is_empty() {
+                    (-tri.ng, 2.0)
+                } else if *two_sided {
+                    (tri.ng, 2.0)
+                } else {
+                    (tri.ng, 1.0)
+                };
+                let (dir, power) = if targets.is_empty() {
+                    // pdf_pos = 1/A, pdf_dir = cos/pi (per side), so Phi-hat = L_e pi A sides.
+                    (
+                        to_world(cosine_hemisphere(u_dir), n),
+                        *emission * (PI * area * sides),
+                    )
+                } else {
+                    let d = cone_dir(p, pick(u_tgt))?;
+                    let cos = if *two_sided {
+                        d.dot(tri.ng).abs()
+                    } else {
+                        d.dot(tri.ng)
+                    };
+                    let pdf = cone_pdf(p, d);
+                    if cos <= 0.0 || pdf <= 0.0 {
+                        return None;
+                    }
+                    (d, *emission * (cos * area / pdf))
+                };
+                let origin = crate::offset_ray_origin(p, tri.ng, dir);
+                Some(EmittedRay { origin, dir, power })
+            }
+            LightKind::Point {
+                position,
+                intensity,
+            } => {
+                if targets.is_empty() {
+                    Some(EmittedRay {
+                        origin: *position,
+                        dir: uniform_sphere(u_dir),
+                        power: *intensity * FOUR_PI,
+                    })
+                } else {
+                    let d = cone_dir(*position, pick(u_tgt))?;
+                    let pdf = cone_pdf(*position, d);
+                    (pdf > 0.0).then(|| EmittedRay {
+                        origin: *position,
+                        dir: d,
+                        power: *intensity / pdf,
+                    })
+                }
+            }
+            LightKind::Spot {
+                position,
+                direction,
+                intensity,
+                cos_inner,
+                cos_outer,
+            } => {
+                let (d, pdf) = if targets.is_empty() {
+                    (
+                        to_world(uniform_cone(u_dir, *cos_outer), *direction),
+                        uniform_cone_pdf(*cos_outer),
+                    )
+                } else {
+                    let d = cone_dir(*position, pick(u_tgt))?;
+                    (d, cone_pdf(*position, d))
+                };
+                let f = spot_falloff(d.dot(*direction), *cos_inner, *cos_outer);
+                (f > 0.0 && pdf > 0.0).then(|| EmittedRay {
+                    origin: *position,
+                    dir: d,
+                    power: *intensity * (f / pdf),
+                })
+            }
+            LightKind::Directional {
+                direction,
+                irradiance,
+                center,
+                radius,
+            } => {
+                let (t, b) = pm_sampling::basis(*direction);
+                let (disk_center, disk_radius, area_pdf) = if targets.is_empty() {
+                    (*center, *radius, 1.0 / (PI * radius * radius))
+                } else {
+                    let tg = pick(u_tgt);
+                    (tg.center, tg.radius, 0.0)
+                };
+                let q = concentric_disk(u_pos) * disk_radius;
+                // Start outside the scene's bounding sphere, on the plane through disk_center.
+                let along = (disk_center - *center).dot(*direction);
+                let origin =
+                    disk_center + t * q.x + b * q.y - *direction * (along + *radius * 1.01 + 1e-6);
+                let area_pdf = if targets.is_empty() {
+                    area_pdf
+                } else {
+                    // Mixture of uniform densities over each target's disk (in the plane).
+                    let mut pdf = 0.0;
+                    for tg in targets {
+                        let off = origin - tg.center;
+                        let perp = off - *direction * off.dot(*direction);
+                        if perp.length_squared() <= tg.radius * tg.radius {
+                            pdf += 1.0 / (PI * tg.radius * tg.radius);
+                        }
+                    }
+                    pdf / targets.len() as f32
+                };
+                (area_pdf > 0.0).then(|| EmittedRay {
+                    origin,
+                    dir: *direction,
+                    power: *irradiance / area_pdf,
+                })
+            }
+        }
+    }
+}
+
+/// cos of the half-angle of the cone from `o` that bounds target `t`; None if `o` is
+/// inside the sphere (the caller then cannot aim).
+fn cone_cos(o: Vec3, t: &Target) -> Option<f32> {
+    let d2 = (t.center - o).length_squared();
+    let r2 = t.radius * t.radius;
+    (d2 > r2 * 1.0001).then(|| (1.0 - r2 / d2).max(0.0).sqrt())
+}
+
+/// glTF KHR_lights_punctual spot attenuation: t^2 with t = clamp((cos - cos_outer) /
+/// (cos_inner - cos_outer)).
+pub fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    if cos <= cos_outer {
+        return 0.0;
+    }
+    let range = cos_inner - cos_outer;
+    let t = if range <= 1e-6 {
+        1.0
+    } else {
+        ((cos - cos_outer) / range).clamp(0.0, 1.0)
+    };
+    t * t
+}
+
+/// Power of each light, and the scene-dependent parameters of directional lights.
+pub(crate) fn finish_lights(scene: &mut Scene) {
+    let center = scene.bounds.center();
+    let radius = (0.5 * scene.bounds.diagonal()).max(1e-6);
+    for light in &mut scene.lights {
+        light.power = match &mut light.kind {
+            LightKind::Area {
+                area,
+                emission,
+                two_sided,
+                ..
+            } => *emission * (PI * *area * if *two_sided { 2.0 } else { 1.0 }),
+            LightKind::Point { intensity, .. } => *intensity * FOUR_PI,
+            // Integral of I t(cos)^2 over the cone: 2 pi I [(1 - ci) + (ci - co) / 3].
+            LightKind::Spot {
+                intensity,
+                cos_inner,
+                cos_outer,
+                ..
+            } => *intensity * (TAU * ((1.0 - *cos_inner) + (*cos_inner - *cos_outer) / 3.0)),
+            LightKind::Directional {
+                irradiance,
+                center: c,
+                radius: r,
+                ..
+            } => {
+                *c = center;
+                *r = radius;
+                *irradiance * (PI * radius * radius)
+            }
+        };
+    }
+}

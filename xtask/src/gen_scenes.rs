@@ -1,0 +1,365 @@
+//! The project's test scenes, generated from code so they are reproducible, and
+//! written as plain glTF 2.0 (JSON + external .bin) that any viewer opens.
+
+use anyhow::{Context, Result, bail};
+use serde_json::{Value, json};
+use std::f32::consts::PI;
+use std::path::Path;
+
+/// A glTF document under construction: one binary buffer, appended to per accessor.
+#[derive(Default)]
+struct Doc {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    meshes: Vec<Value>,
+    materials: Vec<Value>,
+    nodes: Vec<Value>,
+    lights: Vec<Value>,
+    cameras: Vec<Value>,
+    extensions: Vec<&'static str>,
+}
+
+/// Indexed triangle mesh with per-vertex normals.
+struct Mesh {
+    p: Vec<[f32; 3]>,
+    n: Vec<[f32; 3]>,
+    idx: Vec<u32>,
+}
+
+impl Doc {
+    fn push_view(&mut self, bytes: &[u8], target: u32) -> usize {
+        while self.bin.len() % 4 != 0 {
+            self.bin.push(0);
+        }
+        self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target}));
+        self.bin.extend_from_slice(bytes);
+        self.views.len() - 1
+    }
+
+    fn vec3_accessor(&mut self, v: &[[f32; 3]], with_bounds: bool) -> usize {
+        let bytes: Vec<u8> = v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 34962);
+        let mut acc =
+            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3"});
+        if with_bounds {
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for p in v {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            acc["min"] = json!(lo);
+            acc["max"] = json!(hi);
+        }
+        self.accessors.push(acc);
+        self.accessors.len() - 1
+    }
+
+    fn index_accessor(&mut self, idx: &[u32]) -> usize {
+        let bytes: Vec<u8> = idx.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 34963);
+        self.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": idx.len(), "type": "SCALAR"}));
+        self.accessors.len() - 1
+    }
+
+    fn material(&mut self, m: Value) -> usize {
+        self.materials.push(m);
+        self.materials.len() - 1
+    }
+
+    /// Add a mesh with one primitive and a node for it.
+    fn mesh_node(&mut self, name: &str, mesh: &Mesh, material: usize) {
+        let pos = self.vec3_accessor(&mesh.p, true);
+        let nrm = self.vec3_accessor(&mesh.n, false);
+        let idx = self.index_accessor(&mesh.idx);
+        self.meshes.push(json!({"name": name, "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "material": material}]}));
+        self.nodes
+            .push(json!({"name": name, "mesh": self.meshes.len() - 1}));
+    }
+
+    fn camera(&mut self, eye: [f32; 3], yfov: f32, aspect: f32) {
+        self.cameras.push(json!({"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}));
+        self.nodes
+            .push(json!({"name": "camera", "camera": 0, "translation": eye}));
+    }
+
+    fn write(self, dir: &Path, name: &str, check: bool) -> Result<()> {
+        let n_nodes = self.nodes.len();
+        let mut root = json!({
+            "asset": {"version": "2.0", "generator": "photon-map xtask gen-scenes"},
+            "scene": 0,
+            "scenes": [{"name": name, "nodes": (0..n_nodes).collect::<Vec<_>>()}],
+            "nodes": self.nodes,
+            "meshes": self.meshes,
+            "materials": self.materials,
+            "accessors": self.accessors,
+            "bufferViews": self.views,
+            "buffers": [{"uri": format!("{name}.bin"), "byteLength": self.bin.len()}],
+        });
+        if !self.cameras.is_empty() {
+            root["cameras"] = json!(self.cameras);
+        }
+        let mut ext = self.extensions.clone();
+        if !self.lights.is_empty() {
+            root["extensions"] = json!({"KHR_lights_punctual": {"lights": self.lights}});
+            ext.push("KHR_lights_punctual");
+        }
+        ext.sort();
+        ext.dedup();
+        if !ext.is_empty() {
+            root["extensionsUsed"] = json!(ext);
+        }
+        let text = serde_json::to_string_pretty(&root)? + "\n";
+        let files = [
+            (format!("{name}.gltf"), text.into_bytes()),
+            (format!("{name}.bin"), self.bin),
+        ];
+        for (file, bytes) in files {
+            let path = dir.join(&file);
+            if check {
+                let old = std::fs::read(&path)
+                    .with_context(|| format!("{}: cannot read", path.display()))?;
+                if old != bytes {
+                    bail!("{} is stale: run `cargo xtask gen-scenes`", path.display());
+                }
+            } else {
+                std::fs::write(&path, bytes)
+                    .with_context(|| format!("{}: cannot write", path.display()))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// An axis-aligned quad with corners a, b, c, d in counter-clockwise order as seen
+/// from the side its normal points to.
+fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Mesh {
+    let e1 = sub(b, a);
+    let e2 = sub(d, a);
+    let n = normalize(cross(e1, e2));
+    Mesh {
+        p: vec![a, b, c, d],
+        n: vec![n; 4],
+        idx: vec![0, 1, 2, 0, 2, 3],
+    }
+}
+
+/// Several quads as one mesh.
+fn merge(parts: &[Mesh]) -> Mesh {
+    let mut m = Mesh {
+        p: vec![],
+        n: vec![],
+        idx: vec![],
+    };
+    for part in parts {
+        let base = m.p.len() as u32;
+        m.p.extend_from_slice(&part.p);
+        m.n.extend_from_slice(&part.n);
+        m.idx.extend(part.idx.iter().map(|i| i + base));
+    }
+    m
+}
+
+/// UV sphere with smooth normals; `inward` flips normals and winding (front faces inside).
+fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
+    let mut p = vec![];
+    let mut n = vec![];
+    for j in 0..=rings {
+        let theta = PI * j as f32 / rings as f32;
+        for i in 0..=seg {
+            let phi = 2.0 * PI * i as f32 / seg as f32;
+            let d = [
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ];
+            p.push([c[0] + r * d[0], c[1] + r * d[1], c[2] + r * d[2]]);
+            n.push(if inward { [-d[0], -d[1], -d[2]] } else { d });
+        }
+    }
+    let mut idx = vec![];
+    let w = seg + 1;
+    for j in 0..rings {
+        for i in 0..seg {
+            let (a, b, cc, d) = (
+                j * w + i,
+                (j + 1) * w + i,
+                (j + 1) * w + i + 1,
+                j * w + i + 1,
+            );
+            // Counter-clockwise seen from outside: a, b, c then a, c, d.
+            let tris = [[a, b, cc], [a, cc, d]];
+            for t in tris {
+                // Skip the degenerate triangles at the poles.
+                if (j == 0 && t.contains(&a) && t.contains(&d))
+                    || (j == rings - 1 && t.contains(&b) && t.contains(&cc))
+                {
+                    continue;
+                }
+                if inward {
+                    idx.extend([t[0], t[2], t[1]])
+                } else {
+                    idx.extend(t)
+                }
+            }
+        }
+    }
+    Mesh { p, n, idx }
+}
+
+/// A box of size (sx, sy, sz) standing on the floor at (cx, cz), rotated by `angle` about y.
+fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
+    let (s, c) = angle.sin_cos();
+    let at = |x: f32, y: f32, z: f32| [cx + c * x + s * z, y, cz - s * x + c * z];
+    let (hx, hz) = (sx / 2.0, sz / 2.0);
+    let v = |i: u32| {
+        let x = if i & 1 == 0 { -hx } else { hx };
+        let y = if i & 2 == 0 { 0.0 } else { sy };
+        let z = if i & 4 == 0 { -hz } else { hz };
+        at(x, y, z)
+    };
+    merge(&[
+        quad(v(4), v(5), v(7), v(6)), // +z
+        quad(v(1), v(0), v(2), v(3)), // -z
+        quad(v(5), v(1), v(3), v(7)), // +x
+        quad(v(0), v(4), v(6), v(2)), // -x
+        quad(v(2), v(6), v(7), v(3)), // +y
+    ])
+}
+
+fn diffuse(name: &str, rgb: [f32; 3]) -> Value {
+    json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+}
+
+/// The Cornell box shell: floor, ceiling, back, left (red), right (blue), and a square
+/// ceiling light of side 0.5 m. Box interior [-1,1] x [0,2] x [-1,1] metres; the light
+/// has radiance 12 W sr^-1 m^-2 (power pi * 12 * 0.25 = 9.4 W per channel).
+fn cornell_shell(doc: &mut Doc) {
+    let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
+    let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
+    let blue = doc.material(diffuse("blue", [0.12, 0.2, 0.75]));
+    let light = doc.material(json!({
+        "name": "ceiling_light",
+        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "emissiveFactor": [1.0, 1.0, 1.0],
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 12.0}}
+    }));
+    doc.extensions.push("KHR_materials_emissive_strength");
+    let (l, h) = (1.0, 2.0);
+    let whites = merge(&[
+        quad([-l, 0.0, l], [l, 0.0, l], [l, 0.0, -l], [-l, 0.0, -l]), // floor, +y
+        quad([-l, h, -l], [l, h, -l], [l, h, l], [-l, h, l]),         // ceiling, -y
+        quad([-l, 0.0, -l], [l, 0.0, -l], [l, h, -l], [-l, h, -l]),   // back, +z
+    ]);
+    doc.mesh_node("white_walls", &whites, white);
+    doc.mesh_node(
+        "left_wall",
+        &quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l]),
+        red,
+    );
+    doc.mesh_node(
+        "right_wall",
+        &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]),
+        blue,
+    );
+    let (s, y) = (0.25, h - 0.002);
+    doc.mesh_node(
+        "ceiling_light",
+        &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]),
+        light,
+    );
+    doc.camera([0.0, 1.0, 3.8], 0.69, 1.0);
+}
+
+fn cornell_spheres() -> Doc {
+    let mut doc = Doc::default();
+    cornell_shell(&mut doc);
+    let chrome = doc.material(json!({"name": "chrome", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}}));
+    let glass = doc.material(json!({
+        "name": "glass",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {
+            "KHR_materials_transmission": {"transmissionFactor": 1.0},
+            "KHR_materials_ior": {"ior": 1.5},
+            "KHR_materials_volume": {"thicknessFactor": 0.7}
+        }
+    }));
+    doc.extensions.extend([
+        "KHR_materials_transmission",
+        "KHR_materials_ior",
+        "KHR_materials_volume",
+    ]);
+    doc.mesh_node(
+        "sphere_chrome",
+        &sphere([-0.45, 0.35, -0.35], 0.35, 48, 24, false),
+        chrome,
+    );
+    doc.mesh_node(
+        "sphere_glass",
+        &sphere([0.45, 0.35, 0.3], 0.35, 48, 24, false),
+        glass,
+    );
+    doc
+}
+
+fn cornell_boxes() -> Doc {
+    let mut doc = Doc::default();
+    cornell_shell(&mut doc);
+    let white = doc.material(diffuse("block_white", [0.75, 0.75, 0.75]));
+    let blocks = merge(&[
+        block(0.35, 0.35, 0.6, 0.6, 0.6, -0.3),
+        block(-0.35, -0.3, 0.6, 1.2, 0.6, 0.3),
+    ]);
+    doc.mesh_node("blocks", &blocks, white);
+    doc
+}
+
+/// Closed sphere of radius 1 seen from its centre; albedo 0.8 and emission 1 on the
+/// inside, so the radiance is Le / (1 - rho) = 5 everywhere and the irradiance 5 pi.
+fn furnace() -> Doc {
+    let mut doc = Doc::default();
+    let m = doc.material(json!({
+        "name": "furnace_wall",
+        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "emissiveFactor": [1.0, 1.0, 1.0]
+    }));
+    doc.mesh_node(
+        "furnace_sphere",
+        &sphere([0.0, 0.0, 0.0], 1.0, 32, 16, true),
+        m,
+    );
+    doc.camera([0.0, 0.0, 0.0], 1.2, 1.0);
+    doc
+}
+
+/// Write (or with `check`, compare) every scene.
+pub fn run(dir: &Path, check: bool) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    for (name, doc) in [
+        ("cornell_spheres", cornell_spheres()),
+        ("cornell_boxes", cornell_boxes()),
+        ("furnace", furnace()),
+    ] {
+        doc.write(dir, name, check)?;
+        println!("{} {name}", if check { "up to date:" } else { "wrote" });
+    }
+    Ok(())
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn normalize(a: [f32; 3]) -> [f32; 3] {
+    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    [a[0] / l, a[1] / l, a[2] / l]
+}
