@@ -32,7 +32,8 @@ impl Doc {
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
-        self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target}));
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target}));
         self.bin.extend_from_slice(bytes);
         self.views.len() - 1
     }
@@ -40,8 +41,7 @@ impl Doc {
     fn vec3_accessor(&mut self, v: &[[f32; 3]], with_bounds: bool) -> usize {
         let bytes: Vec<u8> = v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
         let view = self.push_view(&bytes, 34962);
-        let mut acc =
-            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3"});
+        let mut acc = json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3"});
         if with_bounds {
             let mut lo = [f32::INFINITY; 3];
             let mut hi = [f32::NEG_INFINITY; 3];
@@ -76,14 +76,13 @@ impl Doc {
         let nrm = self.vec3_accessor(&mesh.n, false);
         let idx = self.index_accessor(&mesh.idx);
         self.meshes.push(json!({"name": name, "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "material": material}]}));
-        self.nodes
-            .push(json!({"name": name, "mesh": self.meshes.len() - 1}));
+        self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
     }
 
     fn camera(&mut self, eye: [f32; 3], yfov: f32, aspect: f32) {
-        self.cameras.push(json!({"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}));
-        self.nodes
-            .push(json!({"name": "camera", "camera": 0, "translation": eye}));
+        self.cameras
+            .push(json!({"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}));
+        self.nodes.push(json!({"name": "camera", "camera": 0, "translation": eye}));
     }
 
     fn write(self, dir: &Path, name: &str, check: bool) -> Result<()> {
@@ -113,21 +112,16 @@ impl Doc {
             root["extensionsUsed"] = json!(ext);
         }
         let text = serde_json::to_string_pretty(&root)? + "\n";
-        let files = [
-            (format!("{name}.gltf"), text.into_bytes()),
-            (format!("{name}.bin"), self.bin),
-        ];
+        let files = [(format!("{name}.gltf"), text.into_bytes()), (format!("{name}.bin"), self.bin)];
         for (file, bytes) in files {
             let path = dir.join(&file);
             if check {
-                let old = std::fs::read(&path)
-                    .with_context(|| format!("{}: cannot read", path.display()))?;
+                let old = std::fs::read(&path).with_context(|| format!("{}: cannot read", path.display()))?;
                 if old != bytes {
                     bail!("{} is stale: run `cargo xtask gen-scenes`", path.display());
                 }
             } else {
-                std::fs::write(&path, bytes)
-                    .with_context(|| format!("{}: cannot write", path.display()))?;
+                std::fs::write(&path, bytes).with_context(|| format!("{}: cannot write", path.display()))?;
             }
         }
         Ok(())
@@ -140,20 +134,12 @@ fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Mesh {
     let e1 = sub(b, a);
     let e2 = sub(d, a);
     let n = normalize(cross(e1, e2));
-    Mesh {
-        p: vec![a, b, c, d],
-        n: vec![n; 4],
-        idx: vec![0, 1, 2, 0, 2, 3],
-    }
+    Mesh { p: vec![a, b, c, d], n: vec![n; 4], idx: vec![0, 1, 2, 0, 2, 3] }
 }
 
 /// Several quads as one mesh.
 fn merge(parts: &[Mesh]) -> Mesh {
-    let mut m = Mesh {
-        p: vec![],
-        n: vec![],
-        idx: vec![],
-    };
+    let mut m = Mesh { p: vec![], n: vec![], idx: vec![] };
     for part in parts {
         let base = m.p.len() as u32;
         m.p.extend_from_slice(&part.p);
@@ -171,11 +157,7 @@ fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
         let theta = PI * j as f32 / rings as f32;
         for i in 0..=seg {
             let phi = 2.0 * PI * i as f32 / seg as f32;
-            let d = [
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                -theta.sin() * phi.sin(),
-            ];
+            let d = [theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()];
             p.push([c[0] + r * d[0], c[1] + r * d[1], c[2] + r * d[2]]);
             n.push(if inward { [-d[0], -d[1], -d[2]] } else { d });
         }
@@ -184,26 +166,16 @@ fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
     let w = seg + 1;
     for j in 0..rings {
         for i in 0..seg {
-            let (a, b, cc, d) = (
-                j * w + i,
-                (j + 1) * w + i,
-                (j + 1) * w + i + 1,
-                j * w + i + 1,
-            );
+            let (a, b, cc, d) = (j * w + i, (j + 1) * w + i, (j + 1) * w + i + 1, j * w + i + 1);
             // Counter-clockwise seen from outside: a, b, c then a, c, d.
             let tris = [[a, b, cc], [a, cc, d]];
             for t in tris {
                 // Skip the degenerate triangles at the poles.
-                if (j == 0 && t.contains(&a) && t.contains(&d))
-                    || (j == rings - 1 && t.contains(&b) && t.contains(&cc))
+                if (j == 0 && t.contains(&a) && t.contains(&d)) || (j == rings - 1 && t.contains(&b) && t.contains(&cc))
                 {
                     continue;
                 }
-                if inward {
-                    idx.extend([t[0], t[2], t[1]])
-                } else {
-                    idx.extend(t)
-                }
+                if inward { idx.extend([t[0], t[2], t[1]]) } else { idx.extend(t) }
             }
         }
     }
@@ -255,22 +227,10 @@ fn cornell_shell(doc: &mut Doc) {
         quad([-l, 0.0, -l], [l, 0.0, -l], [l, h, -l], [-l, h, -l]),   // back, +z
     ]);
     doc.mesh_node("white_walls", &whites, white);
-    doc.mesh_node(
-        "left_wall",
-        &quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l]),
-        red,
-    );
-    doc.mesh_node(
-        "right_wall",
-        &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]),
-        blue,
-    );
+    doc.mesh_node("left_wall", &quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l]), red);
+    doc.mesh_node("right_wall", &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]), blue);
     let (s, y) = (0.25, h - 0.002);
-    doc.mesh_node(
-        "ceiling_light",
-        &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]),
-        light,
-    );
+    doc.mesh_node("ceiling_light", &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]), light);
     doc.camera([0.0, 1.0, 3.8], 0.69, 1.0);
 }
 
@@ -287,21 +247,9 @@ fn cornell_spheres() -> Doc {
             "KHR_materials_volume": {"thicknessFactor": 0.7}
         }
     }));
-    doc.extensions.extend([
-        "KHR_materials_transmission",
-        "KHR_materials_ior",
-        "KHR_materials_volume",
-    ]);
-    doc.mesh_node(
-        "sphere_chrome",
-        &sphere([-0.45, 0.35, -0.35], 0.35, 48, 24, false),
-        chrome,
-    );
-    doc.mesh_node(
-        "sphere_glass",
-        &sphere([0.45, 0.35, 0.3], 0.35, 48, 24, false),
-        glass,
-    );
+    doc.extensions.extend(["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"]);
+    doc.mesh_node("sphere_chrome", &sphere([-0.45, 0.35, -0.35], 0.35, 48, 24, false), chrome);
+    doc.mesh_node("sphere_glass", &sphere([0.45, 0.35, 0.3], 0.35, 48, 24, false), glass);
     doc
 }
 
@@ -309,10 +257,7 @@ fn cornell_boxes() -> Doc {
     let mut doc = Doc::default();
     cornell_shell(&mut doc);
     let white = doc.material(diffuse("block_white", [0.75, 0.75, 0.75]));
-    let blocks = merge(&[
-        block(0.35, 0.35, 0.6, 0.6, 0.6, -0.3),
-        block(-0.35, -0.3, 0.6, 1.2, 0.6, 0.3),
-    ]);
+    let blocks = merge(&[block(0.35, 0.35, 0.6, 0.6, 0.6, -0.3), block(-0.35, -0.3, 0.6, 1.2, 0.6, 0.3)]);
     doc.mesh_node("blocks", &blocks, white);
     doc
 }
@@ -326,11 +271,7 @@ fn furnace() -> Doc {
         "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
         "emissiveFactor": [1.0, 1.0, 1.0]
     }));
-    doc.mesh_node(
-        "furnace_sphere",
-        &sphere([0.0, 0.0, 0.0], 1.0, 32, 16, true),
-        m,
-    );
+    doc.mesh_node("furnace_sphere", &sphere([0.0, 0.0, 0.0], 1.0, 32, 16, true), m);
     doc.camera([0.0, 0.0, 0.0], 1.2, 1.0);
     doc
 }
@@ -338,11 +279,9 @@ fn furnace() -> Doc {
 /// Write (or with `check`, compare) every scene.
 pub fn run(dir: &Path, check: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    for (name, doc) in [
-        ("cornell_spheres", cornell_spheres()),
-        ("cornell_boxes", cornell_boxes()),
-        ("furnace", furnace()),
-    ] {
+    for (name, doc) in
+        [("cornell_spheres", cornell_spheres()), ("cornell_boxes", cornell_boxes()), ("furnace", furnace())]
+    {
         doc.write(dir, name, check)?;
         println!("{} {name}", if check { "up to date:" } else { "wrote" });
     }
@@ -353,11 +292,7 @@ fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 fn normalize(a: [f32; 3]) -> [f32; 3] {
     let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();

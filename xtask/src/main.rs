@@ -25,10 +25,9 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
-        Some("gen-scenes") => gen_scenes::run(
-            &workspace_root().join("scenes"),
-            args[1..].iter().any(|a| a == "--check"),
-        ),
+        Some("gen-scenes") => {
+            gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))
+        }
         Some("-h" | "--help") | None => {
             println!("{USAGE}");
             Ok(())
@@ -39,8 +38,5 @@ fn run() -> Result<()> {
 
 /// The repository root (the parent of this crate's folder).
 fn workspace_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("xtask lives one level below the root")
-        .to_owned()
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives one level below the root").to_owned()
 }

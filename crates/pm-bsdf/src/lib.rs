@@ -107,9 +107,7 @@ impl Bsdf {
         match *self {
             Bsdf::Lambert { rho } => rho * FRAC_1_PI,
             Bsdf::Conductor { f0, alpha } => ggx_f(lo, li, alpha, f0),
-            Bsdf::Plastic { rho, alpha } => {
-                plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0))
-            }
+            Bsdf::Plastic { rho, alpha } => plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0)),
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
         }
     }
@@ -163,17 +161,9 @@ impl Bsdf {
             }
             Bsdf::Mirror { r } => {
                 let li = Vec3::new(-lo.x, -lo.y, lo.z);
-                BsdfSample {
-                    wi: world(li),
-                    weight: r,
-                    pdf: 1.0,
-                    specular: true,
-                    transmitted: false,
-                }
+                BsdfSample { wi: world(li), weight: r, pdf: 1.0, specular: true, transmitted: false }
             }
-            Bsdf::Glass { eta, tint, thin } => {
-                sample_glass(lo_raw, eta, tint, thin, uc, |l| to_world(l, t, b, n))?
-            }
+            Bsdf::Glass { eta, tint, thin } => sample_glass(lo_raw, eta, tint, thin, uc, |l| to_world(l, t, b, n))?,
             Bsdf::Conductor { f0, alpha } => {
                 let li = reflect(lo, ggx_sample_h(u, alpha));
                 if li.z <= 0.0 {
@@ -193,11 +183,7 @@ impl Bsdf {
             }
             Bsdf::Plastic { rho, alpha } => {
                 let ps = plastic_spec_prob(lo);
-                let li = if uc < ps {
-                    reflect(lo, ggx_sample_h(u, alpha))
-                } else {
-                    cosine_hemisphere(u)
-                };
+                let li = if uc < ps { reflect(lo, ggx_sample_h(u, alpha)) } else { cosine_hemisphere(u) };
                 if li.z <= 0.0 {
                     return None;
                 }
@@ -206,13 +192,7 @@ impl Bsdf {
                     return None;
                 }
                 let f = plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0));
-                BsdfSample {
-                    wi: world(li),
-                    weight: f * li.z / pdf,
-                    pdf,
-                    specular: false,
-                    transmitted: false,
-                }
+                BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false }
             }
         };
         (s.wi.is_finite() && s.weight.is_finite()).then_some(s)
@@ -269,13 +249,7 @@ fn sample_glass(
     }
     if uc < r {
         let li = Vec3::new(-lo.x, -lo.y, lo.z);
-        return Some(BsdfSample {
-            wi: world(li),
-            weight: Rgb::ONE,
-            pdf: r,
-            specular: true,
-            transmitted: false,
-        });
+        return Some(BsdfSample { wi: world(li), weight: Rgb::ONE, pdf: r, specular: true, transmitted: false });
     }
     let li = if thin {
         -lo
@@ -294,13 +268,7 @@ fn sample_glass(
     // and importance are not; this crate returns the power (adjoint) weight, which is
     // also what the renderer needs for radiance when it traces from the eye with
     // symmetric throughput (both ends of a closed glass object cancel).
-    Some(BsdfSample {
-        wi: world(li),
-        weight: tint,
-        pdf: 1.0 - r,
-        specular: true,
-        transmitted: true,
-    })
+    Some(BsdfSample { wi: world(li), weight: tint, pdf: 1.0 - r, specular: true, transmitted: true })
 }
 
 /// GGX normal distribution D(h) [sr^-1] (Walter et al. 2007, eq. 33).
@@ -374,16 +342,9 @@ impl Bsdf {
         match self {
             Bsdf::Lambert { rho } => Bsdf::Lambert { rho: rho * c },
             Bsdf::Mirror { r } => Bsdf::Mirror { r: r * c },
-            Bsdf::Glass { eta, tint, thin } => Bsdf::Glass {
-                eta,
-                tint: tint * c,
-                thin,
-            },
+            Bsdf::Glass { eta, tint, thin } => Bsdf::Glass { eta, tint: tint * c, thin },
             Bsdf::Conductor { f0, alpha } => Bsdf::Conductor { f0: f0 * c, alpha },
-            Bsdf::Plastic { rho, alpha } => Bsdf::Plastic {
-                rho: rho * c,
-                alpha,
-            },
+            Bsdf::Plastic { rho, alpha } => Bsdf::Plastic { rho: rho * c, alpha },
         }
     }
 }

@@ -35,20 +35,12 @@ fn albedo_quadrature(bsdf: &Bsdf, wo: Vec3, n: usize) -> Rgb {
 
 #[test]
 fn lambert_albedo_is_rho_and_sampling_matches_quadrature() {
-    let b = Bsdf::Lambert {
-        rho: Rgb::new(0.8, 0.5, 0.2),
-    };
+    let b = Bsdf::Lambert { rho: Rgb::new(0.8, 0.5, 0.2) };
     let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
     let s = albedo_sampled(&b, wo, 4096);
-    assert!(
-        (s - Rgb::new(0.8, 0.5, 0.2)).abs().max_element() < 1e-3,
-        "{s}"
-    );
+    assert!((s - Rgb::new(0.8, 0.5, 0.2)).abs().max_element() < 1e-3, "{s}");
     let q = albedo_quadrature(&b, wo, 1 << 16);
-    assert!(
-        (q - Rgb::new(0.8, 0.5, 0.2)).abs().max_element() < 5e-3,
-        "{q}"
-    );
+    assert!((q - Rgb::new(0.8, 0.5, 0.2)).abs().max_element() < 5e-3, "{q}");
 }
 
 #[test]
@@ -56,26 +48,14 @@ fn glossy_sampling_weights_agree_with_quadrature_of_f() {
     // The sampled estimator (weight = f cos / pdf) and uniform quadrature of f cos
     // estimate the same albedo only if f, pdf and sample agree with one another.
     for bsdf in [
-        Bsdf::Conductor {
-            f0: Rgb::new(0.9, 0.6, 0.3),
-            alpha: 0.3,
-        },
-        Bsdf::Conductor {
-            f0: Rgb::ONE,
-            alpha: 0.8,
-        },
-        Bsdf::Plastic {
-            rho: Rgb::new(0.7, 0.2, 0.2),
-            alpha: 0.2,
-        },
+        Bsdf::Conductor { f0: Rgb::new(0.9, 0.6, 0.3), alpha: 0.3 },
+        Bsdf::Conductor { f0: Rgb::ONE, alpha: 0.8 },
+        Bsdf::Plastic { rho: Rgb::new(0.7, 0.2, 0.2), alpha: 0.2 },
     ] {
         for wo in [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.0, 0.8)] {
             let s = albedo_sampled(&bsdf, wo, 1 << 16);
             let q = albedo_quadrature(&bsdf, wo, 1 << 18);
-            assert!(
-                (s - q).abs().max_element() < 0.02,
-                "{bsdf:?} wo={wo}: sampled {s} quadrature {q}"
-            );
+            assert!((s - q).abs().max_element() < 0.02, "{bsdf:?} wo={wo}: sampled {s} quadrature {q}");
             assert!(s.max_element() <= 1.0 + 1e-2, "energy created: {s}");
         }
     }
@@ -83,10 +63,7 @@ fn glossy_sampling_weights_agree_with_quadrature_of_f() {
 
 #[test]
 fn pdf_matches_sampled_pdf() {
-    let bsdf = Bsdf::Plastic {
-        rho: Rgb::splat(0.5),
-        alpha: 0.3,
-    };
+    let bsdf = Bsdf::Plastic { rho: Rgb::splat(0.5), alpha: 0.3 };
     let wo = Vec3::new(0.2, -0.3, 0.9).normalize();
     for i in 0..256 {
         let mut s = Sampler::new(2, i);
@@ -103,28 +80,17 @@ fn glass_fresnel_at_normal_incidence_and_total_internal_reflection() {
     assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
     // From inside at 60 degrees: sin_t = 1.5 sin 60 > 1, total internal reflection.
     assert_eq!(fresnel_dielectric(0.5, 1.0 / 1.5), 1.0);
-    let glass = Bsdf::Glass {
-        eta: 1.5,
-        tint: Rgb::ONE,
-        thin: false,
-    };
+    let glass = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false };
     let wo_inside = Vec3::new((0.75f32).sqrt(), 0.0, -0.5);
     for uc in [0.0, 0.5, 0.999] {
         let s = glass.sample(wo_inside, n_up(), Vec2::ZERO, uc).unwrap();
-        assert!(
-            !s.transmitted && s.wi.z < 0.0,
-            "TIR keeps the photon inside"
-        );
+        assert!(!s.transmitted && s.wi.z < 0.0, "TIR keeps the photon inside");
     }
 }
 
 #[test]
 fn glass_refraction_obeys_snell() {
-    let glass = Bsdf::Glass {
-        eta: 1.5,
-        tint: Rgb::ONE,
-        thin: false,
-    };
+    let glass = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false };
     let wo = Vec3::new(0.6, 0.0, 0.8); // sin_i = 0.6 outside
     let s = glass.sample(wo, n_up(), Vec2::ZERO, 0.999).unwrap();
     assert!(s.transmitted && s.wi.z < 0.0);
@@ -132,11 +98,7 @@ fn glass_refraction_obeys_snell() {
     assert!((sin_t - 0.6 / 1.5).abs() < 1e-5, "{sin_t}");
     assert!(s.wi.x < 0.0, "refracted ray continues to the other side");
     // Thin glass does not bend.
-    let thin = Bsdf::Glass {
-        eta: 1.5,
-        tint: Rgb::ONE,
-        thin: true,
-    };
+    let thin = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: true };
     let s = thin.sample(wo, n_up(), Vec2::ZERO, 0.999).unwrap();
     assert!((s.wi + wo).length() < 1e-5);
 }
@@ -145,11 +107,7 @@ fn glass_refraction_obeys_snell() {
 fn glass_is_lossless_on_average() {
     // Expected weight = R * 1 + T * tint = 1 for a white tint (selection probabilities
     // equal the Fresnel terms).
-    let glass = Bsdf::Glass {
-        eta: 1.5,
-        tint: Rgb::ONE,
-        thin: false,
-    };
+    let glass = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false };
     let wo = Vec3::new(0.8, 0.0, 0.6);
     let n = 10_000;
     let mut sum = Rgb::ZERO;

@@ -107,20 +107,12 @@ fn ldexp(x: f32, e: i32) -> f32 {
 /// sRGB transfer function (IEC 61966-2-1): linear [0,1] to encoded [0,1].
 pub fn srgb_encode(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
+    if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
 }
 
 /// Inverse sRGB transfer: encoded [0,1] to linear [0,1] (glTF base-colour textures are sRGB).
 pub fn srgb_decode(v: f32) -> f32 {
-    if v <= 0.040_45 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
+    if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
 }
 
 #[cfg(test)]
@@ -148,10 +140,7 @@ mod tests {
         let d = Rgbe::encode(huge).decode();
         assert!(((d.x - huge.x) / huge.x).abs() < 1.0 / 256.0, "{d:?}");
         assert!(Rgbe::encode(Rgb::splat(f32::INFINITY)).decode().is_finite());
-        assert_eq!(
-            Rgbe::encode(Rgb::new(f32::NAN, -1.0, 0.0)).decode(),
-            Rgb::ZERO
-        );
+        assert_eq!(Rgbe::encode(Rgb::new(f32::NAN, -1.0, 0.0)).decode(), Rgb::ZERO);
     }
 
     proptest! {

@@ -24,11 +24,7 @@ pub fn encode_direction(v: Vec3) -> u8 {
         return encode_direction(Vec3::Z);
     }
     let p = Vec2::new(v.x, v.y) / l1;
-    let p = if v.z < 0.0 {
-        Vec2::new((1.0 - p.y.abs()) * sign(p.x), (1.0 - p.x.abs()) * sign(p.y))
-    } else {
-        p
-    };
+    let p = if v.z < 0.0 { Vec2::new((1.0 - p.y.abs()) * sign(p.x), (1.0 - p.x.abs()) * sign(p.y)) } else { p };
     let q = |c: f32| ((c * 0.5 + 0.5) * LEVELS).round().clamp(0.0, LEVELS) as u8;
     q(p.x) | (q(p.y) << 4)
 }

@@ -123,7 +123,14 @@ pub struct Header {
 
 impl Header {
     /// A header for a new map; derived fields are filled when the map is written.
-    pub fn new(kind: MapKind, order: Order, layout: Layout, n_emitted: u64, scene_hash: [u8; 32], params: String) -> Header {
+    pub fn new(
+        kind: MapKind,
+        order: Order,
+        layout: Layout,
+        n_emitted: u64,
+        scene_hash: [u8; 32],
+        params: String,
+    ) -> Header {
         Header {
             kind,
             order,
@@ -324,7 +331,11 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
         return Err(err(Problem::Version { found: version }));
     }
     let header_len = c.u32() as usize;
-    if header_len < FIXED_LEN + 8 || header_len % 16 != 0 || header_len > FIXED_LEN + MAX_PARAMS + 24 || header_len as u64 > file_len {
+    if header_len < FIXED_LEN + 8
+        || header_len % 16 != 0
+        || header_len > FIXED_LEN + MAX_PARAMS + 24
+        || header_len as u64 > file_len
+    {
         return Err(err(Problem::Field { field: "header_len", value: header_len as u64 }));
     }
     if bytes.len() < header_len {
@@ -377,7 +388,12 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
         .to_owned();
     let expected = n_photons.checked_mul(record_size as u64).and_then(|p| p.checked_add(header_len as u64));
     if expected != Some(file_len) {
-        return Err(err(Problem::Length { expected: expected.unwrap_or(u64::MAX), actual: file_len, n_photons, record_size: record_size as usize }));
+        return Err(err(Problem::Length {
+            expected: expected.unwrap_or(u64::MAX),
+            actual: file_len,
+            n_photons,
+            record_size: record_size as usize,
+        }));
     }
     if !bounds.iter().all(|v| v.is_finite()) || !total_power.iter().all(|v| v.is_finite()) {
         return Err(err(Problem::Field { field: "bounds/total_power (not finite)", value: 0 }));
@@ -408,14 +424,24 @@ fn check_expectations(path: &Path, h: &Header, expect: &ReadExpect) -> Result<()
     }
     if let Some(o) = expect.order {
         if o != h.order {
-            let name = |o: Order| if o == Order::KdTree { "a kd-tree (run photon-sort first)" } else { "an unsorted map" };
+            let name =
+                |o: Order| if o == Order::KdTree { "a kd-tree (run photon-sort first)" } else { "an unsorted map" };
             return wrong(name(o).into(), name(h.order).trim_end_matches(" (run photon-sort first)").into());
         }
     }
     if let Some(i) = expect.irradiance {
         if i != h.has_irradiance {
-            let name = |i: bool| if i { "a map with precomputed irradiance (run photon-irradiance first)" } else { "a map without precomputed irradiance" };
-            return wrong(name(i).into(), if h.has_irradiance { "one with irradiance".into() } else { "one without irradiance".into() });
+            let name = |i: bool| {
+                if i {
+                    "a map with precomputed irradiance (run photon-irradiance first)"
+                } else {
+                    "a map without precomputed irradiance"
+                }
+            };
+            return wrong(
+                name(i).into(),
+                if h.has_irradiance { "one with irradiance".into() } else { "one without irradiance".into() },
+            );
         }
     }
     if let Some(s) = expect.scene_hash {
@@ -444,10 +470,16 @@ pub(crate) fn read_file(path: &Path, expect: &ReadExpect) -> Result<crate::AnyMa
     }
     let (header, _) = decode(path, &head, file_len)?;
     check_expectations(path, &header, expect)?;
-    fn load<R: crate::PhotonRecord>(path: &Path, file: &mut std::fs::File, header: Header) -> Result<PhotonMap<R>, FormatError> {
+    fn load<R: crate::PhotonRecord>(
+        path: &Path,
+        file: &mut std::fs::File,
+        header: Header,
+    ) -> Result<PhotonMap<R>, FormatError> {
         let n = header.n_photons as usize;
         let mut records: Vec<R> = Vec::new();
-        records.try_reserve_exact(n).map_err(|_| fail(path, Problem::Field { field: "n_photons (does not fit in memory)", value: n as u64 }))?;
+        records
+            .try_reserve_exact(n)
+            .map_err(|_| fail(path, Problem::Field { field: "n_photons (does not fit in memory)", value: n as u64 }))?;
         records.resize(n, R::zeroed());
         file.read_exact(bytemuck::cast_slice_mut(&mut records)).map_err(|e| fail(path, Problem::Io(e)))?;
         if blake3::hash(bytemuck::cast_slice(&records)).as_bytes() != &header.payload_hash {
@@ -477,4 +509,3 @@ pub(crate) fn read_file(path: &Path, expect: &ReadExpect) -> Result<crate::AnyMa
         Layout::FullIrradiance => AnyMap::FullIrr(load::<FullIrrPhoton>(path, &mut file, header)?),
     })
 }
-

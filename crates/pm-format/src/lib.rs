@@ -23,9 +23,9 @@ pub mod header;
 mod record;
 
 pub use atomic::write_atomically;
-pub use direction::{decode_direction, encode_direction, DIRECTION_MAX_ERROR_RAD};
+pub use direction::{DIRECTION_MAX_ERROR_RAD, decode_direction, encode_direction};
 pub use header::{FormatError, Header, Layout, MapKind, Order, ReadExpect};
-pub use record::{flags, CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Photon, PhotonRecord};
+pub use record::{CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Photon, PhotonRecord, flags};
 
 use std::path::Path;
 

@@ -142,10 +142,22 @@ const _: () = assert!(std::mem::size_of::<FullIrrPhoton>() == 64);
 impl PhotonRecord for CompactPhoton {
     const LAYOUT: Layout = Layout::Compact;
     fn encode(p: &Photon) -> Self {
-        CompactPhoton { pos: p.position.to_array(), power: Rgbe::encode(p.power).0, dir: encode_direction(p.wi), flags: p.flags }
+        CompactPhoton {
+            pos: p.position.to_array(),
+            power: Rgbe::encode(p.power).0,
+            dir: encode_direction(p.wi),
+            flags: p.flags,
+        }
     }
     fn decode(&self) -> Photon {
-        Photon { position: self.position(), power: self.power(), wi: self.wi(), flags: self.flags, normal: Vec3::ZERO, irradiance: Rgb::ZERO }
+        Photon {
+            position: self.position(),
+            power: self.power(),
+            wi: self.wi(),
+            flags: self.flags,
+            normal: Vec3::ZERO,
+            irradiance: Rgb::ZERO,
+        }
     }
     #[inline]
     fn position(&self) -> Vec3 {
@@ -189,7 +201,14 @@ impl PhotonRecord for CompactIrrPhoton {
         }
     }
     fn decode(&self) -> Photon {
-        Photon { position: self.position(), power: self.power(), wi: self.wi(), flags: self.flags, normal: self.normal(), irradiance: self.irradiance() }
+        Photon {
+            position: self.position(),
+            power: self.power(),
+            wi: self.wi(),
+            flags: self.flags,
+            normal: self.normal(),
+            irradiance: self.irradiance(),
+        }
     }
     #[inline]
     fn position(&self) -> Vec3 {
@@ -227,10 +246,22 @@ impl PhotonRecord for CompactIrrPhoton {
 impl PhotonRecord for FullPhoton {
     const LAYOUT: Layout = Layout::Full;
     fn encode(p: &Photon) -> Self {
-        FullPhoton { pos: p.position.to_array(), power: p.power.to_array(), dir: p.wi.to_array(), flags: p.flags as u32 }
+        FullPhoton {
+            pos: p.position.to_array(),
+            power: p.power.to_array(),
+            dir: p.wi.to_array(),
+            flags: p.flags as u32,
+        }
     }
     fn decode(&self) -> Photon {
-        Photon { position: self.position(), power: self.power(), wi: self.wi(), flags: self.flags(), normal: Vec3::ZERO, irradiance: Rgb::ZERO }
+        Photon {
+            position: self.position(),
+            power: self.power(),
+            wi: self.wi(),
+            flags: self.flags(),
+            normal: Vec3::ZERO,
+            irradiance: Rgb::ZERO,
+        }
     }
     #[inline]
     fn position(&self) -> Vec3 {
@@ -274,7 +305,14 @@ impl PhotonRecord for FullIrrPhoton {
         }
     }
     fn decode(&self) -> Photon {
-        Photon { position: self.position(), power: self.power(), wi: self.wi(), flags: self.flags(), normal: self.normal(), irradiance: self.irradiance() }
+        Photon {
+            position: self.position(),
+            power: self.power(),
+            wi: self.wi(),
+            flags: self.flags(),
+            normal: self.normal(),
+            irradiance: self.irradiance(),
+        }
     }
     #[inline]
     fn position(&self) -> Vec3 {

@@ -44,7 +44,10 @@ fn every_layout_round_trips_byte_for_byte() {
         let mut back = back;
         back.write(&again).unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), std::fs::read(&again).unwrap());
-        assert_eq!(std::fs::metadata(&path).unwrap().len() as usize % 16 == 0, R::LAYOUT.record_size() * 1000 % 16 == 0);
+        assert_eq!(
+            std::fs::metadata(&path).unwrap().len() as usize % 16 == 0,
+            R::LAYOUT.record_size() * 1000 % 16 == 0
+        );
     }
     check::<CompactPhoton>(dir.path(), "c.pmap");
     check::<CompactIrrPhoton>(dir.path(), "ci.pmap");
@@ -179,7 +182,8 @@ fn failed_write_leaves_the_old_file_and_no_temporary() {
 
 #[test]
 fn layouts_convert_through_the_decoded_photon() {
-    let map = PhotonMap::new(header(MapKind::Global), photons(50).iter().map(FullIrrPhoton::encode).collect::<Vec<_>>());
+    let map =
+        PhotonMap::new(header(MapKind::Global), photons(50).iter().map(FullIrrPhoton::encode).collect::<Vec<_>>());
     let compact: PhotonMap<CompactPhoton> = into_layout(AnyMap::FullIrr(map.clone()));
     assert_eq!(compact.header.layout, Layout::Compact);
     assert_eq!(compact.records.len(), 50);

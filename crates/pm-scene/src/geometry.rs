@@ -23,11 +23,7 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, w: Vec3) -> Vec3 {
             f32::from_bits((if pc < 0.0 { bits - oi } else { bits + oi }) as u32)
         }
     };
-    Vec3::new(
-        bump(p.x, of_i.x, n.x),
-        bump(p.y, of_i.y, n.y),
-        bump(p.z, of_i.z, n.z),
-    )
+    Vec3::new(bump(p.x, of_i.x, n.x), bump(p.y, of_i.y, n.y), bump(p.z, of_i.z, n.z))
 }
 
 /// Watertight ray-triangle intersection (Woop, Benthin and Wald 2013, as in pbrt-v4

@@ -3,7 +3,7 @@
 //! Every input check happens here, once; the rest of the workspace trusts a `Scene`.
 
 use crate::light::Light;
-use crate::{Camera, LightKind, Material, Scene, Texture, Triangle};
+use crate::{Camera, LightKind, Material, Object, Scene, Texture, Triangle};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use pm_bsdf::Bsdf;
 use pm_color::{Rgb, srgb_decode};
@@ -58,22 +58,12 @@ const SUPPORTED_EXTENSIONS: [&str; 5] = [
 
 /// Load a glTF 2.0 scene. Problems that do not stop loading are in `Scene::warnings`.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
-    let gltf_err = |e: gltf::Error| SceneError::Gltf {
-        path: path.to_owned(),
-        message: e.to_string(),
-    };
-    let content = |message: String| SceneError::Content {
-        path: path.to_owned(),
-        message,
-    };
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+    let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
+    let content = |message: String| SceneError::Content { path: path.to_owned(), message };
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(gltf_err)?;
     let base_dir = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone())
-        .map_err(gltf_err)?;
+    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
     let doc = gltf.document;
 
     let mut hasher = blake3::Hasher::new();
@@ -95,21 +85,15 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let mut texture_of_image = std::collections::HashMap::new();
     let mut materials = Vec::new();
     for (i, m) in doc.materials().enumerate() {
-        let name = m
-            .name()
-            .map_or_else(|| format!("material #{i}"), str::to_owned);
+        let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
         let pbr = m.pbr_metallic_roughness();
         let bc = pbr.base_color_factor();
         let mut base = Rgb::new(bc[0], bc[1], bc[2]);
         if !base.is_finite() || base.min_element() < 0.0 {
-            return Err(content(format!(
-                "material '{name}': baseColorFactor {bc:?} is not a colour"
-            )));
+            return Err(content(format!("material '{name}': baseColorFactor {bc:?} is not a colour")));
         }
         if base.max_element() > 1.0 {
-            warnings.push(format!(
-                "material '{name}': albedo {base} above 1 clamped to 1"
-            ));
+            warnings.push(format!("material '{name}': albedo {base} above 1 clamped to 1"));
             base = base.min(Rgb::ONE);
         }
         let metallic = pbr.metallic_factor();
@@ -118,28 +102,16 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
         let bsdf = if transmission > 0.0 {
             if transmission < 1.0 {
-                warnings.push(format!(
-                    "material '{name}': partial transmission {transmission} treated as full"
-                ));
+                warnings.push(format!("material '{name}': partial transmission {transmission} treated as full"));
             }
             let thin = m.volume().is_none_or(|v| v.thickness_factor() <= 0.0);
             let eta = m.ior().unwrap_or(1.5);
             if !(eta.is_finite() && eta >= 1.0) {
-                return Err(content(format!(
-                    "material '{name}': ior {eta} must be >= 1"
-                )));
+                return Err(content(format!("material '{name}': ior {eta} must be >= 1")));
             }
-            Bsdf::Glass {
-                eta,
-                tint: base,
-                thin,
-            }
+            Bsdf::Glass { eta, tint: base, thin }
         } else if metallic >= 0.5 {
-            if roughness < MIRROR_ROUGHNESS {
-                Bsdf::Mirror { r: base }
-            } else {
-                Bsdf::Conductor { f0: base, alpha }
-            }
+            if roughness < MIRROR_ROUGHNESS { Bsdf::Mirror { r: base } } else { Bsdf::Conductor { f0: base, alpha } }
         } else if roughness >= DIFFUSE_ROUGHNESS {
             Bsdf::Lambert { rho: base }
         } else {
@@ -149,25 +121,19 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             None => None,
             Some(info) => {
                 if info.tex_coord() != 0 {
-                    warnings.push(format!("material '{name}': base colour texture uses TEXCOORD_{}; TEXCOORD_0 is used", info.tex_coord()));
+                    warnings.push(format!(
+                        "material '{name}': base colour texture uses TEXCOORD_{}; TEXCOORD_0 is used",
+                        info.tex_coord()
+                    ));
                 }
                 let image = info.texture().source();
                 let idx = match texture_of_image.get(&image.index()) {
                     Some(&t) => t,
                     None => {
-                        let data = gltf::image::Data::from_source(
-                            image.source(),
-                            Some(base_dir),
-                            &buffers,
-                        )
-                        .map_err(|e| {
-                            content(format!("material '{name}': base colour image: {e}"))
-                        })?;
+                        let data = gltf::image::Data::from_source(image.source(), Some(base_dir), &buffers)
+                            .map_err(|e| content(format!("material '{name}': base colour image: {e}")))?;
                         textures.push(decode_texture(&data).ok_or_else(|| {
-                            content(format!(
-                                "material '{name}': unsupported image format {:?}",
-                                data.format
-                            ))
+                            content(format!("material '{name}': unsupported image format {:?}", data.format))
                         })?);
                         texture_of_image.insert(image.index(), textures.len() as u32 - 1);
                         textures.len() as u32 - 1
@@ -177,66 +143,45 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             }
         };
         if m.emissive_texture().is_some() {
-            warnings.push(format!(
-                "material '{name}': emissive texture ignored (emissiveFactor used)"
-            ));
+            warnings.push(format!("material '{name}': emissive texture ignored (emissiveFactor used)"));
         }
         let ef = m.emissive_factor();
         let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
         if !pm_color::is_valid(emission) {
-            return Err(content(format!(
-                "material '{name}': emission {emission} is not a non-negative finite colour"
-            )));
+            return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
-        materials.push(Material {
-            name,
-            bsdf,
-            base_texture,
-            emission,
-            double_sided: m.double_sided(),
-        });
+        materials.push(Material { name, bsdf, base_texture, emission, double_sided: m.double_sided() });
     }
     // glTF's default material (primitives without one): white-ish diffuse.
     let default_material = materials.len() as u32;
     materials.push(Material {
         name: "default".into(),
-        bsdf: Bsdf::Lambert {
-            rho: Rgb::splat(0.8),
-        },
+        bsdf: Bsdf::Lambert { rho: Rgb::splat(0.8) },
         base_texture: None,
         emission: Rgb::ZERO,
         double_sided: false,
     });
 
-    let scene = doc
-        .default_scene()
-        .or_else(|| doc.scenes().next())
-        .ok_or_else(|| content("the file has no scene".into()))?;
+    let scene =
+        doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| content("the file has no scene".into()))?;
     let mut triangles = Vec::new();
     let mut lights = Vec::new();
+    let mut objects = Vec::new();
     let mut camera = None;
     let mut skipped_degenerate = 0usize;
     let mut warned_modes = BTreeSet::new();
-    let mut stack: Vec<(gltf::Node, Mat4, usize)> =
-        scene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> = scene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     stack.reverse();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 256 {
-            return Err(content(
-                "node hierarchy deeper than 256 levels (a cycle?)".into(),
-            ));
+            return Err(content("node hierarchy deeper than 256 levels (a cycle?)".into()));
         }
         let local = Mat4::from_cols_array_2d(&node.transform().matrix());
         let world = parent * local;
         if !world.is_finite() {
-            return Err(content(format!(
-                "node {}: transform is not finite",
-                node.index()
-            )));
+            return Err(content(format!("node {}: transform is not finite", node.index())));
         }
-        let node_name = node
-            .name()
-            .map_or_else(|| format!("node #{}", node.index()), str::to_owned);
+        let node_name = node.name().map_or_else(|| format!("node #{}", node.index()), str::to_owned);
         if let Some(mesh) = node.mesh() {
             let normal_m = Mat3::from_mat4(world).inverse().transpose();
             for (pi, prim) in mesh.primitives().enumerate() {
@@ -251,14 +196,17 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 }
                 let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
                 let first = triangles.len();
-                let material = prim
-                    .material()
-                    .index()
-                    .map_or(default_material, |i| i as u32);
-                let skipped =
-                    read_primitive(&prim, &buffers, world, normal_m, material, &mut triangles)
-                        .map_err(|m| content(format!("{what}: {m}")))?;
+                let material = prim.material().index().map_or(default_material, |i| i as u32);
+                let skipped = read_primitive(&prim, &buffers, world, normal_m, material, &mut triangles)
+                    .map_err(|m| content(format!("{what}: {m}")))?;
                 skipped_degenerate += skipped;
+                if triangles.len() > first {
+                    let name = match mesh.name() {
+                        Some(m) if m != node_name => format!("{node_name} ({m})"),
+                        _ => node_name.clone(),
+                    };
+                    objects.push(Object { name, tris: first as u32..triangles.len() as u32, material });
+                }
                 let mat = &materials[material as usize];
                 if mat.emission.max_element() > 0.0 && triangles.len() > first {
                     let tris: Vec<u32> = (first as u32..triangles.len() as u32).collect();
@@ -293,23 +241,13 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 )));
             }
             if light.range().is_some() {
-                warnings.push(format!(
-                    "light '{node_name}': range is ignored (inverse-square falloff is physical)"
-                ));
+                warnings.push(format!("light '{node_name}': range is ignored (inverse-square falloff is physical)"));
             }
             let kind = match light.kind() {
-                gltf::khr_lights_punctual::Kind::Point => LightKind::Point {
-                    position,
-                    intensity: value,
-                },
-                gltf::khr_lights_punctual::Kind::Spot {
-                    inner_cone_angle,
-                    outer_cone_angle,
-                } => {
+                gltf::khr_lights_punctual::Kind::Point => LightKind::Point { position, intensity: value },
+                gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
                     if axis == Vec3::ZERO {
-                        return Err(content(format!(
-                            "light '{node_name}': degenerate orientation"
-                        )));
+                        return Err(content(format!("light '{node_name}': degenerate orientation")));
                     }
                     let outer = outer_cone_angle.clamp(1e-4, std::f32::consts::FRAC_PI_2);
                     let inner = inner_cone_angle.clamp(0.0, outer);
@@ -323,23 +261,12 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 }
                 gltf::khr_lights_punctual::Kind::Directional => {
                     if axis == Vec3::ZERO {
-                        return Err(content(format!(
-                            "light '{node_name}': degenerate orientation"
-                        )));
+                        return Err(content(format!("light '{node_name}': degenerate orientation")));
                     }
-                    LightKind::Directional {
-                        direction: axis,
-                        irradiance: value,
-                        center: Vec3::ZERO,
-                        radius: 0.0,
-                    }
+                    LightKind::Directional { direction: axis, irradiance: value, center: Vec3::ZERO, radius: 0.0 }
                 }
             };
-            lights.push(Light {
-                name: node_name.clone(),
-                kind,
-                power: Rgb::ZERO,
-            });
+            lights.push(Light { name: node_name.clone(), kind, power: Rgb::ZERO });
         }
         if camera.is_none() {
             if let Some(cam) = node.camera() {
@@ -366,7 +293,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                         });
                     }
                     gltf::camera::Projection::Orthographic(_) => {
-                        warnings.push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
+                        warnings
+                            .push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
                     }
                 }
             }
@@ -378,15 +306,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     if skipped_degenerate > 0 {
         warnings.push(format!("{skipped_degenerate} zero-area triangles skipped"));
     }
-    Ok(Scene::build(
-        triangles,
-        materials,
-        textures,
-        lights,
-        camera,
-        content_hash,
-        warnings,
-    ))
+    Ok(Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings))
 }
 
 /// Append one primitive's triangles in world space. Returns the number of degenerate
@@ -400,11 +320,7 @@ fn read_primitive(
     out: &mut Vec<Triangle>,
 ) -> Result<usize, String> {
     use gltf::accessor::{DataType, Dimensions};
-    let check = |sem: &str,
-                 acc: gltf::Accessor,
-                 dims: Dimensions,
-                 types: &[DataType]|
-     -> Result<(), String> {
+    let check = |sem: &str, acc: gltf::Accessor, dims: Dimensions, types: &[DataType]| -> Result<(), String> {
         if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
             return Err(format!(
                 "{sem} accessor {} is {:?} {:?}, expected {dims:?} of {types:?}",
@@ -414,10 +330,7 @@ fn read_primitive(
             ));
         }
         if acc.sparse().is_some() {
-            return Err(format!(
-                "{sem} accessor {} is sparse, which is not supported",
-                acc.index()
-            ));
+            return Err(format!("{sem} accessor {} is sparse, which is not supported", acc.index()));
         }
         let Some(view) = acc.view() else {
             return Err(format!("{sem} accessor {} has no buffer view", acc.index()));
@@ -425,13 +338,7 @@ fn read_primitive(
         let buf_len = buffers.get(view.buffer().index()).map_or(0, |b| b.0.len());
         let elem = acc.size();
         let stride = view.stride().unwrap_or(elem);
-        let need = view.offset()
-            + acc.offset()
-            + if acc.count() == 0 {
-                0
-            } else {
-                (acc.count() - 1) * stride + elem
-            };
+        let need = view.offset() + acc.offset() + if acc.count() == 0 { 0 } else { (acc.count() - 1) * stride + elem };
         if view.offset() + view.length() > buf_len || need > view.offset() + view.length() {
             return Err(format!(
                 "{sem} accessor {} reads past the end of its buffer ({need} bytes needed, {buf_len} available)",
@@ -440,9 +347,7 @@ fn read_primitive(
         }
         Ok(())
     };
-    let pos_acc = prim
-        .get(&gltf::Semantic::Positions)
-        .ok_or("has no POSITION attribute")?;
+    let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or("has no POSITION attribute")?;
     check("POSITION", pos_acc, Dimensions::Vec3, &[DataType::F32])?;
     let normal_acc = prim.get(&gltf::Semantic::Normals);
     if let Some(a) = normal_acc.clone() {
@@ -450,20 +355,10 @@ fn read_primitive(
     }
     let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
     if let Some(a) = uv_acc.clone() {
-        check(
-            "TEXCOORD_0",
-            a,
-            Dimensions::Vec2,
-            &[DataType::F32, DataType::U8, DataType::U16],
-        )?;
+        check("TEXCOORD_0", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
     }
     if let Some(a) = prim.indices() {
-        check(
-            "indices",
-            a,
-            Dimensions::Scalar,
-            &[DataType::U8, DataType::U16, DataType::U32],
-        )?;
+        check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
     let positions: Vec<Vec3> = reader
@@ -477,30 +372,19 @@ fn read_primitive(
         ));
     }
     let normals: Option<Vec<Vec3>> = if normal_acc.is_some() {
-        reader.read_normals().map(|it| {
-            it.map(|n| (normal_m * Vec3::from(n)).normalize_or_zero())
-                .collect()
-        })
+        reader.read_normals().map(|it| it.map(|n| (normal_m * Vec3::from(n)).normalize_or_zero()).collect())
     } else {
         None
     };
     let uvs: Option<Vec<Vec2>> = if uv_acc.is_some() {
-        reader
-            .read_tex_coords(0)
-            .map(|it| it.into_f32().map(Vec2::from).collect())
+        reader.read_tex_coords(0).map(|it| it.into_f32().map(Vec2::from).collect())
     } else {
         None
     };
-    for (what, len) in [
-        ("NORMAL", normals.as_ref().map(Vec::len)),
-        ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
-    ] {
+    for (what, len) in [("NORMAL", normals.as_ref().map(Vec::len)), ("TEXCOORD_0", uvs.as_ref().map(Vec::len))] {
         if let Some(len) = len {
             if len != positions.len() {
-                return Err(format!(
-                    "{what} has {len} entries but POSITION has {}",
-                    positions.len()
-                ));
+                return Err(format!("{what} has {len} entries but POSITION has {}", positions.len()));
             }
         }
     }
@@ -512,21 +396,13 @@ fn read_primitive(
         return Err(format!("{} indices is not a multiple of 3", indices.len()));
     }
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
-        return Err(format!(
-            "index {bad} is out of range ({} vertices)",
-            positions.len()
-        ));
+        return Err(format!("index {bad} is out of range ({} vertices)", positions.len()));
     }
     // A mirroring transform reverses the winding; keep counter-clockwise = front.
     let flip = Mat3::from_mat4(world).determinant() < 0.0;
     let mut skipped = 0;
     for tri in indices.chunks_exact(3) {
-        let [a, b, c] = if flip {
-            [tri[0], tri[2], tri[1]]
-        } else {
-            [tri[0], tri[1], tri[2]]
-        }
-        .map(|i| i as usize);
+        let [a, b, c] = if flip { [tri[0], tri[2], tri[1]] } else { [tri[0], tri[1], tri[2]] }.map(|i| i as usize);
         let p = [positions[a], positions[b], positions[c]];
         let cross = (p[1] - p[0]).cross(p[2] - p[0]);
         let area = 0.5 * cross.length();
@@ -538,19 +414,10 @@ fn read_primitive(
         let n = normals.as_ref().and_then(|ns| {
             let n = [ns[a], ns[b], ns[c]];
             // Zero-length normals carry no information: fall back to the face normal.
-            n.iter()
-                .all(|v| *v != Vec3::ZERO && v.is_finite())
-                .then_some(n)
+            n.iter().all(|v| *v != Vec3::ZERO && v.is_finite()).then_some(n)
         });
         let uv = uvs.as_ref().map(|u| [u[a], u[b], u[c]]);
-        out.push(Triangle {
-            p,
-            n,
-            uv,
-            ng,
-            area,
-            material,
-        });
+        out.push(Triangle { p, n, uv, ng, area, material });
     }
     Ok(skipped)
 }
@@ -571,17 +438,10 @@ fn decode_texture(data: &gltf::image::Data) -> Option<Texture> {
     let texels = (0..n)
         .map(|i| {
             let px = &data.pixels[i * channels..];
-            let c = |k: usize| {
-                srgb_decode(
-                    px[k.min(channels - 1).min(if channels == 2 { 0 } else { k })] as f32 / 255.0,
-                )
-            };
+            let c =
+                |k: usize| srgb_decode(px[k.min(channels - 1).min(if channels == 2 { 0 } else { k })] as f32 / 255.0);
             Rgb::new(c(0), c(1), c(2))
         })
         .collect();
-    Some(Texture {
-        width: data.width,
-        height: data.height,
-        texels,
-    })
+    Some(Texture { width: data.width, height: data.height, texels })
 }

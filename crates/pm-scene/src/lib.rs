@@ -41,6 +41,23 @@ pub struct Triangle {
     pub material: u32,
 }
 
+impl Triangle {
+    /// A triangle without vertex normals or UVs; `None` when it has no area.
+    pub fn new(p: [Vec3; 3], material: u32) -> Option<Triangle> {
+        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+        let area = 0.5 * cross.length();
+        let ng = cross.normalize_or_zero();
+        (area > 0.0 && area.is_finite() && ng != Vec3::ZERO).then_some(Triangle {
+            p,
+            n: None,
+            uv: None,
+            ng,
+            area,
+            material,
+        })
+    }
+}
+
 /// A linear-RGB texture (base colour, decoded from sRGB).
 #[derive(Clone, Debug)]
 pub struct Texture {
@@ -83,6 +100,32 @@ pub struct Material {
     pub emission: Rgb,
     /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
     pub double_sided: bool,
+}
+
+/// One mesh primitive instance: a named run of consecutive triangles with one material.
+#[derive(Clone, Debug)]
+pub struct Object {
+    /// "node (mesh)" name from the file.
+    pub name: String,
+    /// Triangle ids `first..end`.
+    pub tris: std::ops::Range<u32>,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+impl Object {
+    /// Bounding sphere (centre of the bounding box, radius to the farthest vertex).
+    pub fn bounding_sphere(&self, scene: &Scene) -> Target {
+        let tris = &scene.triangles[self.tris.start as usize..self.tris.end as usize];
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for p in tris.iter().flat_map(|t| t.p) {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        let center = 0.5 * (lo + hi);
+        let radius = tris.iter().flat_map(|t| t.p).map(|p| p.distance(center)).fold(0.0, f32::max);
+        Target { center, radius: radius * (1.0 + 1e-4) }
+    }
 }
 
 /// A pinhole camera (glTF perspective camera).
@@ -182,6 +225,8 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// Light sources (emissive meshes and punctual lights).
     pub lights: Vec<Light>,
+    /// Mesh primitive instances, in file order, covering every triangle.
+    pub objects: Vec<Object>,
     /// The first camera found in the scene, if any.
     pub camera: Option<Camera>,
     /// Bounds of all triangles.
@@ -203,14 +248,12 @@ impl Scene {
         materials: Vec<Material>,
         textures: Vec<Texture>,
         lights: Vec<Light>,
+        objects: Vec<Object>,
         camera: Option<Camera>,
         content_hash: [u8; 32],
         warnings: Vec<String>,
     ) -> Scene {
-        let mut bounds = Bounds {
-            min: Vec3::splat(f32::INFINITY),
-            max: Vec3::splat(f32::NEG_INFINITY),
-        };
+        let mut bounds = Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
         for t in &triangles {
             for p in t.p {
                 bounds.min = bounds.min.min(p);
@@ -218,35 +261,22 @@ impl Scene {
             }
         }
         if triangles.is_empty() {
-            bounds = Bounds {
-                min: Vec3::ZERO,
-                max: Vec3::ZERO,
-            };
+            bounds = Bounds { min: Vec3::ZERO, max: Vec3::ZERO };
         }
         let (bvh, bvh_tris) = if triangles.is_empty() {
             (None, Vec::new())
         } else {
             let tris: Vec<obvhs::triangle::Triangle> = triangles
                 .iter()
-                .map(|t| obvhs::triangle::Triangle {
-                    v0: t.p[0].into(),
-                    v1: t.p[1].into(),
-                    v2: t.p[2].into(),
-                })
+                .map(|t| obvhs::triangle::Triangle { v0: t.p[0].into(), v1: t.p[1].into(), v2: t.p[2].into() })
                 .collect();
             let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
                 &tris,
                 obvhs::BvhBuildParams::medium_build(),
                 &mut std::time::Duration::default(),
             );
-            let bvh_tris = bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| BvhTri {
-                    p: triangles[i as usize].p,
-                    id: i,
-                })
-                .collect();
+            let bvh_tris =
+                bvh.primitive_indices.iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
             (Some(bvh), bvh_tris)
         };
         let mut scene = Scene {
@@ -254,6 +284,7 @@ impl Scene {
             materials,
             textures,
             lights,
+            objects,
             camera,
             bounds,
             content_hash,
@@ -265,21 +296,70 @@ impl Scene {
         scene
     }
 
+    /// A scene built in code (tests, generated scenes, later real-time callers):
+    /// each run of consecutive triangles with one material becomes an object, and
+    /// each emissive object an area light. `extra_lights` adds punctual lights.
+    pub fn from_parts(
+        triangles: Vec<Triangle>,
+        materials: Vec<Material>,
+        extra_lights: Vec<Light>,
+        camera: Option<Camera>,
+    ) -> Scene {
+        let mut objects: Vec<Object> = Vec::new();
+        for (i, t) in triangles.iter().enumerate() {
+            match objects.last_mut() {
+                Some(o) if o.material == t.material => o.tris.end = i as u32 + 1,
+                _ => objects.push(Object {
+                    name: format!("object #{} ({})", objects.len(), materials[t.material as usize].name),
+                    tris: i as u32..i as u32 + 1,
+                    material: t.material,
+                }),
+            }
+        }
+        let mut lights = Vec::new();
+        for o in &objects {
+            let m = &materials[o.material as usize];
+            if m.emission.max_element() > 0.0 {
+                let tris: Vec<u32> = o.tris.clone().collect();
+                let mut acc = 0.0f64;
+                let cdf = tris
+                    .iter()
+                    .map(|&t| {
+                        acc += triangles[t as usize].area as f64;
+                        acc
+                    })
+                    .collect();
+                lights.push(Light {
+                    name: o.name.clone(),
+                    kind: LightKind::Area {
+                        tris,
+                        cdf,
+                        area: acc as f32,
+                        emission: m.emission,
+                        two_sided: m.double_sided,
+                    },
+                    power: Rgb::ZERO,
+                });
+            }
+        }
+        lights.extend(extra_lights);
+        Scene::build(triangles, materials, Vec::new(), lights, objects, camera, [0; 32], Vec::new())
+    }
+
     /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
         let ray = obvhs::ray::Ray::new(o.into(), d.into(), 0.0, t_max);
         let mut hit = obvhs::ray::RayHit::none();
         let mut best_b = [0.0; 3];
-        let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
-            match intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax) {
+        let found =
+            bvh.ray_traverse(ray, &mut hit, |r, id| match intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax) {
                 Some((t, b)) => {
                     best_b = b;
                     t
                 }
                 None => f32::INFINITY,
-            }
-        });
+            });
         // ray_traverse may test triangles after the best one; recompute barycentrics
         // for the recorded closest primitive.
         if !found {
@@ -319,18 +399,8 @@ impl Scene {
             }
             None => ng,
         };
-        let uv = tr
-            .uv
-            .map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
-        Hit {
-            t,
-            tri,
-            b,
-            p,
-            ng,
-            ns,
-            uv,
-        }
+        let uv = tr.uv.map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
+        Hit { t, tri, b, p, ng, ns, uv }
     }
 
     /// The material of a hit's triangle.
@@ -351,11 +421,7 @@ impl Scene {
     /// the back too when the material is double-sided.
     pub fn emitted(&self, hit: &Hit, wo: Vec3) -> Rgb {
         let m = self.material(hit);
-        if m.emission == Rgb::ZERO || (!m.double_sided && wo.dot(hit.ng) <= 0.0) {
-            Rgb::ZERO
-        } else {
-            m.emission
-        }
+        if m.emission == Rgb::ZERO || (!m.double_sided && wo.dot(hit.ng) <= 0.0) { Rgb::ZERO } else { m.emission }
     }
 
     /// Sum of the power of all lights [W per channel].

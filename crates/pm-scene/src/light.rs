@@ -5,8 +5,8 @@ use crate::Scene;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_sampling::{
-    FOUR_PI, Sampler, concentric_disk, cosine_hemisphere, sample_cdf, to_world, uniform_cone,
-    uniform_cone_pdf, uniform_sphere,
+    FOUR_PI, Sampler, concentric_disk, cosine_hemisphere, sample_cdf, to_world, uniform_cone, uniform_cone_pdf,
+    uniform_sphere,
 };
 use std::f32::consts::{PI, TAU};
 
@@ -106,12 +106,7 @@ impl Light {
     /// uniformly) and weight by the mixture density of all of them, so the estimate
     /// of any light path that starts toward a target stays unbiased. Rays that would
     /// carry no power return `None`.
-    pub fn sample_emission_toward(
-        &self,
-        scene: &Scene,
-        s: &mut Sampler,
-        targets: &[Target],
-    ) -> Option<EmittedRay> {
+    pub fn sample_emission_toward(&self, scene: &Scene, s: &mut Sampler, targets: &[Target]) -> Option<EmittedRay> {
         let u_pos = s.next_2d();
         let u_sel = s.next_1d();
         let u_dir = s.next_2d();
@@ -131,19 +126,10 @@ impl Light {
         };
         let cone_dir = |o: Vec3, t: &Target| -> Option<Vec3> {
             let cos_max = cone_cos(o, t)?;
-            Some(to_world(
-                uniform_cone(u_dir, cos_max),
-                (t.center - o).normalize(),
-            ))
+            Some(to_world(uniform_cone(u_dir, cos_max), (t.center - o).normalize()))
         };
         match &self.kind {
-            LightKind::Area {
-                tris,
-                cdf,
-                area,
-                emission,
-                two_sided,
-            } => {
+            LightKind::Area { tris, cdf, area, emission, two_sided } => {
                 let tri = &scene.triangles[tris[sample_cdf(cdf, u_sel)] as usize];
                 let b = pm_sampling::uniform_triangle(u_pos);
                 let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
@@ -156,17 +142,10 @@ impl Light {
                 };
                 let (dir, power) = if targets.is_empty() {
                     // pdf_pos = 1/A, pdf_dir = cos/pi (per side), so Phi-hat = L_e pi A sides.
-                    (
-                        to_world(cosine_hemisphere(u_dir), n),
-                        *emission * (PI * area * sides),
-                    )
+                    (to_world(cosine_hemisphere(u_dir), n), *emission * (PI * area * sides))
                 } else {
                     let d = cone_dir(p, pick(u_tgt))?;
-                    let cos = if *two_sided {
-                        d.dot(tri.ng).abs()
-                    } else {
-                        d.dot(tri.ng)
-                    };
+                    let cos = if *two_sided { d.dot(tri.ng).abs() } else { d.dot(tri.ng) };
                     let pdf = cone_pdf(p, d);
                     if cos <= 0.0 || pdf <= 0.0 {
                         return None;
@@ -176,55 +155,26 @@ impl Light {
                 let origin = crate::offset_ray_origin(p, tri.ng, dir);
                 Some(EmittedRay { origin, dir, power })
             }
-            LightKind::Point {
-                position,
-                intensity,
-            } => {
+            LightKind::Point { position, intensity } => {
                 if targets.is_empty() {
-                    Some(EmittedRay {
-                        origin: *position,
-                        dir: uniform_sphere(u_dir),
-                        power: *intensity * FOUR_PI,
-                    })
+                    Some(EmittedRay { origin: *position, dir: uniform_sphere(u_dir), power: *intensity * FOUR_PI })
                 } else {
                     let d = cone_dir(*position, pick(u_tgt))?;
                     let pdf = cone_pdf(*position, d);
-                    (pdf > 0.0).then(|| EmittedRay {
-                        origin: *position,
-                        dir: d,
-                        power: *intensity / pdf,
-                    })
+                    (pdf > 0.0).then(|| EmittedRay { origin: *position, dir: d, power: *intensity / pdf })
                 }
             }
-            LightKind::Spot {
-                position,
-                direction,
-                intensity,
-                cos_inner,
-                cos_outer,
-            } => {
+            LightKind::Spot { position, direction, intensity, cos_inner, cos_outer } => {
                 let (d, pdf) = if targets.is_empty() {
-                    (
-                        to_world(uniform_cone(u_dir, *cos_outer), *direction),
-                        uniform_cone_pdf(*cos_outer),
-                    )
+                    (to_world(uniform_cone(u_dir, *cos_outer), *direction), uniform_cone_pdf(*cos_outer))
                 } else {
                     let d = cone_dir(*position, pick(u_tgt))?;
                     (d, cone_pdf(*position, d))
                 };
                 let f = spot_falloff(d.dot(*direction), *cos_inner, *cos_outer);
-                (f > 0.0 && pdf > 0.0).then(|| EmittedRay {
-                    origin: *position,
-                    dir: d,
-                    power: *intensity * (f / pdf),
-                })
+                (f > 0.0 && pdf > 0.0).then(|| EmittedRay { origin: *position, dir: d, power: *intensity * (f / pdf) })
             }
-            LightKind::Directional {
-                direction,
-                irradiance,
-                center,
-                radius,
-            } => {
+            LightKind::Directional { direction, irradiance, center, radius } => {
                 let (t, b) = pm_sampling::basis(*direction);
                 let (disk_center, disk_radius, area_pdf) = if targets.is_empty() {
                     (*center, *radius, 1.0 / (PI * radius * radius))
@@ -235,8 +185,7 @@ impl Light {
                 let q = concentric_disk(u_pos) * disk_radius;
                 // Start outside the scene's bounding sphere, on the plane through disk_center.
                 let along = (disk_center - *center).dot(*direction);
-                let origin =
-                    disk_center + t * q.x + b * q.y - *direction * (along + *radius * 1.01 + 1e-6);
+                let origin = disk_center + t * q.x + b * q.y - *direction * (along + *radius * 1.01 + 1e-6);
                 let area_pdf = if targets.is_empty() {
                     area_pdf
                 } else {
@@ -251,11 +200,7 @@ impl Light {
                     }
                     pdf / targets.len() as f32
                 };
-                (area_pdf > 0.0).then(|| EmittedRay {
-                    origin,
-                    dir: *direction,
-                    power: *irradiance / area_pdf,
-                })
+                (area_pdf > 0.0).then(|| EmittedRay { origin, dir: *direction, power: *irradiance / area_pdf })
             }
         }
     }
@@ -276,11 +221,7 @@ pub fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
         return 0.0;
     }
     let range = cos_inner - cos_outer;
-    let t = if range <= 1e-6 {
-        1.0
-    } else {
-        ((cos - cos_outer) / range).clamp(0.0, 1.0)
-    };
+    let t = if range <= 1e-6 { 1.0 } else { ((cos - cos_outer) / range).clamp(0.0, 1.0) };
     t * t
 }
 
@@ -290,26 +231,15 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
     let radius = (0.5 * scene.bounds.diagonal()).max(1e-6);
     for light in &mut scene.lights {
         light.power = match &mut light.kind {
-            LightKind::Area {
-                area,
-                emission,
-                two_sided,
-                ..
-            } => *emission * (PI * *area * if *two_sided { 2.0 } else { 1.0 }),
+            LightKind::Area { area, emission, two_sided, .. } => {
+                *emission * (PI * *area * if *two_sided { 2.0 } else { 1.0 })
+            }
             LightKind::Point { intensity, .. } => *intensity * FOUR_PI,
             // Integral of I t(cos)^2 over the cone: 2 pi I [(1 - ci) + (ci - co) / 3].
-            LightKind::Spot {
-                intensity,
-                cos_inner,
-                cos_outer,
-                ..
-            } => *intensity * (TAU * ((1.0 - *cos_inner) + (*cos_inner - *cos_outer) / 3.0)),
-            LightKind::Directional {
-                irradiance,
-                center: c,
-                radius: r,
-                ..
-            } => {
+            LightKind::Spot { intensity, cos_inner, cos_outer, .. } => {
+                *intensity * (TAU * ((1.0 - *cos_inner) + (*cos_inner - *cos_outer) / 3.0))
+            }
+            LightKind::Directional { irradiance, center: c, radius: r, .. } => {
                 *c = center;
                 *r = radius;
                 *irradiance * (PI * radius * radius)

@@ -2,9 +2,7 @@ use super::*;
 use std::path::PathBuf;
 
 fn scene_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)
 }
 
 fn load_scene(name: &str) -> Scene {
@@ -18,34 +16,14 @@ fn project_scenes_load_with_expected_content() {
     assert_eq!(s.lights.len(), 1);
     // Light: 0.5 m square, L_e = 12: Phi = pi L_e A.
     let expected = std::f32::consts::PI * 12.0 * 0.25;
-    assert!(
-        (s.lights[0].power.x - expected).abs() < 1e-3 * expected,
-        "{}",
-        s.lights[0].power
-    );
+    assert!((s.lights[0].power.x - expected).abs() < 1e-3 * expected, "{}", s.lights[0].power);
     let cam = s.camera.as_ref().unwrap();
     assert!((cam.position - Vec3::new(0.0, 1.0, 3.8)).length() < 1e-6);
     assert!((cam.forward - Vec3::NEG_Z).length() < 1e-6);
-    let kinds: Vec<_> = s
-        .materials
-        .iter()
-        .map(|m| (m.name.as_str(), m.bsdf))
-        .collect();
-    assert!(
-        kinds
-            .iter()
-            .any(|(n, b)| *n == "chrome" && matches!(b, Bsdf::Mirror { .. }))
-    );
-    assert!(
-        kinds
-            .iter()
-            .any(|(n, b)| *n == "glass" && matches!(b, Bsdf::Glass { thin: false, .. }))
-    );
-    assert!(
-        kinds
-            .iter()
-            .any(|(n, b)| *n == "red" && matches!(b, Bsdf::Lambert { .. }))
-    );
+    let kinds: Vec<_> = s.materials.iter().map(|m| (m.name.as_str(), m.bsdf)).collect();
+    assert!(kinds.iter().any(|(n, b)| *n == "chrome" && matches!(b, Bsdf::Mirror { .. })));
+    assert!(kinds.iter().any(|(n, b)| *n == "glass" && matches!(b, Bsdf::Glass { thin: false, .. })));
+    assert!(kinds.iter().any(|(n, b)| *n == "red" && matches!(b, Bsdf::Lambert { .. })));
     assert!(
         (s.bounds.min - Vec3::new(-1.0, 0.0, -1.0)).length() < 1e-6
             && (s.bounds.max - Vec3::new(1.0, 2.0, 1.0)).length() < 1e-6
@@ -54,9 +32,7 @@ fn project_scenes_load_with_expected_content() {
     let f = load_scene("furnace.gltf");
     assert_eq!(f.lights.len(), 1);
     assert!(
-        f.triangles
-            .iter()
-            .all(|t| t.ng.dot(-(t.p[0] + t.p[1] + t.p[2]) / 3.0) > 0.0),
+        f.triangles.iter().all(|t| t.ng.dot(-(t.p[0] + t.p[1] + t.p[2]) / 3.0) > 0.0),
         "furnace faces point inward"
     );
     let b = load_scene("cornell_boxes.gltf");
@@ -67,21 +43,15 @@ fn project_scenes_load_with_expected_content() {
 fn closest_hits_match_hand_computed_values() {
     let s = load_scene("cornell_boxes.gltf");
     // Camera axis hits the back wall z = -1: t = 3.8 + 1.
-    let h = s
-        .intersect(Vec3::new(0.0, 1.9, 3.8), Vec3::NEG_Z, f32::INFINITY)
-        .unwrap();
+    let h = s.intersect(Vec3::new(0.0, 1.9, 3.8), Vec3::NEG_Z, f32::INFINITY).unwrap();
     assert!((h.t - 4.8).abs() < 1e-5, "{}", h.t);
     assert!((h.p - Vec3::new(0.0, 1.9, -1.0)).length() < 1e-5);
     assert!((h.ng - Vec3::Z).length() < 1e-6);
     // Straight down from 1 m above the floor, clear of the blocks.
-    let h = s
-        .intersect(Vec3::new(-0.9, 1.0, 0.9), Vec3::NEG_Y, f32::INFINITY)
-        .unwrap();
+    let h = s.intersect(Vec3::new(-0.9, 1.0, 0.9), Vec3::NEG_Y, f32::INFINITY).unwrap();
     assert!((h.t - 1.0).abs() < 1e-6 && (h.ng - Vec3::Y).length() < 1e-6);
     // Straight up hits the light 2 mm below the ceiling; it emits downward only.
-    let h = s
-        .intersect(Vec3::new(0.1, 1.0, 0.1), Vec3::Y, f32::INFINITY)
-        .unwrap();
+    let h = s.intersect(Vec3::new(0.1, 1.0, 0.1), Vec3::Y, f32::INFINITY).unwrap();
     assert!((h.t - 0.998).abs() < 1e-5, "{}", h.t);
     assert_eq!(s.material(&h).name, "ceiling_light");
     assert_eq!(s.emitted(&h, Vec3::NEG_Y), Rgb::splat(12.0));
@@ -89,9 +59,7 @@ fn closest_hits_match_hand_computed_values() {
     // Diagonal ray to a known wall point: from (0,1,0) toward (1, 1.5, 0.5) on the right wall.
     let target = Vec3::new(1.0, 1.5, 0.5);
     let o = Vec3::new(0.0, 1.0, 0.0);
-    let h = s
-        .intersect(o, (target - o).normalize(), f32::INFINITY)
-        .unwrap();
+    let h = s.intersect(o, (target - o).normalize(), f32::INFINITY).unwrap();
     assert!((h.p - target).length() < 1e-5 && (h.t - (target - o).length()).abs() < 1e-5);
     assert_eq!(s.material(&h).name, "blue");
     // t_max stops the search; shadow rays agree.
@@ -104,9 +72,7 @@ fn closest_hits_match_hand_computed_values() {
 fn sphere_hit_has_smooth_normal_and_barycentrics() {
     let s = load_scene("cornell_spheres.gltf");
     // Chrome sphere: centre (-0.45, 0.35, -0.35), r = 0.35; from +z along -z.
-    let h = s
-        .intersect(Vec3::new(-0.45, 0.35, 3.0), Vec3::NEG_Z, f32::INFINITY)
-        .unwrap();
+    let h = s.intersect(Vec3::new(-0.45, 0.35, 3.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
     assert!((h.t - 3.0).abs() < 2e-3, "{}", h.t); // tessellation error of the 48x24 sphere
     assert!((h.ns - Vec3::Z).length() < 0.01, "{}", h.ns);
     assert!((h.b.iter().sum::<f32>() - 1.0).abs() < 1e-5);
@@ -118,12 +84,8 @@ fn offset_origins_avoid_self_intersection_at_any_scale() {
     // A large random-ish set of points on a tilted triangle far from the origin and
     // close to it: rays leaving the offset point never re-hit the triangle.
     for scale in [1e-3f32, 1.0, 1e4, 1e5] {
-        let p = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.2, 0.1),
-            Vec3::new(0.1, 0.3, 1.0),
-        ]
-        .map(|v| v * scale + Vec3::splat(scale * 3.0));
+        let p = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.2, 0.1), Vec3::new(0.1, 0.3, 1.0)]
+            .map(|v| v * scale + Vec3::splat(scale * 3.0));
         let ng = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
         let mut hits = 0;
         for i in 0..2000u64 {
@@ -146,30 +108,14 @@ fn offset_origins_avoid_self_intersection_at_any_scale() {
 #[test]
 fn watertight_edges_are_not_missed() {
     // Rays aimed exactly at the shared diagonal of a two-triangle quad hit one of them.
-    let a = [
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 0.0),
-    ];
-    let b = [
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, 1.0, 0.0),
-    ];
+    let a = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
+    let b = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
     for i in 0..1000 {
         let x = -1.0 + 2.0 * (i as f32 + 0.5) / 1000.0;
         let o = Vec3::new(0.3, -0.2, 5.0);
         let d = (Vec3::new(x, x, 0.0) - o).normalize();
-        let hit = intersect_triangle(o, d, &a, f32::INFINITY).or(intersect_triangle(
-            o,
-            d,
-            &b,
-            f32::INFINITY,
-        ));
-        assert!(
-            hit.is_some(),
-            "ray through the shared edge at x = {x} slipped through"
-        );
+        let hit = intersect_triangle(o, d, &a, f32::INFINITY).or(intersect_triangle(o, d, &b, f32::INFINITY));
+        assert!(hit.is_some(), "ray through the shared edge at x = {x} slipped through");
     }
 }
 

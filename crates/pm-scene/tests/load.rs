@@ -7,9 +7,7 @@ use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
 }
 
 fn close(a: Vec3, b: Vec3) -> bool {
@@ -24,11 +22,7 @@ fn check_handmade(path: &Path) {
     let s = load(path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(s.triangles.len(), 3);
     // Ground: the unit quad scaled by 2 (node matrix), facing +y.
-    let ground: Vec<_> = s
-        .triangles
-        .iter()
-        .filter(|t| close(t.ng, Vec3::Y))
-        .collect();
+    let ground: Vec<_> = s.triangles.iter().filter(|t| close(t.ng, Vec3::Y)).collect();
     assert_eq!(ground.len(), 2);
     assert!((ground.iter().map(|t| t.area).sum::<f32>() - 16.0).abs() < 1e-5);
     // Mirrored triangle: (0,0,0),(1,0,0),(0,1,0) with normal +z, scaled by (-1,1,1),
@@ -36,29 +30,17 @@ fn check_handmade(path: &Path) {
     // (0,1,0), (0,1,1), (0,2,0); normal (1,0,0). The negative determinant must not
     // flip the face: the winding normal agrees with the vertex normal.
     let tri = s.triangles.iter().find(|t| !close(t.ng, Vec3::Y)).unwrap();
-    for p in [
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::new(0.0, 1.0, 1.0),
-        Vec3::new(0.0, 2.0, 0.0),
-    ] {
+    for p in [Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(0.0, 2.0, 0.0)] {
         assert!(tri.p.iter().any(|q| close(*q, p)), "{p} not in {:?}", tri.p);
     }
     assert!(close(tri.ng, Vec3::X), "{}", tri.ng);
     assert!(tri.n.unwrap().iter().all(|n| close(*n, Vec3::X)));
     // Lights: the glowing triangle (area 0.5, L_e = 2) and the three punctual lights.
     assert_eq!(s.lights.len(), 4);
-    let power = |name: &str| {
-        s.lights
-            .iter()
-            .find(|l| l.name.starts_with(name))
-            .unwrap_or_else(|| panic!("{name}"))
-            .power
-    };
+    let power =
+        |name: &str| s.lights.iter().find(|l| l.name.starts_with(name)).unwrap_or_else(|| panic!("{name}")).power;
     assert!(close(power("mirrored"), Vec3::splat(PI * 2.0 * 0.5)));
-    assert!(close(
-        power("lamp") / 10.0,
-        Vec3::new(1.0, 0.5, 0.25) * 4.0 * PI
-    ));
+    assert!(close(power("lamp") / 10.0, Vec3::new(1.0, 0.5, 0.25) * 4.0 * PI));
     let (ci, co) = (0.2f32.cos(), 0.5f32.cos());
     let spot = 2.0 * PI * 5.0 * ((1.0 - ci) + (ci - co) / 3.0);
     assert!((power("spot").x - spot).abs() < 1e-4 * spot);
@@ -66,14 +48,8 @@ fn check_handmade(path: &Path) {
     assert!((power("sun").x - 3.0 * PI * 9.0).abs() < 1e-3);
     for l in &s.lights {
         match &l.kind {
-            LightKind::Spot {
-                direction,
-                position,
-                ..
-            } => {
-                assert!(
-                    close(*direction, Vec3::NEG_Y) && close(*position, Vec3::new(1.0, 3.0, 0.0))
-                )
+            LightKind::Spot { direction, position, .. } => {
+                assert!(close(*direction, Vec3::NEG_Y) && close(*position, Vec3::new(1.0, 3.0, 0.0)))
             }
             LightKind::Directional { direction, .. } => assert!(close(*direction, Vec3::NEG_Y)),
             _ => {}
@@ -82,13 +58,7 @@ fn check_handmade(path: &Path) {
     let cam = s.camera.as_ref().unwrap();
     assert!(close(cam.position, Vec3::new(0.0, 2.0, 5.0)) && close(cam.forward, Vec3::NEG_Z));
     assert!(cam.aspect.is_none());
-    assert!(
-        s.warnings
-            .iter()
-            .any(|w| w.contains("KHR_texture_transform")),
-        "{:?}",
-        s.warnings
-    );
+    assert!(s.warnings.iter().any(|w| w.contains("KHR_texture_transform")), "{:?}", s.warnings);
 }
 
 #[test]
@@ -118,39 +88,23 @@ fn error_for(edit: impl FnOnce(&str, &Path) -> String) -> (String, PathBuf) {
 }
 
 fn assert_one_line_naming(err: &str, path: &Path, what: &str) {
-    assert!(
-        err.contains(&path.display().to_string()),
-        "error does not name the file: {err}"
-    );
+    assert!(err.contains(&path.display().to_string()), "error does not name the file: {err}");
     assert!(!err.contains('\n'), "error is not one line: {err}");
-    assert!(
-        err.to_lowercase().contains(what),
-        "error does not say '{what}': {err}"
-    );
+    assert!(err.to_lowercase().contains(what), "error does not say '{what}': {err}");
 }
 
 #[test]
 fn malformed_files_are_rejected_with_one_line_errors() {
     let uri_start = "data:application/octet-stream;base64,";
     let cases: Vec<(&str, Box<dyn FnOnce(&str, &Path) -> String>)> = vec![
-        (
-            "not a valid gltf",
-            Box::new(|t, _| t[..t.len() / 2].to_owned()),
-        ),
+        ("not a valid gltf", Box::new(|t, _| t[..t.len() / 2].to_owned())),
         ("not a valid gltf", Box::new(|_, _| String::new())),
-        (
-            "not a valid gltf",
-            Box::new(|_, _| "\u{1}\u{2}garbage".into()),
-        ),
+        ("not a valid gltf", Box::new(|_, _| "\u{1}\u{2}garbage".into())),
         // Positions declared as VEC2.
         (
             "position",
             Box::new(|t, _| {
-                t.replacen(
-                    "\"count\": 3, \"type\": \"VEC3\", \"min\"",
-                    "\"count\": 3, \"type\": \"VEC2\", \"min\"",
-                    1,
-                )
+                t.replacen("\"count\": 3, \"type\": \"VEC3\", \"min\"", "\"count\": 3, \"type\": \"VEC2\", \"min\"", 1)
             }),
         ),
         // Only two vertices but the indices reference vertex 2.
@@ -170,10 +124,7 @@ fn malformed_files_are_rejected_with_one_line_errors() {
             }),
         ),
         // Accessor reading past the end of its buffer view.
-        (
-            "past the end",
-            Box::new(|t, _| t.replacen("\"count\": 6,", "\"count\": 60,", 1)),
-        ),
+        ("past the end", Box::new(|t, _| t.replacen("\"count\": 6,", "\"count\": 60,", 1))),
         // External buffer that does not exist.
         (
             "not a valid gltf",

@@ -1,0 +1,308 @@
+//! Stage 1 of the pipeline (Christensen 1999 section 1.1): emit photons from the
+//! scene's lights, trace them, and write `global.pmap` and `caustic.pmap`
+//! (unsorted) in the photon-map format. A thin layer over `pm-photon`.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use pm_format::{
+    CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Header, MapKind, Order, Photon, PhotonMap,
+};
+use pm_photon::{Budget, LightSelector, MapPass, TraceConfig, TracedMap};
+use pm_stage::Progress;
+use serde_json::json;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Command line of `photon-trace`.
+#[derive(Parser, Debug)]
+#[command(
+    name = "photon-trace",
+    about = "Stage 1: emit photons from the lights and trace them into global and caustic photon maps",
+    long_about = "Stage 1 (Christensen 1999, section 1.1). Emits photons from the scene's lights (chosen in \
+proportion to power in W), traces them with the scene's BSDFs and Russian roulette, and writes DIR/global.pmap \
+(every non-specular hit, 23-byte records with surface normal) and DIR/caustic.pmap (light-specular+-diffuse \
+paths only, 18-byte records). Photon power is in W per RGB channel. The caustic map is absent when the scene \
+has no mirror or glass.",
+    args_conflicts_with_subcommands = true
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    trace: TraceArgs,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Concatenate photon-map slices traced with --photon-range into one map,
+    /// byte-identical to tracing the whole range in one run.
+    Merge {
+        /// Slices of one map (any order), covering 0..N without gaps.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Merged map.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// Arguments of a tracing run.
+#[derive(Args, Debug, Clone)]
+pub struct TraceArgs {
+    /// Scene (glTF 2.0: .gltf or .glb).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Output folder for global.pmap and caustic.pmap (created if missing).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Target number of photons stored in the global map (emission continues until reached).
+    #[arg(long, default_value_t = 400_000, conflicts_with = "emit_global")]
+    pub global: u64,
+    /// Target number of photons stored in the caustic map (0: no caustic map).
+    #[arg(long, default_value_t = 35_000, conflicts_with = "emit_caustic")]
+    pub caustic: u64,
+    /// Emit exactly N global photons instead of a stored target (needed with --photon-range).
+    #[arg(long)]
+    pub emit_global: Option<u64>,
+    /// Emit exactly M caustic photons instead of a stored target.
+    #[arg(long)]
+    pub emit_caustic: Option<u64>,
+    /// Stop emitting for a map after this many photons even if its target is not reached
+    /// [default: 100 x target + 1,000,000].
+    #[arg(long)]
+    pub max_emitted: Option<u64>,
+    /// Random seed; equal seeds give byte-identical maps for any thread count.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Record layout: compact (RGBE power, 1-byte directions; 18/23 bytes) or full (f32; 40/64 bytes).
+    #[arg(long, default_value = "compact", value_parser = ["compact", "full"])]
+    pub layout: String,
+    /// Trace only photons FIRST..END of the emission index space (with --emit-*); merge the
+    /// slices with `photon-trace merge`.
+    #[arg(long, value_parser = parse_range)]
+    pub photon_range: Option<Range<u64>>,
+    /// Give light NAME this fraction of the photon budget (repeatable); other lights share
+    /// the rest in proportion to their power.
+    #[arg(long = "light-share", value_parser = parse_share)]
+    pub light_shares: Vec<(String, f64)>,
+    /// Write statistics (counts, photons per bounce, time) as JSON.
+    #[arg(long)]
+    pub stats_json: Option<PathBuf>,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+fn parse_range(s: &str) -> Result<Range<u64>, String> {
+    let (a, b) = s.split_once("..").ok_or("expected FIRST..END")?;
+    let a: u64 = a.trim().parse().map_err(|e| format!("FIRST: {e}"))?;
+    let b: u64 = b.trim().parse().map_err(|e| format!("END: {e}"))?;
+    if a >= b {
+        return Err(format!("empty range {a}..{b}"));
+    }
+    Ok(a..b)
+}
+
+fn parse_share(s: &str) -> Result<(String, f64), String> {
+    let (n, w) = s.rsplit_once('=').ok_or("expected NAME=FRACTION")?;
+    let w: f64 = w.parse().map_err(|e| format!("FRACTION: {e}"))?;
+    Ok((n.to_owned(), w))
+}
+
+/// What a run did (also written as the stats JSON).
+pub type Report = serde_json::Value;
+
+/// Run the stage.
+pub fn run(cli: Cli) -> Result<Report> {
+    match cli.command {
+        Some(Command::Merge { inputs, out }) => merge(&inputs, &out),
+        None => trace(&cli.trace),
+    }
+}
+
+/// Trace both maps and write them.
+pub fn trace(args: &TraceArgs) -> Result<Report> {
+    let scene_path = args.scene.as_ref().context("--scene is required")?;
+    let out = args.out.as_ref().context("--out is required")?;
+    pm_stage::init_threads(args.threads)?;
+    let start = Instant::now();
+    let scene = pm_stage::load_scene("photon-trace", scene_path)?;
+    let selector = LightSelector::new(&scene, &args.light_shares).with_context(|| scene_path.display().to_string())?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
+    let full = args.layout == "full";
+    let budget = |emit: Option<u64>, target: u64| match emit {
+        Some(n) => Budget::Emitted(n),
+        None => Budget::Stored {
+            target,
+            cap: args.max_emitted.unwrap_or(target.saturating_mul(100).saturating_add(1_000_000)),
+        },
+    };
+    let mut report = json!({
+        "stage": "photon-trace",
+        "scene": scene_path.display().to_string(),
+        "threads": pm_stage::thread_count(),
+        "lights": scene.lights.iter().zip(&selector.probs).map(|(l, p)| json!({"name": l.name, "power_w": l.power.to_array(), "selection_probability": p})).collect::<Vec<_>>(),
+    });
+    let passes = [
+        (MapPass::Global, MapKind::Global, "global", budget(args.emit_global, args.global)),
+        (MapPass::Caustic, MapKind::Caustic, "caustic", budget(args.emit_caustic, args.caustic)),
+    ];
+    for (pass, kind, name, budget) in passes {
+        let path = out.join(format!("{name}.pmap"));
+        let wanted = !matches!(budget, Budget::Stored { target: 0, .. } | Budget::Emitted(0));
+        if pass == MapPass::Caustic && (!wanted || pm_photon::specular_targets(&scene).is_empty()) {
+            let why = if wanted { "the scene has no mirror or glass surface" } else { "no caustic photons requested" };
+            remove_stale(&path)?;
+            report[name] = json!({"skipped": why});
+            eprintln!("photon-trace: no caustic map: {why}");
+            continue;
+        }
+        let cfg =
+            TraceConfig { pass, budget, seed: args.seed, selector: selector.clone(), range: args.photon_range.clone() };
+        let total = match budget {
+            Budget::Stored { target, .. } => target,
+            Budget::Emitted(_) => 0,
+        };
+        let progress = Progress::new(&format!("trace {name}"), total);
+        let traced =
+            pm_photon::trace(&scene, &cfg, &|n| progress.set(n)).with_context(|| scene_path.display().to_string())?;
+        let secs = progress.finish();
+        if traced.stats.hit_cap {
+            eprintln!(
+                "photon-trace: warning: {name} map: emission cap reached after {} photons with {} stored",
+                traced.stats.emitted, traced.stats.stored
+            );
+        }
+        let params = json!({
+            "seed": args.seed,
+            "budget": format!("{budget:?}"),
+            "layout": args.layout,
+            "light_shares": args.light_shares,
+        });
+        let mut params_with_range = params.clone();
+        params_with_range["photon_range"] = json!(args.photon_range.as_ref().map(|r| [r.start, r.end]));
+        let header = Header::new(
+            kind,
+            Order::Unsorted,
+            pm_format::Layout::Compact,
+            traced.stats.emitted,
+            scene.content_hash,
+            params_with_range.to_string(),
+        );
+        write_map(&path, header, &traced.photons, full, pass)?;
+        report[name] = map_report(&traced, &scene, secs);
+    }
+    report["seconds"] = json!(start.elapsed().as_secs_f64());
+    if let Some(p) = &args.stats_json {
+        pm_stage::write_json(p, &report)?;
+    }
+    Ok(report)
+}
+
+/// The global map carries the surface normal (23/64-byte layouts) so the irradiance
+/// precompute and the renderer's leak tests need no scene lookups; the caustic map
+/// uses the paper's 18-byte record (40 bytes full).
+fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, pass: MapPass) -> Result<()> {
+    fn write<R: pm_format::PhotonRecord>(path: &Path, header: Header, photons: &[Photon]) -> Result<()> {
+        PhotonMap::new(header, photons.iter().map(R::encode).collect::<Vec<R>>()).write(path)?;
+        Ok(())
+    }
+    match (pass, full) {
+        (MapPass::Global, false) => write::<CompactIrrPhoton>(path, header, photons),
+        (MapPass::Global, true) => write::<FullIrrPhoton>(path, header, photons),
+        (MapPass::Caustic, false) => write::<CompactPhoton>(path, header, photons),
+        (MapPass::Caustic, true) => write::<FullPhoton>(path, header, photons),
+    }
+}
+
+fn map_report(traced: &TracedMap, scene: &pm_scene::Scene, secs: f64) -> serde_json::Value {
+    let s = &traced.stats;
+    json!({
+        "emitted": s.emitted,
+        "stored": s.stored,
+        "stored_per_bounce": s.stored_per_bounce,
+        "emitted_per_light": scene.lights.iter().zip(&s.emitted_per_light).map(|(l, n)| json!({"light": l.name, "emitted": n})).collect::<Vec<_>>(),
+        "rays": s.rays,
+        "truncated_paths": s.truncated_paths,
+        "hit_emission_cap": s.hit_cap,
+        "total_power_w": pm_photon::total_power(&traced.photons).to_array(),
+        "seconds": secs,
+        "paths_per_second": s.emitted as f64 / secs.max(1e-9),
+        "rays_per_second": s.rays as f64 / secs.max(1e-9),
+    })
+}
+
+fn remove_stale(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("{}: cannot remove stale map", path.display())),
+    }
+}
+
+/// Merge slices traced with `--photon-range` into one map.
+pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
+    let mut maps = Vec::new();
+    for p in inputs {
+        let m = pm_format::read(p, &pm_format::ReadExpect { order: Some(Order::Unsorted), ..Default::default() })?;
+        let params: serde_json::Value = serde_json::from_str(&m.header().params)
+            .with_context(|| format!("{}: header parameters are not JSON", p.display()))?;
+        let range = params["photon_range"]
+            .as_array()
+            .and_then(|a| Some(a.first()?.as_u64()?..a.get(1)?.as_u64()?))
+            .with_context(|| format!("{}: not a --photon-range slice", p.display()))?;
+        let mut base = params.clone();
+        base["photon_range"] = serde_json::Value::Null;
+        maps.push((range, base, p.clone(), m));
+    }
+    maps.sort_by_key(|m| m.0.start);
+    let (_, base, first_path, first) = &maps[0];
+    let h0 = first.header().clone();
+    let mut expected_start = 0;
+    for (range, params, path, m) in &maps {
+        let h = m.header();
+        if (h.kind, h.layout, h.scene_hash, h.n_emitted) != (h0.kind, h0.layout, h0.scene_hash, h0.n_emitted)
+            || params != base
+        {
+            bail!(
+                "{}: not a slice of the same map as {} (kind, layout, scene, emitted count or parameters differ)",
+                path.display(),
+                first_path.display()
+            );
+        }
+        if range.start != expected_start {
+            bail!(
+                "{}: slice starts at {} but the slices before it end at {expected_start} (gap or overlap)",
+                path.display(),
+                range.start
+            );
+        }
+        expected_start = range.end.min(h0.n_emitted);
+    }
+    if expected_start != h0.n_emitted {
+        bail!("slices cover 0..{expected_start} but the map emitted {} photons", h0.n_emitted);
+    }
+    let mut header = h0.clone();
+    header.params = base.to_string();
+    macro_rules! cat {
+        ($variant:ident) => {{
+            let mut records = Vec::new();
+            for (_, _, _, m) in &maps {
+                if let pm_format::AnyMap::$variant(m) = m {
+                    records.extend_from_slice(&m.records);
+                }
+            }
+            let mut merged = PhotonMap::new(header, records);
+            merged.write(out)?;
+            merged.records.len()
+        }};
+    }
+    let n = match first {
+        pm_format::AnyMap::Compact(_) => cat!(Compact),
+        pm_format::AnyMap::CompactIrr(_) => cat!(CompactIrr),
+        pm_format::AnyMap::Full(_) => cat!(Full),
+        pm_format::AnyMap::FullIrr(_) => cat!(FullIrr),
+    };
+    Ok(json!({"stage": "photon-trace merge", "slices": maps.len(), "photons": n, "out": out.display().to_string()}))
+}

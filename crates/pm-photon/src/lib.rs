@@ -1,0 +1,360 @@
+//! Photon tracing (Christensen 1999 section 1.1; Jensen 1996; the loop follows the
+//! summary in McGuire and Luebke 2009, Appendix A, step 2): photons leave the lights
+//! with power proportional to emission, scatter by the scene's BSDFs with Russian
+//! roulette, and are stored at non-specular hits in the global map; photons that
+//! reach a non-specular surface through specular bounces only are stored in the
+//! caustic map, traced in a separate pass aimed at the specular objects.
+//!
+//! Determinism: photon `i` of a map draws its samples from a stream keyed by
+//! (seed, map, i) and nothing else, batches are traced in parallel and concatenated
+//! in index order, so results are bit-identical for any thread count, and a map
+//! traced in slices of the index space and concatenated equals one traced whole.
+//!
+//! This crate returns photons in memory and does no I/O, so the real-time mode can
+//! call it per frame.
+
+use pm_color::Rgb;
+use pm_format::{Photon, flags};
+use pm_sampling::{Sampler, mix64, sample_cdf};
+use pm_scene::{Scene, Target};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Path length limit. Russian roulette ends paths long before this in physical
+/// scenes; paths cut here are counted in [`MapStats::truncated_paths`].
+pub const MAX_BOUNCES: u32 = 1000;
+/// Photon paths traced per batch between checks of the stored count.
+const BATCH: u64 = 1 << 14;
+/// Paths per parallel work item.
+const CHUNK: u64 = 256;
+
+/// How many photons to emit for a map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Budget {
+    /// Emit until this many photons are stored (whole paths are kept, so the map
+    /// may hold a few more), or until `cap` photons have been emitted.
+    Stored {
+        /// Target number of stored photons.
+        target: u64,
+        /// Emission limit.
+        cap: u64,
+    },
+    /// Emit exactly this many photons (needed to split the index space).
+    Emitted(u64),
+}
+
+/// Which map a pass fills.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapPass {
+    /// Global map: every non-specular hit.
+    Global,
+    /// Caustic map: the first non-specular hit after one or more specular bounces.
+    Caustic,
+}
+
+/// Inputs of a tracing pass.
+#[derive(Clone, Debug)]
+pub struct TraceConfig {
+    /// Which map.
+    pub pass: MapPass,
+    /// Emission budget.
+    pub budget: Budget,
+    /// Random seed.
+    pub seed: u64,
+    /// Probability of emitting from each light (same order as `scene.lights`); see
+    /// [`LightSelector`].
+    pub selector: LightSelector,
+    /// Trace only this slice of the photon index space (requires `Budget::Emitted`).
+    pub range: Option<Range<u64>>,
+}
+
+/// Statistics of a pass.
+#[derive(Clone, Debug, Default)]
+pub struct MapStats {
+    /// Photons emitted (the power scale's N).
+    pub emitted: u64,
+    /// Photons stored.
+    pub stored: u64,
+    /// Stored photons by the number of bounces before the store (index 0 = direct).
+    pub stored_per_bounce: Vec<u64>,
+    /// Photons emitted from each light.
+    pub emitted_per_light: Vec<u64>,
+    /// Rays traced (intersection queries).
+    pub rays: u64,
+    /// Paths ended by [`MAX_BOUNCES`] rather than absorption or escape.
+    pub truncated_paths: u64,
+    /// True when emission stopped at the cap before reaching the target.
+    pub hit_cap: bool,
+}
+
+/// Result of a pass: photons in index order, with power already divided by the
+/// number emitted.
+#[derive(Clone, Debug)]
+pub struct TracedMap {
+    /// The stored photons.
+    pub photons: Vec<Photon>,
+    /// Counts.
+    pub stats: MapStats,
+}
+
+/// Why a scene cannot be traced.
+#[derive(Debug, thiserror::Error)]
+pub enum TraceError {
+    /// Nothing emits.
+    #[error("the scene has no lights with non-zero power (add an emissive material or a KHR_lights_punctual light)")]
+    NoLights,
+    /// Nothing to hit.
+    #[error("the scene has no surfaces: photons would never be stored")]
+    NoSurfaces,
+    /// Slicing needs a fixed emission count.
+    #[error("--photon-range needs a fixed emission count (--emit-global/--emit-caustic), not a stored-photon target")]
+    RangeNeedsFixedCount,
+    /// A light share names no light.
+    #[error("light share for '{0}': no light of that name (lights: {1})")]
+    UnknownLight(String, String),
+    /// Shares out of range.
+    #[error("light shares must be in [0, 1] and sum to at most 1 (got {0})")]
+    BadShares(String),
+}
+
+/// Probabilities of choosing each light for an emitted photon: proportional to power
+/// (sum of channels) by default (Jozwowski 2002 section 3.1); lights given an
+/// explicit share of the budget get it, and the rest split the remainder by power.
+#[derive(Clone, Debug)]
+pub struct LightSelector {
+    /// Probability per light.
+    pub probs: Vec<f64>,
+    cdf: Vec<f64>,
+}
+
+impl LightSelector {
+    /// Build from the scene and `(light name, share)` overrides. A name matches a
+    /// light whose name equals it or starts with it followed by " (".
+    pub fn new(scene: &Scene, shares: &[(String, f64)]) -> Result<LightSelector, TraceError> {
+        let power: Vec<f64> = scene.lights.iter().map(|l| (l.power.x + l.power.y + l.power.z) as f64).collect();
+        if scene.lights.is_empty() || power.iter().all(|&p| !(p > 0.0)) {
+            return Err(TraceError::NoLights);
+        }
+        let mut fixed = vec![None; scene.lights.len()];
+        let total_share: f64 = shares.iter().map(|s| s.1).sum();
+        if shares.iter().any(|s| !(0.0..=1.0).contains(&s.1)) || total_share > 1.0 + 1e-9 {
+            return Err(TraceError::BadShares(format!("{shares:?}")));
+        }
+        for (name, share) in shares {
+            let i = scene
+                .lights
+                .iter()
+                .position(|l| l.name == *name || l.name.starts_with(&format!("{name} (")))
+                .ok_or_else(|| {
+                    let names: Vec<_> = scene.lights.iter().map(|l| l.name.clone()).collect();
+                    TraceError::UnknownLight(name.clone(), names.join(", "))
+                })?;
+            fixed[i] = Some(*share);
+        }
+        let free_power: f64 = power.iter().zip(&fixed).filter(|(_, f)| f.is_none()).map(|(p, _)| p.max(0.0)).sum();
+        let remainder = (1.0 - total_share).max(0.0);
+        let probs: Vec<f64> = power
+            .iter()
+            .zip(&fixed)
+            .map(|(&p, f)| match f {
+                Some(s) if p > 0.0 => *s,
+                Some(_) => 0.0,
+                None if free_power > 0.0 => remainder * p.max(0.0) / free_power,
+                None => 0.0,
+            })
+            .collect();
+        let sum: f64 = probs.iter().sum();
+        if !(sum > 0.0) {
+            return Err(TraceError::BadShares("every light with power has a zero share".into()));
+        }
+        let probs: Vec<f64> = probs.iter().map(|p| p / sum).collect();
+        let mut acc = 0.0;
+        let cdf = probs
+            .iter()
+            .map(|p| {
+                acc += p;
+                acc
+            })
+            .collect();
+        Ok(LightSelector { probs, cdf })
+    }
+
+    /// Choose a light for sample `u`; returns (index, probability).
+    pub fn pick(&self, u: f32) -> (usize, f64) {
+        let i = sample_cdf(&self.cdf, u);
+        (i, self.probs[i])
+    }
+}
+
+/// The bounding spheres of every specular object (aim points for caustic photons).
+pub fn specular_targets(scene: &Scene) -> Vec<Target> {
+    scene
+        .objects
+        .iter()
+        .filter(|o| scene.materials[o.material as usize].bsdf.is_specular())
+        .map(|o| o.bounding_sphere(scene))
+        .collect()
+}
+
+/// One traced path: its photons (unscaled power) and bookkeeping.
+#[derive(Default)]
+struct PathOut {
+    photons: Vec<(Photon, u32)>,
+    light: usize,
+    rays: u64,
+    truncated: bool,
+}
+
+/// Trace one photon path. Powers are Phi-hat / p_select (not yet divided by N).
+fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u64, out: &mut PathOut) {
+    let stream = match cfg.pass {
+        MapPass::Global => 0x676c_6f62_616c,
+        MapPass::Caustic => 0x6361_7573_7469,
+    };
+    let mut s = Sampler::new(mix64(cfg.seed ^ stream), index);
+    let (li, p_sel) = cfg.selector.pick(s.next_1d());
+    out.light = li;
+    let light = &scene.lights[li];
+    let emitted = match cfg.pass {
+        MapPass::Global => light.sample_emission(scene, &mut s),
+        MapPass::Caustic => light.sample_emission_toward(scene, &mut s, targets),
+    };
+    let Some(ray) = emitted else { return };
+    let mut phi = ray.power / p_sel as f32;
+    let (mut o, mut d) = (ray.origin, ray.dir);
+    let mut specular_chain = true;
+    for bounce in 0..MAX_BOUNCES {
+        if !pm_color::is_valid(phi) || phi == Rgb::ZERO {
+            return;
+        }
+        out.rays += 1;
+        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
+        let bsdf = scene.bsdf(&hit);
+        let wo = -d;
+        let specular = bsdf.is_specular();
+        if !specular {
+            let side_n = if wo.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
+            let caustic = bounce > 0 && specular_chain;
+            let store = match cfg.pass {
+                MapPass::Global => true,
+                MapPass::Caustic => caustic,
+            };
+            if store {
+                let mut f = flags::AXIS_LEAF;
+                if bounce == 0 {
+                    f |= flags::DIRECT;
+                }
+                if caustic {
+                    f |= flags::CAUSTIC;
+                }
+                let photon =
+                    Photon { position: hit.p, power: phi, wi: wo, flags: f, normal: side_n, irradiance: Rgb::ZERO };
+                out.photons.push((photon, bounce));
+            }
+            if cfg.pass == MapPass::Caustic {
+                return; // the caustic map only needs the first non-specular hit
+            }
+        }
+        let u = s.next_2d();
+        let uc = s.next_1d();
+        let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return };
+        // Reject directions that the shading normal allows but the geometry does not
+        // (they would leak through the surface).
+        let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
+        if same_side == bs.transmitted {
+            return;
+        }
+        // Russian roulette on the scattering albedo, keeping spectral balance:
+        // survive with q = mean(weight), scale power by weight / q (ISPM App. A, 2(d)).
+        let q = pm_color::mean(bs.weight).min(1.0);
+        if !(q > 0.0) || s.next_1d() >= q {
+            return;
+        }
+        phi *= bs.weight / q;
+        specular_chain &= bs.specular;
+        if cfg.pass == MapPass::Caustic && !specular_chain {
+            return;
+        }
+        o = pm_scene::offset_ray_origin(hit.p, hit.ng, bs.wi);
+        d = bs.wi;
+    }
+    out.truncated = true;
+}
+
+/// Trace a map. `progress` is called after each batch with the photons stored so far.
+pub fn trace(scene: &Scene, cfg: &TraceConfig, progress: &(dyn Fn(u64) + Sync)) -> Result<TracedMap, TraceError> {
+    if scene.triangles.is_empty() {
+        return Err(TraceError::NoSurfaces);
+    }
+    if cfg.range.is_some() && !matches!(cfg.budget, Budget::Emitted(_)) {
+        return Err(TraceError::RangeNeedsFixedCount);
+    }
+    let targets = if cfg.pass == MapPass::Caustic { specular_targets(scene) } else { Vec::new() };
+    let mut stats = MapStats { emitted_per_light: vec![0; scene.lights.len()], ..Default::default() };
+    if cfg.pass == MapPass::Caustic && targets.is_empty() {
+        return Ok(TracedMap { photons: Vec::new(), stats });
+    }
+    let (mut next, end, target) = match (cfg.budget, &cfg.range) {
+        (Budget::Emitted(n), Some(r)) => (r.start.min(n), r.end.min(n), u64::MAX),
+        (Budget::Emitted(n), None) => (0, n, u64::MAX),
+        (Budget::Stored { target, cap }, _) => (0, cap, target),
+    };
+    let mut photons: Vec<(Photon, u32)> = Vec::new();
+    let mut emitted_until = next;
+    while next < end && (photons.len() as u64) < target {
+        let batch_end = (next + BATCH).min(end);
+        let chunks: Vec<(u64, u64)> =
+            (next..batch_end).step_by(CHUNK as usize).map(|a| (a, (a + CHUNK).min(batch_end))).collect();
+        let results: Vec<Vec<PathOut>> = chunks
+            .par_iter()
+            .map(|&(a, b)| {
+                (a..b)
+                    .map(|i| {
+                        let mut out = PathOut::default();
+                        trace_path(scene, cfg, &targets, i, &mut out);
+                        out
+                    })
+                    .collect()
+            })
+            .collect();
+        for path in results.into_iter().flatten() {
+            if (photons.len() as u64) >= target {
+                break; // the map was full before this path was emitted
+            }
+            emitted_until += 1;
+            stats.emitted_per_light[path.light] += 1;
+            stats.rays += path.rays;
+            stats.truncated_paths += path.truncated as u64;
+            photons.extend(path.photons);
+        }
+        next = batch_end;
+        progress(photons.len() as u64);
+    }
+    let range_start = cfg.range.as_ref().map_or(0, |r| r.start);
+    let n_emitted = match cfg.budget {
+        Budget::Emitted(n) => n,
+        Budget::Stored { .. } => emitted_until - range_start,
+    };
+    stats.emitted = n_emitted;
+    stats.hit_cap = matches!(cfg.budget, Budget::Stored { target, .. } if (photons.len() as u64) < target);
+    let scale = if n_emitted > 0 { 1.0 / n_emitted as f64 } else { 0.0 };
+    let photons: Vec<Photon> = photons
+        .into_iter()
+        .map(|(mut p, bounce)| {
+            let b = bounce as usize;
+            if stats.stored_per_bounce.len() <= b {
+                stats.stored_per_bounce.resize(b + 1, 0);
+            }
+            stats.stored_per_bounce[b] += 1;
+            p.power = (p.power.as_dvec3() * scale).as_vec3();
+            p
+        })
+        .collect();
+    stats.stored = photons.len() as u64;
+    Ok(TracedMap { photons, stats })
+}
+
+/// Total power of a set of photons [W per channel], summed in f64 in index order.
+pub fn total_power(photons: &[Photon]) -> glam::DVec3 {
+    photons.iter().map(|p| p.power.as_dvec3()).sum()
+}

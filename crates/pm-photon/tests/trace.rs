@@ -1,0 +1,237 @@
+//! Physics and determinism of photon tracing, against analytic answers and an
+//! independent estimator.
+
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_format::{Photon, flags};
+use pm_photon::{Budget, LightSelector, MapPass, TraceConfig, TraceError, trace};
+use pm_scene::{Material, Scene, Triangle};
+use std::path::PathBuf;
+
+fn scene_file(name: &str) -> Scene {
+    pm_scene::load(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)).unwrap()
+}
+
+fn cfg(scene: &Scene, pass: MapPass, budget: Budget) -> TraceConfig {
+    TraceConfig { pass, budget, seed: 5, selector: LightSelector::new(scene, &[]).unwrap(), range: None }
+}
+
+fn sum_power(ps: impl Iterator<Item = Photon>) -> Vec3 {
+    ps.map(|p| p.power.as_dvec3()).sum::<glam::DVec3>().as_vec3()
+}
+
+fn material(name: &str, bsdf: Bsdf, emission: Rgb) -> Material {
+    Material { name: name.into(), bsdf, base_texture: None, emission, double_sided: false }
+}
+
+/// Quad a, b, c, d (counter-clockwise seen from the side it faces) as two triangles.
+fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32) {
+    out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+    out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+}
+
+/// Closed unit box, faces pointing inward, with two ceiling lights of radiance 1 and
+/// 4 (0.2 m squares at x = 0.3 and x = 0.7).
+fn closed_box_two_lights() -> Scene {
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let mut t = Vec::new();
+    // Inward-facing walls.
+    quad(&mut t, [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)], 0); // floor (+y)
+    quad(&mut t, [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)], 0); // ceiling (-y)
+    quad(&mut t, [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)], 0); // z = 0 (+z)
+    quad(&mut t, [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)], 0); // z = 1 (-z)
+    quad(&mut t, [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)], 0); // x = 0 (+x)
+    quad(&mut t, [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)], 0); // x = 1 (-x)
+    let y = 0.999;
+    for (x, m) in [(0.3, 1u32), (0.7, 2u32)] {
+        quad(&mut t, [v(x - 0.1, y, 0.4), v(x + 0.1, y, 0.4), v(x + 0.1, y, 0.6), v(x - 0.1, y, 0.6)], m);
+    }
+    let mats = vec![
+        material("wall", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO),
+        material("dim", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::splat(1.0)),
+        material("bright", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::splat(4.0)),
+    ];
+    Scene::from_parts(t, mats, Vec::new(), None)
+}
+
+#[test]
+fn direct_photons_carry_the_lights_power_for_any_light_shares() {
+    let scene = closed_box_two_lights();
+    let phi = scene.total_power();
+    // Phi = pi L A: (1 + 4) * pi * 0.04.
+    assert!((phi.x - 5.0 * std::f32::consts::PI * 0.04).abs() < 1e-4);
+    for shares in [vec![], vec![("object #1 (dim)".to_string(), 0.5)], vec![("object #2 (bright)".to_string(), 0.9)]] {
+        let mut c = cfg(&scene, MapPass::Global, Budget::Emitted(100_000));
+        c.selector = LightSelector::new(&scene, &shares).unwrap();
+        let m = trace(&scene, &c, &|_| {}).unwrap();
+        let direct = sum_power(m.photons.iter().copied().filter(|p| p.flags & flags::DIRECT != 0));
+        let rel = ((direct - phi) / phi).abs().max_element();
+        // Binomial light-choice noise: < 0.5% at 1e5 photons for these shares.
+        eprintln!("shares {shares:?}: direct {direct} vs {phi}: {rel}");
+        assert!(rel < 0.015, "shares {shares:?}: direct power {direct} vs {phi} ({rel})");
+        // Every emitted photon hits the closed box: one direct photon each.
+        assert_eq!(m.photons.iter().filter(|p| p.flags & flags::DIRECT != 0).count() as u64, m.stats.emitted);
+    }
+}
+
+#[test]
+fn furnace_stored_power_is_the_geometric_series() {
+    // Closed sphere, albedo 0.8: bounce k stores Phi 0.8^k in expectation, in total
+    // Phi / (1 - 0.8) = 5 Phi. Each photon carries Phi/N exactly (grey albedo, so
+    // Russian roulette never rescales); the number stored per path is geometric with
+    // mean 5 and standard deviation 4.5, so at 40k paths the total is within 0.5% (1 sigma).
+    let scene = scene_file("furnace.gltf");
+    let phi = scene.total_power();
+    let m = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Stored { target: 200_000, cap: 10_000_000 }), &|_| {})
+        .unwrap();
+    let total = sum_power(m.photons.iter().copied());
+    let rel = ((total - 5.0 * phi) / (5.0 * phi)).abs().max_element();
+    eprintln!("furnace stored {total} vs 5 Phi = {}: {rel}", 5.0 * phi);
+    assert!(rel < 0.02, "stored {total} vs 5 Phi = {}", 5.0 * phi);
+    let per_bounce = &m.stats.stored_per_bounce;
+    for k in 1..6 {
+        let ratio = per_bounce[k] as f64 / per_bounce[k - 1] as f64;
+        assert!((ratio - 0.8).abs() < 0.02, "bounce {k}: ratio {ratio}");
+    }
+    assert_eq!(m.stats.truncated_paths, 0);
+}
+
+#[test]
+fn aimed_caustic_map_agrees_with_unaimed_global_caustic_photons() {
+    // Two independent estimators of the light-specular+-diffuse flux: the caustic pass
+    // (emission aimed at the spheres' bounding spheres, weighted by the mixture pdf)
+    // and the CAUSTIC-flagged photons of the global pass (plain emission).
+    let scene = scene_file("cornell_spheres.gltf");
+    let caustic = trace(&scene, &cfg(&scene, MapPass::Caustic, Budget::Emitted(200_000)), &|_| {}).unwrap();
+    let global = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Emitted(2_000_000)), &|_| {}).unwrap();
+    let a = sum_power(caustic.photons.iter().copied());
+    let flagged: Vec<Photon> = global.photons.iter().copied().filter(|p| p.flags & flags::CAUSTIC != 0).collect();
+    let b = sum_power(flagged.iter().copied());
+    assert!(flagged.len() > 5000, "{} caustic photons in the global map", flagged.len());
+    let rel = ((a - b) / b).abs().max_element();
+    eprintln!("aimed {a} vs unaimed {b}: relative difference {rel}");
+    assert!(rel < 0.04, "aimed {a} vs unaimed {b}: {rel}");
+    assert!(caustic.photons.iter().all(|p| p.flags & flags::CAUSTIC != 0 && p.flags & flags::DIRECT == 0));
+    // Aiming is what makes the caustic map cheap: far more caustic photons per emitted.
+    let aimed_yield = caustic.stats.stored as f64 / caustic.stats.emitted as f64;
+    let plain_yield = flagged.len() as f64 / global.stats.emitted as f64;
+    assert!(aimed_yield > 5.0 * plain_yield, "aimed {aimed_yield} vs plain {plain_yield}");
+}
+
+#[test]
+fn glass_sphere_focuses_a_caustic_on_the_floor_below_it() {
+    // Glass sphere: centre (0.45, 0.35, 0.3), r = 0.35, n = 1.5; its focal length
+    // n R / (2 (n - 1)) = 0.525 m puts a concentrated spot on the floor below it.
+    let scene = scene_file("cornell_spheres.gltf");
+    let m = trace(&scene, &cfg(&scene, MapPass::Caustic, Budget::Stored { target: 50_000, cap: 5_000_000 }), &|_| {})
+        .unwrap();
+    let floor: Vec<&Photon> = m.photons.iter().filter(|p| p.position.y.abs() < 1e-4).collect();
+    let below = Vec3::new(0.45, 0.0, 0.3);
+    let r = 0.1f32;
+    let spot: f32 = floor.iter().filter(|p| p.position.distance(below) < r).map(|p| p.power.x).sum();
+    let all: f32 = floor.iter().map(|p| p.power.x).sum();
+    let spot_density = spot / (std::f32::consts::PI * r * r);
+    let floor_density = all / 4.0; // floor is 2 m x 2 m
+    eprintln!("caustic spot {spot_density} W/m2, floor mean {floor_density} W/m2");
+    assert!(spot_density > 8.0 * floor_density, "spot {spot_density} W/m2 vs floor mean {floor_density} W/m2");
+}
+
+#[test]
+fn diffuse_scene_has_no_caustic_photons() {
+    let scene = scene_file("cornell_boxes.gltf");
+    assert!(pm_photon::specular_targets(&scene).is_empty());
+    let c = trace(&scene, &cfg(&scene, MapPass::Caustic, Budget::Emitted(10_000)), &|_| {}).unwrap();
+    assert!(c.photons.is_empty());
+    let g = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Emitted(10_000)), &|_| {}).unwrap();
+    assert!(g.photons.iter().all(|p| p.flags & flags::CAUSTIC == 0));
+    assert!(!g.photons.is_empty());
+}
+
+fn bits(ps: &[Photon]) -> Vec<[u32; 16]> {
+    ps.iter()
+        .map(|p| {
+            let mut a = [0u32; 16];
+            for (i, v) in p
+                .position
+                .to_array()
+                .iter()
+                .chain(&p.power.to_array())
+                .chain(&p.wi.to_array())
+                .chain(&p.normal.to_array())
+                .enumerate()
+            {
+                a[i] = v.to_bits();
+            }
+            a[12] = p.flags as u32;
+            a
+        })
+        .collect()
+}
+
+#[test]
+fn identical_for_any_thread_count_and_for_slices_of_the_index_space() {
+    let scene = scene_file("cornell_spheres.gltf");
+    let run = |threads: usize, pass: MapPass, budget: Budget, range: Option<std::ops::Range<u64>>| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut c = cfg(&scene, pass, budget);
+        c.range = range;
+        pool.install(|| trace(&scene, &c, &|_| {}).unwrap())
+    };
+    for pass in [MapPass::Global, MapPass::Caustic] {
+        let budget = Budget::Stored { target: 40_000, cap: 10_000_000 };
+        let one = run(1, pass, budget, None);
+        let two = run(2, pass, budget, None);
+        assert_eq!(bits(&one.photons), bits(&two.photons), "{pass:?}");
+        // The same map from a fixed emission count equal to what the target needed,
+        // traced as three slices and concatenated.
+        let n = one.stats.emitted;
+        let cuts = [0, n / 3, 2 * n / 3 + 17, n];
+        let mut joined = Vec::new();
+        for w in cuts.windows(2) {
+            joined.extend(run(2, pass, Budget::Emitted(n), Some(w[0]..w[1])).photons);
+        }
+        assert_eq!(bits(&joined), bits(&one.photons), "{pass:?} slices");
+    }
+}
+
+#[test]
+fn scenes_that_cannot_be_traced_are_refused() {
+    let dark = Scene::from_parts(
+        vec![Triangle::new([Vec3::ZERO, Vec3::X, Vec3::Y], 0).unwrap()],
+        vec![material("m", Bsdf::Lambert { rho: Rgb::ONE }, Rgb::ZERO)],
+        vec![],
+        None,
+    );
+    assert!(matches!(LightSelector::new(&dark, &[]), Err(TraceError::NoLights)));
+    let zero = Scene::from_parts(
+        vec![Triangle::new([Vec3::ZERO, Vec3::X, Vec3::Y], 0).unwrap()],
+        vec![material("m", Bsdf::Lambert { rho: Rgb::ONE }, Rgb::ZERO)],
+        vec![pm_scene::Light {
+            name: "off".into(),
+            kind: pm_scene::LightKind::Point { position: Vec3::Z, intensity: Rgb::ZERO },
+            power: Rgb::ZERO,
+        }],
+        None,
+    );
+    assert!(matches!(LightSelector::new(&zero, &[]), Err(TraceError::NoLights)));
+    let empty = Scene::from_parts(
+        vec![],
+        vec![],
+        vec![pm_scene::Light {
+            name: "bulb".into(),
+            kind: pm_scene::LightKind::Point { position: Vec3::Z, intensity: Rgb::ONE },
+            power: Rgb::ZERO,
+        }],
+        None,
+    );
+    let sel = LightSelector::new(&empty, &[]).unwrap();
+    let c = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(10), seed: 1, selector: sel, range: None };
+    assert!(matches!(trace(&empty, &c, &|_| {}), Err(TraceError::NoSurfaces)));
+    let box_scene = closed_box_two_lights();
+    assert!(matches!(LightSelector::new(&box_scene, &[("nope".into(), 0.5)]), Err(TraceError::UnknownLight(..))));
+    assert!(matches!(
+        LightSelector::new(&box_scene, &[("object #1 (dim)".into(), 1.5)]),
+        Err(TraceError::BadShares(_))
+    ));
+}

@@ -1,0 +1,103 @@
+//! What every stage binary shares, written once: the single exit path (one-line
+//! error, non-zero exit code), the thread pool, progress reporting, scene loading
+//! with its warnings printed once, and atomic JSON output.
+//!
+//! Stage crates are `lib.rs` with `pub fn run(args) -> Result<Report>` and a
+//! `main.rs` of a few lines that calls [`main_with`]. This crate knows nothing about
+//! what a stage computes.
+
+use anyhow::{Context, Result};
+use std::io::IsTerminal;
+use std::path::Path;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Run a stage's body and turn its result into the process exit: on error, print
+/// `<stage>: error: <message chain>` as one line on stderr and return exit code 1.
+pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
+    match body() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let msg = format!("{e:#}").replace('\n', " ");
+            eprintln!("{stage}: error: {msg}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Configure rayon's global pool: `threads` = 0 means one per core.
+pub fn init_threads(threads: usize) -> Result<()> {
+    if threads > 0 {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .context("cannot configure the thread pool")?;
+    }
+    Ok(())
+}
+
+/// Threads in the pool that parallel work runs on.
+pub fn thread_count() -> usize {
+    rayon::current_num_threads()
+}
+
+/// Load a scene, printing each of its warnings once on stderr.
+pub fn load_scene(stage: &str, path: &Path) -> Result<pm_scene::Scene> {
+    let scene = pm_scene::load(path)?;
+    for w in &scene.warnings {
+        eprintln!("{stage}: warning: {}: {w}", path.display());
+    }
+    Ok(scene)
+}
+
+/// Write a JSON value atomically (temporary file, then rename).
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)? + "\n";
+    pm_format::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Progress of a long step: a bar on a terminal; on a pipe or in CI, a start line
+/// and a finish line with the elapsed time (indicatif hides itself there).
+pub struct Progress {
+    bar: indicatif::ProgressBar,
+    label: String,
+    start: Instant,
+    terminal: bool,
+}
+
+impl Progress {
+    /// Start a step of `total` units (0 for an unknown total).
+    pub fn new(label: &str, total: u64) -> Progress {
+        let terminal = std::io::stderr().is_terminal();
+        let bar = if terminal {
+            let bar = indicatif::ProgressBar::new(total);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("{prefix:>12} [{bar:40}] {pos}/{len} ({per_sec}, {eta})")
+                    .expect("static template")
+                    .progress_chars("=> "),
+            );
+            bar.set_prefix(label.to_owned());
+            bar
+        } else {
+            eprintln!("{label}: started");
+            indicatif::ProgressBar::hidden()
+        };
+        Progress { bar, label: label.to_owned(), start: Instant::now(), terminal }
+    }
+
+    /// Set the number of units done.
+    pub fn set(&self, done: u64) {
+        self.bar.set_position(done);
+    }
+
+    /// Finish, printing the elapsed time when not on a terminal. Returns seconds.
+    pub fn finish(self) -> f64 {
+        let secs = self.start.elapsed().as_secs_f64();
+        self.bar.finish_and_clear();
+        if !self.terminal {
+            eprintln!("{}: done in {secs:.3} s", self.label);
+        }
+        secs
+    }
+}
