@@ -1,0 +1,363 @@
+//! The photon kd-tree (Christensen 1999 section 1.2; Jensen 1996, "Global
+//! illumination using photon maps"; Jozwowski 2002 section 4.1.2): a left-balanced
+//! kd-tree stored in heap order, so node `i` has children `2i+1` and `2i+2`, the
+//! split axis lives in the record's flags byte, and the records themselves are the
+//! tree: no pointers and no memory beyond them.
+//!
+//! [`balance`] builds it in O(n log n) by median selection on the axis of largest
+//! extent, in parallel, deterministically. [`KdTree`] answers the queries every
+//! later stage needs: k nearest within a radius ([`KdTree::knn`]), the nearest photon
+//! that satisfies a predicate in order of distance ([`KdTree::nearest`]), and all
+//! photons within a radius ([`KdTree::for_each_within`]). Queries allocate nothing
+//! (the caller owns the scratch), take `&self` so any number of threads can share a
+//! tree, and skip photons flagged [`flags::UNUSED`].
+//!
+//! This crate does no I/O and holds no global state.
+
+use glam::Vec3;
+use pm_format::{PhotonRecord, flags};
+use std::collections::BinaryHeap;
+
+/// Subtrees smaller than this are balanced on one thread.
+const PARALLEL_CUTOFF: usize = 1 << 14;
+/// Deepest possible tree: a left-balanced tree of n < 2^63 nodes has depth < 64.
+const MAX_DEPTH: usize = 64;
+
+/// Number of nodes in the left subtree of a left-balanced tree of `n` nodes: the
+/// last level fills from the left, so the left subtree is complete whenever the
+/// last level is at least half full.
+pub fn left_size(n: usize) -> usize {
+    if n <= 1 {
+        return 0;
+    }
+    let h = usize::BITS - 1 - n.leading_zeros(); // depth of the last level
+    let full_above = (1usize << h) - 1; // nodes on levels 0..h-1
+    let last = n - full_above; // nodes on the last level
+    let half = 1usize << (h - 1); // last-level capacity of the left subtree
+    (half - 1) + last.min(half)
+}
+
+#[derive(Clone, Copy)]
+struct Item {
+    pos: [f32; 3],
+    src: u32,
+}
+
+/// The balancing permutation of a set of positions: `order[h]` is the index of the
+/// point placed at heap position `h`, and `axes[h]` its split axis (or
+/// [`flags::AXIS_LEAF`]). Exposed for the real-time mode, which keeps the
+/// photon-to-slot map of Jozwowski 2002 section 4.1.2.
+pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
+    assert!(positions.len() < u32::MAX as usize, "photon maps hold fewer than 2^32 photons");
+    let mut items: Vec<Item> =
+        positions.iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
+    let mut axes = vec![flags::AXIS_LEAF; items.len()];
+    split(&mut items, &mut axes);
+    // `items` is now in "segment order": each subtree is a contiguous segment whose
+    // node sits at offset left_size(len). Map heap positions to segment positions.
+    let n = items.len();
+    let mut order = vec![0u32; n];
+    let mut heap_axes = vec![flags::AXIS_LEAF; n];
+    let mut stack = vec![(0usize, 0usize, n)]; // (heap index, segment start, segment length)
+    while let Some((h, start, len)) = stack.pop() {
+        if len == 0 {
+            continue;
+        }
+        let l = left_size(len);
+        order[h] = items[start + l].src;
+        heap_axes[h] = axes[start + l];
+        stack.push((2 * h + 1, start, l));
+        stack.push((2 * h + 2, start + l + 1, len - l - 1));
+    }
+    (order, heap_axes)
+}
+
+/// Partition `items` recursively: median on the axis of largest extent at offset
+/// `left_size(len)`, then the two sides.
+fn split(items: &mut [Item], axes: &mut [u8]) {
+    let n = items.len();
+    if n <= 1 {
+        return;
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for it in items.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(it.pos[k]);
+            hi[k] = hi[k].max(it.pos[k]);
+        }
+    }
+    let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        0
+    } else if ext[1] >= ext[2] {
+        1
+    } else {
+        2
+    };
+    let m = left_size(n);
+    items.select_nth_unstable_by(m, |a, b| a.pos[axis].total_cmp(&b.pos[axis]).then(a.src.cmp(&b.src)));
+    axes[m] = axis as u8;
+    let (left, rest) = items.split_at_mut(m);
+    let right = &mut rest[1..];
+    let (left_axes, rest_axes) = axes.split_at_mut(m);
+    let right_axes = &mut rest_axes[1..];
+    if n > PARALLEL_CUTOFF {
+        rayon::join(|| split(left, left_axes), || split(right, right_axes));
+    } else {
+        split(left, left_axes);
+        split(right, right_axes);
+    }
+}
+
+/// Reorder records into a left-balanced kd-tree in heap order, writing each node's
+/// split axis into its flags.
+pub fn balance<R: PhotonRecord>(records: &[R]) -> Vec<R> {
+    let positions: Vec<Vec3> = records.iter().map(|r| r.position()).collect();
+    let (order, axes) = balance_permutation(&positions);
+    drop(positions);
+    order
+        .iter()
+        .zip(&axes)
+        .map(|(&src, &axis)| {
+            let mut r = records[src as usize];
+            r.set_flags((r.flags() & !flags::AXIS_MASK) | axis);
+            r
+        })
+        .collect()
+}
+
+/// Reusable scratch for k-nearest queries: a max-heap on squared distance.
+#[derive(Debug, Default, Clone)]
+pub struct KnnScratch {
+    heap: BinaryHeap<(u32, u32)>,
+}
+
+impl KnnScratch {
+    /// Scratch for queries of up to `k` photons (grows if needed).
+    pub fn with_capacity(k: usize) -> KnnScratch {
+        KnnScratch { heap: BinaryHeap::with_capacity(k + 1) }
+    }
+}
+
+/// Result of a k-nearest query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KnnResult {
+    /// Photons found (at most k).
+    pub count: usize,
+    /// Squared distance to the farthest photon found [m^2]; 0 when none.
+    pub max_dist2: f32,
+}
+
+/// The nearest photon that satisfied a predicate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Heap index of the photon.
+    pub index: u32,
+    /// Squared distance [m^2].
+    pub dist2: f32,
+    /// 1 + the number of nearer photons the predicate rejected (Christensen 1999
+    /// section 2.2: "usually the second or third found photon").
+    pub rank: u32,
+}
+
+/// Squared distances are ordered through their bit patterns (monotonic for
+/// non-negative floats), which gives `BinaryHeap` a total order.
+#[inline]
+fn key(d2: f32) -> u32 {
+    d2.to_bits()
+}
+
+#[inline]
+fn dist2(a: Vec3, b: Vec3) -> f32 {
+    (a - b).length_squared()
+}
+
+/// A read-only view of records in heap order as a kd-tree.
+#[derive(Clone, Copy, Debug)]
+pub struct KdTree<'a, R> {
+    nodes: &'a [R],
+}
+
+impl<'a, R: PhotonRecord> KdTree<'a, R> {
+    /// View `nodes` (heap order, as produced by [`balance`]) as a tree.
+    pub fn new(nodes: &'a [R]) -> Self {
+        KdTree { nodes }
+    }
+
+    /// The records in heap order.
+    pub fn nodes(&self) -> &'a [R] {
+        self.nodes
+    }
+
+    /// Visit nodes whose subtree may hold points within `max_d2` (which the visitor
+    /// may shrink), nearest side first. The visitor gets (index, record, dist2) for
+    /// every used node inside the current radius and returns the new radius.
+    #[inline]
+    fn search(&self, x: Vec3, mut max_d2: f32, mut visit: impl FnMut(u32, &R, f32) -> f32) {
+        let n = self.nodes.len();
+        if n == 0 || !(max_d2 >= 0.0) {
+            return;
+        }
+        // Stack of far subtrees with the squared distance to their splitting plane.
+        let mut stack = [(0u32, 0f32); MAX_DEPTH];
+        let mut top = 0usize;
+        let mut node = 0usize;
+        loop {
+            // Descend to a leaf along the near side, deferring far sides.
+            while node < n {
+                let r = &self.nodes[node];
+                let p = r.position();
+                let axis = (r.flags() & flags::AXIS_MASK) as usize;
+                let left = 2 * node + 1;
+                let next = if axis < 3 && left < n {
+                    let delta = x[axis] - p[axis];
+                    let (near, far) = if delta < 0.0 { (left, left + 1) } else { (left + 1, left) };
+                    if far < n {
+                        stack[top] = (far as u32, delta * delta);
+                        top += 1;
+                    }
+                    near
+                } else {
+                    n
+                };
+                let d2 = dist2(p, x);
+                if d2 <= max_d2 && r.flags() & flags::UNUSED == 0 {
+                    max_d2 = visit(node as u32, r, d2);
+                }
+                node = next;
+            }
+            // Pop the nearest deferred subtree still within the radius.
+            loop {
+                if top == 0 {
+                    return;
+                }
+                top -= 1;
+                let (far, plane_d2) = stack[top];
+                if plane_d2 <= max_d2 {
+                    node = far as usize;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// The `k` nearest photons to `x` within squared radius `max_d2` that pass
+    /// `filter`. On return `scratch` holds them; iterate with [`KdTree::found`].
+    pub fn knn(
+        &self,
+        x: Vec3,
+        k: usize,
+        max_d2: f32,
+        filter: impl Fn(&R) -> bool,
+        scratch: &mut KnnScratch,
+    ) -> KnnResult {
+        scratch.heap.clear();
+        if k == 0 {
+            return KnnResult { count: 0, max_dist2: 0.0 };
+        }
+        let heap = &mut scratch.heap;
+        self.search(x, max_d2, |i, r, d2| {
+            if heap.len() < k {
+                if filter(r) {
+                    heap.push((key(d2), i));
+                }
+                if heap.len() == k { f32::from_bits(heap.peek().map_or(0, |t| t.0)).min(max_d2) } else { max_d2 }
+            } else {
+                if key(d2) < heap.peek().map_or(u32::MAX, |t| t.0) && filter(r) {
+                    heap.pop();
+                    heap.push((key(d2), i));
+                }
+                f32::from_bits(heap.peek().map_or(0, |t| t.0))
+            }
+        });
+        KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |t| f32::from_bits(t.0)) }
+    }
+
+    /// The photons of the last [`KdTree::knn`] call as (heap index, squared distance).
+    pub fn found<'s>(&self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's {
+        scratch.heap.iter().map(|&(d, i)| (i, f32::from_bits(d)))
+    }
+
+    /// The nearest photon within `max_d2` that satisfies `accept`, searched in order
+    /// of distance (Christensen 1999 section 2.2: the nearest photon with a similar
+    /// normal). `rejected` is scratch for the rank statistic.
+    pub fn nearest(
+        &self,
+        x: Vec3,
+        max_d2: f32,
+        accept: impl Fn(&R) -> bool,
+        rejected: &mut Vec<f32>,
+    ) -> Option<Nearest> {
+        rejected.clear();
+        let mut best: Option<(u32, f32)> = None;
+        self.search(x, max_d2, |i, r, d2| {
+            if best.is_some_and(|(_, b)| d2 >= b) {
+                return best.map_or(max_d2, |b| b.1);
+            }
+            if accept(r) {
+                best = Some((i, d2));
+                d2
+            } else {
+                rejected.push(d2);
+                best.map_or(max_d2, |b| b.1)
+            }
+        });
+        best.map(|(index, dist2)| Nearest {
+            index,
+            dist2,
+            rank: 1 + rejected.iter().filter(|&&d| d < dist2).count() as u32,
+        })
+    }
+
+    /// Call `f(index, record, dist2)` for every used photon within `max_d2` of `x`.
+    pub fn for_each_within(&self, x: Vec3, max_d2: f32, mut f: impl FnMut(u32, &R, f32)) {
+        self.search(x, max_d2, |i, r, d2| {
+            f(i, r, d2);
+            max_d2
+        });
+    }
+
+    /// Depth of the tree (levels; 0 for an empty tree).
+    pub fn depth(&self) -> u32 {
+        usize::BITS - self.nodes.len().leading_zeros()
+    }
+
+    /// Check the kd-tree invariant: every node lies within the half-spaces its
+    /// ancestors' splits allow, and split axes are valid exactly where children
+    /// exist. O(n). Returns the first violation.
+    pub fn verify(&self) -> Result<(), String> {
+        let n = self.nodes.len();
+        let mut stack = vec![(0usize, [f32::NEG_INFINITY; 3], [f32::INFINITY; 3])];
+        while let Some((i, lo, hi)) = stack.pop() {
+            if i >= n {
+                continue;
+            }
+            let r = &self.nodes[i];
+            let p = r.position().to_array();
+            for k in 0..3 {
+                if p[k] < lo[k] || p[k] > hi[k] {
+                    return Err(format!("photon {i} at {p:?} lies outside its subtree's bounds on axis {k}"));
+                }
+            }
+            let axis = (r.flags() & flags::AXIS_MASK) as usize;
+            let has_children = 2 * i + 1 < n;
+            if has_children != (axis < 3) {
+                return Err(format!(
+                    "photon {i}: split axis {axis} but {} children",
+                    if has_children { "has" } else { "no" }
+                ));
+            }
+            if axis < 3 {
+                let (mut lhi, mut rlo) = (hi, lo);
+                lhi[axis] = p[axis];
+                rlo[axis] = p[axis];
+                stack.push((2 * i + 1, lo, lhi));
+                stack.push((2 * i + 2, rlo, hi));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;

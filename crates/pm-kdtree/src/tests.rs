@@ -1,0 +1,208 @@
+use super::*;
+use pm_format::{CompactPhoton, FullPhoton, Photon};
+use proptest::prelude::*;
+
+fn photon(p: Vec3, f: u8) -> Photon {
+    Photon {
+        position: p,
+        power: Vec3::ONE,
+        wi: Vec3::Y,
+        flags: f | flags::AXIS_LEAF,
+        normal: Vec3::Y,
+        irradiance: Vec3::ZERO,
+    }
+}
+
+fn records<R: PhotonRecord>(pts: &[Vec3]) -> Vec<R> {
+    pts.iter().enumerate().map(|(i, &p)| R::encode(&photon(p, if i % 7 == 3 { flags::DIRECT } else { 0 }))).collect()
+}
+
+/// Sorted squared distances of the k nearest by brute force.
+fn brute_knn<R: PhotonRecord>(nodes: &[R], x: Vec3, k: usize, max_d2: f32, filter: impl Fn(&R) -> bool) -> Vec<f32> {
+    let mut d: Vec<f32> = nodes
+        .iter()
+        .filter(|r| r.flags() & flags::UNUSED == 0 && filter(r))
+        .map(|r| (r.position() - x).length_squared())
+        .filter(|&d2| d2 <= max_d2)
+        .collect();
+    d.sort_by(f32::total_cmp);
+    d.truncate(k);
+    d
+}
+
+fn check_all_queries<R: PhotonRecord>(
+    pts: &[Vec3],
+    queries: &[Vec3],
+    ks: &[usize],
+    radii2: &[f32],
+) -> Result<(), TestCaseError> {
+    let nodes = balance(&records::<R>(pts));
+    let tree = KdTree::new(&nodes);
+    prop_assert!(tree.verify().is_ok(), "{:?}", tree.verify());
+    prop_assert_eq!(nodes.len(), pts.len());
+    let mut scratch = KnnScratch::default();
+    let mut rejected = Vec::new();
+    let direct = |r: &R| r.flags() & flags::DIRECT != 0;
+    for &x in queries {
+        for &k in ks {
+            for &r2 in radii2 {
+                for use_filter in [false, true] {
+                    let f = |r: &R| !use_filter || direct(r);
+                    let res = tree.knn(x, k, r2, f, &mut scratch);
+                    let mut got: Vec<f32> = tree.found(&scratch).map(|(_, d)| d).collect();
+                    got.sort_by(f32::total_cmp);
+                    let want = brute_knn(&nodes, x, k, r2, f);
+                    prop_assert_eq!(&got, &want, "knn k={} r2={} filter={} at {}", k, r2, use_filter, x);
+                    prop_assert_eq!(res.count, want.len());
+                    prop_assert_eq!(res.max_dist2, want.last().copied().unwrap_or(0.0));
+                    // Indices found really are at those distances.
+                    for (i, d) in tree.found(&scratch) {
+                        prop_assert_eq!((nodes[i as usize].position() - x).length_squared(), d);
+                    }
+                }
+                // All within the radius.
+                let mut within = Vec::new();
+                tree.for_each_within(x, r2, |_, _, d| within.push(d));
+                within.sort_by(f32::total_cmp);
+                prop_assert_eq!(within, brute_knn(&nodes, x, usize::MAX, r2, |_| true));
+                // Nearest satisfying a predicate.
+                let near = tree.nearest(x, r2, direct, &mut rejected);
+                let want = brute_knn(&nodes, x, 1, r2, direct);
+                prop_assert_eq!(near.map(|n| n.dist2), want.first().copied());
+                if let Some(n) = near {
+                    prop_assert!(direct(&nodes[n.index as usize]));
+                    let closer_rejected = nodes
+                        .iter()
+                        .filter(|r| {
+                            !direct(r)
+                                && r.flags() & flags::UNUSED == 0
+                                && (r.position() - x).length_squared() < n.dist2
+                        })
+                        .count();
+                    prop_assert_eq!(n.rank as usize, 1 + closer_rejected);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn left_size_matches_a_left_balanced_complete_tree() {
+    // Count the left subtree of the root of a complete tree filled level by level.
+    for n in 1..2000usize {
+        let mut count = 0;
+        let mut stack = vec![1usize];
+        while let Some(i) = stack.pop() {
+            if i < n {
+                count += 1;
+                stack.push(2 * i + 1);
+                stack.push(2 * i + 2);
+            }
+        }
+        assert_eq!(left_size(n), count, "n = {n}");
+    }
+}
+
+#[test]
+fn hard_cases_match_brute_force() {
+    let q = [Vec3::ZERO, Vec3::new(0.5, 0.5, 0.5), Vec3::new(10.0, -3.0, 2.0)];
+    let ks = [1, 3, 50, 1000];
+    let r2 = [0.0, 0.01, 1.0, f32::INFINITY];
+    let run = |pts: &[Vec3]| {
+        check_all_queries::<FullPhoton>(pts, &q, &ks, &r2).unwrap();
+        check_all_queries::<CompactPhoton>(pts, &q, &ks, &r2).unwrap();
+    };
+    run(&[]); // zero photons
+    run(&[Vec3::new(0.5, 0.5, 0.5)]); // one photon (also: a radius of 0 finds it only at distance 0)
+    run(&vec![Vec3::new(0.5, 0.5, 0.5); 300]); // all at the same position
+    let grid: Vec<Vec3> = (0..400).map(|i| Vec3::new((i % 20) as f32 * 0.05, 0.25, (i / 20) as f32 * 0.05)).collect();
+    run(&grid); // all on one plane
+    let line: Vec<Vec3> = (0..300).map(|i| Vec3::new(i as f32 * 0.003, i as f32 * 0.003, 0.5)).collect();
+    run(&line); // all on one line
+    let huge: Vec<Vec3> = (0..200).map(|i| Vec3::new(1e15 + i as f32 * 1e12, -1e15, i as f32 * 3e12)).collect();
+    check_all_queries::<FullPhoton>(&huge, &[Vec3::new(1e15, -1e15, 0.0)], &ks, &[0.0, 1e26, f32::INFINITY]).unwrap();
+    let tiny: Vec<Vec3> = (0..200).map(|i| Vec3::new(i as f32 * 1e-12, (i % 5) as f32 * 1e-12, 0.0)).collect();
+    check_all_queries::<FullPhoton>(&tiny, &[Vec3::new(5e-11, 1e-12, 0.0)], &ks, &[0.0, 1e-22, f32::INFINITY]).unwrap();
+}
+
+#[test]
+fn unused_photons_are_skipped() {
+    let pts: Vec<Vec3> = (0..100).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+    let mut nodes = balance(&records::<FullPhoton>(&pts));
+    for r in nodes.iter_mut() {
+        if (r.position().x as u32) % 2 == 0 {
+            r.set_flags(r.flags() | flags::UNUSED);
+        }
+    }
+    let tree = KdTree::new(&nodes);
+    let mut s = KnnScratch::default();
+    tree.knn(Vec3::new(10.2, 0.0, 0.0), 3, f32::INFINITY, |_| true, &mut s);
+    let mut xs: Vec<f32> = tree.found(&s).map(|(i, _)| nodes[i as usize].position().x).collect();
+    xs.sort_by(f32::total_cmp);
+    assert_eq!(xs, vec![9.0, 11.0, 13.0]);
+}
+
+#[test]
+fn balancing_is_deterministic_across_thread_counts() {
+    let pts: Vec<Vec3> = (0..100_000u32)
+        .map(|i| {
+            let h = |s: u32| ((i.wrapping_mul(2_654_435_761).wrapping_add(s)) % 10_007) as f32 / 10_007.0;
+            Vec3::new(h(1), h(7) * h(3), (h(5) * 4.0).floor()) // clustered in z
+        })
+        .collect();
+    let recs = records::<CompactPhoton>(&pts);
+    let run = |t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap().install(|| balance(&recs));
+    let (a, b) = (run(1), run(2));
+    assert_eq!(bytemuck_bytes(&a), bytemuck_bytes(&b));
+    assert!(KdTree::new(&a).verify().is_ok());
+    assert_eq!(KdTree::new(&a).depth(), 17);
+}
+
+fn bytemuck_bytes<R: PhotonRecord>(r: &[R]) -> Vec<u8> {
+    r.iter().flat_map(|x| pm_format_bytes(x)).collect()
+}
+
+fn pm_format_bytes<R: PhotonRecord>(r: &R) -> Vec<u8> {
+    let d = r.decode();
+    [d.position.to_array(), d.power.to_array(), d.wi.to_array()]
+        .concat()
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .chain([d.flags])
+        .collect()
+}
+
+#[test]
+fn verify_catches_a_broken_tree() {
+    let pts: Vec<Vec3> = (0..50).map(|i| Vec3::new((i * 37 % 50) as f32, 0.0, 0.0)).collect();
+    let mut nodes = balance(&records::<FullPhoton>(&pts));
+    nodes.swap(1, 2);
+    assert!(KdTree::new(&nodes).verify().is_err());
+}
+
+fn arb_points() -> impl Strategy<Value = Vec<Vec3>> {
+    let uniform = proptest::collection::vec(
+        (-1f32..1.0, -1f32..1.0, -1f32..1.0).prop_map(|(x, y, z)| Vec3::new(x, y, z)),
+        0..400,
+    );
+    // Adversarial: few distinct values per axis (many ties), clusters of duplicates.
+    let lattice = proptest::collection::vec(
+        (0u8..3, 0u8..3, 0u8..2).prop_map(|(x, y, z)| Vec3::new(x as f32, y as f32 * 0.5, z as f32)),
+        0..400,
+    );
+    let clustered = proptest::collection::vec(
+        (0u8..4, -1e-3f32..1e-3, -1e-3f32..1e-3).prop_map(|(c, dx, dz)| Vec3::new(c as f32 + dx, 0.0, dz)),
+        0..400,
+    );
+    prop_oneof![uniform, lattice, clustered]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #[test]
+    fn queries_match_brute_force(pts in arb_points(), qs in proptest::collection::vec((-1.5f32..3.5, -1f32..1.5, -1f32..2.0), 1..4), k in 1usize..60, r in 0f32..2.0) {
+        let queries: Vec<Vec3> = qs.into_iter().map(|(x, y, z)| Vec3::new(x, y, z)).collect();
+        check_all_queries::<FullPhoton>(&pts, &queries, &[k], &[r * r, f32::INFINITY])?;
+    }
+}
