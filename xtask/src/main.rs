@@ -2,6 +2,7 @@
 //! One module per task; few dependencies.
 
 mod gen_scenes;
+mod run;
 
 use anyhow::{Result, bail};
 use std::path::PathBuf;
@@ -9,6 +10,9 @@ use std::path::PathBuf;
 const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
+  run [PIPELINE.toml] [--scene FILE] [--out DIR]
+                         run the pipeline stages in order (default: pipeline.toml,
+                         output in out/<scene name>/)
   gen-scenes [--check]   write scenes/*.gltf + .bin from code (--check: fail if the
                          committed files differ from what the code generates)";
 
@@ -25,6 +29,7 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
+        Some("run") => run::run(&args[1..], &workspace_root()),
         Some("gen-scenes") => {
             gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))
         }
