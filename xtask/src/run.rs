@@ -65,11 +65,19 @@ fn parse(args: &[String], root: &Path) -> Result<Args> {
 /// Run the pipeline.
 pub fn run(args: &[String], root: &Path) -> Result<()> {
     let args = parse(args, root)?;
-    let text = std::fs::read_to_string(&args.pipeline).with_context(|| format!("{}: cannot read", args.pipeline.display()))?;
-    let cfg: Pipeline = toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", args.pipeline.display(), e.to_string().replace('\n', " ")))?;
-    for (key, v) in [("trace.global_photons", cfg.trace.global_photons), ("trace.caustic_photons", cfg.trace.caustic_photons)] {
+    let text =
+        std::fs::read_to_string(&args.pipeline).with_context(|| format!("{}: cannot read", args.pipeline.display()))?;
+    let cfg: Pipeline = toml::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", args.pipeline.display(), e.to_string().replace('\n', " ")))?;
+    for (key, v) in
+        [("trace.global_photons", cfg.trace.global_photons), ("trace.caustic_photons", cfg.trace.caustic_photons)]
+    {
         if v > MAX_PHOTONS {
-            bail!("{}: {key} = {v} would need about {} GiB; this machine allows at most {MAX_PHOTONS}", args.pipeline.display(), v * 2 * 64 >> 30);
+            bail!(
+                "{}: {key} = {v} would need about {} GiB; this machine allows at most {MAX_PHOTONS}",
+                args.pipeline.display(),
+                v * 2 * 64 >> 30
+            );
         }
     }
     let base = args.pipeline.parent().unwrap_or(Path::new("."));
@@ -108,7 +116,13 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
     for map in ["global", "caustic"] {
         steps.push((
             "photon-sort".into(),
-            vec![o(&format!("{map}.pmap")), "--out".into(), o(&format!("{map}.kd.pmap")), "--stats-json".into(), o(&format!("sort-{map}.stats.json"))],
+            vec![
+                o(&format!("{map}.pmap")),
+                "--out".into(),
+                o(&format!("{map}.kd.pmap")),
+                "--stats-json".into(),
+                o(&format!("sort-{map}.stats.json")),
+            ],
             Some(o(&format!("{map}.pmap"))),
         ));
     }
@@ -141,14 +155,17 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
                 "global: {} emitted / {} stored; caustic: {}",
                 trace["global"]["emitted"],
                 trace["global"]["stored"],
-                trace["caustic"].get("stored").map_or_else(|| trace["caustic"]["skipped"].to_string(), |s| format!("{} stored", s))
+                trace["caustic"]
+                    .get("stored")
+                    .map_or_else(|| trace["caustic"]["skipped"].to_string(), |s| format!("{} stored", s))
             )
         } else {
             String::new()
         };
         println!("| {} | {:.3} | {figures} |", r["stage"].as_str().unwrap_or(""), r["seconds"].as_f64().unwrap_or(0.0));
     }
-    let report = json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows, "trace": trace});
+    let report =
+        json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows, "trace": trace});
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)? + "\n")?;
     Ok(())
 }

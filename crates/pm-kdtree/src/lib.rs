@@ -19,7 +19,7 @@ use pm_format::{PhotonRecord, flags};
 use std::collections::BinaryHeap;
 
 /// Subtrees smaller than this are balanced on one thread.
-const PARALLEL_CUTOFF: usize = 1 << 14;
+const PARALLEL_CUTOFF: usize = 1 << 12;
 /// Deepest possible tree: a left-balanced tree of n < 2^63 nodes has depth < 64.
 const MAX_DEPTH: usize = 64;
 
@@ -52,7 +52,14 @@ pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
     let mut items: Vec<Item> =
         positions.iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
     let mut axes = vec![flags::AXIS_LEAF; items.len()];
-    split(&mut items, &mut axes);
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for it in &items {
+        for k in 0..3 {
+            lo[k] = lo[k].min(it.pos[k]);
+            hi[k] = hi[k].max(it.pos[k]);
+        }
+    }
+    split(&mut items, &mut axes, lo, hi);
     // `items` is now in "segment order": each subtree is a contiguous segment whose
     // node sits at offset left_size(len). Map heap positions to segment positions.
     let n = items.len();
@@ -72,19 +79,14 @@ pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
     (order, heap_axes)
 }
 
-/// Partition `items` recursively: median on the axis of largest extent at offset
-/// `left_size(len)`, then the two sides.
-fn split(items: &mut [Item], axes: &mut [u8]) {
+/// Partition `items` recursively: median on the axis of largest extent of the
+/// node's cell at offset `left_size(len)`, then the two sides. The cell starts as
+/// the points' bounding box and is narrowed at each split (Jensen's method), which
+/// avoids a bounding-box pass per node.
+fn split(items: &mut [Item], axes: &mut [u8], lo: [f32; 3], hi: [f32; 3]) {
     let n = items.len();
     if n <= 1 {
         return;
-    }
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for it in items.iter() {
-        for k in 0..3 {
-            lo[k] = lo[k].min(it.pos[k]);
-            hi[k] = hi[k].max(it.pos[k]);
-        }
     }
     let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
@@ -95,17 +97,21 @@ fn split(items: &mut [Item], axes: &mut [u8]) {
         2
     };
     let m = left_size(n);
-    items.select_nth_unstable_by(m, |a, b| a.pos[axis].total_cmp(&b.pos[axis]).then(a.src.cmp(&b.src)));
+    items.select_nth_unstable_by(m, |a, b| a.pos[axis].total_cmp(&b.pos[axis]));
     axes[m] = axis as u8;
+    let plane = items[m].pos[axis];
+    let (mut left_hi, mut right_lo) = (hi, lo);
+    left_hi[axis] = plane;
+    right_lo[axis] = plane;
     let (left, rest) = items.split_at_mut(m);
     let right = &mut rest[1..];
     let (left_axes, rest_axes) = axes.split_at_mut(m);
     let right_axes = &mut rest_axes[1..];
     if n > PARALLEL_CUTOFF {
-        rayon::join(|| split(left, left_axes), || split(right, right_axes));
+        rayon::join(|| split(left, left_axes, lo, left_hi), || split(right, right_axes, right_lo, hi));
     } else {
-        split(left, left_axes);
-        split(right, right_axes);
+        split(left, left_axes, lo, left_hi);
+        split(right, right_axes, right_lo, hi);
     }
 }
 
@@ -205,6 +211,14 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         loop {
             // Descend to a leaf along the near side, deferring far sides.
             while node < n {
+                // Issue the loads of the grandchildren now (they are adjacent in heap
+                // order) so their cache misses overlap with the work on this level;
+                // the search is bound by memory latency, not arithmetic.
+                for g in [4 * node + 3, 8 * node + 7, 8 * node + 11] {
+                    if let Some(g) = self.nodes.get(g) {
+                        std::hint::black_box(g.flags());
+                    }
+                }
                 let r = &self.nodes[node];
                 let p = r.position();
                 let axis = (r.flags() & flags::AXIS_MASK) as usize;
@@ -263,9 +277,10 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                 }
                 if heap.len() == k { f32::from_bits(heap.peek().map_or(0, |t| t.0)).min(max_d2) } else { max_d2 }
             } else {
-                if key(d2) < heap.peek().map_or(u32::MAX, |t| t.0) && filter(r) {
-                    heap.pop();
-                    heap.push((key(d2), i));
+                if let Some(mut top) = heap.peek_mut() {
+                    if key(d2) < top.0 && filter(r) {
+                        *top = (key(d2), i); // one sift-down when `top` drops
+                    }
                 }
                 f32::from_bits(heap.peek().map_or(0, |t| t.0))
             }
