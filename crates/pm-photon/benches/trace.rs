@@ -11,7 +11,9 @@ fn main() {
     let scene = pm_scene::load(&path).unwrap();
     let selector = LightSelector::new(&scene, &[]).unwrap();
     let cfg = |pass, budget| TraceConfig { pass, budget, seed: 1, selector: selector.clone(), range: None };
-    println!("| threads | global 400k [s] | caustic 35k [s] | total [s] | global paths/s | global rays/s | speed-up vs 1 thread |");
+    println!(
+        "| threads | global 400k [s] | caustic 35k [s] | total [s] | global paths/s | global rays/s | speed-up vs 1 thread |"
+    );
     println!("|---|---|---|---|---|---|---|");
     let mut base = 0.0;
     for threads in [1, 2] {
@@ -20,10 +22,13 @@ fn main() {
         for _ in 0..3 {
             let (tg, tc, paths, rays) = pool.install(|| {
                 let t = Instant::now();
-                let g = trace(&scene, &cfg(MapPass::Global, Budget::Stored { target: 400_000, cap: u64::MAX }), &|_| {}).unwrap();
+                let g =
+                    trace(&scene, &cfg(MapPass::Global, Budget::Stored { target: 400_000, cap: u64::MAX }), &|_| {})
+                        .unwrap();
                 let tg = t.elapsed().as_secs_f64();
                 let t = Instant::now();
-                trace(&scene, &cfg(MapPass::Caustic, Budget::Stored { target: 35_000, cap: u64::MAX }), &|_| {}).unwrap();
+                trace(&scene, &cfg(MapPass::Caustic, Budget::Stored { target: 35_000, cap: u64::MAX }), &|_| {})
+                    .unwrap();
                 (tg, t.elapsed().as_secs_f64(), g.stats.emitted, g.stats.rays)
             });
             if tg + tc < best.0 + best.1 {

@@ -1,0 +1,170 @@
+//! Photon density estimates, in one place: irradiance from the k nearest photons
+//! (Jensen 1996; Christensen 1999 section 1.3, item 1) with optional cone or
+//! Gaussian filtering, and the lookup of a precomputed irradiance at the nearest
+//! photon with a similar normal (Christensen 1999 section 2.2).
+//!
+//! Every estimate counts only photons on the query's side of the surface, so light
+//! does not leak through thin walls or around corners: with a surface normal in the
+//! record (global maps) the photon's normal must agree with the query normal; without
+//! one (caustic maps) the photon must have arrived from the query's front side.
+//!
+//! No I/O and no allocation per call (the caller owns the scratch).
+
+mod precompute;
+
+pub use precompute::{PrecomputeStats, precompute, selected};
+
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_format::{PhotonRecord, flags};
+use pm_kdtree::{KdTree, KnnScratch, Nearest};
+use std::f32::consts::PI;
+
+/// A photon with a stored normal counts for a query when the normals' cosine exceeds
+/// this: the same surface, or a gently curved continuation of it (60 degrees), but
+/// not a wall meeting it at a corner nor the back of a thin wall.
+pub const SAME_SURFACE_COS: f32 = 0.5;
+/// Christensen 1999 section 2.2: a precomputed irradiance is used when the photon's
+/// normal has a dot product above 0.9 with the query normal.
+pub const SIMILAR_NORMAL_COS: f32 = 0.9;
+/// Photons without a stored normal count when their incident direction is above the
+/// surface, allowing for the 1-byte direction's error (0.30 rad, so sin = 0.3).
+pub const FRONT_TOLERANCE: f32 = -0.3;
+
+/// Density-estimation kernel (Jensen 2001, "Realistic Image Synthesis Using Photon
+/// Mapping", section 7.2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Filter {
+    /// Constant kernel: E = sum(Phi) / (pi r^2).
+    None,
+    /// Cone filter w = 1 - d / (k r), normalised by 1 - 2 / (3 k); k >= 1.
+    Cone {
+        /// Filter constant k (1 gives the sharpest cone).
+        k: f32,
+    },
+    /// Gaussian filter w = alpha (1 - (1 - e^{-beta d^2 / 2r^2}) / (1 - e^{-beta})),
+    /// alpha = 0.918, beta = 1.953, renormalised to integrate to the disk's area.
+    Gaussian,
+}
+
+impl Filter {
+    /// Weight of a photon at squared distance `d2` in a disk of squared radius `r2`,
+    /// divided by the kernel's normalisation.
+    #[inline]
+    fn weight(self, d2: f32, r2: f32) -> f32 {
+        match self {
+            Filter::None => 1.0,
+            Filter::Cone { k } => (1.0 - (d2 / r2).sqrt() / k).max(0.0) / (1.0 - 2.0 / (3.0 * k)),
+            Filter::Gaussian => {
+                const ALPHA: f32 = 0.918;
+                const BETA: f32 = 1.953;
+                // Jensen's constants leave the kernel's integral over the disk at
+                // 0.531 pi r^2; divide by it so E keeps its meaning (the integral of
+                // alpha (1 - (1 - e^{-beta u/2}) / (1 - e^{-beta})) du over u in [0,1]).
+                let norm = ALPHA * (1.0 - (1.0 - 2.0 / BETA * (1.0 - (-BETA / 2.0).exp())) / (1.0 - (-BETA).exp()));
+                ALPHA * (1.0 - (1.0 - (-BETA * d2 / (2.0 * r2)).exp()) / (1.0 - (-BETA).exp())) / norm
+            }
+        }
+    }
+}
+
+/// Parameters of a k-nearest estimate.
+#[derive(Clone, Copy, Debug)]
+pub struct KnnParams {
+    /// Photons per estimate (the paper: 50; Jensen: 30-200).
+    pub k: usize,
+    /// Largest search radius, squared [m^2].
+    pub max_d2: f32,
+    /// Kernel.
+    pub filter: Filter,
+}
+
+/// An irradiance estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Irradiance {
+    /// Irradiance E [W m^-2 per channel].
+    pub e: Rgb,
+    /// Squared radius of the disk the photons were gathered from [m^2] (0 if none).
+    pub r2: f32,
+    /// Photons used.
+    pub count: usize,
+}
+
+/// True when photon `r` counts for a query on a surface with unit normal `n`.
+#[inline]
+pub fn on_query_side<R: PhotonRecord>(r: &R, n: Vec3) -> bool {
+    let np = r.normal();
+    if np != Vec3::ZERO { np.dot(n) > SAME_SURFACE_COS } else { r.wi().dot(n) > FRONT_TOLERANCE }
+}
+
+/// Irradiance at `x` on a surface with unit normal `n`:
+/// E ~ sum_p w_p Phi_p / (pi r^2) over the k nearest photons on the query's side,
+/// r their farthest distance (Jensen 1996, eq. 6; Christensen 1999 section 1.3).
+/// Returns zero when no photon is found or all found lie exactly at `x` (r = 0).
+pub fn irradiance<R: PhotonRecord>(
+    tree: &KdTree<R>,
+    x: Vec3,
+    n: Vec3,
+    p: &KnnParams,
+    scratch: &mut KnnScratch,
+) -> Irradiance {
+    let res = tree.knn(x, p.k, p.max_d2, |r| on_query_side(r, n), scratch);
+    if res.count == 0 || !(res.max_dist2 > 0.0) {
+        return Irradiance { e: Rgb::ZERO, r2: res.max_dist2, count: res.count };
+    }
+    let r2 = res.max_dist2;
+    let nodes = tree.nodes();
+    let mut sum = Rgb::ZERO;
+    for (i, d2) in tree.found(scratch) {
+        sum += nodes[i as usize].power() * p.filter.weight(d2, r2);
+    }
+    Irradiance { e: sum / (PI * r2), r2, count: res.count }
+}
+
+/// Outgoing radiance from a photon map at `x` for a BRDF evaluated per photon:
+/// L ~ sum_p f_r(wo, wi_p) w_p Phi_p / (pi r^2) (Jensen 1996, eq. 6). `f_r` maps a
+/// photon's incident direction to the BRDF value [sr^-1 per channel].
+pub fn radiance<R: PhotonRecord>(
+    tree: &KdTree<R>,
+    x: Vec3,
+    n: Vec3,
+    p: &KnnParams,
+    scratch: &mut KnnScratch,
+    f_r: impl Fn(Vec3) -> Rgb,
+) -> Rgb {
+    let res = tree.knn(x, p.k, p.max_d2, |r| on_query_side(r, n), scratch);
+    if res.count == 0 || !(res.max_dist2 > 0.0) {
+        return Rgb::ZERO;
+    }
+    let r2 = res.max_dist2;
+    let nodes = tree.nodes();
+    let mut sum = Rgb::ZERO;
+    for (i, d2) in tree.found(scratch) {
+        let r = &nodes[i as usize];
+        sum += f_r(r.wi()) * r.power() * p.filter.weight(d2, r2);
+    }
+    sum / (PI * r2)
+}
+
+/// The precomputed irradiance of the nearest photon that carries one and whose
+/// normal agrees with `n` (dot > 0.9), within squared radius `max_d2` (Christensen
+/// 1999 section 2.2). `rejected` is scratch. Returns the irradiance [W m^-2] and the
+/// search result (distance, rank).
+pub fn precomputed_irradiance<R: PhotonRecord>(
+    tree: &KdTree<R>,
+    x: Vec3,
+    n: Vec3,
+    max_d2: f32,
+    rejected: &mut Vec<f32>,
+) -> Option<(Rgb, Nearest)> {
+    let hit = tree.nearest(
+        x,
+        max_d2,
+        |r| r.flags() & flags::HAS_IRRADIANCE != 0 && r.normal().dot(n) > SIMILAR_NORMAL_COS,
+        rejected,
+    )?;
+    Some((tree.nodes()[hit.index as usize].irradiance(), hit))
+}
+
+#[cfg(test)]
+mod tests;
