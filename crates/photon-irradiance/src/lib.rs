@@ -39,8 +39,9 @@ pub struct Cli {
     /// Output map (global.irr.pmap).
     #[arg(long)]
     pub out: PathBuf,
-    /// Fraction of photons that get an irradiance (the paper: 1 or 1/4), chosen by an
-    /// independent coin flip per photon so the subset keeps the photon density's shape.
+    /// Fraction of photons that get an irradiance (the paper: 1 or 1/4): one in every
+    /// 1/fraction consecutive kd-tree positions, a stratified subset that keeps the
+    /// photon density's shape.
     #[arg(long, default_value_t = 0.25)]
     pub fraction: f64,
     /// Photons per estimate (the paper: 50).
@@ -52,9 +53,6 @@ pub struct Cli {
     /// Density-estimation filter.
     #[arg(long, value_enum, default_value_t = FilterArg::None)]
     pub filter: FilterArg,
-    /// Seed of the subset choice.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Write statistics (count, time, radii) as JSON.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
@@ -94,10 +92,10 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
     let n = map.len();
     let progress = Progress::new("irradiance", n as u64);
     let stats = with_map!(&mut map, m => {
-        let stats = pm_estimate::precompute(&mut m.records, &params, cli.fraction, cli.seed, &|d| progress.set(d));
+        let stats = pm_estimate::precompute(&mut m.records, &params, cli.fraction, &|d| progress.set(d));
         m.header.has_irradiance = true;
         let mut p: serde_json::Value = serde_json::from_str(&m.header.params).unwrap_or(json!({}));
-        p["irradiance"] = json!({"fraction": cli.fraction, "k": cli.k, "max_radius_m": max_radius_m, "filter": format!("{filter:?}"), "seed": cli.seed});
+        p["irradiance"] = json!({"fraction": cli.fraction, "k": cli.k, "max_radius_m": max_radius_m, "filter": format!("{filter:?}")});
         m.header.params = p.to_string();
         m.write(&cli.out)?;
         stats

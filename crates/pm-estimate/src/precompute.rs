@@ -3,26 +3,23 @@
 use crate::{Irradiance, KnnParams, irradiance};
 use pm_format::{PhotonRecord, flags};
 use pm_kdtree::{KdTree, KnnScratch};
-use pm_sampling::mix64;
 use rayon::prelude::*;
 
 /// Photons per parallel work item.
 const CHUNK: usize = 2048;
 
-/// True when the photon at `position` is in the subset that gets a precomputed
-/// irradiance. The choice is an independent coin flip per photon, keyed by a hash of
-/// its position bits and the seed: a Bernoulli thinning of the photon distribution,
-/// which keeps exactly the photon density's shape (scaled by `fraction`), whatever
-/// the order of the records. (Every n-th photon in kd-tree heap order is not: heap
-/// order groups photons by tree level, and the levels are not spatially
-/// interchangeable; the workspace tests compare both.)
-pub fn selected(position: glam::Vec3, fraction: f64, seed: u64) -> bool {
-    if fraction >= 1.0 {
-        return true;
-    }
-    let [x, y, z] = position.to_array().map(|v| v.to_bits() as u64);
-    let h = mix64(x ^ mix64(y ^ mix64(z ^ mix64(seed))));
-    (h as f64) < fraction * 18_446_744_073_709_551_616.0
+/// True when the photon at heap index `index` of a kd-tree map is in the subset
+/// that gets a precomputed irradiance: heap positions 0, 1/f, 2/f, ... (one in every
+/// 1/`fraction` consecutive positions). Neighbouring heap positions are siblings and
+/// cousins in the tree, so neighbours in space, and the stride takes one photon from
+/// each small group: a stratified thinning that keeps the photon density's shape more
+/// evenly than independent coin flips. Measured on the Cornell box at f = 1/4 (the
+/// workspace test): chi-square per degree of freedom of the per-cell selected share
+/// 0.23 for this phase, about 1.0 for coin flips. (Groups of four heap positions are
+/// the four grandchildren of a node; the phases that pick an outer grandchild measure
+/// 0.91, still no worse than coin flips.)
+pub fn selected(index: usize, fraction: f64) -> bool {
+    fraction >= 1.0 || (index as f64 * fraction).floor() > ((index as f64 - 1.0) * fraction).floor()
 }
 
 /// What a precompute did.
@@ -44,7 +41,6 @@ pub fn precompute<R: PhotonRecord>(
     nodes: &mut [R],
     p: &KnnParams,
     fraction: f64,
-    seed: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
     let tree = KdTree::new(&*nodes);
@@ -59,7 +55,7 @@ pub fn precompute<R: PhotonRecord>(
             let out = (start..end)
                 .filter(|&i| {
                     let r = &tree.nodes()[i];
-                    r.flags() & flags::UNUSED == 0 && selected(r.position(), fraction, seed)
+                    r.flags() & flags::UNUSED == 0 && selected(i, fraction)
                 })
                 .map(|i| {
                     let r = &tree.nodes()[i];
