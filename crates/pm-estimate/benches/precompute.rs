@@ -1,0 +1,42 @@
+//! Irradiance precompute on cornell_spheres' 400k-photon global map, k = 50, at
+//! fraction 1 and 1/4 (Christensen 1999 section 3.1: 58 s and 15 s), 2 threads.
+//!
+//! Run: `cargo bench -p pm-estimate --bench precompute`
+
+use pm_estimate::{Filter, KnnParams, precompute};
+use pm_format::{CompactIrrPhoton, PhotonRecord};
+use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
+use std::time::Instant;
+
+fn main() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell_spheres.gltf");
+    let scene = pm_scene::load(&path).unwrap();
+    let cfg = TraceConfig {
+        pass: MapPass::Global,
+        budget: Budget::Stored { target: 400_000, cap: u64::MAX },
+        seed: 1,
+        selector: LightSelector::new(&scene, &[]).unwrap(),
+        range: None,
+    };
+    let photons = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
+    let recs: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();
+    let nodes = pm_kdtree::balance(&recs);
+    let p = KnnParams { k: 50, max_d2: 0.3464f32.powi(2), filter: Filter::None };
+    println!("threads: {}, photons: {}", rayon::current_num_threads(), nodes.len());
+    println!("| fraction | estimates | time [s] | per estimate [us] | time / time at fraction 1 |");
+    println!("|---|---|---|---|---|");
+    let mut base = 0.0;
+    for f in [1.0, 0.25, 1.0 / 16.0] {
+        let mut best = (f64::INFINITY, 0);
+        for _ in 0..3 {
+            let mut n = nodes.clone();
+            let t = Instant::now();
+            let s = precompute(&mut n, &p, f, &|_| {});
+            best = (best.0.min(t.elapsed().as_secs_f64()), s.computed as usize);
+        }
+        if f == 1.0 {
+            base = best.0;
+        }
+        println!("| {f} | {} | {:.3} | {:.2} | {:.3} |", best.1, best.0, 1e6 * best.0 / best.1 as f64, best.0 / base);
+    }
+}
