@@ -17,6 +17,7 @@ struct Pipeline {
     #[serde(default = "one")]
     seed: u64,
     trace: TraceSection,
+    irradiance: IrradianceSection,
 }
 
 #[derive(Deserialize, Debug)]
@@ -25,6 +26,25 @@ struct TraceSection {
     global_photons: u64,
     caustic_photons: u64,
     layout: Layout,
+    #[serde(default)]
+    light_shares: std::collections::BTreeMap<String, f64>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct IrradianceSection {
+    fraction: f64,
+    k: usize,
+    max_radius_rel_diag: f64,
+    filter: FilterKind,
+}
+
+#[derive(Deserialize, Debug, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum FilterKind {
+    None,
+    Cone,
+    Gaussian,
 }
 
 #[derive(Deserialize, Debug, Clone, Copy)]
@@ -93,26 +113,26 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
         Layout::Full => "full",
     };
     let o = |f: &str| out.join(f).display().to_string();
-    let mut steps: Vec<(String, Vec<String>, Option<String>)> = vec![(
-        "photon-trace".into(),
-        vec![
-            "--scene".into(),
-            scene.display().to_string(),
-            "--out".into(),
-            out.display().to_string(),
-            "--global".into(),
-            cfg.trace.global_photons.to_string(),
-            "--caustic".into(),
-            cfg.trace.caustic_photons.to_string(),
-            "--seed".into(),
-            cfg.seed.to_string(),
-            "--layout".into(),
-            layout.into(),
-            "--stats-json".into(),
-            o("trace.stats.json"),
-        ],
-        None,
-    )];
+    let mut trace_args: Vec<String> = vec![
+        "--scene".into(),
+        scene.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+        "--global".into(),
+        cfg.trace.global_photons.to_string(),
+        "--caustic".into(),
+        cfg.trace.caustic_photons.to_string(),
+        "--seed".into(),
+        cfg.seed.to_string(),
+        "--layout".into(),
+        layout.into(),
+        "--stats-json".into(),
+        o("trace.stats.json"),
+    ];
+    for (name, share) in &cfg.trace.light_shares {
+        trace_args.extend(["--light-share".into(), format!("{name}={share}")]);
+    }
+    let mut steps: Vec<(String, Vec<String>, Option<String>)> = vec![("photon-trace".into(), trace_args, None)];
     for map in ["global", "caustic"] {
         steps.push((
             "photon-sort".into(),
@@ -126,6 +146,30 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
             Some(o(&format!("{map}.pmap"))),
         ));
     }
+    let filter = match cfg.irradiance.filter {
+        FilterKind::None => "none",
+        FilterKind::Cone => "cone",
+        FilterKind::Gaussian => "gaussian",
+    };
+    steps.push((
+        "photon-irradiance".into(),
+        vec![
+            o("global.kd.pmap"),
+            "--out".into(),
+            o("global.irr.pmap"),
+            "--fraction".into(),
+            cfg.irradiance.fraction.to_string(),
+            "--k".into(),
+            cfg.irradiance.k.to_string(),
+            "--max-radius".into(),
+            cfg.irradiance.max_radius_rel_diag.to_string(),
+            "--filter".into(),
+            filter.into(),
+            "--stats-json".into(),
+            o("irradiance.stats.json"),
+        ],
+        Some(o("global.kd.pmap")),
+    ));
     println!("plan ({} -> {}):", scene.display(), out.display());
     for (stage, a, _) in &steps {
         println!("  {stage} {}", a.join(" "));
@@ -145,27 +189,24 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
             bail!("stage {stage} failed ({status}); earlier outputs in {} are intact", out.display());
         }
         println!("  {stage}: done in {secs:.2} s");
-        rows.push(json!({"stage": stage, "seconds": secs}));
+        // Each stage's --stats-json is the argument after the flag.
+        let stats_path = a.iter().position(|x| x == "--stats-json").and_then(|i| a.get(i + 1));
+        let stats: serde_json::Value = match stats_path {
+            Some(p) => serde_json::from_slice(&std::fs::read(p).with_context(|| format!("{p}: cannot read"))?)?,
+            None => json!({}),
+        };
+        rows.push(json!({"stage": stage, "seconds": secs, "figures": key_figures(stage, &stats), "stats": stats}));
     }
-    let trace: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("trace.stats.json"))?)?;
     println!("\n| stage | wall time [s] | key figures |\n|---|---|---|");
     for r in &rows {
-        let figures = if r["stage"] == "photon-trace" {
-            format!(
-                "global: {} emitted / {} stored; caustic: {}",
-                trace["global"]["emitted"],
-                trace["global"]["stored"],
-                trace["caustic"]
-                    .get("stored")
-                    .map_or_else(|| trace["caustic"]["skipped"].to_string(), |s| format!("{} stored", s))
-            )
-        } else {
-            String::new()
-        };
-        println!("| {} | {:.3} | {figures} |", r["stage"].as_str().unwrap_or(""), r["seconds"].as_f64().unwrap_or(0.0));
+        println!(
+            "| {} | {:.3} | {} |",
+            r["stage"].as_str().unwrap_or(""),
+            r["seconds"].as_f64().unwrap_or(0.0),
+            r["figures"].as_str().unwrap_or("")
+        );
     }
-    let report =
-        json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows, "trace": trace});
+    let report = json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows});
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)? + "\n")?;
     Ok(())
 }
@@ -174,11 +215,31 @@ fn build_stages(root: &Path) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
-        .args(["build", "--release", "--quiet", "-p", "photon-trace", "-p", "photon-sort"])
+        .args(["build", "--release", "--quiet", "-p", "photon-trace", "-p", "photon-sort", "-p", "photon-irradiance"])
         .status()
         .context("cannot run cargo build")?;
     if !status.success() {
         bail!("building the stage binaries failed");
     }
     Ok(())
+}
+
+/// One line of the figures that matter for a stage, from its statistics.
+fn key_figures(stage: &str, s: &serde_json::Value) -> String {
+    match stage {
+        "photon-trace" => format!(
+            "global: {} emitted / {} stored; caustic: {}",
+            s["global"]["emitted"],
+            s["global"]["stored"],
+            s["caustic"].get("stored").map_or_else(|| s["caustic"]["skipped"].to_string(), |n| format!("{n} stored"))
+        ),
+        "photon-sort" => format!("{} photons, tree depth {}", s["photons"], s["depth"]),
+        "photon-irradiance" => format!(
+            "{} estimates (k = {}), median radius {:.4} m",
+            s["computed"],
+            s["k"],
+            s["radius_m"]["p50"].as_f64().unwrap_or(0.0)
+        ),
+        _ => String::new(),
+    }
 }
