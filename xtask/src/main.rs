@@ -1,7 +1,7 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; few dependencies.
 
-mod gen_scenes;
+use xtask::gen_scenes;
 mod run;
 
 use anyhow::{Result, bail};

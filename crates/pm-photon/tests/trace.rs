@@ -235,3 +235,61 @@ fn scenes_that_cannot_be_traced_are_refused() {
         Err(TraceError::BadShares(_))
     ));
 }
+
+/// Closed unit box (albedo 0.5) with one punctual light at its centre.
+fn closed_box_with(light: pm_scene::LightKind) -> Scene {
+    let mut scene_tris = Vec::new();
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    quad(&mut scene_tris, [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)], 0);
+    quad(&mut scene_tris, [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)], 0);
+    quad(&mut scene_tris, [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)], 0);
+    quad(&mut scene_tris, [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)], 0);
+    quad(&mut scene_tris, [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)], 0);
+    quad(&mut scene_tris, [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)], 0);
+    let mats = vec![material("wall", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO)];
+    Scene::from_parts(
+        scene_tris,
+        mats,
+        vec![pm_scene::Light { name: "lamp".into(), kind: light, power: Rgb::ZERO }],
+        None,
+    )
+}
+
+#[test]
+fn point_and_spot_lights_emit_their_power_within_their_cone() {
+    let centre = Vec3::splat(0.5);
+    let point = closed_box_with(pm_scene::LightKind::Point { position: centre, intensity: Rgb::new(2.0, 1.0, 0.5) });
+    // Phi = 4 pi I.
+    assert!((point.total_power() - Rgb::new(2.0, 1.0, 0.5) * 4.0 * std::f32::consts::PI).abs().max_element() < 1e-4);
+    let (ci, co) = (0.3f32.cos(), 0.6f32.cos());
+    let spot = closed_box_with(pm_scene::LightKind::Spot {
+        position: centre,
+        direction: Vec3::NEG_Y,
+        intensity: Rgb::splat(3.0),
+        cos_inner: ci,
+        cos_outer: co,
+    });
+    let phi_spot = 2.0 * std::f32::consts::PI * 3.0 * ((1.0 - ci) + (ci - co) / 3.0);
+    assert!((spot.total_power().x - phi_spot).abs() < 1e-4 * phi_spot);
+    for (name, scene) in [("point", &point), ("spot", &spot)] {
+        let m = trace(scene, &cfg(scene, MapPass::Global, Budget::Emitted(50_000)), &|_| {}).unwrap();
+        let direct: Vec<Photon> = m.photons.iter().copied().filter(|p| p.flags & flags::DIRECT != 0).collect();
+        let phi = sum_power(direct.iter().copied());
+        let rel = ((phi - scene.total_power()) / scene.total_power()).abs().max_element();
+        eprintln!("{name}: direct photon power {phi} vs {}", scene.total_power());
+        assert!(rel < 0.01, "{name}: {phi} vs {}", scene.total_power());
+        if name == "spot" {
+            // Every direct photon lies inside the outer cone.
+            assert!(direct.iter().all(|p| (p.position - centre).normalize().dot(Vec3::NEG_Y) >= co - 1e-4));
+            // The falloff: per unit solid angle, photons inside the inner cone carry
+            // full intensity, so their power / solid angle is I.
+            let inner: f32 = direct
+                .iter()
+                .filter(|p| (p.position - centre).normalize().dot(Vec3::NEG_Y) > ci)
+                .map(|p| p.power.x)
+                .sum();
+            let omega = 2.0 * std::f32::consts::PI * (1.0 - ci);
+            assert!((inner / omega / 3.0 - 1.0).abs() < 0.03, "inner-cone intensity {}", inner / omega);
+        }
+    }
+}

@@ -155,3 +155,23 @@ fn malformed_files_are_rejected_with_one_line_errors() {
     let err = load(&missing).err().unwrap().to_string();
     assert_one_line_naming(&err, &missing, "cannot read");
 }
+
+#[test]
+fn base_colour_texture_is_sampled_in_linear_rgb() {
+    // textured.gltf: a unit quad in z = 0 with a 2 x 1 PNG (sRGB red, sRGB 188 blue)
+    // and baseColorFactor 0.5; u runs along x.
+    let s = load(&data("textured.gltf")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(s.textures.len(), 1);
+    let probe = |x: f32| {
+        let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+        match s.bsdf(&h) {
+            pm_bsdf::Bsdf::Lambert { rho } => rho,
+            other => panic!("{other:?}"),
+        }
+    };
+    let red = probe(0.25);
+    assert!((red - Vec3::new(0.5, 0.0, 0.0)).length() < 1e-4, "{red}");
+    let blue = probe(0.75);
+    let want = 0.5 * pm_color::srgb_decode(188.0 / 255.0);
+    assert!((blue - Vec3::new(0.0, 0.0, want)).length() < 1e-4, "{blue}");
+}
