@@ -18,7 +18,7 @@ mod light;
 
 pub use geometry::{intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load};
-pub use light::{EmittedRay, Light, LightKind, Target, spot_falloff};
+pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};
 
 use glam::{Vec2, Vec3};
 use pm_bsdf::Bsdf;
@@ -227,6 +227,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Mesh primitive instances, in file order, covering every triangle.
     pub objects: Vec<Object>,
+    /// For each triangle, the index of the area light it belongs to (u32::MAX: none).
+    pub light_of_triangle: Vec<u32>,
     /// The first camera found in the scene, if any.
     pub camera: Option<Camera>,
     /// Bounds of all triangles.
@@ -279,7 +281,16 @@ impl Scene {
                 bvh.primitive_indices.iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
             (Some(bvh), bvh_tris)
         };
+        let mut light_of_triangle = vec![u32::MAX; triangles.len()];
+        for (i, l) in lights.iter().enumerate() {
+            if let LightKind::Area { tris, .. } = &l.kind {
+                for &t in tris {
+                    light_of_triangle[t as usize] = i as u32;
+                }
+            }
+        }
         let mut scene = Scene {
+            light_of_triangle,
             triangles,
             materials,
             textures,

@@ -247,3 +247,84 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
         };
     }
 }
+
+/// A sample of direct illumination toward a shading point (next-event estimation).
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point toward the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point [m] (infinite for directional lights).
+    pub dist: f32,
+    /// Incident radiance L_i [W sr^-1 m^-2] for area lights; for punctual lights the
+    /// incident irradiance on a surface facing the light, I / d^2 or E [W m^-2].
+    pub li: Rgb,
+    /// Solid-angle density of `wi` [sr^-1]; 1 for punctual lights (delta).
+    pub pdf: f32,
+    /// True for point, spot and directional lights (no MIS with BSDF sampling).
+    pub delta: bool,
+}
+
+impl Light {
+    /// Sample a direction toward this light from point `p` (pbrt-v4 section 12.2).
+    /// Area lights are sampled uniformly by area and converted to solid angle.
+    pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
+        match &self.kind {
+            LightKind::Area { tris, cdf, area, emission, two_sided } => {
+                let tri = &scene.triangles[tris[sample_cdf(cdf, u_sel)] as usize];
+                let b = pm_sampling::uniform_triangle(u);
+                let q = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
+                let d = q - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                let cos_l = -wi.dot(tri.ng);
+                let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
+                if cos_l <= 0.0 {
+                    return None;
+                }
+                let pdf = dist2 / (cos_l * area);
+                Some(LightSample { wi, dist, li: *emission, pdf, delta: false })
+            }
+            LightKind::Point { position, intensity } => {
+                let d = *position - p;
+                let dist2 = d.length_squared();
+                (dist2 > 0.0).then(|| {
+                    let dist = dist2.sqrt();
+                    LightSample { wi: d / dist, dist, li: *intensity / dist2, pdf: 1.0, delta: true }
+                })
+            }
+            LightKind::Spot { position, direction, intensity, cos_inner, cos_outer } => {
+                let d = *position - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                let f = spot_falloff((-wi).dot(*direction), *cos_inner, *cos_outer);
+                (f > 0.0).then(|| LightSample { wi, dist, li: *intensity * (f / dist2), pdf: 1.0, delta: true })
+            }
+            LightKind::Directional { direction, irradiance, .. } => {
+                Some(LightSample { wi: -*direction, dist: f32::INFINITY, li: *irradiance, pdf: 1.0, delta: true })
+            }
+        }
+    }
+
+    /// Solid-angle density with which [`Light::sample_li`] would pick direction `wi`
+    /// landing on triangle `tri` at distance `dist` (for MIS); 0 for
+    /// punctual lights and triangles that are not part of this light.
+    pub fn pdf_li(&self, scene: &Scene, wi: Vec3, dist: f32, tri: u32) -> f32 {
+        match &self.kind {
+            LightKind::Area { area, two_sided, .. } => {
+                let t = &scene.triangles[tri as usize];
+                let cos_l = -wi.dot(t.ng);
+                let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
+                if cos_l <= 0.0 { 0.0 } else { dist * dist / (cos_l * area) }
+            }
+            _ => 0.0,
+        }
+    }
+}

@@ -1,0 +1,66 @@
+//! Direct illumination by next-event estimation (pbrt-v4 section 13.4), with the
+//! power heuristic between light and BSDF sampling on glossy surfaces (Veach 1997).
+
+use crate::Ctx;
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_format::PhotonRecord;
+use pm_sampling::Sampler;
+use pm_scene::{Hit, offset_ray_origin};
+
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
+/// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit,
+/// averaged over `n` light samples.
+pub(crate) fn direct<G: PhotonRecord>(ctx: &Ctx<G>, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
+    let scene = ctx.scene;
+    let glossy = !matches!(bsdf, Bsdf::Lambert { .. });
+    let side_o = wo.dot(hit.ng);
+    let mut sum = Rgb::ZERO;
+    for _ in 0..n {
+        let (li, p_sel) = ctx.lights.pick(s.next_1d());
+        let light = &scene.lights[li];
+        let u_tri = s.next_1d();
+        let u = s.next_2d();
+        if let Some(ls) = light.sample_li(scene, hit.p, u_tri, u) {
+            if ls.wi.dot(hit.ng) * side_o > 0.0 {
+                let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
+                if f.max_element() > 0.0 {
+                    let o = offset_ray_origin(hit.p, hit.ng, ls.wi);
+                    let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+                    if !scene.occluded(o, ls.wi, t_max) {
+                        let p_l = ls.pdf * p_sel as f32;
+                        let w =
+                            if ls.delta || !glossy { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
+                        sum += f * ls.li * (w / p_l);
+                    }
+                }
+            }
+        }
+        if glossy {
+            // BSDF sampling, weighted against light sampling.
+            let u = s.next_2d();
+            let uc = s.next_1d();
+            if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
+                if !bs.specular && bs.wi.dot(hit.ng) * side_o > 0.0 {
+                    let o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+                    if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
+                        let le = scene.emitted(&h, -bs.wi);
+                        let l_idx = scene.light_of_triangle[h.tri as usize];
+                        if le.max_element() > 0.0 && l_idx != u32::MAX {
+                            let p_l = scene.lights[l_idx as usize].pdf_li(scene, bs.wi, h.t, h.tri)
+                                * ctx.lights.probs[l_idx as usize] as f32;
+                            sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    sum / n.max(1) as f32
+}

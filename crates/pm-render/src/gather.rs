@@ -1,0 +1,232 @@
+//! Final gathering (Christensen 1999 sections 1.3 and 2.2): stratified,
+//! cosine-distributed rays over the hemisphere whose hit points read the global
+//! photon map, with a secondary gather for short rays, and the irradiance gradients
+//! of Ward and Heckbert 1992 ("Irradiance Gradients") from the same rays.
+
+use crate::{Ctx, Lookup, facing};
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_estimate::{Filter, KnnParams};
+use pm_format::PhotonRecord;
+use pm_kdtree::KnnScratch;
+use pm_sampling::{Sampler, basis};
+use pm_scene::{Hit, offset_ray_origin};
+use std::f32::consts::PI;
+use std::sync::atomic::Ordering::Relaxed;
+
+/// Per-thread scratch for photon queries.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    pub knn: KnnScratch,
+    pub rejected: Vec<f32>,
+}
+
+/// The result of a final gather at a point.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Gather {
+    /// Indirect irradiance E [W m^-2 per channel] from the gathered radiance.
+    pub e: Rgb,
+    /// Harmonic mean distance to the surfaces the rays hit [m] (infinite if none).
+    pub r_harmonic: f32,
+    /// Translational gradient dE/dx [W m^-3], one vector per channel.
+    pub grad_t: [Vec3; 3],
+    /// Rotational gradient [W m^-2 rad^-1], one vector per channel.
+    pub grad_r: [Vec3; 3],
+}
+
+/// Irradiance at a final-gather ray's hit point from the global map: the
+/// precomputed irradiance of the nearest similar photon, or a k-nearest estimate.
+pub(crate) fn lookup_irradiance<G: PhotonRecord>(ctx: &Ctx<G>, p: Vec3, n: Vec3, scratch: &mut Scratch) -> Rgb {
+    let cfg = ctx.cfg;
+    ctx.stats.lookups.fetch_add(1, Relaxed);
+    match cfg.lookup {
+        Lookup::Precomputed => match &ctx.maps.irradiance {
+            Some(tree) => {
+                let max_d2 = cfg.max_radius_global * cfg.max_radius_global;
+                match pm_estimate::precomputed_irradiance(tree, p, n, max_d2, &mut scratch.rejected) {
+                    Some((e, hit)) => {
+                        ctx.stats.lookup_rank[(hit.rank as usize - 1).min(2)].fetch_add(1, Relaxed);
+                        e
+                    }
+                    None => {
+                        ctx.stats.lookup_misses.fetch_add(1, Relaxed);
+                        Rgb::ZERO
+                    }
+                }
+            }
+            None => Rgb::ZERO,
+        },
+        Lookup::Exact => match &ctx.maps.global {
+            Some(tree) => {
+                let params = KnnParams {
+                    k: cfg.k_global,
+                    max_d2: cfg.max_radius_global * cfg.max_radius_global,
+                    filter: Filter::None,
+                };
+                pm_estimate::irradiance(tree, p, n, &params, &mut scratch.knn).e
+            }
+            None => Rgb::ZERO,
+        },
+    }
+}
+
+/// Radiance arriving at the gather origin along one gather ray, excluding emission
+/// (direct light is sampled separately) and returning the first hit distance.
+/// Specular surfaces are followed (a few bounces); at the first non-specular hit the
+/// radiance is albedo / pi x irradiance. A ray shorter than the secondary-gather
+/// distance gets a small secondary gather there instead of a photon-map lookup.
+fn gather_radiance<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    o: Vec3,
+    d: Vec3,
+    s: &mut Sampler,
+    secondary: bool,
+    scratch: &mut Scratch,
+) -> (Rgb, f32) {
+    let scene = ctx.scene;
+    let (mut o, mut d) = (o, d);
+    let mut beta = Rgb::ONE;
+    let mut first_t = f32::INFINITY;
+    for bounce in 0..4 {
+        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return (Rgb::ZERO, first_t) };
+        if bounce == 0 {
+            first_t = hit.t;
+        }
+        let bsdf = scene.bsdf(&hit);
+        if bsdf.is_specular() {
+            let u = s.next_2d();
+            let uc = s.next_1d();
+            let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (Rgb::ZERO, first_t) };
+            beta *= bs.weight;
+            o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+            d = bs.wi;
+            continue;
+        }
+        let n = facing(hit.ng, -d);
+        let e = if secondary && bounce == 0 && hit.t < ctx.cfg.secondary_distance && ctx.cfg.secondary_rays > 0 {
+            ctx.stats.secondary_gathers.fetch_add(1, Relaxed);
+            secondary_irradiance(ctx, &hit, n, s, scratch)
+        } else {
+            lookup_irradiance(ctx, hit.p, n, scratch)
+        };
+        return (beta * bsdf.diffuse_albedo() * e / PI, first_t);
+    }
+    (Rgb::ZERO, first_t)
+}
+
+/// Total irradiance at a point reached by a short gather ray: direct light by light
+/// sampling plus a secondary gather of `secondary_rays` rays reading the photon map
+/// (Jensen 1996; Christensen 1999 section 1.3: "we have found 12 to be sufficient").
+fn secondary_irradiance<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    hit: &Hit,
+    n: Vec3,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+) -> Rgb {
+    // A Lambertian BSDF of albedo pi has f = 1, so the direct "radiance" it returns is
+    // the direct irradiance.
+    let unit = Bsdf::Lambert { rho: Rgb::splat(PI) };
+    let mut h = *hit;
+    h.ns = facing(hit.ns, n);
+    let e_direct = crate::direct::direct(ctx, &h, &unit, n, s, 1);
+    let g = final_gather(ctx, hit.p, h.ns, n, ctx.cfg.secondary_rays, s, false, scratch);
+    e_direct + g.e
+}
+
+/// A final gather at `x` with shading normal `ns` and geometric normal `ng` (both on
+/// the side being lit): E = pi / (M N) sum L_jk over M x N strata with
+/// sin^2 theta_j uniform in [j/M, (j+1)/M) and phi_k in [2 pi k / N, 2 pi (k+1) / N)
+/// (cosine-weighted stratified sampling, Ward and Heckbert 1992).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn final_gather<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    x: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+    rays: u32,
+    s: &mut Sampler,
+    secondary: bool,
+    scratch: &mut Scratch,
+) -> Gather {
+    let m = ((rays as f32 / PI).sqrt().round() as usize).max(1);
+    let n = ((rays as f32 / m as f32).round() as usize).max(1);
+    ctx.stats.gather_rays.fetch_add((m * n) as u64, Relaxed);
+    let (t, b) = basis(ns);
+    let world = |l: Vec3| t * l.x + b * l.y + ns * l.z;
+    let mut l = vec![Rgb::ZERO; m * n];
+    let mut r = vec![f32::INFINITY; m * n];
+    let mut sum = Rgb::ZERO;
+    let mut inv_r = 0.0f64;
+    let mut grad_r = [Vec3::ZERO; 3];
+    for j in 0..m {
+        for k in 0..n {
+            let u = s.next_2d();
+            let sin2 = (j as f32 + u.x) / m as f32;
+            let (sin_t, cos_t) = (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt());
+            let phi = 2.0 * PI * (k as f32 + u.y) / n as f32;
+            let dir = world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+            let idx = j * n + k;
+            if dir.dot(ng) > 0.0 {
+                let o = offset_ray_origin(x, ng, dir);
+                let (lr, dist) = gather_radiance(ctx, o, dir, s, secondary, scratch);
+                l[idx] = lr;
+                r[idx] = dist;
+            }
+            sum += l[idx];
+            if r[idx].is_finite() && r[idx] > 0.0 {
+                inv_r += 1.0 / r[idx] as f64;
+            }
+            // Rotational gradient: sum of -tan(theta) L v(phi), v the tangent direction
+            // perpendicular to phi.
+            let tan_t = if cos_t > 1e-6 { sin_t / cos_t } else { 0.0 };
+            let v = world(Vec3::new(-phi.sin(), phi.cos(), 0.0)) * -tan_t;
+            for c in 0..3 {
+                grad_r[c] += v * l[idx][c];
+            }
+        }
+    }
+    let norm = PI / (m * n) as f32;
+    for g in &mut grad_r {
+        *g *= norm;
+    }
+    // Translational gradient (Ward and Heckbert 1992, eq. 9 in Krivanek et al.'s
+    // notation): radiance differences across the stratum boundaries, weighted by the
+    // boundary's projected size and divided by the nearer hit distance.
+    let mut grad_t = [Vec3::ZERO; 3];
+    let theta_at = |q: f32| (q / m as f32).sqrt().clamp(0.0, 1.0).asin();
+    for k in 0..n {
+        let phi_c = 2.0 * PI * (k as f32 + 0.5) / n as f32;
+        let phi_b = 2.0 * PI * k as f32 / n as f32;
+        let u_k = world(Vec3::new(phi_c.cos(), phi_c.sin(), 0.0));
+        let v_k = world(Vec3::new(-phi_b.sin(), phi_b.cos(), 0.0));
+        let k_prev = (k + n - 1) % n;
+        for j in 0..m {
+            if j > 0 {
+                let th = theta_at(j as f32);
+                let rmin = r[j * n + k].min(r[(j - 1) * n + k]);
+                if rmin.is_finite() && rmin > 0.0 {
+                    let coeff = 2.0 * PI / n as f32 * th.sin() * th.cos() * th.cos() / rmin;
+                    let dl = l[j * n + k] - l[(j - 1) * n + k];
+                    for c in 0..3 {
+                        grad_t[c] += u_k * (coeff * dl[c]);
+                    }
+                }
+            }
+            if n > 1 {
+                let (th_lo, th_hi, th_mid) = (theta_at(j as f32), theta_at(j as f32 + 1.0), theta_at(j as f32 + 0.5));
+                let rmin = r[j * n + k].min(r[j * n + k_prev]);
+                if rmin.is_finite() && rmin > 0.0 && th_mid.sin() > 0.0 {
+                    let coeff = (th_lo.cos() - th_hi.cos()) / (th_mid.sin() * rmin);
+                    let dl = l[j * n + k] - l[j * n + k_prev];
+                    for c in 0..3 {
+                        grad_t[c] += v_k * (coeff * dl[c]);
+                    }
+                }
+            }
+        }
+    }
+    let r_harmonic = if inv_r > 0.0 { ((m * n) as f64 / inv_r) as f32 } else { f32::INFINITY };
+    Gather { e: sum * norm, r_harmonic, grad_t, grad_r }
+}

@@ -1,0 +1,192 @@
+//! Eye paths of the photon-map renderer: recursive specular reflection and
+//! refraction, and at non-specular hits the components of Christensen 1999
+//! section 1.3 (direct, caustics, soft indirect) or one of the inspection modes.
+
+use crate::gather::{Scratch, final_gather, lookup_irradiance};
+use crate::icache::IrradianceCache;
+use crate::{Ctx, Mode, facing};
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_estimate::{Filter, KnnParams};
+use pm_format::PhotonRecord;
+use pm_sampling::Sampler;
+use pm_scene::offset_ray_origin;
+use std::f32::consts::PI;
+use std::sync::atomic::Ordering::Relaxed;
+use std::time::Instant;
+
+/// Specular bounces up to this depth trace both reflection and refraction (weighted
+/// by Fresnel); deeper ones pick one by Fresnel probability.
+const SPLIT_DEPTH: u32 = 3;
+
+/// Radiance components of one eye sample [W sr^-1 m^-2].
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Components {
+    /// Emission seen directly plus direct light at the first non-specular hit.
+    pub direct: Rgb,
+    /// Caustic-map radiance at the first non-specular hit.
+    pub caustic: Rgb,
+    /// Soft indirect light (final gather or cache) at the first non-specular hit.
+    pub indirect: Rgb,
+    /// Everything seen through one or more specular bounces.
+    pub specular: Rgb,
+}
+
+impl Components {
+    pub fn total(&self) -> Rgb {
+        self.direct + self.caustic + self.indirect + self.specular
+    }
+    fn sum(&self) -> Rgb {
+        self.total()
+    }
+}
+
+fn elapsed_ns(t: Instant) -> u64 {
+    t.elapsed().as_nanos() as u64
+}
+
+/// Soft indirect irradiance at a non-specular point: interpolated from the cache
+/// when a record covers it, else a fresh final gather.
+pub(crate) fn indirect_irradiance<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    p: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    cache: Option<&IrradianceCache>,
+) -> Rgb {
+    if let Some(c) = cache {
+        let t = Instant::now();
+        let e = c.lookup(p, ns);
+        ctx.stats.ns_icache.fetch_add(elapsed_ns(t), Relaxed);
+        if let Some(e) = e {
+            ctx.stats.cache_hits.fetch_add(1, Relaxed);
+            return e;
+        }
+    }
+    let t = Instant::now();
+    ctx.stats.gathers.fetch_add(1, Relaxed);
+    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, true, scratch);
+    ctx.stats.ns_gather.fetch_add(elapsed_ns(t), Relaxed);
+    g.e
+}
+
+/// Radiance components along the ray from `o` in direction `d`.
+pub(crate) fn trace<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    o: Vec3,
+    d: Vec3,
+    depth: u32,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    cache: Option<&IrradianceCache>,
+) -> Components {
+    let scene = ctx.scene;
+    let cfg = ctx.cfg;
+    let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return Components::default() };
+    let wo = -d;
+    let le = scene.emitted(&hit, wo);
+    let bsdf = scene.bsdf(&hit);
+    if bsdf.is_specular() {
+        if depth >= cfg.max_depth {
+            ctx.stats.terminated_paths.fetch_add(1, Relaxed);
+            return Components { specular: le, ..Default::default() };
+        }
+        let t0 = Instant::now();
+        let mut l = le;
+        let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
+            let o2 = offset_ray_origin(hit.p, hit.ng, wi);
+            w * trace(ctx, o2, wi, depth + 1, s, scratch, cache).sum()
+        };
+        let u = s.next_2d();
+        let uc = s.next_1d();
+        if depth < SPLIT_DEPTH {
+            // Both Fresnel branches: sample with uc at either end of [0, 1).
+            let refl = bsdf.sample(wo, hit.ns, u, 0.0);
+            let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
+            match (refl, refr) {
+                (Some(a), Some(b)) if b.transmitted => {
+                    l += follow(s, scratch, a.wi, a.weight * a.pdf);
+                    l += follow(s, scratch, b.wi, b.weight * b.pdf);
+                }
+                // Mirror, or total internal reflection: one branch of probability 1.
+                (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
+                _ => {}
+            }
+        } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
+            l += follow(s, scratch, bs.wi, bs.weight);
+        }
+        ctx.stats.ns_specular.fetch_add(elapsed_ns(t0), Relaxed);
+        return Components { specular: l, ..Default::default() };
+    }
+    let n = facing(hit.ng, wo);
+    let ns = facing(hit.ns, wo);
+    let albedo = bsdf.diffuse_albedo();
+    match cfg.mode {
+        Mode::Photons => {
+            let e = match &ctx.maps.global {
+                Some(tree) => {
+                    let p = KnnParams {
+                        k: cfg.k_global,
+                        max_d2: cfg.max_radius_global * cfg.max_radius_global,
+                        filter: Filter::None,
+                    };
+                    pm_estimate::irradiance(tree, hit.p, n, &p, &mut scratch.knn).e
+                }
+                None => Rgb::ZERO,
+            };
+            Components { direct: le, indirect: albedo * e / PI, ..Default::default() }
+        }
+        Mode::Radiance => {
+            let e = lookup_irradiance(ctx, hit.p, n, scratch);
+            Components { direct: le, indirect: albedo * e / PI, ..Default::default() }
+        }
+        Mode::Indirect => {
+            let e = indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache);
+            Components { indirect: albedo * e / PI, ..Default::default() }
+        }
+        Mode::Full | Mode::Path => {
+            let t = Instant::now();
+            let direct = le + crate::direct::direct(ctx, &hit, &bsdf, wo, s, cfg.light_samples);
+            ctx.stats.ns_direct.fetch_add(elapsed_ns(t), Relaxed);
+            let t = Instant::now();
+            let caustic = match &ctx.maps.caustic {
+                Some(tree) => {
+                    let p = KnnParams {
+                        k: cfg.k_caustic,
+                        max_d2: cfg.max_radius_caustic * cfg.max_radius_caustic,
+                        filter: Filter::Cone { k: 1.1 },
+                    };
+                    pm_estimate::radiance(tree, hit.p, n, &p, &mut scratch.knn, |wi| bsdf.f(wo, wi, hit.ns))
+                }
+                None => Rgb::ZERO,
+            };
+            ctx.stats.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
+            let e = indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache);
+            Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
+        }
+    }
+}
+
+/// The first non-specular hit along the dominant specular branch (the larger
+/// Fresnel term at each bounce): where the irradiance-cache prepass puts records.
+pub(crate) fn first_diffuse_hit<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
+    let (mut o, mut d) = (o, d);
+    for _ in 0..ctx.cfg.max_depth.max(1) {
+        let hit = ctx.scene.intersect(o, d, f32::INFINITY)?;
+        let bsdf = ctx.scene.bsdf(&hit);
+        if !bsdf.is_specular() {
+            return Some((hit.p, facing(hit.ns, -d), facing(hit.ng, -d)));
+        }
+        let refl = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0)?;
+        let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON);
+        let next = match refr {
+            Some(t) if t.transmitted && t.pdf > refl.pdf => t.wi,
+            _ => refl.wi,
+        };
+        o = offset_ray_origin(hit.p, hit.ng, next);
+        d = next;
+    }
+    None
+}

@@ -1,0 +1,94 @@
+//! Unbiased path tracing (pbrt-v4 section 13.4): next-event estimation with the
+//! power heuristic against BSDF sampling, and Russian roulette. The reference and
+//! speed baseline for the photon-map renderer, over the same scene and BSDFs.
+
+use crate::Ctx;
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_format::PhotonRecord;
+use pm_sampling::Sampler;
+use pm_scene::offset_ray_origin;
+use std::sync::atomic::Ordering::Relaxed;
+
+/// Hard path-length limit; Russian roulette ends paths long before in physical
+/// scenes. Paths cut here are counted.
+const MAX_PATH: u32 = 1000;
+
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
+/// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2].
+pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: &mut Sampler) -> Rgb {
+    let scene = ctx.scene;
+    let (mut o, mut d) = (o, d);
+    let mut beta = Rgb::ONE;
+    let mut l = Rgb::ZERO;
+    let mut prev_pdf = 0.0f32;
+    let mut prev_specular = true;
+    for depth in 0..MAX_PATH {
+        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return l };
+        let wo = -d;
+        let le = scene.emitted(&hit, wo);
+        if le.max_element() > 0.0 {
+            if prev_specular {
+                l += beta * le;
+            } else {
+                let li = scene.light_of_triangle[hit.tri as usize];
+                if li != u32::MAX {
+                    let p_l = scene.lights[li as usize].pdf_li(scene, d, hit.t, hit.tri)
+                        * ctx.lights.probs[li as usize] as f32;
+                    l += beta * le * power_heuristic(prev_pdf, p_l);
+                }
+            }
+        }
+        let bsdf = scene.bsdf(&hit);
+        if !bsdf.is_specular() {
+            // Next-event estimation, one light sample, MIS against BSDF sampling.
+            let (li, p_sel) = ctx.lights.pick(s.next_1d());
+            let light = &scene.lights[li];
+            let u_tri = s.next_1d();
+            let u = s.next_2d();
+            if let Some(ls) = light.sample_li(scene, hit.p, u_tri, u) {
+                if ls.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0 {
+                    let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
+                    if f.max_element() > 0.0 {
+                        let o2 = offset_ray_origin(hit.p, hit.ng, ls.wi);
+                        let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+                        if !scene.occluded(o2, ls.wi, t_max) {
+                            let p_l = ls.pdf * p_sel as f32;
+                            let w = if ls.delta { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
+                            l += beta * f * ls.li * (w / p_l);
+                        }
+                    }
+                }
+            }
+        }
+        let u = s.next_2d();
+        let uc = s.next_1d();
+        let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return l };
+        let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
+        if same_side == bs.transmitted {
+            return l;
+        }
+        beta *= bs.weight;
+        prev_pdf = bs.pdf;
+        prev_specular = bs.specular;
+        // Russian roulette after a few bounces, on the throughput's largest channel.
+        if depth >= 3 {
+            let q = beta.max_element().min(0.95);
+            if !(q > 0.0) || s.next_1d() >= q {
+                return l;
+            }
+            beta /= q;
+        }
+        if !beta.is_finite() {
+            return l;
+        }
+        o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+        d = bs.wi;
+    }
+    ctx.stats.terminated_paths.fetch_add(1, Relaxed);
+    l
+}
