@@ -88,7 +88,7 @@ pub struct Cli {
     #[arg(long, default_value_t = 12)]
     pub secondary_rays: u32,
     /// Gather rays shorter than this fraction of the scene diagonal get a secondary gather.
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = 0.01)]
     pub secondary_distance: f32,
     /// Photons per global-map estimate (exact lookups and photons mode).
     #[arg(long, default_value_t = 50)]

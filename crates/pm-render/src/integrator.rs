@@ -169,24 +169,29 @@ pub(crate) fn trace<G: PhotonRecord>(
     }
 }
 
-/// The first non-specular hit along the dominant specular branch (the larger
-/// Fresnel term at each bounce): where the irradiance-cache prepass puts records.
-pub(crate) fn first_diffuse_hit<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
-    let (mut o, mut d) = (o, d);
-    for _ in 0..ctx.cfg.max_depth.max(1) {
-        let hit = ctx.scene.intersect(o, d, f32::INFINITY)?;
-        let bsdf = ctx.scene.bsdf(&hit);
-        if !bsdf.is_specular() {
-            return Some((hit.p, facing(hit.ns, -d), facing(hit.ng, -d)));
-        }
-        let refl = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0)?;
-        let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON);
-        let next = match refr {
-            Some(t) if t.transmitted && t.pdf > refl.pdf => t.wi,
-            _ => refl.wi,
-        };
-        o = offset_ray_origin(hit.p, hit.ng, next);
-        d = next;
+/// The non-specular points an eye ray reaches, following specular bounces exactly as
+/// [`trace`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
+/// after): where the irradiance-cache prepass puts records. Each point is
+/// (position, shading normal, geometric normal), normals on the ray's side.
+pub(crate) fn diffuse_points<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, depth: u32, out: &mut Vec<(Vec3, Vec3, Vec3)>) {
+    let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
+    let bsdf = ctx.scene.bsdf(&hit);
+    if !bsdf.is_specular() {
+        out.push((hit.p, facing(hit.ns, -d), facing(hit.ng, -d)));
+        return;
     }
-    None
+    if depth >= ctx.cfg.max_depth {
+        return;
+    }
+    let Some(refl) = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0) else { return };
+    let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
+    let mut go = |wi: Vec3| diffuse_points(ctx, offset_ray_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
+    match refr {
+        Some(t) if depth < SPLIT_DEPTH => {
+            go(refl.wi);
+            go(t.wi);
+        }
+        Some(t) if t.pdf > refl.pdf => go(t.wi),
+        _ => go(refl.wi),
+    }
 }

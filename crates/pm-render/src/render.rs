@@ -4,7 +4,7 @@
 
 use crate::gather::{Scratch, final_gather};
 use crate::icache::IrradianceCache;
-use crate::integrator::{Components, first_diffuse_hit, trace};
+use crate::integrator::{Components, diffuse_points, trace};
 use crate::{Ctx, Maps, Mode, RenderConfig};
 use glam::Vec2;
 use pm_color::Rgb;
@@ -122,17 +122,22 @@ pub fn render<G: PhotonRecord>(
                 .collect();
             let new: Vec<_> = pts
                 .par_iter()
-                .filter_map(|&i| {
+                .flat_map_iter(|&i| {
                     let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
                     let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
-                    let (p, ns, ng) = first_diffuse_hit(&ctx, camera.position, d)?;
-                    if cache.lookup(p, ns).is_some() {
-                        return None;
-                    }
-                    let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x6361_6368_65), 0);
+                    let mut points = Vec::new();
+                    diffuse_points(&ctx, camera.position, d, 0, &mut points);
                     let mut scratch = Scratch::default();
-                    let g = final_gather(&ctx, p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
-                    Some((p, ns, g))
+                    let cache = &cache;
+                    let ctx = &ctx;
+                    points.into_iter().enumerate().filter_map(move |(b, (p, ns, ng))| {
+                        if cache.lookup(p, ns).is_some() {
+                            return None;
+                        }
+                        let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x6361_6368_65 ^ b as u64), 0);
+                        let g = final_gather(ctx, p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
+                        Some((p, ns, g))
+                    })
                 })
                 .collect();
             for (p, ns, g) in &new {
