@@ -97,10 +97,19 @@ pub fn on_query_side<R: PhotonRecord>(r: &R, n: Vec3) -> bool {
     if np != Vec3::ZERO { np.dot(n) > SAME_SURFACE_COS } else { r.wi().dot(n) > FRONT_TOLERANCE }
 }
 
-/// Irradiance at `x` on a surface with unit normal `n`:
-/// E ~ sum_p w_p Phi_p / (pi r^2) over the k nearest photons on the query's side,
-/// r their farthest distance (Jensen 1996, eq. 6; Christensen 1999 section 1.3).
-/// Returns zero when no photon is found or all found lie exactly at `x` (r = 0).
+/// Irradiance at `x` on a surface with unit normal `n` from the k nearest photons on
+/// the query's side (Jensen 1996, eq. 6; Christensen 1999 section 1.3):
+/// E ~ sum_p w_p Phi_p / (pi r^2), r the distance of the k-th photon.
+///
+/// The k-th photon only marks the radius and is not counted: the k - 1 photons
+/// inside the disk over its area is the unbiased k-nearest density estimate for a
+/// locally uniform (Poisson) photon density, where counting all k overestimates by
+/// k/(k - 1) (+2% at k = 50). Evaluated at a photon's own position (the precompute)
+/// a residual (k - 1)/(k - 2) remains for Poisson photons; photons emitted from a
+/// stratified sequence are more regular than Poisson and come out slightly low
+/// instead (the workspace tests measure both: +1.3% in the furnace, -1.0% on a
+/// directly lit plane). Returns zero when no photon is found or all lie exactly at
+/// `x` (r = 0).
 pub fn irradiance<R: PhotonRecord>(
     tree: &KdTree<R>,
     x: Vec3,
@@ -108,22 +117,32 @@ pub fn irradiance<R: PhotonRecord>(
     p: &KnnParams,
     scratch: &mut KnnScratch,
 ) -> Irradiance {
-    let res = tree.knn(x, p.k, p.max_d2, |r| on_query_side(r, n), scratch);
+    let res = tree.knn(x, p.k, p.max_d2, |_, r| on_query_side(r, n), scratch);
     if res.count == 0 || !(res.max_dist2 > 0.0) {
         return Irradiance { e: Rgb::ZERO, r2: res.max_dist2, count: res.count };
     }
     let r2 = res.max_dist2;
     let nodes = tree.nodes();
+    let boundary = boundary_photon(tree, scratch);
     let mut sum = Rgb::ZERO;
     for (i, d2) in tree.found(scratch) {
-        sum += nodes[i as usize].power() * p.filter.weight(d2, r2);
+        if Some(i) != boundary {
+            sum += nodes[i as usize].power() * p.filter.weight(d2, r2);
+        }
     }
     Irradiance { e: sum / (PI * r2), r2, count: res.count }
 }
 
+/// The photon that defines the radius of the last k-nearest query (the farthest;
+/// the lowest heap index among equals, so the choice is deterministic).
+fn boundary_photon<R: PhotonRecord>(tree: &KdTree<R>, scratch: &KnnScratch) -> Option<u32> {
+    tree.found(scratch).max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))).map(|(i, _)| i)
+}
+
 /// Outgoing radiance from a photon map at `x` for a BRDF evaluated per photon:
-/// L ~ sum_p f_r(wo, wi_p) w_p Phi_p / (pi r^2) (Jensen 1996, eq. 6). `f_r` maps a
-/// photon's incident direction to the BRDF value [sr^-1 per channel].
+/// L ~ sum_p f_r(wo, wi_p) w_p Phi_p / (pi r^2) (Jensen 1996, eq. 6), with the
+/// boundary photon not counted as in [`irradiance`]. `f_r` maps a photon's incident
+/// direction to the BRDF value [sr^-1 per channel].
 pub fn radiance<R: PhotonRecord>(
     tree: &KdTree<R>,
     x: Vec3,
@@ -132,16 +151,19 @@ pub fn radiance<R: PhotonRecord>(
     scratch: &mut KnnScratch,
     f_r: impl Fn(Vec3) -> Rgb,
 ) -> Rgb {
-    let res = tree.knn(x, p.k, p.max_d2, |r| on_query_side(r, n), scratch);
+    let res = tree.knn(x, p.k, p.max_d2, |_, r| on_query_side(r, n), scratch);
     if res.count == 0 || !(res.max_dist2 > 0.0) {
         return Rgb::ZERO;
     }
     let r2 = res.max_dist2;
     let nodes = tree.nodes();
+    let boundary = boundary_photon(tree, scratch);
     let mut sum = Rgb::ZERO;
     for (i, d2) in tree.found(scratch) {
-        let r = &nodes[i as usize];
-        sum += f_r(r.wi()) * r.power() * p.filter.weight(d2, r2);
+        if Some(i) != boundary {
+            let r = &nodes[i as usize];
+            sum += f_r(r.wi()) * r.power() * p.filter.weight(d2, r2);
+        }
     }
     sum / (PI * r2)
 }

@@ -97,7 +97,7 @@ fn main() {
                     .map(|c| {
                         let mut s = KnnScratch::with_capacity(K);
                         c.iter()
-                            .map(|(x, _)| tree.knn(*x, K, f32::INFINITY, |_| true, &mut s).max_dist2 as f64)
+                            .map(|(x, _)| tree.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
                             .sum::<f64>()
                     })
                     .sum::<f64>()

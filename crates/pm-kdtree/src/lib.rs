@@ -253,13 +253,14 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     }
 
     /// The `k` nearest photons to `x` within squared radius `max_d2` that pass
-    /// `filter`. On return `scratch` holds them; iterate with [`KdTree::found`].
+    /// `filter(heap index, record)`. On return `scratch` holds them; iterate with
+    /// [`KdTree::found`].
     pub fn knn(
         &self,
         x: Vec3,
         k: usize,
         max_d2: f32,
-        filter: impl Fn(&R) -> bool,
+        filter: impl Fn(u32, &R) -> bool,
         scratch: &mut KnnScratch,
     ) -> KnnResult {
         scratch.heap.clear();
@@ -269,13 +270,13 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         let heap = &mut scratch.heap;
         self.search(x, max_d2, |i, r, d2| {
             if heap.len() < k {
-                if filter(r) {
+                if filter(i, r) {
                     heap.push((key(d2), i));
                 }
                 if heap.len() == k { f32::from_bits(heap.peek().map_or(0, |t| t.0)).min(max_d2) } else { max_d2 }
             } else {
                 if let Some(mut top) = heap.peek_mut() {
-                    if key(d2) < top.0 && filter(r) {
+                    if key(d2) < top.0 && filter(i, r) {
                         *top = (key(d2), i); // one sift-down when `top` drops
                     }
                 }

@@ -48,7 +48,7 @@ fn check_all_queries<R: PhotonRecord>(
             for &r2 in radii2 {
                 for use_filter in [false, true] {
                     let f = |r: &R| !use_filter || direct(r);
-                    let res = tree.knn(x, k, r2, f, &mut scratch);
+                    let res = tree.knn(x, k, r2, |_, r| f(r), &mut scratch);
                     let mut got: Vec<f32> = tree.found(&scratch).map(|(_, d)| d).collect();
                     got.sort_by(f32::total_cmp);
                     let want = brute_knn(&nodes, x, k, r2, f);
@@ -137,7 +137,7 @@ fn unused_photons_are_skipped() {
     }
     let tree = KdTree::new(&nodes);
     let mut s = KnnScratch::default();
-    tree.knn(Vec3::new(10.2, 0.0, 0.0), 3, f32::INFINITY, |_| true, &mut s);
+    tree.knn(Vec3::new(10.2, 0.0, 0.0), 3, f32::INFINITY, |_, _| true, &mut s);
     let mut xs: Vec<f32> = tree.found(&s).map(|(i, _)| nodes[i as usize].position().x).collect();
     xs.sort_by(f32::total_cmp);
     assert_eq!(xs, vec![9.0, 11.0, 13.0]);

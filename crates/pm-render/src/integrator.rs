@@ -173,7 +173,13 @@ pub(crate) fn trace<G: PhotonRecord>(
 /// [`trace`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
 /// after): where the irradiance-cache prepass puts records. Each point is
 /// (position, shading normal, geometric normal), normals on the ray's side.
-pub(crate) fn diffuse_points<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, depth: u32, out: &mut Vec<(Vec3, Vec3, Vec3)>) {
+pub(crate) fn diffuse_points<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    o: Vec3,
+    d: Vec3,
+    depth: u32,
+    out: &mut Vec<(Vec3, Vec3, Vec3)>,
+) {
     let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
     let bsdf = ctx.scene.bsdf(&hit);
     if !bsdf.is_specular() {
