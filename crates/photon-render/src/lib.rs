@@ -272,6 +272,7 @@ fn report(cli: &Cli, cfg: &RenderConfig, s: &RenderStats, diag: f32, notes: &[St
         "lookup_misses": s.lookup_misses,
         "lookup_rank_1_2_more": s.lookup_rank,
         "terminated_paths": s.terminated_paths,
+        "nonfinite_pixels": s.nonfinite_pixels,
         "samples": s.samples,
         "samples_per_pixel": s.samples as f64 / (cli.width as f64 * cli.height as f64),
         "supersampled_pixels": s.supersampled_pixels,

@@ -46,9 +46,20 @@ impl IrradianceCache {
     }
 
     /// Add a final gather at `p` (normal `n`) as a record. The record's radius is the
-    /// gather's harmonic mean distance, clamped to the spacing limits.
+    /// gather's harmonic mean distance, limited by its gradient and clamped to the
+    /// spacing limits.
     pub fn insert(&mut self, p: Vec3, n: Vec3, g: &Gather) {
-        let r = g.r_harmonic.clamp(self.spacing.0, self.spacing.1);
+        // Gradient-based radius limit (Tabellion and Lamorlette 2004): a record does not
+        // reach farther than the distance over which its translational gradient
+        // would change its irradiance by its own value, R_i <= E_i / |grad_t E_i|.
+        let mut r = g.r_harmonic;
+        for c in 0..3 {
+            let gl = g.grad_t[c].length();
+            if gl > 0.0 && g.e[c] > 0.0 {
+                r = r.min(g.e[c] / gl);
+            }
+        }
+        let r = r.clamp(self.spacing.0, self.spacing.1);
         let rec = Record { p, n, e: g.e, r, grad_t: g.grad_t, grad_r: g.grad_r };
         let k = self.key(p);
         self.grid.entry(k).or_default().push(self.records.len() as u32);

@@ -27,6 +27,7 @@ pub(crate) struct Counters {
     pub lookup_misses: AtomicU64,
     pub lookup_rank: [AtomicU64; 3],
     pub terminated_paths: AtomicU64,
+    pub nonfinite: AtomicU64,
     pub ns_direct: AtomicU64,
     pub ns_caustic: AtomicU64,
     pub ns_gather: AtomicU64,
@@ -62,6 +63,8 @@ pub struct RenderStats {
     pub lookup_rank: [u64; 3],
     /// Paths cut by the depth limit.
     pub terminated_paths: u64,
+    /// Pixel values that came out NaN or infinite and were written as 0 (should be 0).
+    pub nonfinite_pixels: u64,
     /// Eye samples traced.
     pub samples: u64,
     /// Pixels that were supersampled.
@@ -228,7 +231,12 @@ pub fn render<G: PhotonRecord>(
         let vals = [c.total(), c.direct, c.caustic, c.indirect, c.specular];
         for (layer, v) in layers.iter_mut().zip(vals) {
             // No NaN or Inf leaves the renderer.
-            layer.1.push(if v.is_finite() { (v * inv).max(Rgb::ZERO) } else { Rgb::ZERO });
+            if v.is_finite() {
+                layer.1.push((v * inv).max(Rgb::ZERO));
+            } else {
+                counters.nonfinite.fetch_add(1, Relaxed);
+                layer.1.push(Rgb::ZERO);
+            }
         }
     }
     let c = &counters;
@@ -252,6 +260,7 @@ pub fn render<G: PhotonRecord>(
         lookup_misses: c.lookup_misses.load(Relaxed),
         lookup_rank: [c.lookup_rank[0].load(Relaxed), c.lookup_rank[1].load(Relaxed), c.lookup_rank[2].load(Relaxed)],
         terminated_paths: c.terminated_paths.load(Relaxed),
+        nonfinite_pixels: c.nonfinite.load(Relaxed),
         samples,
         supersampled_pixels: supersampled,
     };
