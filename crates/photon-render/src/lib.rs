@@ -73,7 +73,7 @@ pub struct Cli {
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
     /// Luminance contrast between neighbouring pixels that triggers supersampling.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.1)]
     pub contrast: f32,
     /// What to render.
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]
@@ -88,7 +88,7 @@ pub struct Cli {
     #[arg(long, default_value_t = 12)]
     pub secondary_rays: u32,
     /// Gather rays shorter than this fraction of the scene diagonal get a secondary gather.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.005)]
     pub secondary_distance: f32,
     /// Photons per global-map estimate (exact lookups and photons mode).
     #[arg(long, default_value_t = 50)]

@@ -33,7 +33,8 @@ pub(crate) struct IrradianceCache {
 impl IrradianceCache {
     /// An empty cache for accuracy `a` and record spacing (min, max) [m].
     pub fn new(a: f32, spacing: (f32, f32)) -> Self {
-        IrradianceCache { records: Vec::new(), grid: HashMap::new(), cell: (a * spacing.1).max(1e-12), a, spacing }
+        // Cells as large as the farthest a record can serve at slack 2.
+        IrradianceCache { records: Vec::new(), grid: HashMap::new(), cell: (2.0 * a * spacing.1).max(1e-12), a, spacing }
     }
 
     fn key(&self, p: Vec3) -> IVec3 {
@@ -67,8 +68,12 @@ impl IrradianceCache {
     }
 
     /// Interpolated indirect irradiance at `p` with normal `n`, or `None` when no
-    /// record is close enough.
-    pub fn lookup(&self, p: Vec3, n: Vec3) -> Option<Rgb> {
+    /// record is close enough: within accuracy `a x slack` (the prepass decides where
+    /// records go with slack 1; rendering accepts a little extrapolation, slack 2, as
+    /// Ward's RADIANCE does for secondary samples, so jittered supersamples near a
+    /// record's edge do not each trigger a fresh final gather).
+    pub fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
+        let a = self.a * slack;
         let k = self.key(p);
         let mut sum = Rgb::ZERO;
         let mut wsum = 0.0f32;
@@ -80,7 +85,7 @@ impl IrradianceCache {
                         let r = &self.records[i as usize];
                         let d = p - r.p;
                         let eps = d.length() / r.r + (1.0 - n.dot(r.n)).max(0.0).sqrt();
-                        if eps >= self.a {
+                        if eps >= a {
                             continue;
                         }
                         // Ward's test: skip records in front of the point (they see

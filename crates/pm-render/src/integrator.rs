@@ -58,7 +58,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
 ) -> Rgb {
     if let Some(c) = cache {
         let t = Instant::now();
-        let e = c.lookup(p, ns);
+        let e = c.lookup(p, ns, 2.0);
         ctx.stats.ns_icache.fetch_add(elapsed_ns(t), Relaxed);
         if let Some(e) = e {
             ctx.stats.cache_hits.fetch_add(1, Relaxed);

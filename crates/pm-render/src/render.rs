@@ -134,7 +134,7 @@ pub fn render<G: PhotonRecord>(
                     let cache = &cache;
                     let ctx = &ctx;
                     points.into_iter().enumerate().filter_map(move |(b, (p, ns, ng))| {
-                        if cache.lookup(p, ns).is_some() {
+                        if cache.lookup(p, ns, 1.0).is_some() {
                             return None;
                         }
                         let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x6361_6368_65 ^ b as u64), 0);
