@@ -79,7 +79,7 @@ pub struct Cli {
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]
     pub mode: ModeArg,
     /// Rays per final gather (stratified, cosine-weighted).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 400)]
     pub gather_rays: u32,
     /// How gather rays read the global map.
     #[arg(long, value_enum, default_value_t = LookupArg::Precomputed)]
@@ -103,7 +103,7 @@ pub struct Cli {
     #[arg(long, default_value_t = 0.02)]
     pub caustic_radius: f32,
     /// Irradiance-cache accuracy a (Ward's error bound, smaller is finer; 0 disables the cache).
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.3)]
     pub icache_accuracy: f32,
     /// Smallest irradiance-cache record spacing, as a fraction of the scene diagonal.
     #[arg(long, default_value_t = 0.005)]
