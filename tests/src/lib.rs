@@ -99,13 +99,3 @@ pub fn render(
     };
     pm_render::render(scene, &m, cfg, &|_, _| {}).unwrap()
 }
-
-/// Relative RMSE sqrt(mean((a - b)^2)) / mean(b) and relative mean bias
-/// (mean(a) - mean(b)) / mean(b), over all pixels and channels.
-pub fn compare(a: &[glam::Vec3], b: &[glam::Vec3]) -> (f64, f64) {
-    let n = (a.len() * 3) as f64;
-    let mean_b = b.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>() / n;
-    let mean_a = a.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>() / n;
-    let mse = a.iter().zip(b).map(|(x, y)| ((*x - *y).length_squared()) as f64).sum::<f64>() / n;
-    (mse.sqrt() / mean_b, (mean_a - mean_b) / mean_b)
-}

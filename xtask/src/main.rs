@@ -13,6 +13,9 @@ tasks:
   run [PIPELINE.toml] [--scene FILE] [--out DIR]
                          run the pipeline stages in order (default: pipeline.toml,
                          output in out/<scene name>/)
+  compare IMAGE.exr REFERENCE.exr [--mask-above V] [--layer NAME]
+                         relative RMSE and bias of an image against a reference
+                         (pixels where the reference exceeds V are left out)
   gen-scenes [--check]   write scenes/*.gltf + .bin from code (--check: fail if the
                          committed files differ from what the code generates)";
 
@@ -30,6 +33,7 @@ fn run() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
         Some("run") => run::run(&args[1..], &workspace_root()),
+        Some("compare") => compare(&args[1..]),
         Some("gen-scenes") => {
             gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))
         }
@@ -44,4 +48,29 @@ fn run() -> Result<()> {
 /// The repository root (the parent of this crate's folder).
 fn workspace_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives one level below the root").to_owned()
+}
+
+fn compare(args: &[String]) -> Result<()> {
+    let mut files = Vec::new();
+    let mut mask = f32::INFINITY;
+    let mut layer = "total".to_string();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--mask-above" => mask = it.next().map(|v| v.parse()).transpose()?.unwrap_or(f32::INFINITY),
+            "--layer" => layer = it.next().cloned().unwrap_or_default(),
+            f => files.push(PathBuf::from(f)),
+        }
+    }
+    let [a, b] = files.as_slice() else { bail!("compare needs IMAGE.exr and REFERENCE.exr") };
+    let (ia, ib) = (pm_image::read_exr(a)?, pm_image::read_exr(b)?);
+    if (ia.width, ia.height) != (ib.width, ib.height) {
+        bail!("{} is {}x{} but {} is {}x{}", a.display(), ia.width, ia.height, b.display(), ib.width, ib.height);
+    }
+    let pick = |i: &pm_image::Layers, p: &PathBuf| {
+        i.layer(&layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {layer}", p.display()))
+    };
+    let e = pm_image::compare(&pick(&ia, a)?, &pick(&ib, b)?, mask);
+    println!("relative RMSE {:.5}  relative bias {:+.5}  pixels {}", e.rel_rmse, e.rel_bias, e.pixels);
+    Ok(())
 }

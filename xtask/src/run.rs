@@ -16,8 +16,49 @@ struct Pipeline {
     scene: PathBuf,
     #[serde(default = "one")]
     seed: u64,
+    width: u32,
+    height: u32,
+    spp: u32,
     trace: TraceSection,
     irradiance: IrradianceSection,
+    render: RenderSection,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct RenderSection {
+    mode: RenderMode,
+    gather_rays: u32,
+    gather_lookup: GatherLookup,
+    secondary_rays: u32,
+    secondary_distance_rel_diag: f64,
+    k: usize,
+    caustic_k: usize,
+    max_radius_rel_diag: f64,
+    caustic_radius_rel_diag: f64,
+    icache_accuracy: f64,
+    icache_min_spacing_rel_diag: f64,
+    icache_max_spacing_rel_diag: f64,
+    light_samples: u32,
+    contrast: f64,
+    exposure: f64,
+}
+
+#[derive(Deserialize, Debug, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RenderMode {
+    Full,
+    Photons,
+    Radiance,
+    Indirect,
+    Path,
+}
+
+#[derive(Deserialize, Debug, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum GatherLookup {
+    Precomputed,
+    Exact,
 }
 
 #[derive(Deserialize, Debug)]
@@ -66,15 +107,19 @@ struct Args {
     pipeline: PathBuf,
     scene: Option<PathBuf>,
     out: Option<PathBuf>,
+    width: Option<u32>,
+    height: Option<u32>,
 }
 
 fn parse(args: &[String], root: &Path) -> Result<Args> {
-    let mut a = Args { pipeline: root.join("pipeline.toml"), scene: None, out: None };
+    let mut a = Args { pipeline: root.join("pipeline.toml"), scene: None, out: None, width: None, height: None };
     let mut it = args.iter();
     while let Some(x) = it.next() {
         match x.as_str() {
             "--scene" => a.scene = Some(PathBuf::from(it.next().context("--scene needs a file")?)),
             "--out" => a.out = Some(PathBuf::from(it.next().context("--out needs a folder")?)),
+            "--width" => a.width = Some(it.next().context("--width needs a number")?.parse().context("--width")?),
+            "--height" => a.height = Some(it.next().context("--height needs a number")?.parse().context("--height")?),
             s if s.starts_with("--") => bail!("unknown option {s}"),
             s => a.pipeline = PathBuf::from(s),
         }
@@ -170,6 +215,62 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
         ],
         Some(o("global.kd.pmap")),
     ));
+    let r = &cfg.render;
+    let name_of = |v: &dyn std::fmt::Debug| format!("{v:?}").to_lowercase();
+    let mut render_args: Vec<String> = vec![
+        "--scene".into(),
+        scene.display().to_string(),
+        "--global".into(),
+        o("global.irr.pmap"),
+        "--out".into(),
+        o("image.exr"),
+        "--png".into(),
+        o("image.png"),
+        "--width".into(),
+        args.width.unwrap_or(cfg.width).to_string(),
+        "--height".into(),
+        args.height.unwrap_or(cfg.height).to_string(),
+        "--spp".into(),
+        cfg.spp.to_string(),
+        "--seed".into(),
+        cfg.seed.to_string(),
+        "--mode".into(),
+        name_of(&r.mode),
+        "--gather-rays".into(),
+        r.gather_rays.to_string(),
+        "--gather-lookup".into(),
+        name_of(&r.gather_lookup),
+        "--secondary-rays".into(),
+        r.secondary_rays.to_string(),
+        "--secondary-distance".into(),
+        r.secondary_distance_rel_diag.to_string(),
+        "--k".into(),
+        r.k.to_string(),
+        "--caustic-k".into(),
+        r.caustic_k.to_string(),
+        "--max-radius".into(),
+        r.max_radius_rel_diag.to_string(),
+        "--caustic-radius".into(),
+        r.caustic_radius_rel_diag.to_string(),
+        "--icache-accuracy".into(),
+        r.icache_accuracy.to_string(),
+        "--icache-min-spacing".into(),
+        r.icache_min_spacing_rel_diag.to_string(),
+        "--icache-max-spacing".into(),
+        r.icache_max_spacing_rel_diag.to_string(),
+        "--light-samples".into(),
+        r.light_samples.to_string(),
+        "--contrast".into(),
+        r.contrast.to_string(),
+        "--exposure".into(),
+        r.exposure.to_string(),
+        "--stats-json".into(),
+        o("render.stats.json"),
+    ];
+    if cfg.trace.caustic_photons > 0 {
+        render_args.extend(["--caustic".into(), o("caustic.kd.pmap")]);
+    }
+    steps.push(("photon-render".into(), render_args, None));
     println!("plan ({} -> {}):", scene.display(), out.display());
     for (stage, a, _) in &steps {
         println!("  {stage} {}", a.join(" "));
@@ -182,8 +283,15 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
                 continue;
             }
         }
+        let mut a = a.clone();
+        // The caustic map is optional: drop it when stage 1 wrote none.
+        if let Some(i) = a.iter().position(|x| x == "--caustic") {
+            if !Path::new(&a[i + 1]).exists() {
+                a.drain(i..i + 2);
+            }
+        }
         let t = Instant::now();
-        let status = Command::new(bin(stage)).args(a).status().with_context(|| format!("cannot start {stage}"))?;
+        let status = Command::new(bin(stage)).args(&a).status().with_context(|| format!("cannot start {stage}"))?;
         let secs = t.elapsed().as_secs_f64();
         if !status.success() {
             bail!("stage {stage} failed ({status}); earlier outputs in {} are intact", out.display());
@@ -215,7 +323,19 @@ fn build_stages(root: &Path) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
-        .args(["build", "--release", "--quiet", "-p", "photon-trace", "-p", "photon-sort", "-p", "photon-irradiance"])
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "-p",
+            "photon-trace",
+            "-p",
+            "photon-sort",
+            "-p",
+            "photon-irradiance",
+            "-p",
+            "photon-render",
+        ])
         .status()
         .context("cannot run cargo build")?;
     if !status.success() {
@@ -239,6 +359,15 @@ fn key_figures(stage: &str, s: &serde_json::Value) -> String {
             s["computed"],
             s["k"],
             s["radius_m"]["p50"].as_f64().unwrap_or(0.0)
+        ),
+        "photon-render" => format!(
+            "{}x{} {}, {:.2} samples/pixel, {} final gathers, {} gather rays",
+            s["width"],
+            s["height"],
+            s["mode"].as_str().unwrap_or(""),
+            s["samples_per_pixel"].as_f64().unwrap_or(0.0),
+            s["final_gathers"],
+            s["gather_rays"]
         ),
         _ => String::new(),
     }

@@ -9,7 +9,7 @@ use pm_kdtree::KdTree;
 use pm_render::{Image, Lookup, Maps, Mode, RenderConfig, RenderStats};
 use pm_stage::Progress;
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// What to render.
 #[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
@@ -227,9 +227,20 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
         None => render_with::<pm_format::FullIrrPhoton>(&scene, None, caustic.as_ref(), &cfg, &progress)?,
     };
     progress.finish();
-    write_exr(&cli.out, &image)?;
+    let layers = pm_image::Layers {
+        width: image.width,
+        height: image.height,
+        layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
+    };
+    pm_image::write_exr(&cli.out, &layers)?;
     if let Some(png) = &cli.png {
-        write_png(png, &image, cli.exposure)?;
+        pm_image::write_png(
+            png,
+            image.width,
+            image.height,
+            image.layer("total").context("no total layer")?,
+            cli.exposure,
+        )?;
     }
     let report = report(cli, &cfg, &stats, diag, &notes);
     if let Some(p) = &cli.stats_json {
@@ -286,40 +297,4 @@ fn report(cli: &Cli, cfg: &RenderConfig, s: &RenderStats, diag: f32, notes: &[St
         "threads": pm_stage::thread_count(),
         "notes": notes,
     })
-}
-
-/// OpenEXR, linear float: R, G, B (total) and direct.*, caustic.*, indirect.*,
-/// specular.* layers in one part; written atomically.
-pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
-    use exr::prelude::*;
-    let (w, h) = (image.width as usize, image.height as usize);
-    let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (name, px) in &image.layers {
-        for (c, comp) in ["R", "G", "B"].iter().enumerate() {
-            let full = if *name == "total" { comp.to_string() } else { format!("{name}.{comp}") };
-            channels.push(AnyChannel::new(full.as_str(), FlatSamples::F32(px.iter().map(|p| p[c]).collect())));
-        }
-    }
-    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
-    let img = exr::image::Image::from_layer(layer);
-    let mut buf = std::io::Cursor::new(Vec::new());
-    img.write().to_buffered(&mut buf).map_err(|e| anyhow::anyhow!("{}: cannot encode EXR: {e}", path.display()))?;
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
-        .with_context(|| format!("{}: cannot write", path.display()))
-}
-
-/// 8-bit sRGB PNG of the total layer, scaled by 2^exposure and clamped; written atomically.
-pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
-    let scale = 2f32.powf(exposure);
-    let total = image.layer("total").context("image has no total layer")?;
-    let bytes: Vec<u8> = total
-        .iter()
-        .flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8))
-        .collect();
-    let img = image::RgbImage::from_raw(image.width, image.height, bytes).context("image size mismatch")?;
-    let mut buf = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut buf, image::ImageFormat::Png)
-        .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
-        .with_context(|| format!("{}: cannot write", path.display()))
 }

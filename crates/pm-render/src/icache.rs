@@ -34,7 +34,13 @@ impl IrradianceCache {
     /// An empty cache for accuracy `a` and record spacing (min, max) [m].
     pub fn new(a: f32, spacing: (f32, f32)) -> Self {
         // Cells as large as the farthest a record can serve at slack 2.
-        IrradianceCache { records: Vec::new(), grid: HashMap::new(), cell: (2.0 * a * spacing.1).max(1e-12), a, spacing }
+        IrradianceCache {
+            records: Vec::new(),
+            grid: HashMap::new(),
+            cell: (2.0 * a * spacing.1).max(1e-12),
+            a,
+            spacing,
+        }
     }
 
     fn key(&self, p: Vec3) -> IVec3 {

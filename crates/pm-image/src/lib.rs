@@ -1,0 +1,160 @@
+//! Image files and image comparison, in one place: OpenEXR with component layers
+//! (linear radiance, W sr^-1 m^-2 per channel), 8-bit sRGB PNG, reading EXR back,
+//! and the error measures the tests and the accuracy/time trade-off use.
+//!
+//! Writes are atomic (temporary file, then rename).
+
+use anyhow::{Context, Result, bail};
+use glam::Vec3;
+use std::path::Path;
+
+/// A linear-radiance image with named layers; row 0 is the top row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Layers {
+    /// Width [pixels].
+    pub width: u32,
+    /// Height [pixels].
+    pub height: u32,
+    /// (name, pixels); the layer named "total" is the image itself.
+    pub layers: Vec<(String, Vec<Vec3>)>,
+}
+
+impl Layers {
+    /// The layer called `name`.
+    pub fn layer(&self, name: &str) -> Option<&[Vec3]> {
+        self.layers.iter().find(|l| l.0 == name).map(|l| l.1.as_slice())
+    }
+}
+
+/// Write OpenEXR, 32-bit float: the "total" layer as R, G, B and every other layer
+/// as `<layer>.R`, `.G`, `.B` in the same part.
+pub fn write_exr(path: &Path, img: &Layers) -> Result<()> {
+    use exr::prelude::*;
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (name, px) in &img.layers {
+        if px.len() != w * h {
+            bail!("{}: layer {name} has {} pixels, expected {}", path.display(), px.len(), w * h);
+        }
+        for (c, comp) in ["R", "G", "B"].iter().enumerate() {
+            let full = if name == "total" { comp.to_string() } else { format!("{name}.{comp}") };
+            channels.push(AnyChannel::new(full.as_str(), FlatSamples::F32(px.iter().map(|p| p[c]).collect())));
+        }
+    }
+    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
+    let image = exr::image::Image::from_layer(layer);
+    let mut buf = std::io::Cursor::new(Vec::new());
+    image.write().to_buffered(&mut buf).map_err(|e| anyhow::anyhow!("{}: cannot encode EXR: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Read an OpenEXR file written by [`write_exr`] (or any single-part RGB EXR).
+pub fn read_exr(path: &Path) -> Result<Layers> {
+    use exr::prelude::read_first_flat_layer_from_file;
+    let image = read_first_flat_layer_from_file(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read EXR: {e}", path.display()))?;
+    let size = image.layer_data.size;
+    let mut by_name: std::collections::BTreeMap<String, [Option<Vec<f32>>; 3]> = Default::default();
+    for ch in &image.layer_data.channel_data.list {
+        let name = ch.name.to_string();
+        let (layer, comp) = match name.rsplit_once('.') {
+            Some((l, c)) => (l.to_owned(), c.to_owned()),
+            None => ("total".to_owned(), name.clone()),
+        };
+        let idx = match comp.as_str() {
+            "R" => 0,
+            "G" => 1,
+            "B" => 2,
+            _ => continue,
+        };
+        let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
+        by_name.entry(layer).or_default()[idx] = Some(values);
+    }
+    let mut layers = Vec::new();
+    for (name, [r, g, b]) in by_name {
+        let (Some(r), Some(g), Some(b)) = (r, g, b) else { continue };
+        layers.push((name, r.iter().zip(&g).zip(&b).map(|((r, g), b)| Vec3::new(*r, *g, *b)).collect()));
+    }
+    layers.sort_by_key(|l| l.0 != "total");
+    if layers.first().is_none_or(|l| l.0 != "total") {
+        bail!("{}: no R, G, B channels", path.display());
+    }
+    Ok(Layers { width: size.0 as u32, height: size.1 as u32, layers })
+}
+
+/// Write an 8-bit sRGB PNG of `pixels` scaled by 2^exposure and clamped.
+pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
+    let scale = 2f32.powf(exposure);
+    let bytes: Vec<u8> = pixels
+        .iter()
+        .flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8))
+        .collect();
+    let img = image::RgbImage::from_raw(width, height, bytes).context("image size mismatch")?;
+    let mut buf = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut buf, image::ImageFormat::Png)
+        .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Error of `a` against reference `b` over the pixels `keep` selects.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageError {
+    /// sqrt(mean((a - b)^2)) / mean(b), over pixels and channels.
+    pub rel_rmse: f64,
+    /// (mean(a) - mean(b)) / mean(b).
+    pub rel_bias: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+}
+
+/// Compare `a` against the reference `b`, skipping pixels where the reference's
+/// largest channel exceeds `mask_above` (e.g. directly visible lights, whose
+/// anti-aliased edges would dominate any error measure).
+pub fn compare(a: &[Vec3], b: &[Vec3], mask_above: f32) -> ImageError {
+    let keep: Vec<usize> = (0..a.len().min(b.len())).filter(|&i| b[i].max_element() <= mask_above).collect();
+    let n = (keep.len() * 3).max(1) as f64;
+    let sum = |v: &[Vec3]| keep.iter().map(|&i| (v[i].x + v[i].y + v[i].z) as f64).sum::<f64>() / n;
+    let (mean_a, mean_b) = (sum(a), sum(b));
+    let mse = keep.iter().map(|&i| (a[i] - b[i]).length_squared() as f64).sum::<f64>() / n;
+    let denom = mean_b.abs().max(1e-30);
+    ImageError { rel_rmse: mse.sqrt() / denom, rel_bias: (mean_a - mean_b) / denom, pixels: keep.len() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trips_every_layer_and_png_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let px = |s: f32| (0..12).map(|i| Vec3::new(i as f32 * s, 0.5, 1e-3 * i as f32)).collect::<Vec<_>>();
+        let img = Layers {
+            width: 4,
+            height: 3,
+            layers: vec![("total".into(), px(1.0)), ("direct".into(), px(0.25)), ("caustic".into(), px(2.0))],
+        };
+        let p = dir.path().join("a.exr");
+        write_exr(&p, &img).unwrap();
+        let mut back = read_exr(&p).unwrap();
+        back.layers.sort_by(|a, b| (a.0 != "total", &a.0).cmp(&(b.0 != "total", &b.0)));
+        let mut want = img.clone();
+        want.layers.sort_by(|a, b| (a.0 != "total", &a.0).cmp(&(b.0 != "total", &b.0)));
+        assert_eq!(back, want);
+        let png = dir.path().join("a.png");
+        write_png(&png, 4, 3, &px(1.0), 0.0).unwrap();
+        assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    }
+
+    #[test]
+    fn compare_measures_rmse_and_bias() {
+        let b = vec![Vec3::ONE; 100];
+        let a: Vec<Vec3> = (0..100).map(|i| Vec3::splat(if i % 2 == 0 { 1.1 } else { 0.9 })).collect();
+        let e = compare(&a, &b, f32::INFINITY);
+        assert!((e.rel_rmse - 0.1).abs() < 1e-6 && e.rel_bias.abs() < 1e-6);
+        let mut b2 = b.clone();
+        b2[0] = Vec3::splat(100.0);
+        assert_eq!(compare(&a, &b2, 10.0).pixels, 99);
+    }
+}
