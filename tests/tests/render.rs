@@ -53,16 +53,14 @@ fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     let (f, p) = (full.layer("total").unwrap(), path.layer("total").unwrap());
-    let keep: Vec<usize> = (0..p.len()).filter(|&i| p[i].max_element() < 1.0 && f[i].max_element() < 1.0).collect();
-    let a: Vec<_> = keep.iter().map(|&i| f[i]).collect();
-    let b: Vec<_> = keep.iter().map(|&i| p[i]).collect();
-    let (rmse, bias) = compare(&a, &b);
+    let e = pm_image::compare(f, p, 1.0);
+    let (rmse, bias) = (e.rel_rmse, e.rel_bias);
     eprintln!(
         "cornell_boxes full vs path (1024 spp), {} of {} pixels: relative RMSE {rmse:.4}, mean bias {bias:+.4}",
-        keep.len(),
+        e.pixels,
         p.len()
     );
-    assert!(keep.len() > p.len() * 9 / 10);
+    assert!(e.pixels > p.len() * 9 / 10);
     assert!(rmse < 0.12 && bias.abs() < 0.03, "relative RMSE {rmse}, bias {bias}");
 }
 
@@ -104,5 +102,21 @@ fn no_nan_or_inf_in_any_layer() {
             let total: f32 = img.layer("total").unwrap().iter().map(|p| p.x).sum();
             assert!(total > 0.0, "{name} {mode:?} rendered black");
         }
+    }
+}
+
+/// Full mode (irradiance-cache prepass, adaptive supersampling, caustics) gives
+/// bit-identical images with 1 and 2 threads.
+#[test]
+fn full_render_is_identical_for_any_thread_count() {
+    let scene = load_scene("cornell_spheres.gltf");
+    let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
+    let cfg = render_config(&scene, Mode::Full, 32, 32);
+    let run =
+        |t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap().install(|| render(&scene, &maps, &cfg).0);
+    let (a, b) = (run(1), run(2));
+    for ((name, x), (_, y)) in a.layers.iter().zip(&b.layers) {
+        let bits = |v: &[glam::Vec3]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(x), bits(y), "layer {name}");
     }
 }
