@@ -1,8 +1,7 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; few dependencies.
 
-use xtask::gen_scenes;
-mod run;
+use xtask::{gen_scenes, run};
 
 use anyhow::{Result, bail};
 use std::path::PathBuf;
@@ -10,9 +9,10 @@ use std::path::PathBuf;
 const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
-  run [PIPELINE.toml] [--scene FILE] [--out DIR]
+  run [PIPELINE.toml] [--scene FILE] [--out DIR] [--width W --height H] [--force]
                          run the pipeline stages in order (default: pipeline.toml,
-                         output in out/<scene name>/)
+                         output in out/<scene name>/); steps whose inputs and
+                         parameters are unchanged are skipped unless --force
   compare IMAGE.exr REFERENCE.exr [--mask-above V] [--layer NAME]
                          relative RMSE and bias of an image against a reference
                          (pixels where the reference exceeds V are left out)
@@ -32,7 +32,7 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
-        Some("run") => run::run(&args[1..], &workspace_root()),
+        Some("run") => run::run(&args[1..], &workspace_root()).map(|_| ()),
         Some("compare") => compare(&args[1..]),
         Some("gen-scenes") => {
             gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))

@@ -109,10 +109,12 @@ struct Args {
     out: Option<PathBuf>,
     width: Option<u32>,
     height: Option<u32>,
+    force: bool,
 }
 
 fn parse(args: &[String], root: &Path) -> Result<Args> {
-    let mut a = Args { pipeline: root.join("pipeline.toml"), scene: None, out: None, width: None, height: None };
+    let mut a =
+        Args { pipeline: root.join("pipeline.toml"), scene: None, out: None, width: None, height: None, force: false };
     let mut it = args.iter();
     while let Some(x) = it.next() {
         match x.as_str() {
@@ -120,6 +122,7 @@ fn parse(args: &[String], root: &Path) -> Result<Args> {
             "--out" => a.out = Some(PathBuf::from(it.next().context("--out needs a folder")?)),
             "--width" => a.width = Some(it.next().context("--width needs a number")?.parse().context("--width")?),
             "--height" => a.height = Some(it.next().context("--height needs a number")?.parse().context("--height")?),
+            "--force" => a.force = true,
             s if s.starts_with("--") => bail!("unknown option {s}"),
             s => a.pipeline = PathBuf::from(s),
         }
@@ -127,8 +130,23 @@ fn parse(args: &[String], root: &Path) -> Result<Args> {
     Ok(a)
 }
 
-/// Run the pipeline.
-pub fn run(args: &[String], root: &Path) -> Result<()> {
+/// What happened to one step of a run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Outcome {
+    /// Step name, e.g. "photon-sort global".
+    pub step: String,
+    /// False when the step was skipped (unchanged, or its input map is absent).
+    pub ran: bool,
+}
+
+/// Run the pipeline with the repository's release binaries, building them first.
+pub fn run(args: &[String], root: &Path) -> Result<Vec<Outcome>> {
+    build_stages(root)?;
+    run_with(args, root, &root.join("target/release"))
+}
+
+/// Run the pipeline with the stage binaries in `bin_dir`.
+pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outcome>> {
     let args = parse(args, root)?;
     let text =
         std::fs::read_to_string(&args.pipeline).with_context(|| format!("{}: cannot read", args.pipeline.display()))?;
@@ -151,8 +169,12 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| root.join("out").join(&name));
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
 
-    build_stages(root)?;
-    let bin = |n: &str| root.join("target/release").join(n);
+    let bin = |n: &str| bin_dir.join(n);
+    for n in ["photon-trace", "photon-sort", "photon-irradiance", "photon-render"] {
+        if !bin(n).exists() {
+            bail!("{} is missing: build the stages (cargo build --release)", bin(n).display());
+        }
+    }
     let layout = match cfg.trace.layout {
         Layout::Compact => "compact",
         Layout::Full => "full",
@@ -271,18 +293,50 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
         render_args.extend(["--caustic".into(), o("caustic.kd.pmap")]);
     }
     steps.push(("photon-render".into(), render_args, None));
+    // Inputs (hashed) and outputs of each step, for skipping unchanged steps.
+    let scene_files = scene_inputs(&scene)?;
+    let map_in = |f: &str| vec![PathBuf::from(o(f))];
+    let io: Vec<(String, Vec<PathBuf>, Vec<String>)> = vec![
+        ("photon-trace".into(), scene_files.clone(), vec![o("global.pmap"), o("trace.stats.json")]),
+        ("photon-sort global".into(), map_in("global.pmap"), vec![o("global.kd.pmap")]),
+        ("photon-sort caustic".into(), map_in("caustic.pmap"), vec![o("caustic.kd.pmap")]),
+        ("photon-irradiance".into(), map_in("global.kd.pmap"), vec![o("global.irr.pmap")]),
+        (
+            "photon-render".into(),
+            [scene_files, map_in("global.irr.pmap"), map_in("caustic.kd.pmap")].concat(),
+            vec![o("image.exr"), o("image.png")],
+        ),
+    ];
+    let keys_path = out.join(".stage-keys.json");
+    let mut keys: serde_json::Map<String, serde_json::Value> =
+        std::fs::read(&keys_path).ok().and_then(|b| serde_json::from_slice(&b).ok()).unwrap_or_default();
+    let mut outcomes = Vec::new();
     println!("plan ({} -> {}):", scene.display(), out.display());
     for (stage, a, _) in &steps {
         println!("  {stage} {}", a.join(" "));
     }
     let mut rows = Vec::new();
-    for (stage, a, needs) in &steps {
+    for ((stage, a, needs), (step, inputs, outputs)) in steps.iter().zip(&io) {
         if let Some(input) = needs {
             if !Path::new(input).exists() {
-                println!("  {stage}: skipped ({input} absent: the scene does not need it)");
+                println!("  {step}: skipped ({input} absent: the scene does not need it)");
+                outcomes.push(Outcome { step: step.clone(), ran: false });
                 continue;
             }
         }
+        let key = step_key(stage, a, inputs)?;
+        if !args.force
+            && keys.get(step).and_then(|k| k.as_str()) == Some(key.as_str())
+            && outputs.iter().all(|f| Path::new(f).exists())
+        {
+            println!("  {step}: skipped (inputs and parameters unchanged)");
+            outcomes.push(Outcome { step: step.clone(), ran: false });
+            rows.push(json!({"stage": step, "seconds": 0.0, "figures": "unchanged, skipped", "skipped": true}));
+            continue;
+        }
+        // A step about to run invalidates its recorded key until it succeeds.
+        keys.remove(step);
+        std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
         let mut a = a.clone();
         // The caustic map is optional: drop it when stage 1 wrote none.
         if let Some(i) = a.iter().position(|x| x == "--caustic") {
@@ -294,16 +348,19 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
         let status = Command::new(bin(stage)).args(&a).status().with_context(|| format!("cannot start {stage}"))?;
         let secs = t.elapsed().as_secs_f64();
         if !status.success() {
-            bail!("stage {stage} failed ({status}); earlier outputs in {} are intact", out.display());
+            bail!("stage {step} failed ({status}); earlier outputs in {} are intact", out.display());
         }
-        println!("  {stage}: done in {secs:.2} s");
+        println!("  {step}: done in {secs:.2} s");
+        keys.insert(step.clone(), json!(key));
+        std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
+        outcomes.push(Outcome { step: step.clone(), ran: true });
         // Each stage's --stats-json is the argument after the flag.
         let stats_path = a.iter().position(|x| x == "--stats-json").and_then(|i| a.get(i + 1));
         let stats: serde_json::Value = match stats_path {
             Some(p) => serde_json::from_slice(&std::fs::read(p).with_context(|| format!("{p}: cannot read"))?)?,
             None => json!({}),
         };
-        rows.push(json!({"stage": stage, "seconds": secs, "figures": key_figures(stage, &stats), "stats": stats}));
+        rows.push(json!({"stage": step, "seconds": secs, "figures": key_figures(stage, &stats), "stats": stats}));
     }
     println!("\n| stage | wall time [s] | key figures |\n|---|---|---|");
     for r in &rows {
@@ -316,7 +373,41 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
     }
     let report = json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows});
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)? + "\n")?;
-    Ok(())
+    Ok(outcomes)
+}
+
+/// blake3 over the stage, its arguments and the contents of its input files.
+fn step_key(stage: &str, args: &[String], inputs: &[PathBuf]) -> Result<String> {
+    let mut h = blake3::Hasher::new();
+    h.update(stage.as_bytes());
+    for a in args {
+        h.update(a.as_bytes());
+        h.update(&[0]);
+    }
+    for f in inputs {
+        match std::fs::read(f) {
+            Ok(bytes) => h.update(blake3::hash(&bytes).as_bytes()),
+            Err(_) => h.update(b"absent"),
+        };
+    }
+    Ok(h.finalize().to_hex().to_string())
+}
+
+/// The scene file and the external buffers and images a .gltf references.
+fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
+    let mut files = vec![scene.to_owned()];
+    let bytes = std::fs::read(scene).with_context(|| format!("{}: cannot read", scene.display()))?;
+    if let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&bytes) {
+        let dir = scene.parent().unwrap_or(Path::new("."));
+        for key in ["buffers", "images"] {
+            for item in doc[key].as_array().into_iter().flatten() {
+                if let Some(uri) = item["uri"].as_str().filter(|u| !u.starts_with("data:")) {
+                    files.push(dir.join(uri));
+                }
+            }
+        }
+    }
+    Ok(files)
 }
 
 fn build_stages(root: &Path) -> Result<()> {

@@ -1,0 +1,108 @@
+//! The pipeline runner on a small scene: every stage's output feeds the next, a
+//! second run does nothing, changing a render parameter re-runs only the render, and
+//! a corrupted intermediate stops the run at the stage that reads it.
+//!
+//! Uses the stage binaries that `cargo test --release --workspace` builds next to
+//! this test (target/release).
+
+use std::path::{Path, PathBuf};
+use xtask::run::{Outcome, run_with};
+
+fn bin_dir() -> PathBuf {
+    // target/<profile>/deps/runner-<hash> -> target/<profile>
+    std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn pipeline(dir: &Path, spp: u32) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("pipeline.toml")).unwrap();
+    let scene = root().join("scenes/cornell_spheres.gltf");
+    let text = text
+        .replace("scene = \"scenes/cornell_spheres.gltf\"", &format!("scene = {:?}", scene.display().to_string()))
+        .replace("global_photons = 400_000", "global_photons = 20_000")
+        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
+        .replace("width = 1024", "width = 24")
+        .replace("height = 1024", "height = 24")
+        .replace("spp = 16", &format!("spp = {spp}"))
+        .replace("gather_rays = 400", "gather_rays = 32");
+    let p = dir.join("pipeline.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn run(p: &Path, out: &Path) -> anyhow::Result<Vec<Outcome>> {
+    let args = [p.display().to_string(), "--out".into(), out.display().to_string()];
+    run_with(&args, &root(), &bin_dir())
+}
+
+fn ran(outcomes: &[Outcome]) -> Vec<&str> {
+    outcomes.iter().filter(|o| o.ran).map(|o| o.step.as_str()).collect()
+}
+
+#[test]
+fn runner_runs_every_stage_then_only_what_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let first = run(&pipeline(dir.path(), 4), &out).unwrap();
+    assert_eq!(
+        ran(&first),
+        ["photon-trace", "photon-sort global", "photon-sort caustic", "photon-irradiance", "photon-render"]
+    );
+    for f in [
+        "global.pmap",
+        "caustic.pmap",
+        "global.kd.pmap",
+        "caustic.kd.pmap",
+        "global.irr.pmap",
+        "image.exr",
+        "image.png",
+        "report.json",
+        "trace.stats.json",
+        "irradiance.stats.json",
+        "render.stats.json",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
+    assert!(img.layer("total").unwrap().iter().any(|p| p.max_element() > 0.0));
+    // Nothing changed: nothing runs.
+    let second = run(&pipeline(dir.path(), 4), &out).unwrap();
+    assert!(ran(&second).is_empty(), "{second:?}");
+    // Only a render parameter changed: only the render runs.
+    let third = run(&pipeline(dir.path(), 2), &out).unwrap();
+    assert_eq!(ran(&third), ["photon-render"]);
+    // A corrupted intermediate: the next stage fails, the runner names it, and the
+    // earlier outputs are left as they were.
+    let kd = out.join("global.kd.pmap");
+    let mut bytes = std::fs::read(&kd).unwrap();
+    let n = bytes.len();
+    bytes[n - 7] ^= 0x55;
+    std::fs::write(&kd, &bytes).unwrap();
+    let before = std::fs::read(out.join("global.pmap")).unwrap();
+    let text = std::fs::read_to_string(dir.path().join("pipeline.toml")).unwrap().replace("k = 50", "k = 40");
+    std::fs::write(dir.path().join("pipeline.toml"), text).unwrap();
+    let err = run(&dir.path().join("pipeline.toml"), &out).unwrap_err().to_string();
+    assert!(err.contains("stage photon-irradiance failed"), "{err}");
+    assert_eq!(std::fs::read(out.join("global.pmap")).unwrap(), before);
+}
+
+#[test]
+fn pipeline_toml_errors_name_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = pipeline(dir.path(), 4);
+    let out = dir.path().join("out");
+    let text = std::fs::read_to_string(&p).unwrap();
+    for (edit, what) in [
+        (text.replace("[render]", "[render]\nbogus_key = 1"), "bogus_key"),
+        (text.replace("k = 50", "k = \"fifty\""), "k"),
+        (text.replace("global_photons = 20_000", "global_photons = 10_000_000_000"), "trace.global_photons"),
+    ] {
+        std::fs::write(&p, edit).unwrap();
+        let err = run(&p, &out).unwrap_err().to_string();
+        assert!(err.contains(what) && err.contains("pipeline.toml") && !err.contains('\n'), "{err}");
+    }
+    assert!(!out.join("global.pmap").exists());
+}
