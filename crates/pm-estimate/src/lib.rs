@@ -117,9 +117,23 @@ pub fn irradiance<R: PhotonRecord>(
     p: &KnnParams,
     scratch: &mut KnnScratch,
 ) -> Irradiance {
+    let (e, r2, count) = gather(tree, x, n, p, scratch, |_| Rgb::ONE);
+    Irradiance { e, r2, count }
+}
+
+/// sum_p weight(wi_p) w_p Phi_p / (pi r^2) over the k nearest photons on the query's
+/// side, leaving out the one that marks the radius; returns (sum, r^2, photons found).
+fn gather<R: PhotonRecord>(
+    tree: &KdTree<R>,
+    x: Vec3,
+    n: Vec3,
+    p: &KnnParams,
+    scratch: &mut KnnScratch,
+    weight: impl Fn(Vec3) -> Rgb,
+) -> (Rgb, f32, usize) {
     let res = tree.knn(x, p.k, p.max_d2, |_, r| on_query_side(r, n), scratch);
     if res.count == 0 || !(res.max_dist2 > 0.0) {
-        return Irradiance { e: Rgb::ZERO, r2: res.max_dist2, count: res.count };
+        return (Rgb::ZERO, res.max_dist2, res.count);
     }
     let r2 = res.max_dist2;
     let nodes = tree.nodes();
@@ -127,10 +141,11 @@ pub fn irradiance<R: PhotonRecord>(
     let mut sum = Rgb::ZERO;
     for (i, d2) in tree.found(scratch) {
         if Some(i) != boundary {
-            sum += nodes[i as usize].power() * p.filter.weight(d2, r2);
+            let r = &nodes[i as usize];
+            sum += weight(r.wi()) * r.power() * p.filter.weight(d2, r2);
         }
     }
-    Irradiance { e: sum / (PI * r2), r2, count: res.count }
+    (sum / (PI * r2), r2, res.count)
 }
 
 /// The photon that defines the radius of the last k-nearest query (the farthest;
@@ -151,21 +166,7 @@ pub fn radiance<R: PhotonRecord>(
     scratch: &mut KnnScratch,
     f_r: impl Fn(Vec3) -> Rgb,
 ) -> Rgb {
-    let res = tree.knn(x, p.k, p.max_d2, |_, r| on_query_side(r, n), scratch);
-    if res.count == 0 || !(res.max_dist2 > 0.0) {
-        return Rgb::ZERO;
-    }
-    let r2 = res.max_dist2;
-    let nodes = tree.nodes();
-    let boundary = boundary_photon(tree, scratch);
-    let mut sum = Rgb::ZERO;
-    for (i, d2) in tree.found(scratch) {
-        if Some(i) != boundary {
-            let r = &nodes[i as usize];
-            sum += f_r(r.wi()) * r.power() * p.filter.weight(d2, r2);
-        }
-    }
-    sum / (PI * r2)
+    gather(tree, x, n, p, scratch, f_r).0
 }
 
 /// The precomputed irradiance of the nearest photon that carries one and whose

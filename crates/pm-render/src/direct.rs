@@ -9,8 +9,43 @@ use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
 use pm_scene::{Hit, offset_ray_origin};
 
+/// One light-sampling estimate of reflected direct radiance: pick a light by power,
+/// sample a point or direction on it, trace a shadow ray. With `mis`, non-delta
+/// lights are weighted by the power heuristic against BSDF sampling (the caller
+/// then also samples the BSDF).
+pub(crate) fn light_sample<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    s: &mut Sampler,
+    mis: bool,
+) -> Rgb {
+    let scene = ctx.scene;
+    let (li, p_sel) = ctx.lights.pick(s.next_1d());
+    let u_tri = s.next_1d();
+    let u = s.next_2d();
+    let Some(ls) = scene.lights[li].sample_li(scene, hit.p, u_tri, u) else { return Rgb::ZERO };
+    if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
+    if f.max_element() <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let o = offset_ray_origin(hit.p, hit.ng, ls.wi);
+    let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+    if scene.occluded(o, ls.wi, t_max) {
+        return Rgb::ZERO;
+    }
+    let p_l = ls.pdf * p_sel as f32;
+    let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
+    f * ls.li * (w / p_l)
+}
+
+/// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.
 #[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
 }
@@ -23,25 +58,7 @@ pub(crate) fn direct<G: PhotonRecord>(ctx: &Ctx<G>, hit: &Hit, bsdf: &Bsdf, wo: 
     let side_o = wo.dot(hit.ng);
     let mut sum = Rgb::ZERO;
     for _ in 0..n {
-        let (li, p_sel) = ctx.lights.pick(s.next_1d());
-        let light = &scene.lights[li];
-        let u_tri = s.next_1d();
-        let u = s.next_2d();
-        if let Some(ls) = light.sample_li(scene, hit.p, u_tri, u) {
-            if ls.wi.dot(hit.ng) * side_o > 0.0 {
-                let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
-                if f.max_element() > 0.0 {
-                    let o = offset_ray_origin(hit.p, hit.ng, ls.wi);
-                    let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
-                    if !scene.occluded(o, ls.wi, t_max) {
-                        let p_l = ls.pdf * p_sel as f32;
-                        let w =
-                            if ls.delta || !glossy { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
-                        sum += f * ls.li * (w / p_l);
-                    }
-                }
-            }
-        }
+        sum += light_sample(ctx, hit, bsdf, wo, s, glossy);
         if glossy {
             // BSDF sampling, weighted against light sampling.
             let u = s.next_2d();

@@ -3,6 +3,7 @@
 //! speed baseline for the photon-map renderer, over the same scene and BSDFs.
 
 use crate::Ctx;
+use crate::direct::power_heuristic;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_format::PhotonRecord;
@@ -13,11 +14,6 @@ use std::sync::atomic::Ordering::Relaxed;
 /// Hard path-length limit; Russian roulette ends paths long before in physical
 /// scenes. Paths cut here are counted.
 const MAX_PATH: u32 = 1000;
-
-fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
-}
 
 /// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2].
 pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: &mut Sampler) -> Rgb {
@@ -45,25 +41,9 @@ pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: 
         }
         let bsdf = scene.bsdf(&hit);
         if !bsdf.is_specular() {
-            // Next-event estimation, one light sample, MIS against BSDF sampling.
-            let (li, p_sel) = ctx.lights.pick(s.next_1d());
-            let light = &scene.lights[li];
-            let u_tri = s.next_1d();
-            let u = s.next_2d();
-            if let Some(ls) = light.sample_li(scene, hit.p, u_tri, u) {
-                if ls.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0 {
-                    let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
-                    if f.max_element() > 0.0 {
-                        let o2 = offset_ray_origin(hit.p, hit.ng, ls.wi);
-                        let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
-                        if !scene.occluded(o2, ls.wi, t_max) {
-                            let p_l = ls.pdf * p_sel as f32;
-                            let w = if ls.delta { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
-                            l += beta * f * ls.li * (w / p_l);
-                        }
-                    }
-                }
-            }
+            // Next-event estimation, one light sample, MIS against BSDF sampling
+            // (the BSDF-sampled continuation below picks up emission with its weight).
+            l += beta * crate::direct::light_sample(ctx, &hit, &bsdf, wo, s, true);
         }
         let u = s.next_2d();
         let uc = s.next_1d();
