@@ -51,7 +51,16 @@ pub trait PhotonRecord: Pod + Send + Sync + std::fmt::Debug + 'static {
     /// Encode a photon (lossy for compact layouts).
     fn encode(p: &Photon) -> Self;
     /// Decode every field.
-    fn decode(&self) -> Photon;
+    fn decode(&self) -> Photon {
+        Photon {
+            position: self.position(),
+            power: self.power(),
+            wi: self.wi(),
+            flags: self.flags(),
+            normal: self.normal(),
+            irradiance: self.irradiance(),
+        }
+    }
     /// Position [m] (exact in every layout).
     fn position(&self) -> Vec3;
     /// Flags byte.
@@ -139,6 +148,59 @@ const _: () = assert!(std::mem::size_of::<CompactIrrPhoton>() == 23);
 const _: () = assert!(std::mem::size_of::<FullPhoton>() == 40);
 const _: () = assert!(std::mem::size_of::<FullIrrPhoton>() == 64);
 
+/// Position, flags, power and incident direction of the compact records (RGBE power,
+/// octahedral direction byte).
+macro_rules! compact_accessors {
+    () => {
+        #[inline]
+        fn position(&self) -> Vec3 {
+            Vec3::from_array(self.pos)
+        }
+        #[inline]
+        fn flags(&self) -> u8 {
+            self.flags
+        }
+        #[inline]
+        fn set_flags(&mut self, f: u8) {
+            self.flags = f;
+        }
+        #[inline]
+        fn power(&self) -> Rgb {
+            Rgbe(self.power).decode()
+        }
+        #[inline]
+        fn wi(&self) -> Vec3 {
+            decode_direction(self.dir)
+        }
+    };
+}
+
+/// Position, flags, power and incident direction of the full-precision records.
+macro_rules! full_accessors {
+    () => {
+        #[inline]
+        fn position(&self) -> Vec3 {
+            Vec3::from_array(self.pos)
+        }
+        #[inline]
+        fn flags(&self) -> u8 {
+            self.flags as u8
+        }
+        #[inline]
+        fn set_flags(&mut self, f: u8) {
+            self.flags = f as u32;
+        }
+        #[inline]
+        fn power(&self) -> Rgb {
+            Rgb::from_array(self.power)
+        }
+        #[inline]
+        fn wi(&self) -> Vec3 {
+            Vec3::from_array(self.dir)
+        }
+    };
+}
+
 impl PhotonRecord for CompactPhoton {
     const LAYOUT: Layout = Layout::Compact;
     fn encode(p: &Photon) -> Self {
@@ -149,36 +211,7 @@ impl PhotonRecord for CompactPhoton {
             flags: p.flags,
         }
     }
-    fn decode(&self) -> Photon {
-        Photon {
-            position: self.position(),
-            power: self.power(),
-            wi: self.wi(),
-            flags: self.flags,
-            normal: Vec3::ZERO,
-            irradiance: Rgb::ZERO,
-        }
-    }
-    #[inline]
-    fn position(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
-    }
-    #[inline]
-    fn flags(&self) -> u8 {
-        self.flags
-    }
-    #[inline]
-    fn set_flags(&mut self, f: u8) {
-        self.flags = f;
-    }
-    #[inline]
-    fn power(&self) -> Rgb {
-        Rgbe(self.power).decode()
-    }
-    #[inline]
-    fn wi(&self) -> Vec3 {
-        decode_direction(self.dir)
-    }
+    compact_accessors!();
     fn normal(&self) -> Vec3 {
         Vec3::ZERO
     }
@@ -200,36 +233,7 @@ impl PhotonRecord for CompactIrrPhoton {
             normal: encode_direction(p.normal),
         }
     }
-    fn decode(&self) -> Photon {
-        Photon {
-            position: self.position(),
-            power: self.power(),
-            wi: self.wi(),
-            flags: self.flags,
-            normal: self.normal(),
-            irradiance: self.irradiance(),
-        }
-    }
-    #[inline]
-    fn position(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
-    }
-    #[inline]
-    fn flags(&self) -> u8 {
-        self.flags
-    }
-    #[inline]
-    fn set_flags(&mut self, f: u8) {
-        self.flags = f;
-    }
-    #[inline]
-    fn power(&self) -> Rgb {
-        Rgbe(self.power).decode()
-    }
-    #[inline]
-    fn wi(&self) -> Vec3 {
-        decode_direction(self.dir)
-    }
+    compact_accessors!();
     #[inline]
     fn normal(&self) -> Vec3 {
         decode_direction(self.normal)
@@ -253,36 +257,7 @@ impl PhotonRecord for FullPhoton {
             flags: p.flags as u32,
         }
     }
-    fn decode(&self) -> Photon {
-        Photon {
-            position: self.position(),
-            power: self.power(),
-            wi: self.wi(),
-            flags: self.flags(),
-            normal: Vec3::ZERO,
-            irradiance: Rgb::ZERO,
-        }
-    }
-    #[inline]
-    fn position(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
-    }
-    #[inline]
-    fn flags(&self) -> u8 {
-        self.flags as u8
-    }
-    #[inline]
-    fn set_flags(&mut self, f: u8) {
-        self.flags = f as u32;
-    }
-    #[inline]
-    fn power(&self) -> Rgb {
-        Rgb::from_array(self.power)
-    }
-    #[inline]
-    fn wi(&self) -> Vec3 {
-        Vec3::from_array(self.dir)
-    }
+    full_accessors!();
     fn normal(&self) -> Vec3 {
         Vec3::ZERO
     }
@@ -304,36 +279,7 @@ impl PhotonRecord for FullIrrPhoton {
             normal: p.normal.to_array(),
         }
     }
-    fn decode(&self) -> Photon {
-        Photon {
-            position: self.position(),
-            power: self.power(),
-            wi: self.wi(),
-            flags: self.flags(),
-            normal: self.normal(),
-            irradiance: self.irradiance(),
-        }
-    }
-    #[inline]
-    fn position(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
-    }
-    #[inline]
-    fn flags(&self) -> u8 {
-        self.flags as u8
-    }
-    #[inline]
-    fn set_flags(&mut self, f: u8) {
-        self.flags = f as u32;
-    }
-    #[inline]
-    fn power(&self) -> Rgb {
-        Rgb::from_array(self.power)
-    }
-    #[inline]
-    fn wi(&self) -> Vec3 {
-        Vec3::from_array(self.dir)
-    }
+    full_accessors!();
     #[inline]
     fn normal(&self) -> Vec3 {
         Vec3::from_array(self.normal)
