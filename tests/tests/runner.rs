@@ -99,6 +99,7 @@ fn pipeline_toml_errors_name_the_key() {
         (text.replace("[render]", "[render]\nbogus_key = 1"), "bogus_key"),
         (text.replace("k = 50", "k = \"fifty\""), "k"),
         (text.replace("global_photons = 20_000", "global_photons = 10_000_000_000"), "trace.global_photons"),
+        (text.replace("fraction = 0.25", "fraction = 2.0"), "irradiance.fraction = 2 is out of range"),
     ] {
         std::fs::write(&p, edit).unwrap();
         let err = run(&p, &out).unwrap_err().to_string();

@@ -152,6 +152,7 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
         std::fs::read_to_string(&args.pipeline).with_context(|| format!("{}: cannot read", args.pipeline.display()))?;
     let cfg: Pipeline = toml::from_str(&text)
         .map_err(|e| anyhow::anyhow!("{}: {}", args.pipeline.display(), e.to_string().replace('\n', " ")))?;
+    validate(&cfg, &args.pipeline)?;
     for (key, v) in
         [("trace.global_photons", cfg.trace.global_photons), ("trace.caustic_photons", cfg.trace.caustic_photons)]
     {
@@ -462,4 +463,28 @@ fn key_figures(stage: &str, s: &serde_json::Value) -> String {
         ),
         _ => String::new(),
     }
+}
+
+/// Range checks that name the offending key (serde checked names and types).
+fn validate(cfg: &Pipeline, path: &Path) -> Result<()> {
+    let check = |key: &str, ok: bool, v: &dyn std::fmt::Display, want: &str| -> Result<()> {
+        if ok { Ok(()) } else { bail!("{}: {key} = {v} is out of range ({want})", path.display()) }
+    };
+    check("width", (1..=16384).contains(&cfg.width), &cfg.width, "1 to 16384")?;
+    check("height", (1..=16384).contains(&cfg.height), &cfg.height, "1 to 16384")?;
+    check("spp", cfg.spp >= 1, &cfg.spp, "at least 1")?;
+    let f = cfg.irradiance.fraction;
+    check("irradiance.fraction", f > 0.0 && f <= 1.0, &f, "in (0, 1]")?;
+    check("irradiance.k", cfg.irradiance.k >= 1, &cfg.irradiance.k, "at least 1")?;
+    let r = cfg.irradiance.max_radius_rel_diag;
+    check("irradiance.max_radius_rel_diag", r > 0.0, &r, "positive")?;
+    check("render.gather_rays", cfg.render.gather_rays >= 1, &cfg.render.gather_rays, "at least 1")?;
+    let a = cfg.render.icache_accuracy;
+    check("render.icache_accuracy", a >= 0.0, &a, "0 (off) or positive")?;
+    check("render.k", cfg.render.k >= 1, &cfg.render.k, "at least 1")?;
+    check("render.caustic_k", cfg.render.caustic_k >= 1, &cfg.render.caustic_k, "at least 1")?;
+    for (name, share) in &cfg.trace.light_shares {
+        check(&format!("trace.light_shares.{name}"), (0.0..=1.0).contains(share), share, "in [0, 1]")?;
+    }
+    Ok(())
 }
