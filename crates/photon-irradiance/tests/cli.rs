@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 use pm_format::{
-    CompactIrrPhoton, CompactPhoton, Header, Layout, MapKind, Order, Photon, PhotonMap, PhotonRecord, ReadExpect, flags,
+    CompactIrrPhoton, CompactPhoton, Header, MapKind, Order, Photon, PhotonMap, PhotonRecord, ReadExpect, flags,
 };
 use std::path::Path;
 use std::process::Command;
