@@ -160,7 +160,7 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
             bail!(
                 "{}: {key} = {v} would need about {} GiB; this machine allows at most {MAX_PHOTONS}",
                 args.pipeline.display(),
-                v * 2 * 64 >> 30
+                (v * 2 * 64) >> 30
             );
         }
     }
@@ -318,12 +318,12 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
     }
     let mut rows = Vec::new();
     for ((stage, a, needs), (step, inputs, outputs)) in steps.iter().zip(&io) {
-        if let Some(input) = needs {
-            if !Path::new(input).exists() {
-                println!("  {step}: skipped ({input} absent: the scene does not need it)");
-                outcomes.push(Outcome { step: step.clone(), ran: false });
-                continue;
-            }
+        if let Some(input) = needs
+            && !Path::new(input).exists()
+        {
+            println!("  {step}: skipped ({input} absent: the scene does not need it)");
+            outcomes.push(Outcome { step: step.clone(), ran: false });
+            continue;
         }
         let key = step_key(stage, a, inputs)?;
         if !args.force
@@ -340,10 +340,10 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
         std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
         let mut a = a.clone();
         // The caustic map is optional: drop it when stage 1 wrote none.
-        if let Some(i) = a.iter().position(|x| x == "--caustic") {
-            if !Path::new(&a[i + 1]).exists() {
-                a.drain(i..i + 2);
-            }
+        if let Some(i) = a.iter().position(|x| x == "--caustic")
+            && !Path::new(&a[i + 1]).exists()
+        {
+            a.drain(i..i + 2);
         }
         let t = Instant::now();
         let status = Command::new(bin(stage)).args(&a).status().with_context(|| format!("cannot start {stage}"))?;

@@ -332,7 +332,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     }
     let header_len = c.u32() as usize;
     if header_len < FIXED_LEN + 8
-        || header_len % 16 != 0
+        || !header_len.is_multiple_of(16)
         || header_len > FIXED_LEN + MAX_PARAMS + 24
         || header_len as u64 > file_len
     {
@@ -417,37 +417,36 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
 
 fn check_expectations(path: &Path, h: &Header, expect: &ReadExpect) -> Result<(), FormatError> {
     let wrong = |expected: String, found: String| Err(fail(path, Problem::Wrong { expected, found }));
-    if let Some(k) = expect.kind {
-        if k != h.kind {
-            return wrong(format!("a {k:?} photon map"), format!("a {:?} photon map", h.kind));
-        }
+    if let Some(k) = expect.kind
+        && k != h.kind
+    {
+        return wrong(format!("a {k:?} photon map"), format!("a {:?} photon map", h.kind));
     }
-    if let Some(o) = expect.order {
-        if o != h.order {
-            let name =
-                |o: Order| if o == Order::KdTree { "a kd-tree (run photon-sort first)" } else { "an unsorted map" };
-            return wrong(name(o).into(), name(h.order).trim_end_matches(" (run photon-sort first)").into());
-        }
+    if let Some(o) = expect.order
+        && o != h.order
+    {
+        let name = |o: Order| if o == Order::KdTree { "a kd-tree (run photon-sort first)" } else { "an unsorted map" };
+        return wrong(name(o).into(), name(h.order).trim_end_matches(" (run photon-sort first)").into());
     }
-    if let Some(i) = expect.irradiance {
-        if i != h.has_irradiance {
-            let name = |i: bool| {
-                if i {
-                    "a map with precomputed irradiance (run photon-irradiance first)"
-                } else {
-                    "a map without precomputed irradiance"
-                }
-            };
-            return wrong(
-                name(i).into(),
-                if h.has_irradiance { "one with irradiance".into() } else { "one without irradiance".into() },
-            );
-        }
+    if let Some(i) = expect.irradiance
+        && i != h.has_irradiance
+    {
+        let name = |i: bool| {
+            if i {
+                "a map with precomputed irradiance (run photon-irradiance first)"
+            } else {
+                "a map without precomputed irradiance"
+            }
+        };
+        return wrong(
+            name(i).into(),
+            if h.has_irradiance { "one with irradiance".into() } else { "one without irradiance".into() },
+        );
     }
-    if let Some(s) = expect.scene_hash {
-        if s != h.scene_hash {
-            return Err(fail(path, Problem::OtherScene { expected: short_hex(&s), found: short_hex(&h.scene_hash) }));
-        }
+    if let Some(s) = expect.scene_hash
+        && s != h.scene_hash
+    {
+        return Err(fail(path, Problem::OtherScene { expected: short_hex(&s), found: short_hex(&h.scene_hash) }));
     }
     Ok(())
 }

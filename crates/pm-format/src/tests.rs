@@ -45,7 +45,7 @@ fn every_layout_round_trips_byte_for_byte() {
         back.write(&again).unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), std::fs::read(&again).unwrap());
         assert_eq!(
-            std::fs::metadata(&path).unwrap().len() as usize % 16 == 0,
+            (std::fs::metadata(&path).unwrap().len() as usize).is_multiple_of(16),
             R::LAYOUT.record_size() * 1000 % 16 == 0
         );
     }
@@ -110,7 +110,7 @@ fn empty_map_round_trips() {
 }
 
 fn err_of(path: &std::path::Path, expect: &ReadExpect) -> String {
-    let e = read(path, expect).err().expect("bad file was accepted").to_string();
+    let e = read(path, expect).expect_err("bad file was accepted").to_string();
     assert!(e.starts_with(&path.display().to_string()), "error does not name the file: {e}");
     assert!(!e.contains('\n'), "not one line: {e}");
     e

@@ -275,10 +275,11 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                 }
                 if heap.len() == k { f32::from_bits(heap.peek().map_or(0, |t| t.0)).min(max_d2) } else { max_d2 }
             } else {
-                if let Some(mut top) = heap.peek_mut() {
-                    if key(d2) < top.0 && filter(i, r) {
-                        *top = (key(d2), i); // one sift-down when `top` drops
-                    }
+                if let Some(mut top) = heap.peek_mut()
+                    && key(d2) < top.0
+                    && filter(i, r)
+                {
+                    *top = (key(d2), i); // one sift-down when `top` drops
                 }
                 f32::from_bits(heap.peek().map_or(0, |t| t.0))
             }

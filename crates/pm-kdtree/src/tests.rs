@@ -131,7 +131,7 @@ fn unused_photons_are_skipped() {
     let pts: Vec<Vec3> = (0..100).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
     let mut nodes = balance(&records::<FullPhoton>(&pts));
     for r in nodes.iter_mut() {
-        if (r.position().x as u32) % 2 == 0 {
+        if (r.position().x as u32).is_multiple_of(2) {
             r.set_flags(r.flags() | flags::UNUSED);
         }
     }

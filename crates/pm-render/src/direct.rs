@@ -63,17 +63,18 @@ pub(crate) fn direct<G: PhotonRecord>(ctx: &Ctx<G>, hit: &Hit, bsdf: &Bsdf, wo: 
             // BSDF sampling, weighted against light sampling.
             let u = s.next_2d();
             let uc = s.next_1d();
-            if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
-                if !bs.specular && bs.wi.dot(hit.ng) * side_o > 0.0 {
-                    let o = offset_ray_origin(hit.p, hit.ng, bs.wi);
-                    if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
-                        let le = scene.emitted(&h, -bs.wi);
-                        let l_idx = scene.light_of_triangle[h.tri as usize];
-                        if le.max_element() > 0.0 && l_idx != u32::MAX {
-                            let p_l = scene.lights[l_idx as usize].pdf_li(scene, bs.wi, h.t, h.tri)
-                                * ctx.lights.probs[l_idx as usize] as f32;
-                            sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
-                        }
+            if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc)
+                && !bs.specular
+                && bs.wi.dot(hit.ng) * side_o > 0.0
+            {
+                let o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+                if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
+                    let le = scene.emitted(&h, -bs.wi);
+                    let l_idx = scene.light_of_triangle[h.tri as usize];
+                    if le.max_element() > 0.0 && l_idx != u32::MAX {
+                        let p_l = scene.lights[l_idx as usize].pdf_li(scene, bs.wi, h.t, h.tri)
+                            * ctx.lights.probs[l_idx as usize] as f32;
+                        sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
                     }
                 }
             }

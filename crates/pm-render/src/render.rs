@@ -137,7 +137,7 @@ pub fn render<G: PhotonRecord>(
                         if cache.lookup(p, ns, 1.0).is_some() {
                             return None;
                         }
-                        let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x6361_6368_65 ^ b as u64), 0);
+                        let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x0063_6163_6865 ^ b as u64), 0);
                         let g = final_gather(ctx, p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
                         Some((p, ns, g))
                     })

@@ -83,7 +83,7 @@ pub fn intersect_triangle(o: Vec3, d: Vec3, p: &[Vec3; 3], t_max: f32) -> Option
     }
     let inv = 1.0 / det;
     let t = t_scaled * inv;
-    if !(t > 0.0 && t < t_max) || !t.is_finite() {
+    if !(t > 0.0 && t < t_max && t.is_finite()) {
         return None;
     }
     Some((t, [e0 * inv, e1 * inv, e2 * inv]))

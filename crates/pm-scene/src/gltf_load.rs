@@ -268,34 +268,31 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             };
             lights.push(Light { name: node_name.clone(), kind, power: Rgb::ZERO });
         }
-        if camera.is_none() {
-            if let Some(cam) = node.camera() {
-                match cam.projection() {
-                    gltf::camera::Projection::Perspective(p) => {
-                        let r = Mat3::from_mat4(world);
-                        let forward = (r * -Vec3::Z).normalize_or_zero();
-                        let up0 = (r * Vec3::Y).normalize_or_zero();
-                        let right = forward.cross(up0).normalize_or_zero();
-                        let up = right.cross(forward);
-                        let yfov = p.yfov();
-                        if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
-                            return Err(content(format!(
-                                "camera on '{node_name}': degenerate orientation or yfov {yfov}"
-                            )));
-                        }
-                        camera = Some(Camera {
-                            position: world.transform_point3(Vec3::ZERO),
-                            forward,
-                            up,
-                            right,
-                            yfov,
-                            aspect: p.aspect_ratio(),
-                        });
+        if camera.is_none()
+            && let Some(cam) = node.camera()
+        {
+            match cam.projection() {
+                gltf::camera::Projection::Perspective(p) => {
+                    let r = Mat3::from_mat4(world);
+                    let forward = (r * -Vec3::Z).normalize_or_zero();
+                    let up0 = (r * Vec3::Y).normalize_or_zero();
+                    let right = forward.cross(up0).normalize_or_zero();
+                    let up = right.cross(forward);
+                    let yfov = p.yfov();
+                    if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                        return Err(content(format!("camera on '{node_name}': degenerate orientation or yfov {yfov}")));
                     }
-                    gltf::camera::Projection::Orthographic(_) => {
-                        warnings
-                            .push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
-                    }
+                    camera = Some(Camera {
+                        position: world.transform_point3(Vec3::ZERO),
+                        forward,
+                        up,
+                        right,
+                        yfov,
+                        aspect: p.aspect_ratio(),
+                    });
+                }
+                gltf::camera::Projection::Orthographic(_) => {
+                    warnings.push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
                 }
             }
         }
@@ -382,17 +379,17 @@ fn read_primitive(
         None
     };
     for (what, len) in [("NORMAL", normals.as_ref().map(Vec::len)), ("TEXCOORD_0", uvs.as_ref().map(Vec::len))] {
-        if let Some(len) = len {
-            if len != positions.len() {
-                return Err(format!("{what} has {len} entries but POSITION has {}", positions.len()));
-            }
+        if let Some(len) = len
+            && len != positions.len()
+        {
+            return Err(format!("{what} has {len} entries but POSITION has {}", positions.len()));
         }
     }
     let indices: Vec<u32> = match reader.read_indices() {
         Some(it) => it.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
     };
-    if indices.len() % 3 != 0 {
+    if !indices.len().is_multiple_of(3) {
         return Err(format!("{} indices is not a multiple of 3", indices.len()));
     }
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {

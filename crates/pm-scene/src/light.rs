@@ -116,10 +116,10 @@ impl Light {
         let cone_pdf = |o: Vec3, d: Vec3| -> f32 {
             let mut pdf = 0.0;
             for t in targets {
-                if let Some(cos_max) = cone_cos(o, t) {
-                    if d.dot((t.center - o).normalize()) >= cos_max {
-                        pdf += uniform_cone_pdf(cos_max);
-                    }
+                if let Some(cos_max) = cone_cos(o, t)
+                    && d.dot((t.center - o).normalize()) >= cos_max
+                {
+                    pdf += uniform_cone_pdf(cos_max);
                 }
             }
             pdf / targets.len() as f32
