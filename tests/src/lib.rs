@@ -69,6 +69,7 @@ pub fn render_config(scene: &Scene, mode: Mode, width: u32, height: u32) -> Rend
         spp: 16,
         contrast: 0.1,
         mode,
+        indirect: true,
         gather_rays: 400,
         secondary_rays: 12,
         secondary_distance: 0.005 * diag,

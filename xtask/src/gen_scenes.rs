@@ -286,12 +286,32 @@ fn furnace() -> Doc {
     doc
 }
 
+/// A 4 m x 4 m floor (albedo 0.5) under a point light of 10 W/sr, 1 m above its
+/// centre, seen from 3 m straight above: no surface sees another, so there is no
+/// indirect light, and the floor's radiance is exactly rho/pi I cos(theta)/d^2.
+fn plane_point() -> Doc {
+    let mut doc = Doc::default();
+    let m = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
+    doc.mesh_node("floor", &quad([-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0], [-2.0, 0.0, -2.0]), m);
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 10.0, "color": [1.0, 1.0, 1.0]}));
+    doc.nodes.push(
+        json!({"name": "bulb", "translation": [0.0, 1.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+    );
+    // Looking down -y: rotate -90 degrees about x (camera -z becomes -y).
+    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 1.0, "aspectRatio": 1.0, "znear": 0.01}}));
+    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 3.0, 0.0], "rotation": [-0.70710678, 0.0, 0.0, 0.70710678]}));
+    doc
+}
+
 /// Write (or with `check`, compare) every scene.
 pub fn run(dir: &Path, check: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    for (name, doc) in
-        [("cornell_spheres", cornell_spheres()), ("cornell_boxes", cornell_boxes()), ("furnace", furnace())]
-    {
+    for (name, doc) in [
+        ("cornell_spheres", cornell_spheres()),
+        ("cornell_boxes", cornell_boxes()),
+        ("furnace", furnace()),
+        ("plane_point", plane_point()),
+    ] {
         doc.write(dir, name, check)?;
         println!("{} {name}", if check { "up to date:" } else { "wrote" });
     }

@@ -19,6 +19,7 @@ struct Pipeline {
     width: u32,
     height: u32,
     spp: u32,
+    effects: EffectsCfg,
     trace: TraceSection,
     irradiance: IrradianceSection,
     render: RenderSection,
@@ -42,6 +43,27 @@ struct RenderSection {
     light_samples: u32,
     contrast: f64,
     exposure: f64,
+}
+
+/// `effects = "auto"` or a list of forced effects.
+#[derive(Deserialize, Debug)]
+#[serde(untagged)]
+enum EffectsCfg {
+    Auto(AutoWord),
+    List(Vec<EffectName>),
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(rename_all = "lowercase")]
+enum AutoWord {
+    Auto,
+}
+
+#[derive(Deserialize, Debug, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum EffectName {
+    Caustics,
+    Indirect,
 }
 
 #[derive(Deserialize, Debug, Clone, Copy)]
@@ -176,6 +198,21 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
             bail!("{} is missing: build the stages (cargo build --release)", bin(n).display());
         }
     }
+    // Which effects to simulate: the scene analysis, or the list pipeline.toml forces.
+    let analysis: serde_json::Value = {
+        let o = Command::new(bin("photon-trace"))
+            .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
+            .output()
+            .context("cannot start photon-trace --analyze")?;
+        if !o.status.success() {
+            bail!("scene analysis failed: {}", String::from_utf8_lossy(&o.stderr).trim());
+        }
+        serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no JSON")?
+    };
+    let (caustics, indirect) = match &cfg.effects {
+        EffectsCfg::Auto(_) => (analysis["caustics"]["yes"] == true, analysis["indirect"]["yes"] == true),
+        EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
+    };
     let layout = match cfg.trace.layout {
         Layout::Compact => "compact",
         Layout::Full => "full",
@@ -187,9 +224,9 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
         "--out".into(),
         out.display().to_string(),
         "--global".into(),
-        cfg.trace.global_photons.to_string(),
+        if indirect { cfg.trace.global_photons } else { 0 }.to_string(),
         "--caustic".into(),
-        cfg.trace.caustic_photons.to_string(),
+        if caustics { cfg.trace.caustic_photons } else { 0 }.to_string(),
         "--seed".into(),
         cfg.seed.to_string(),
         "--layout".into(),
@@ -290,8 +327,14 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
         "--stats-json".into(),
         o("render.stats.json"),
     ];
-    if cfg.trace.caustic_photons > 0 {
+    if caustics && cfg.trace.caustic_photons > 0 {
         render_args.extend(["--caustic".into(), o("caustic.kd.pmap")]);
+    }
+    if !indirect {
+        // No final gathers and no global map: drop it from the render's inputs.
+        let i = render_args.iter().position(|x| x == "--global").expect("--global is in the render arguments");
+        render_args.drain(i..i + 2);
+        render_args.push("--no-indirect".into());
     }
     steps.push(("photon-render".into(), render_args, None));
     // Inputs (hashed) and outputs of each step, for skipping unchanged steps.
@@ -299,19 +342,42 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
     let map_in = |f: &str| vec![PathBuf::from(o(f))];
     let io: Vec<(String, Vec<PathBuf>, Vec<String>)> = vec![
         ("photon-trace".into(), scene_files.clone(), vec![o("global.pmap"), o("trace.stats.json")]),
-        ("photon-sort global".into(), map_in("global.pmap"), vec![o("global.kd.pmap")]),
-        ("photon-sort caustic".into(), map_in("caustic.pmap"), vec![o("caustic.kd.pmap")]),
-        ("photon-irradiance".into(), map_in("global.kd.pmap"), vec![o("global.irr.pmap")]),
+        ("photon-sort global".into(), map_in("global.pmap"), vec![o("global.kd.pmap"), o("sort-global.stats.json")]),
+        (
+            "photon-sort caustic".into(),
+            map_in("caustic.pmap"),
+            vec![o("caustic.kd.pmap"), o("sort-caustic.stats.json")],
+        ),
+        ("photon-irradiance".into(), map_in("global.kd.pmap"), vec![o("global.irr.pmap"), o("irradiance.stats.json")]),
         (
             "photon-render".into(),
             [scene_files, map_in("global.irr.pmap"), map_in("caustic.kd.pmap")].concat(),
-            vec![o("image.exr"), o("image.png")],
+            vec![o("image.exr"), o("image.png"), o("render.stats.json")],
         ),
     ];
     let keys_path = out.join(".stage-keys.json");
     let mut keys: serde_json::Map<String, serde_json::Value> =
         std::fs::read(&keys_path).ok().and_then(|b| serde_json::from_slice(&b).ok()).unwrap_or_default();
     let mut outcomes = Vec::new();
+    println!(
+        "effects ({}):",
+        if matches!(cfg.effects, EffectsCfg::Auto(_)) { "scene analysis" } else { "forced by pipeline.toml" }
+    );
+    for key in ["caustics", "indirect", "specular_seen", "glossy"] {
+        let a = &analysis[key];
+        println!("  {key}: {} ({})", if a["yes"] == true { "yes" } else { "no" }, a["reason"].as_str().unwrap_or(""));
+    }
+    println!("  direct: {}", analysis["direct"].as_str().unwrap_or(""));
+    let mut skipped_effects = Vec::new();
+    if !caustics {
+        skipped_effects.push("caustic photon tracing, sorting and estimates");
+    }
+    if !indirect {
+        skipped_effects.push("global photon map, irradiance precompute and final gathering");
+    }
+    for s in &skipped_effects {
+        println!("  skipped: {s}");
+    }
     println!("plan ({} -> {}):", scene.display(), out.display());
     for (stage, a, _) in &steps {
         println!("  {stage} {}", a.join(" "));
@@ -322,6 +388,11 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
             && !Path::new(input).exists()
         {
             println!("  {step}: skipped ({input} absent: the scene does not need it)");
+            // What it wrote in an earlier run no longer belongs to this one.
+            for f in outputs {
+                let _ = std::fs::remove_file(f);
+            }
+            keys.remove(step);
             outcomes.push(Outcome { step: step.clone(), ran: false });
             continue;
         }
@@ -372,7 +443,14 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
             r["figures"].as_str().unwrap_or("")
         );
     }
-    let report = json!({"scene": scene.display().to_string(), "out": out.display().to_string(), "stages": rows});
+    let report = json!({
+        "scene": scene.display().to_string(),
+        "out": out.display().to_string(),
+        "effects": analysis,
+        "simulated": {"caustics": caustics, "indirect": indirect},
+        "skipped_effects": skipped_effects,
+        "stages": rows,
+    });
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)? + "\n")?;
     Ok(outcomes)
 }
@@ -440,9 +518,11 @@ fn build_stages(root: &Path) -> Result<()> {
 fn key_figures(stage: &str, s: &serde_json::Value) -> String {
     match stage {
         "photon-trace" => format!(
-            "global: {} emitted / {} stored; caustic: {}",
-            s["global"]["emitted"],
-            s["global"]["stored"],
+            "global: {}; caustic: {}",
+            s["global"].get("stored").map_or_else(
+                || s["global"]["skipped"].to_string(),
+                |n| format!("{} emitted / {n} stored", s["global"]["emitted"])
+            ),
             s["caustic"].get("stored").map_or_else(|| s["caustic"]["skipped"].to_string(), |n| format!("{n} stored"))
         ),
         "photon-sort" => format!("{} photons, tree depth {}", s["photons"], s["depth"]),

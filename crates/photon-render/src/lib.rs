@@ -78,6 +78,10 @@ pub struct Cli {
     /// What to render.
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]
     pub mode: ModeArg,
+    /// Leave out soft indirect light (no final gathers, no global map needed); for
+    /// scenes where no diffusely reflected light reaches another diffuse surface.
+    #[arg(long)]
+    pub no_indirect: bool,
     /// Rays per final gather (stratified, cosine-weighted).
     #[arg(long, default_value_t = 400)]
     pub gather_rays: u32,
@@ -155,6 +159,7 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
             ModeArg::Indirect => Mode::Indirect,
             ModeArg::Path => Mode::Path,
         },
+        indirect: !cli.no_indirect,
         gather_rays: cli.gather_rays,
         secondary_rays: cli.secondary_rays,
         secondary_distance: cli.secondary_distance * diag,
@@ -172,7 +177,7 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
         max_depth: cli.max_depth,
         seed: cli.seed,
     };
-    let needs_global = cfg.mode != Mode::Path;
+    let needs_global = cfg.mode != Mode::Path && !(cfg.mode == Mode::Full && !cfg.indirect);
     let needs_irradiance =
         matches!(cfg.mode, Mode::Full | Mode::Indirect | Mode::Radiance) && cfg.lookup == Lookup::Precomputed;
     let caustic = match (&cli.caustic, matches!(cfg.mode, Mode::Full)) {
@@ -269,6 +274,7 @@ fn report(cli: &Cli, cfg: &RenderConfig, s: &RenderStats, diag: f32, notes: &[St
     json!({
         "stage": "photon-render",
         "mode": format!("{:?}", cli.mode).to_lowercase(),
+        "indirect": cfg.indirect,
         "lookup": format!("{:?}", cli.gather_lookup).to_lowercase(),
         "width": cli.width, "height": cli.height, "max_spp": cli.spp,
         "seconds": s.seconds,

@@ -92,6 +92,22 @@ pub struct TraceArgs {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Print which effects the scene can produce (caustics, soft indirect, specular
+    /// seen by the camera, glossy, direct) with reasons, as JSON, and trace nothing.
+    #[arg(long)]
+    pub analyze: bool,
+}
+
+/// The scene analysis as JSON (see `pm_scene::analyze`).
+pub fn effects_json(e: &pm_scene::Effects) -> serde_json::Value {
+    let d = |d: &pm_scene::Decision| json!({"yes": d.yes, "reason": d.reason});
+    json!({
+        "caustics": d(&e.caustics),
+        "indirect": d(&e.indirect),
+        "specular_seen": d(&e.specular_seen),
+        "glossy": d(&e.glossy),
+        "direct": e.direct,
+    })
 }
 
 fn parse_range(s: &str) -> Result<Range<u64>, String> {
@@ -124,10 +140,20 @@ pub fn run(cli: Cli) -> Result<Report> {
 /// Trace both maps and write them.
 pub fn trace(args: &TraceArgs) -> Result<Report> {
     let scene_path = args.scene.as_ref().context("--scene is required")?;
-    let out = args.out.as_ref().context("--out is required")?;
+    let out = match (&args.out, args.analyze) {
+        (Some(o), _) => o.clone(),
+        (None, true) => PathBuf::new(),
+        (None, false) => anyhow::bail!("--out is required"),
+    };
+    let out = &out;
     pm_stage::init_threads(args.threads)?;
     let start = Instant::now();
     let scene = pm_stage::load_scene("photon-trace", scene_path)?;
+    if args.analyze {
+        let e = effects_json(&pm_scene::analyze(&scene));
+        println!("{}", serde_json::to_string_pretty(&e)?);
+        return Ok(e);
+    }
     let selector = LightSelector::new(&scene, &args.light_shares).with_context(|| scene_path.display().to_string())?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
     let full = args.layout == "full";
@@ -151,11 +177,12 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
     for (pass, kind, name, budget) in passes {
         let path = out.join(format!("{name}.pmap"));
         let wanted = !matches!(budget, Budget::Stored { target: 0, .. } | Budget::Emitted(0));
-        if pass == MapPass::Caustic && (!wanted || pm_photon::specular_targets(&scene).is_empty()) {
-            let why = if wanted { "the scene has no mirror or glass surface" } else { "no caustic photons requested" };
+        let no_targets = pass == MapPass::Caustic && pm_photon::specular_targets(&scene).is_empty();
+        if !wanted || no_targets {
+            let why = if wanted { "the scene has no mirror or glass surface" } else { "no photons requested" };
             remove_stale(&path)?;
             report[name] = json!({"skipped": why});
-            eprintln!("photon-trace: no caustic map: {why}");
+            eprintln!("photon-trace: no {name} map: {why}");
             continue;
         }
         let cfg =

@@ -163,7 +163,7 @@ pub(crate) fn trace<G: PhotonRecord>(
                 None => Rgb::ZERO,
             };
             ctx.stats.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
-            let e = indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache);
+            let e = if cfg.indirect { indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache) } else { Rgb::ZERO };
             Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
         }
     }

@@ -62,6 +62,9 @@ pub struct RenderConfig {
     pub contrast: f32,
     /// What to compute.
     pub mode: Mode,
+    /// Compute soft indirect light (final gathering); off when the scene analysis
+    /// finds no diffusely reflected light reaching another diffuse surface.
+    pub indirect: bool,
     /// Final-gather rays per gather (stratified, cosine-distributed).
     pub gather_rays: u32,
     /// Rays of a secondary final gather (the paper: 12).

@@ -112,7 +112,7 @@ pub fn render<G: PhotonRecord>(
     // Irradiance-cache prepass: coarse-to-fine grids of pixel centres; at each level
     // the points no record covers yet get a final gather (in parallel), and the new
     // records are inserted in pixel order, so the cache does not depend on threads.
-    let use_cache = cfg.icache_accuracy > 0.0 && matches!(cfg.mode, Mode::Full | Mode::Indirect);
+    let use_cache = cfg.icache_accuracy > 0.0 && cfg.indirect && matches!(cfg.mode, Mode::Full | Mode::Indirect);
     let mut cache = IrradianceCache::new(cfg.icache_accuracy, cfg.icache_spacing);
     let t_pre = Instant::now();
     if use_cache {

@@ -12,10 +12,12 @@
 //! `Scene` is immutable after loading and `Send + Sync`, so one instance serves all
 //! rayon threads, and later the per-frame real-time and image-space modes.
 
+mod effects;
 mod geometry;
 mod gltf_load;
 mod light;
 
+pub use effects::{Decision, Effects, analyze};
 pub use geometry::{intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load};
 pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};

@@ -1,0 +1,216 @@
+//! Which light-transport effects a scene can produce, and why: the analysis behind
+//! "simulate only the effects a scene calls for". Each decision is made by shooting
+//! a fixed set of probe rays (deterministic), so it is cheap and repeatable.
+
+use crate::{LightKind, Scene, Target};
+use pm_bsdf::Bsdf;
+use pm_sampling::{Sampler, cosine_hemisphere, to_world};
+
+/// A yes/no decision with the reason in words.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Decision {
+    /// Whether the effect can occur.
+    pub yes: bool,
+    /// Why, naming the objects and lights involved.
+    pub reason: String,
+}
+
+impl Decision {
+    fn yes(reason: String) -> Self {
+        Decision { yes: true, reason }
+    }
+    fn no(reason: String) -> Self {
+        Decision { yes: false, reason }
+    }
+}
+
+/// The effects a scene can produce.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Effects {
+    /// Light-specular+-diffuse paths: a mirror or glass object a light reaches, and a
+    /// non-specular surface for it to light.
+    pub caustics: Decision,
+    /// Soft indirect diffuse light: light reflected by a non-specular surface reaches
+    /// another non-specular surface.
+    pub indirect: Decision,
+    /// Mirror or glass seen by the camera (specular recursion from the eye).
+    pub specular_seen: Decision,
+    /// Glossy (GGX) materials present.
+    pub glossy: Decision,
+    /// Lights by kind, e.g. "1 area light".
+    pub direct: String,
+}
+
+const PROBES: u64 = 4096;
+
+fn kind_name(b: &Bsdf) -> &'static str {
+    match b {
+        Bsdf::Mirror { .. } => "mirror",
+        Bsdf::Glass { .. } => "glass",
+        Bsdf::Conductor { .. } | Bsdf::Plastic { .. } => "glossy",
+        Bsdf::Lambert { .. } => "diffuse",
+    }
+}
+
+/// Analyse a scene (see [`Effects`]).
+pub fn analyze(scene: &Scene) -> Effects {
+    let object_of = |tri: u32| scene.objects.iter().position(|o| o.tris.contains(&tri));
+    let is_specular = |tri: u32| scene.materials[scene.triangles[tri as usize].material as usize].bsdf.is_specular();
+    let lit: Vec<usize> = (0..scene.lights.len()).filter(|&i| scene.lights[i].power.max_element() > 0.0).collect();
+    let any_diffuse = scene.triangles.iter().any(|t| !scene.materials[t.material as usize].bsdf.is_specular());
+
+    // Caustics: aim probe rays from every light at every specular object.
+    let specular_objects: Vec<usize> = (0..scene.objects.len())
+        .filter(|&o| scene.materials[scene.objects[o].material as usize].bsdf.is_specular())
+        .collect();
+    let caustics = if specular_objects.is_empty() {
+        Decision::no("no mirror or glass surface".into())
+    } else if !any_diffuse {
+        Decision::no("no non-specular surface for focused light to land on".into())
+    } else {
+        let mut reached: Vec<(usize, usize)> = Vec::new();
+        for &o in &specular_objects {
+            let target: Target = scene.objects[o].bounding_sphere(scene);
+            for &l in &lit {
+                let hit = (0..PROBES / 4).any(|i| {
+                    let mut s = Sampler::new(0x6361_7573 + o as u64 * 131 + l as u64, i);
+                    let Some(ray) = scene.lights[l].sample_emission_toward(scene, &mut s, &[target]) else {
+                        return false;
+                    };
+                    scene.intersect(ray.origin, ray.dir, f32::INFINITY).is_some_and(|h| object_of(h.tri) == Some(o))
+                });
+                if hit {
+                    reached.push((o, l));
+                }
+            }
+        }
+        if reached.is_empty() {
+            let names: Vec<String> = specular_objects.iter().map(|&o| format!("'{}'", scene.objects[o].name)).collect();
+            Decision::no(format!("{} not reachable from any light", names.join(", ")))
+        } else {
+            let mut objs: Vec<String> = reached
+                .iter()
+                .map(|&(o, _)| {
+                    let ob = &scene.objects[o];
+                    format!("{} '{}'", kind_name(&scene.materials[ob.material as usize].bsdf), ob.name)
+                })
+                .collect();
+            objs.dedup();
+            let mut lights: Vec<String> = reached.iter().map(|&(_, l)| format!("'{}'", scene.lights[l].name)).collect();
+            lights.sort();
+            lights.dedup();
+            Decision::yes(format!("{} reachable from {}", objs.join(", "), lights.join(", ")))
+        }
+    };
+
+    // Indirect: follow probe photons to their first non-specular hit, bounce once
+    // diffusely, and see whether that reaches another non-specular surface.
+    let selector_total: f32 = lit.iter().map(|&l| scene.lights[l].power.element_sum()).sum();
+    let mut pair: Option<(u32, u32)> = None;
+    if selector_total > 0.0 && any_diffuse {
+        'probe: for i in 0..PROBES {
+            let mut s = Sampler::new(0x696e_6469, i);
+            let u = s.next_1d() * selector_total;
+            let mut acc = 0.0;
+            let l = lit.iter().copied().find(|&l| {
+                acc += scene.lights[l].power.element_sum();
+                u < acc
+            });
+            let Some(l) = l else { continue };
+            let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
+            let (mut o, mut d) = (ray.origin, ray.dir);
+            for _ in 0..8 {
+                let Some(h) = scene.intersect(o, d, f32::INFINITY) else { continue 'probe };
+                let bsdf = scene.bsdf(&h);
+                if bsdf.is_specular() {
+                    let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { continue 'probe };
+                    o = crate::offset_ray_origin(h.p, h.ng, bs.wi);
+                    d = bs.wi;
+                    continue;
+                }
+                let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
+                let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
+                let o2 = crate::offset_ray_origin(h.p, h.ng, d2);
+                if let Some(h2) = scene.intersect(o2, d2, f32::INFINITY) {
+                    if !is_specular(h2.tri) {
+                        pair = Some((h.tri, h2.tri));
+                        break 'probe;
+                    }
+                }
+                continue 'probe;
+            }
+        }
+    }
+    let name = |tri: u32| object_of(tri).map_or_else(|| "?".to_string(), |o| scene.objects[o].name.clone());
+    let indirect = match pair {
+        Some((a, b)) => Decision::yes(format!("light reflected by '{}' reaches '{}'", name(a), name(b))),
+        None if !any_diffuse => Decision::no("no non-specular surface".into()),
+        None => Decision::no(format!(
+            "no probe of {PROBES} found diffusely reflected light reaching another non-specular surface"
+        )),
+    };
+
+    // Specular seen by the camera: a coarse grid of eye rays.
+    let specular_seen = match &scene.camera {
+        None => Decision::no("no camera".into()),
+        Some(cam) => {
+            let mut seen: Vec<String> = Vec::new();
+            for j in 0..48 {
+                for i in 0..48 {
+                    let aspect = cam.aspect.unwrap_or(1.0);
+                    let d = cam.ray_direction((i as f32 + 0.5) / 48.0, (j as f32 + 0.5) / 48.0, aspect);
+                    if let Some(h) = scene.intersect(cam.position, d, f32::INFINITY) {
+                        if is_specular(h.tri) {
+                            let n = name(h.tri);
+                            if !seen.contains(&n) {
+                                seen.push(n);
+                            }
+                        }
+                    }
+                }
+            }
+            if seen.is_empty() {
+                Decision::no("the camera sees no mirror or glass".into())
+            } else {
+                Decision::yes(format!(
+                    "the camera sees {}",
+                    seen.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
+                ))
+            }
+        }
+    };
+
+    let glossy_names: Vec<String> = scene
+        .materials
+        .iter()
+        .enumerate()
+        .filter(|(i, m)| {
+            matches!(m.bsdf, Bsdf::Conductor { .. } | Bsdf::Plastic { .. })
+                && scene.triangles.iter().any(|t| t.material as usize == *i)
+        })
+        .map(|(_, m)| format!("'{}'", m.name))
+        .collect();
+    let glossy = if glossy_names.is_empty() {
+        Decision::no("no glossy material".into())
+    } else {
+        Decision::yes(format!("glossy materials {}", glossy_names.join(", ")))
+    };
+
+    let mut counts = [0usize; 4];
+    for l in &scene.lights {
+        counts[match l.kind {
+            LightKind::Area { .. } => 0,
+            LightKind::Point { .. } => 1,
+            LightKind::Spot { .. } => 2,
+            LightKind::Directional { .. } => 3,
+        }] += 1;
+    }
+    let direct = ["area", "point", "spot", "directional"]
+        .iter()
+        .zip(counts)
+        .filter(|(_, c)| *c > 0)
+        .map(|(k, c)| format!("{c} {k} light{}", if c == 1 { "" } else { "s" }))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Effects { caustics, indirect, specular_seen, glossy, direct }
+}

@@ -1,0 +1,149 @@
+//! Simulate only the effects a scene calls for: the scene analysis, and the pipeline
+//! acting on it.
+
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_scene::{Material, Scene, Triangle, analyze};
+use pm_tests::load_scene;
+use std::path::{Path, PathBuf};
+
+#[test]
+fn analysis_of_the_project_scenes() {
+    let e = analyze(&load_scene("cornell_spheres.gltf"));
+    assert!(e.caustics.yes && e.indirect.yes && e.specular_seen.yes, "{e:?}");
+    assert!(
+        e.caustics.reason.contains("glass 'sphere_glass'") && e.caustics.reason.contains("mirror 'sphere_chrome'"),
+        "{}",
+        e.caustics.reason
+    );
+    assert!(e.caustics.reason.contains("ceiling_light"));
+    let e = analyze(&load_scene("cornell_boxes.gltf"));
+    assert!(!e.caustics.yes && e.indirect.yes && !e.specular_seen.yes, "{e:?}");
+    let e = analyze(&load_scene("plane_point.gltf"));
+    assert!(!e.caustics.yes && !e.indirect.yes, "{e:?}");
+    assert_eq!(e.direct, "1 point light");
+}
+
+fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32) {
+    out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+    out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+}
+
+/// Inward-facing closed box [x0, x0 + 1] x [0, 1] x [0, 1].
+fn closed_box(out: &mut Vec<Triangle>, x0: f32, m: u32) {
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x0 + x, y, z);
+    quad(out, [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)], m);
+    quad(out, [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)], m);
+    quad(out, [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)], m);
+    quad(out, [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)], m);
+    quad(out, [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)], m);
+    quad(out, [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)], m);
+}
+
+#[test]
+fn a_mirror_hidden_from_every_light_produces_no_caustics() {
+    let mat = |name: &str, bsdf: Bsdf, e: f32| Material {
+        name: name.into(),
+        bsdf,
+        base_texture: None,
+        emission: Rgb::splat(e),
+        double_sided: false,
+    };
+    let mut tris = Vec::new();
+    closed_box(&mut tris, 0.0, 0); // lit room
+    closed_box(&mut tris, 2.0, 0); // dark room, holding the mirror
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    quad(&mut tris, [v(2.3, 0.01, 0.3), v(2.3, 0.01, 0.7), v(2.7, 0.01, 0.7), v(2.7, 0.01, 0.3)], 1); // mirror facing up
+    quad(&mut tris, [v(0.4, 0.999, 0.4), v(0.6, 0.999, 0.4), v(0.6, 0.999, 0.6), v(0.4, 0.999, 0.6)], 2); // light facing down
+    let mats = vec![
+        mat("wall", Bsdf::Lambert { rho: Rgb::splat(0.6) }, 0.0),
+        mat("hidden_mirror", Bsdf::Mirror { r: Rgb::ONE }, 0.0),
+        mat("lamp", Bsdf::Lambert { rho: Rgb::splat(0.6) }, 5.0),
+    ];
+    let scene = Scene::from_parts(tris, mats, vec![], None);
+    let e = analyze(&scene);
+    assert!(
+        !e.caustics.yes && e.caustics.reason.contains("hidden_mirror") && e.caustics.reason.contains("not reachable"),
+        "{:?}",
+        e.caustics
+    );
+    assert!(e.indirect.yes);
+    // The caustic pass confirms it: no photon reaches the mirror.
+    let cfg = pm_photon::TraceConfig {
+        pass: pm_photon::MapPass::Caustic,
+        budget: pm_photon::Budget::Emitted(20_000),
+        seed: 1,
+        selector: pm_photon::LightSelector::new(&scene, &[]).unwrap(),
+        range: None,
+    };
+    assert!(pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons.is_empty());
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Run the pipeline on `scene` at 24 x 24 with `effects` and small photon counts.
+fn run_pipeline(dir: &Path, scene: &str, effects: &str, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("pipeline.toml"))
+        .unwrap()
+        .replace(
+            "scene = \"scenes/cornell_spheres.gltf\"",
+            &format!("scene = {:?}", root().join("scenes").join(scene).display().to_string()),
+        )
+        .replace("effects = \"auto\"", &format!("effects = {effects}"))
+        .replace("global_photons = 400_000", "global_photons = 20_000")
+        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
+        .replace("width = 1024", "width = 24")
+        .replace("height = 1024", "height = 24")
+        .replace("spp = 16", "spp = 1")
+        .replace("gather_rays = 400", "gather_rays = 32");
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    let out = dir.join(name);
+    let bin = std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned();
+    xtask::run::run_with(&[p.display().to_string(), "--out".into(), out.display().to_string()], &root(), &bin).unwrap();
+    out
+}
+
+#[test]
+fn a_lone_plane_needs_no_photon_map_and_matches_the_analytic_direct_light() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run_pipeline(dir.path(), "plane_point.gltf", "\"auto\"", "plane");
+    assert!(!out.join("global.pmap").exists() && !out.join("caustic.pmap").exists());
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("render.stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["final_gathers"], 0);
+    assert_eq!(stats["gather_rays"], 0);
+    // Every pixel centre (1 sample per pixel is at the centre): L = rho/pi I cos / d^2
+    // with the point light 1 m above the floor's centre.
+    let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
+    let scene = load_scene("plane_point.gltf");
+    let cam = scene.camera.as_ref().unwrap();
+    let mut worst = 0f32;
+    for (i, px) in img.layer("total").unwrap().iter().enumerate() {
+        let (x, y) = ((i % 24) as f32 + 0.5, (i / 24) as f32 + 0.5);
+        let d = cam.ray_direction(x / 24.0, y / 24.0, 1.0);
+        let Some(h) = scene.intersect(cam.position, d, f32::INFINITY) else {
+            assert_eq!(*px, Vec3::ZERO);
+            continue;
+        };
+        let to_light = Vec3::new(0.0, 1.0, 0.0) - h.p;
+        let want = 0.5 / std::f32::consts::PI * 10.0 * to_light.normalize().y / to_light.length_squared();
+        worst = worst.max((px.x / want - 1.0).abs());
+    }
+    assert!(worst < 1e-4, "worst relative error {worst}");
+}
+
+#[test]
+fn a_diffuse_scene_renders_identically_with_caustics_forced_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let auto = run_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", "auto");
+    let forced = run_pipeline(dir.path(), "cornell_boxes.gltf", "[\"caustics\", \"indirect\"]", "forced");
+    assert!(
+        !auto.join("caustic.pmap").exists() && !forced.join("caustic.pmap").exists(),
+        "no specular surface, no caustic photons"
+    );
+    assert_eq!(std::fs::read(auto.join("image.exr")).unwrap(), std::fs::read(forced.join("image.exr")).unwrap());
+}
