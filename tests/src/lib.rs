@@ -70,6 +70,7 @@ pub fn render_config(scene: &Scene, mode: Mode, width: u32, height: u32) -> Rend
         contrast: 0.1,
         mode,
         indirect: true,
+        indirect_threshold: 0.0,
         gather_rays: 400,
         secondary_rays: 12,
         secondary_distance: 0.005 * diag,

@@ -120,3 +120,24 @@ fn full_render_is_identical_for_any_thread_count() {
         assert_eq!(bits(x), bits(y), "layer {name}");
     }
 }
+
+/// The importance threshold (Christensen 1999 section 1.3): with a huge threshold
+/// every directly lit shading point counts as unimportant, gets no final gather and
+/// uses the photon-map estimate of indirect light; only points without direct light
+/// (the ceiling, shadows) still gather. The image stays close on average.
+#[test]
+fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
+    let scene = load_scene("cornell_boxes.gltf");
+    let maps = photon_maps(&scene, 100_000, 0, 0.25);
+    let mut cfg = render_config(&scene, Mode::Full, 32, 32);
+    let (gathered, gs) = render(&scene, &maps, &cfg);
+    cfg.indirect_threshold = 1e9;
+    let (thinned, ts) = render(&scene, &maps, &cfg);
+    assert!(gs.final_gathers > 0 && gs.thinned == 0);
+    eprintln!("final gathers {} -> {}, thinned shading points {}", gs.final_gathers, ts.final_gathers, ts.thinned);
+    assert!(ts.final_gathers * 10 < gs.final_gathers * 6, "at least 40% fewer final gathers");
+    assert!(ts.thinned > 0);
+    let e = pm_image::compare(thinned.layer("total").unwrap(), gathered.layer("total").unwrap(), 1.0);
+    eprintln!("all indirect from the photon map vs gathered: relative RMSE {:.4}, bias {:+.4}", e.rel_rmse, e.rel_bias);
+    assert!(e.rel_bias.abs() < 0.05, "{e:?}");
+}

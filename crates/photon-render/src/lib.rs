@@ -82,6 +82,10 @@ pub struct Cli {
     /// scenes where no diffusely reflected light reaches another diffuse surface.
     #[arg(long)]
     pub no_indirect: bool,
+    /// Importance threshold: where the photon map's indirect irradiance is below this
+    /// fraction of the direct irradiance, use it instead of a final gather (0: always gather).
+    #[arg(long, default_value_t = 0.0)]
+    pub indirect_threshold: f32,
     /// Rays per final gather (stratified, cosine-weighted).
     #[arg(long, default_value_t = 400)]
     pub gather_rays: u32,
@@ -160,6 +164,7 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
             ModeArg::Path => Mode::Path,
         },
         indirect: !cli.no_indirect,
+        indirect_threshold: cli.indirect_threshold.max(0.0),
         gather_rays: cli.gather_rays,
         secondary_rays: cli.secondary_rays,
         secondary_distance: cli.secondary_distance * diag,
@@ -290,6 +295,7 @@ fn report(cli: &Cli, cfg: &RenderConfig, s: &RenderStats, diag: f32, notes: &[St
         "lookup_rank_1_2_more": s.lookup_rank,
         "terminated_paths": s.terminated_paths,
         "nonfinite_pixels": s.nonfinite_pixels,
+        "thinned_shading_points": s.thinned,
         "samples": s.samples,
         "samples_per_pixel": s.samples as f64 / (cli.width as f64 * cli.height as f64),
         "supersampled_pixels": s.supersampled_pixels,

@@ -72,6 +72,37 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     g.e
 }
 
+/// Where indirect light matters little (Christensen 1999 section 1.3: "if the
+/// importance is low, the irradiance is estimated from the photons"), the photon
+/// map's indirect irradiance: the precomputed total irradiance minus the direct
+/// irradiance just computed by light sampling, used when it is below
+/// `indirect_threshold` x the direct irradiance. `direct_l` is the reflected direct
+/// radiance, turned back into irradiance through the albedo.
+pub(crate) fn cheap_indirect<G: PhotonRecord>(
+    ctx: &Ctx<G>,
+    p: Vec3,
+    n: Vec3,
+    albedo: Rgb,
+    direct_l: Rgb,
+    scratch: &mut Scratch,
+) -> Option<Rgb> {
+    let t = ctx.cfg.indirect_threshold;
+    if !(t > 0.0) || ctx.maps.irradiance.is_none() {
+        return None;
+    }
+    let e_direct = Rgb::new(
+        if albedo.x > 0.0 { PI * direct_l.x / albedo.x } else { 0.0 },
+        if albedo.y > 0.0 { PI * direct_l.y / albedo.y } else { 0.0 },
+        if albedo.z > 0.0 { PI * direct_l.z / albedo.z } else { 0.0 },
+    );
+    let e_total = lookup_irradiance(ctx, p, n, scratch);
+    let e_ind = (e_total - e_direct).max(Rgb::ZERO);
+    (pm_color::mean(e_ind) < t * pm_color::mean(e_direct)).then(|| {
+        ctx.stats.thinned.fetch_add(1, Relaxed);
+        e_ind
+    })
+}
+
 /// Radiance components along the ray from `o` in direction `d`.
 pub(crate) fn trace<G: PhotonRecord>(
     ctx: &Ctx<G>,
@@ -163,27 +194,33 @@ pub(crate) fn trace<G: PhotonRecord>(
                 None => Rgb::ZERO,
             };
             ctx.stats.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
-            let e = if cfg.indirect { indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache) } else { Rgb::ZERO };
+            let e = if !cfg.indirect {
+                Rgb::ZERO
+            } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
+                e
+            } else {
+                indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache)
+            };
             Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
         }
     }
 }
 
-/// The non-specular points an eye ray reaches, following specular bounces exactly as
+/// The non-specular hits an eye ray reaches, following specular bounces exactly as
 /// [`trace`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
-/// after): where the irradiance-cache prepass puts records. Each point is
-/// (position, shading normal, geometric normal), normals on the ray's side.
+/// after): where the irradiance-cache prepass puts records. Each is the hit and the
+/// direction toward the viewer.
 pub(crate) fn diffuse_points<G: PhotonRecord>(
     ctx: &Ctx<G>,
     o: Vec3,
     d: Vec3,
     depth: u32,
-    out: &mut Vec<(Vec3, Vec3, Vec3)>,
+    out: &mut Vec<(pm_scene::Hit, Vec3)>,
 ) {
     let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
     let bsdf = ctx.scene.bsdf(&hit);
     if !bsdf.is_specular() {
-        out.push((hit.p, facing(hit.ns, -d), facing(hit.ng, -d)));
+        out.push((hit, -d));
         return;
     }
     if depth >= ctx.cfg.max_depth {

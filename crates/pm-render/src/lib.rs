@@ -65,6 +65,10 @@ pub struct RenderConfig {
     /// Compute soft indirect light (final gathering); off when the scene analysis
     /// finds no diffusely reflected light reaching another diffuse surface.
     pub indirect: bool,
+    /// Importance threshold (Christensen 1999 section 1.3): where the photon map says
+    /// indirect irradiance is below this fraction of the direct irradiance, the
+    /// photon-map estimate is used instead of a final gather; 0 always gathers.
+    pub indirect_threshold: f32,
     /// Final-gather rays per gather (stratified, cosine-distributed).
     pub gather_rays: u32,
     /// Rays of a secondary final gather (the paper: 12).

@@ -4,7 +4,7 @@
 
 use crate::gather::{Scratch, final_gather};
 use crate::icache::IrradianceCache;
-use crate::integrator::{Components, diffuse_points, trace};
+use crate::integrator::{Components, cheap_indirect, diffuse_points, trace};
 use crate::{Ctx, Maps, Mode, RenderConfig};
 use glam::Vec2;
 use pm_color::Rgb;
@@ -28,6 +28,7 @@ pub(crate) struct Counters {
     pub lookup_rank: [AtomicU64; 3],
     pub terminated_paths: AtomicU64,
     pub nonfinite: AtomicU64,
+    pub thinned: AtomicU64,
     pub ns_direct: AtomicU64,
     pub ns_caustic: AtomicU64,
     pub ns_gather: AtomicU64,
@@ -63,6 +64,9 @@ pub struct RenderStats {
     pub lookup_rank: [u64; 3],
     /// Paths cut by the depth limit.
     pub terminated_paths: u64,
+    /// Shading points where indirect light was below the importance threshold and
+    /// the photon-map estimate replaced a final gather.
+    pub thinned: u64,
     /// Pixel values that came out NaN or infinite and were written as 0 (should be 0).
     pub nonfinite_pixels: u64,
     /// Eye samples traced.
@@ -133,13 +137,23 @@ pub fn render<G: PhotonRecord>(
                     let mut scratch = Scratch::default();
                     let cache = &cache;
                     let ctx = &ctx;
-                    points.into_iter().enumerate().filter_map(move |(b, (p, ns, ng))| {
-                        if cache.lookup(p, ns, 1.0).is_some() {
+                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo))| {
+                        let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
+                        if cache.lookup(hit.p, ns, 1.0).is_some() {
                             return None;
                         }
                         let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x0063_6163_6865 ^ b as u64), 0);
-                        let g = final_gather(ctx, p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
-                        Some((p, ns, g))
+                        // No record where indirect light is unimportant: rendering will
+                        // use the photon-map estimate there (same test, same result).
+                        if cfg.indirect_threshold > 0.0 {
+                            let bsdf = ctx.scene.bsdf(&hit);
+                            let direct = crate::direct::direct(ctx, &hit, &bsdf, wo, &mut s, cfg.light_samples);
+                            if cheap_indirect(ctx, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
+                                return None;
+                            }
+                        }
+                        let g = final_gather(ctx, hit.p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
+                        Some((hit.p, ns, g))
                     })
                 })
                 .collect();
@@ -261,6 +275,7 @@ pub fn render<G: PhotonRecord>(
         lookup_rank: [c.lookup_rank[0].load(Relaxed), c.lookup_rank[1].load(Relaxed), c.lookup_rank[2].load(Relaxed)],
         terminated_paths: c.terminated_paths.load(Relaxed),
         nonfinite_pixels: c.nonfinite.load(Relaxed),
+        thinned: c.thinned.load(Relaxed),
         samples,
         supersampled_pixels: supersampled,
     };
