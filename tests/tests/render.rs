@@ -55,6 +55,10 @@ fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
     let (f, p) = (full.layer("total").unwrap(), path.layer("total").unwrap());
     let e = pm_image::compare(f, p, 1.0);
     let (rmse, bias) = (e.rel_rmse, e.rel_bias);
+    let maxpos = |v: &[glam::Vec3]| {
+        v.iter().enumerate().max_by(|a, b| a.1.max_element().total_cmp(&b.1.max_element())).map(|(i, x)| (i, *x))
+    };
+    eprintln!("brightest pixel: full {:?}, path {:?}", maxpos(f), maxpos(p));
     eprintln!(
         "cornell_boxes full vs path (1024 spp), {} of {} pixels: relative RMSE {rmse:.4}, mean bias {bias:+.4}",
         e.pixels,

@@ -275,7 +275,7 @@ fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u64, 
         if cfg.pass == MapPass::Caustic && !specular_chain {
             return;
         }
-        o = pm_scene::offset_ray_origin(hit.p, hit.ng, bs.wi);
+        o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;
     }
     out.truncated = true;

@@ -7,7 +7,7 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
-use pm_scene::{Hit, offset_ray_origin};
+use pm_scene::Hit;
 
 /// One light-sampling estimate of reflected direct radiance: pick a light by power,
 /// sample a point or direction on it, trace a shadow ray. With `mis`, non-delta
@@ -33,8 +33,11 @@ pub(crate) fn light_sample<G: PhotonRecord>(
     if f.max_element() <= 0.0 {
         return Rgb::ZERO;
     }
-    let o = offset_ray_origin(hit.p, hit.ng, ls.wi);
-    let t_max = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+    let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
+    // Measure the shadow ray from the offset origin: the offset can exceed a relative
+    // margin in tiny scenes, and the ray would then reach the light itself (every
+    // shadow ray in a 2 mm Cornell box was blocked before this).
+    let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
     if scene.occluded(o, ls.wi, t_max) {
         return Rgb::ZERO;
     }
@@ -67,7 +70,7 @@ pub(crate) fn direct<G: PhotonRecord>(ctx: &Ctx<G>, hit: &Hit, bsdf: &Bsdf, wo: 
                 && !bs.specular
                 && bs.wi.dot(hit.ng) * side_o > 0.0
             {
-                let o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+                let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                 if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
                     let le = scene.emitted(&h, -bs.wi);
                     let l_idx = scene.light_of_triangle[h.tri as usize];

@@ -11,7 +11,7 @@ use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_kdtree::KnnScratch;
 use pm_sampling::{Sampler, basis};
-use pm_scene::{Hit, offset_ray_origin};
+use pm_scene::Hit;
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -99,7 +99,7 @@ fn gather_radiance<G: PhotonRecord>(
             let uc = s.next_1d();
             let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (Rgb::ZERO, first_t) };
             beta *= bs.weight;
-            o = offset_ray_origin(hit.p, hit.ng, bs.wi);
+            o = ctx.scene.offset_origin(hit.p, hit.ng, bs.wi);
             d = bs.wi;
             continue;
         }
@@ -169,7 +169,7 @@ pub(crate) fn final_gather<G: PhotonRecord>(
             let dir = world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
             let idx = j * n + k;
             if dir.dot(ng) > 0.0 {
-                let o = offset_ray_origin(x, ng, dir);
+                let o = ctx.scene.offset_origin(x, ng, dir);
                 let (lr, dist) = gather_radiance(ctx, o, dir, s, secondary, scratch);
                 l[idx] = lr;
                 r[idx] = dist;

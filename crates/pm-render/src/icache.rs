@@ -67,7 +67,17 @@ impl IrradianceCache {
             }
         }
         let r = r.clamp(self.spacing.0, self.spacing.1);
-        let rec = Record { p, n, e: g.e, r, grad_t: g.grad_t, grad_r: g.grad_r };
+        // The spacing floor can leave R_i above E_i / |grad|; then scale the gradient
+        // down so that extrapolating across the record's reach changes E by at most
+        // E itself (near corners, gather rays of length ~0 make 1/r gradients huge).
+        let mut grad_t = g.grad_t;
+        for c in 0..3 {
+            let gl = grad_t[c].length();
+            if gl * r > g.e[c] {
+                grad_t[c] *= if gl > 0.0 { g.e[c] / (gl * r) } else { 0.0 };
+            }
+        }
+        let rec = Record { p, n, e: g.e, r, grad_t, grad_r: g.grad_r };
         let k = self.key(p);
         self.grid.entry(k).or_default().push(self.records.len() as u32);
         self.records.push(rec);

@@ -10,7 +10,6 @@ use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
-use pm_scene::offset_ray_origin;
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Instant;
@@ -127,7 +126,7 @@ pub(crate) fn trace<G: PhotonRecord>(
         let t0 = Instant::now();
         let mut l = le;
         let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
-            let o2 = offset_ray_origin(hit.p, hit.ng, wi);
+            let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
             w * trace(ctx, o2, wi, depth + 1, s, scratch, cache).sum()
         };
         let u = s.next_2d();
@@ -228,7 +227,7 @@ pub(crate) fn diffuse_points<G: PhotonRecord>(
     }
     let Some(refl) = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0) else { return };
     let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
-    let mut go = |wi: Vec3| diffuse_points(ctx, offset_ray_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
+    let mut go = |wi: Vec3| diffuse_points(ctx, ctx.scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
     match refr {
         Some(t) if depth < SPLIT_DEPTH => {
             go(refl.wi);

@@ -124,13 +124,13 @@ pub fn analyze(scene: &Scene) -> Effects {
                 let bsdf = scene.bsdf(&h);
                 if bsdf.is_specular() {
                     let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { continue 'probe };
-                    o = crate::offset_ray_origin(h.p, h.ng, bs.wi);
+                    o = scene.offset_origin(h.p, h.ng, bs.wi);
                     d = bs.wi;
                     continue;
                 }
                 let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
                 let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
-                let o2 = crate::offset_ray_origin(h.p, h.ng, d2);
+                let o2 = scene.offset_origin(h.p, h.ng, d2);
                 if let Some(h2) = scene.intersect(o2, d2, f32::INFINITY) {
                     if !is_specular(h2.tri) {
                         pair = Some((h.tri, h2.tri));

@@ -152,7 +152,7 @@ impl Light {
                     }
                     (d, *emission * (cos * area / pdf))
                 };
-                let origin = crate::offset_ray_origin(p, tri.ng, dir);
+                let origin = scene.offset_origin(p, tri.ng, dir);
                 Some(EmittedRay { origin, dir, power })
             }
             LightKind::Point { position, intensity } => {

@@ -96,7 +96,7 @@ fn offset_origins_avoid_self_intersection_at_any_scale() {
             if i % 2 == 1 {
                 d = -d;
             }
-            let o = offset_ray_origin(x, ng, d);
+            let o = offset_ray_origin(x, ng, d, scale);
             if intersect_triangle(o, d, &p, f32::INFINITY).is_some() {
                 hits += 1;
             }
