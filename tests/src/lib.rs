@@ -101,3 +101,61 @@ pub fn render(
     };
     pm_render::render(scene, &m, cfg, &|_, _| {}).unwrap()
 }
+
+/// An inward-facing closed box [lo, hi] as quads (two triangles each) of material `m`.
+pub fn closed_box(out: &mut Vec<pm_scene::Triangle>, lo: glam::Vec3, hi: glam::Vec3, m: u32) {
+    use glam::Vec3;
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let (a, b) = (lo, hi);
+    let quads = [
+        [v(a.x, a.y, a.z), v(a.x, a.y, b.z), v(b.x, a.y, b.z), v(b.x, a.y, a.z)], // floor, +y
+        [v(a.x, b.y, a.z), v(b.x, b.y, a.z), v(b.x, b.y, b.z), v(a.x, b.y, b.z)], // ceiling, -y
+        [v(a.x, a.y, a.z), v(b.x, a.y, a.z), v(b.x, b.y, a.z), v(a.x, b.y, a.z)], // back, +z
+        [v(a.x, a.y, b.z), v(a.x, b.y, b.z), v(b.x, b.y, b.z), v(b.x, a.y, b.z)], // front, -z
+        [v(a.x, a.y, a.z), v(a.x, b.y, a.z), v(a.x, b.y, b.z), v(a.x, a.y, b.z)], // left, +x
+        [v(b.x, a.y, a.z), v(b.x, a.y, b.z), v(b.x, b.y, b.z), v(b.x, b.y, a.z)], // right, -x
+    ];
+    for q in quads {
+        out.push(pm_scene::Triangle::new([q[0], q[1], q[2]], m).unwrap());
+        out.push(pm_scene::Triangle::new([q[0], q[2], q[3]], m).unwrap());
+    }
+}
+
+/// A material of the given model, emission and name.
+pub fn material(name: &str, bsdf: pm_bsdf::Bsdf, emission: f32) -> pm_scene::Material {
+    pm_scene::Material {
+        name: name.into(),
+        bsdf,
+        base_texture: None,
+        emission: glam::Vec3::splat(emission),
+        double_sided: false,
+    }
+}
+
+/// A UV sphere (outward faces unless `inward`) of material `m`.
+pub fn sphere(out: &mut Vec<pm_scene::Triangle>, c: glam::Vec3, r: f32, inward: bool, m: u32) {
+    let (seg, rings) = (32, 16);
+    let at = |i: u32, j: u32| {
+        let (th, ph) =
+            (std::f32::consts::PI * j as f32 / rings as f32, 2.0 * std::f32::consts::PI * i as f32 / seg as f32);
+        c + r * glam::Vec3::new(th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin())
+    };
+    for j in 0..rings {
+        for i in 0..seg {
+            let (a, b, cc, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
+            for t in [[a, b, cc], [a, cc, d]] {
+                let t = if inward { [t[0], t[2], t[1]] } else { t };
+                if let Some(tri) = pm_scene::Triangle::new(t, m) {
+                    out.push(tri);
+                }
+            }
+        }
+    }
+}
+
+/// A perspective camera at `position` looking at `target` (y up), 60 degrees.
+pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
+    let forward = (target - position).normalize();
+    let right = forward.cross(glam::Vec3::Y).normalize();
+    pm_scene::Camera { position, forward, up: right.cross(forward), right, yfov: 1.05, aspect: None }
+}
