@@ -61,7 +61,13 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
     let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
     let content = |message: String| SceneError::Content { path: path.to_owned(), message };
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(gltf_err)?;
+    // Parse, check the references gltf-json's validation indexes without a bounds check
+    // (it panics on a POSITION accessor index out of range; found by fuzzing), then
+    // validate.
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err)?;
+    let root = raw.document.into_json();
+    check_attribute_indices(&root).map_err(content)?;
+    let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
     let doc = gltf.document;
@@ -304,6 +310,25 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         warnings.push(format!("{skipped_degenerate} zero-area triangles skipped"));
     }
     Ok(Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings))
+}
+
+/// Every mesh attribute and morph-target accessor index must name an accessor.
+fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), String> {
+    let n = root.accessors.len();
+    for (mi, mesh) in root.meshes.iter().enumerate() {
+        for (pi, prim) in mesh.primitives.iter().enumerate() {
+            let targets = prim.targets.iter().flatten().flat_map(|t| [t.positions, t.normals, t.tangents]).flatten();
+            for idx in prim.attributes.values().copied().chain(targets).chain(prim.indices) {
+                if idx.value() >= n {
+                    return Err(format!(
+                        "mesh {mi} primitive {pi}: accessor index {} is out of range ({n} accessors)",
+                        idx.value()
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Append one primitive's triangles in world space. Returns the number of degenerate
