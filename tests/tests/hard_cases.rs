@@ -120,3 +120,20 @@ fn bvh_closest_hits_match_brute_force_at_any_scale() {
         assert_eq!(misses, 0, "scale {scale}");
     }
 }
+
+/// Grazing rays: travelling exactly in the plane of the floor, or exactly along the
+/// edge where floor and back wall meet, a ray must pass the floor (it has no
+/// thickness to hit) and stop at the wall ahead with a finite, exact hit.
+#[test]
+fn rays_in_the_plane_of_a_wall_hit_the_wall_ahead() {
+    let scene = pm_tests::load_scene("cornell_boxes.gltf");
+    for (o, d, t) in [
+        (Vec3::new(-0.9, 0.0, 0.9), Vec3::X, 1.9), // in the floor plane, toward the right wall
+        (Vec3::new(-0.9, 0.0, -1.0), Vec3::X, 1.9), // along the floor/back-wall edge
+        (Vec3::new(-0.95, 1.0, 0.9), Vec3::NEG_Z, 1.9), // parallel to the left wall, 5 cm off it
+    ] {
+        let h = scene.intersect(o, d, f32::INFINITY).expect("a grazing ray escaped the box");
+        assert!(h.t.is_finite() && h.p.is_finite() && h.ns.is_finite());
+        assert!((h.t - t).abs() < 1e-5, "ray from {o} along {d}: t = {}", h.t);
+    }
+}

@@ -167,3 +167,24 @@ fn bad_scenes_fail_with_one_line_and_no_output() {
     ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("no light of that name"));
 }
+
+#[test]
+fn an_output_folder_that_cannot_be_written_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("not_a_folder");
+    std::fs::write(&blocker, b"x").unwrap();
+    let out = blocker.join("out");
+    let o = trace(&[
+        "--scene",
+        scene("cornell_boxes.gltf").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--global",
+        "1000",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let last = err.trim_end().lines().last().unwrap();
+    assert!(last.contains("cannot create output folder") && last.contains("not_a_folder"), "{err}");
+    assert_eq!(std::fs::read(&blocker).unwrap(), b"x");
+}
