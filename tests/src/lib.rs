@@ -159,3 +159,13 @@ pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
     let right = forward.cross(glam::Vec3::Y).normalize();
     pm_scene::Camera { position, forward, up: right.cross(forward), right, yfov: 1.05, aspect: None }
 }
+
+/// Mean, relative RMS error and worst relative error of the red channel of `px`
+/// against a constant `want` (the furnace tests' figures).
+pub fn against_constant(px: &[glam::Vec3], want: f64) -> (f64, f64, f64) {
+    let n = px.len().max(1) as f64;
+    let mean = px.iter().map(|p| p.x as f64).sum::<f64>() / n;
+    let rms = (px.iter().map(|p| (p.x as f64 / want - 1.0).powi(2)).sum::<f64>() / n).sqrt();
+    let worst = px.iter().map(|p| (p.x as f64 / want - 1.0).abs()).fold(0.0, f64::max);
+    (mean, rms, worst)
+}

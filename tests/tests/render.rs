@@ -1,7 +1,7 @@
 //! Stage 4 against analytic answers and the path tracer.
 
 use pm_render::{Lookup, Mode};
-use pm_tests::{load_scene, photon_maps, render, render_config};
+use pm_tests::{against_constant, load_scene, photon_maps, render, render_config};
 
 /// Furnace: radiance is exactly 5.0 everywhere (a closed, flat-faceted sphere with
 /// albedo 0.8 and L_e = 1). `path` and `full` must both give it within 1% on average
@@ -21,10 +21,7 @@ fn furnace_renders_five_in_full_and_path_modes() {
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     for (name, img) in [("full", &full), ("path", &path)] {
-        let px = img.layer("total").unwrap();
-        let mean = px.iter().map(|p| p.x as f64).sum::<f64>() / px.len() as f64;
-        let rms = (px.iter().map(|p| (p.x as f64 / 5.0 - 1.0).powi(2)).sum::<f64>() / px.len() as f64).sqrt();
-        let worst = px.iter().map(|p| (p.x as f64 / 5.0 - 1.0).abs()).fold(0.0, f64::max);
+        let (mean, rms, worst) = against_constant(img.layer("total").unwrap(), 5.0);
         eprintln!(
             "furnace {name}: mean {mean:.4}, pixel RMS error {:.2}%, worst pixel {:.2}%",
             rms * 100.0,
