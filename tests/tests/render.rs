@@ -142,3 +142,27 @@ fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
     eprintln!("all indirect from the photon map vs gathered: relative RMSE {:.4}, bias {:+.4}", e.rel_rmse, e.rel_bias);
     assert!(e.rel_bias.abs() < 0.05, "{e:?}");
 }
+
+/// Each component of the photon-map image against the path tracer's same component
+/// (classified along its paths): direct, caustic (photon map vs light found through
+/// specular bounces from the first diffuse vertex), soft indirect (final gather vs
+/// twice-diffuse paths) and specular, on cornell_spheres. Means over the image.
+#[test]
+fn components_agree_with_the_path_tracers_components() {
+    let scene = load_scene("cornell_spheres.gltf");
+    let maps = photon_maps(&scene, 200_000, 35_000, 0.25);
+    let mut cfg = render_config(&scene, Mode::Full, 40, 40);
+    let (full, _) = render(&scene, &maps, &cfg);
+    cfg.mode = Mode::Path;
+    cfg.spp = 1024;
+    let (path, _) = render(&scene, &maps, &cfg);
+    let mean = |img: &pm_render::Image, layer: &str| {
+        let px = img.layer(layer).unwrap();
+        px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
+    };
+    for (layer, tol) in [("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)] {
+        let (f, p) = (mean(&full, layer), mean(&path, layer));
+        eprintln!("{layer}: full {f:.5}, path {p:.5} ({:+.2}%)", 100.0 * (f / p - 1.0));
+        assert!((f / p - 1.0).abs() < tol, "{layer}: full {f} vs path {p}");
+    }
+}

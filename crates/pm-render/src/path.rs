@@ -4,6 +4,7 @@
 
 use crate::Ctx;
 use crate::direct::power_heuristic;
+use crate::integrator::Components;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_format::PhotonRecord;
@@ -14,35 +15,75 @@ use std::sync::atomic::Ordering::Relaxed;
 /// scenes. Paths cut here are counted.
 const MAX_PATH: u32 = 1000;
 
-/// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2].
-pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: &mut Sampler) -> Rgb {
+/// The renderer's component a contribution belongs to, decided along the path the
+/// way the photon-map renderer splits its image: everything seen through a specular
+/// chain from the eye is "specular"; otherwise, at the first non-specular vertex D1,
+/// emission seen directly and light arriving at D1 straight from a light are
+/// "direct", light arriving at D1 through specular bounces only is "caustic", and
+/// anything that has been diffusely reflected twice is "indirect".
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Layer {
+    Specular,
+    Direct,
+    Caustic,
+    Indirect,
+}
+
+fn add(c: &mut Components, layer: Layer, v: Rgb) {
+    match layer {
+        Layer::Specular => c.specular += v,
+        Layer::Direct => c.direct += v,
+        Layer::Caustic => c.caustic += v,
+        Layer::Indirect => c.indirect += v,
+    }
+}
+
+/// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2], split into the
+/// renderer's component layers.
+pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: &mut Sampler) -> Components {
     let scene = ctx.scene;
     let (mut o, mut d) = (o, d);
     let mut beta = Rgb::ONE;
-    let mut l = Rgb::ZERO;
+    let mut l = Components::default();
     let mut prev_pdf = 0.0f32;
     let mut prev_specular = true;
+    // Classification of emission found at the next hit, and the path's history.
+    let mut emission_layer = Layer::Direct;
+    let mut specular_before_d1 = false;
+    let mut n_diffuse = 0u32;
     for depth in 0..MAX_PATH {
         let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return l };
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         if le.max_element() > 0.0 {
             if prev_specular {
-                l += beta * le;
+                add(&mut l, emission_layer, beta * le);
             } else {
                 let li = scene.light_of_triangle[hit.tri as usize];
                 if li != u32::MAX {
                     let p_l = scene.lights[li as usize].pdf_li(scene, d, hit.t, hit.tri)
                         * ctx.lights.probs[li as usize] as f32;
-                    l += beta * le * power_heuristic(prev_pdf, p_l);
+                    add(&mut l, emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
                 }
             }
         }
         let bsdf = scene.bsdf(&hit);
-        if !bsdf.is_specular() {
+        let specular = bsdf.is_specular();
+        if specular && n_diffuse == 0 {
+            specular_before_d1 = true;
+        }
+        if !specular {
+            n_diffuse += 1;
             // Next-event estimation, one light sample, MIS against BSDF sampling
             // (the BSDF-sampled continuation below picks up emission with its weight).
-            l += beta * crate::direct::light_sample(ctx, &hit, &bsdf, wo, s, true);
+            let nee_layer = if specular_before_d1 {
+                Layer::Specular
+            } else if n_diffuse == 1 {
+                Layer::Direct
+            } else {
+                Layer::Indirect
+            };
+            add(&mut l, nee_layer, beta * crate::direct::light_sample(ctx, &hit, &bsdf, wo, s, true));
         }
         let u = s.next_2d();
         let uc = s.next_1d();
@@ -51,6 +92,15 @@ pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: 
         if same_side == bs.transmitted {
             return l;
         }
+        emission_layer = if specular_before_d1 {
+            Layer::Specular
+        } else if n_diffuse >= 2 {
+            Layer::Indirect
+        } else if specular {
+            Layer::Caustic // D1, then specular bounces only
+        } else {
+            Layer::Direct // sampled from D1 itself
+        };
         beta *= bs.weight;
         prev_pdf = bs.pdf;
         prev_specular = bs.specular;

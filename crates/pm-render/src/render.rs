@@ -176,7 +176,7 @@ pub fn render<G: PhotonRecord>(
         let (x, y) = ((i % w) as f32 + j.x, (i / w) as f32 + j.y);
         let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
         if cfg.mode == Mode::Path {
-            Components { direct: crate::path::path_radiance(&ctx, camera.position, d, &mut s), ..Default::default() }
+            crate::path::path_radiance(&ctx, camera.position, d, &mut s)
         } else {
             trace(&ctx, camera.position, d, 0, &mut s, scratch, cache_ref)
         }
