@@ -14,7 +14,7 @@ tasks:
                          output in out/<scene name>/); steps whose inputs and
                          parameters are unchanged are skipped unless --force
   compare IMAGE.exr REFERENCE.exr [--mask-above V] [--layer NAME]
-                         relative RMSE and bias of an image against a reference
+                         relative RMSE, bias and SSIM of an image against a reference
                          (pixels where the reference exceeds V are left out)
   gen-scenes [--check]   write scenes/*.gltf + .bin from code (--check: fail if the
                          committed files differ from what the code generates)";
@@ -70,7 +70,9 @@ fn compare(args: &[String]) -> Result<()> {
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
         i.layer(&layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {layer}", p.display()))
     };
-    let e = pm_image::compare(&pick(&ia, a)?, &pick(&ib, b)?, mask);
-    println!("relative RMSE {:.5}  relative bias {:+.5}  pixels {}", e.rel_rmse, e.rel_bias, e.pixels);
+    let (la, lb) = (pick(&ia, a)?, pick(&ib, b)?);
+    let e = pm_image::compare(&la, &lb, mask);
+    let ssim = pm_image::ssim(&la, &lb, ia.width as usize, ia.height as usize);
+    println!("relative RMSE {:.5}  relative bias {:+.5}  SSIM {ssim:.4}  pixels {}", e.rel_rmse, e.rel_bias, e.pixels);
     Ok(())
 }

@@ -122,6 +122,51 @@ pub fn compare(a: &[Vec3], b: &[Vec3], mask_above: f32) -> ImageError {
     ImageError { rel_rmse: mse.sqrt() / denom, rel_bias: (mean_a - mean_b) / denom, pixels: keep.len() }
 }
 
+/// Structural similarity (Wang et al. 2004, "Image Quality Assessment: From Error
+/// Visibility to Structural Similarity") of `a` against reference `b`, both
+/// `width` x `height`: computed on luminance mapped to [0, 1) by x / (1 + x) (the
+/// images are HDR radiance), over 7 x 7 windows at every pixel, with C1 = 0.01^2 and
+/// C2 = 0.03^2; the mean over windows. 1 for identical images.
+pub fn ssim(a: &[Vec3], b: &[Vec3], width: usize, height: usize) -> f64 {
+    let tone = |v: &[Vec3]| -> Vec<f64> {
+        v.iter().map(|p| {
+            let y = pm_color::luminance(*p).max(0.0) as f64;
+            y / (1.0 + y)
+        }).collect()
+    };
+    let (x, y) = (tone(a), tone(b));
+    const R: isize = 3;
+    let (c1, c2) = (0.01f64 * 0.01, 0.03f64 * 0.03);
+    let mut total = 0.0;
+    let mut windows = 0usize;
+    for cy in 0..height as isize {
+        for cx in 0..width as isize {
+            let (mut sx, mut sy, mut sxx, mut syy, mut sxy, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for dy in -R..=R {
+                for dx in -R..=R {
+                    let (px, py) = (cx + dx, cy + dy);
+                    if px < 0 || py < 0 || px >= width as isize || py >= height as isize {
+                        continue;
+                    }
+                    let i = py as usize * width + px as usize;
+                    let (u, v) = (x[i], y[i]);
+                    sx += u;
+                    sy += v;
+                    sxx += u * u;
+                    syy += v * v;
+                    sxy += u * v;
+                    n += 1.0;
+                }
+            }
+            let (mx, my) = (sx / n, sy / n);
+            let (vx, vy, cov) = (sxx / n - mx * mx, syy / n - my * my, sxy / n - mx * my);
+            total += ((2.0 * mx * my + c1) * (2.0 * cov + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+            windows += 1;
+        }
+    }
+    if windows == 0 { 1.0 } else { total / windows as f64 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,6 +190,19 @@ mod tests {
         let png = dir.path().join("a.png");
         write_png(&png, 4, 3, &px(1.0), 0.0).unwrap();
         assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    }
+
+    #[test]
+    fn ssim_is_one_for_equal_images_and_drops_with_noise_and_structure_loss() {
+        let (w, h) = (32, 24);
+        let img: Vec<Vec3> = (0..w * h).map(|i| Vec3::splat(((i % w) as f32 / w as f32) * 2.0 + ((i / w) % 4) as f32 * 0.3)).collect();
+        assert!((ssim(&img, &img, w, h) - 1.0).abs() < 1e-12);
+        let noisy: Vec<Vec3> = img.iter().enumerate().map(|(i, p)| *p * if i % 2 == 0 { 1.2 } else { 0.8 }).collect();
+        let s_noisy = ssim(&noisy, &img, w, h);
+        let flat = vec![Vec3::splat(1.0); w * h];
+        let s_flat = ssim(&flat, &img, w, h);
+        assert!(s_noisy < 0.99 && s_noisy > s_flat, "noisy {s_noisy}, flat {s_flat}");
+        assert!(s_flat < 0.5, "a flat image keeps no structure: {s_flat}");
     }
 
     #[test]
