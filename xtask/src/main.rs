@@ -3,6 +3,9 @@
 
 use xtask::{gen_scenes, run};
 
+mod figure1;
+mod tradeoff;
+
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 
@@ -16,6 +19,12 @@ tasks:
   compare IMAGE.exr REFERENCE.exr [--mask-above V] [--layer NAME]
                          relative RMSE, bias and SSIM of an image against a reference
                          (pixels where the reference exceeds V are left out)
+  tradeoff [--scene FILE] [--out DIR] [--size N]
+                         what accuracy costs in time: a path-traced reference, then
+                         one setting at a time; CSV, markdown, plot.svg and plot.png
+  figure1 [--out DIR] [--size N]
+                         Christensen's Figure 1 (a)-(g), a contact sheet and the
+                         section 3 table beside the paper's numbers
   gen-scenes [--check]   write scenes/*.gltf + .bin from code (--check: fail if the
                          committed files differ from what the code generates)";
 
@@ -34,6 +43,8 @@ fn run() -> Result<()> {
     match args.first().map(String::as_str) {
         Some("run") => run::run(&args[1..], &workspace_root()).map(|_| ()),
         Some("compare") => compare(&args[1..]),
+        Some("tradeoff") => tradeoff::run(&args[1..], &workspace_root()),
+        Some("figure1") => figure1::run(&args[1..], &workspace_root()),
         Some("gen-scenes") => {
             gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))
         }

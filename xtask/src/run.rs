@@ -492,7 +492,8 @@ fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-fn build_stages(root: &Path) -> Result<()> {
+/// Build the stage binaries (release).
+pub fn build_stages(root: &Path) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)

@@ -129,10 +129,12 @@ pub fn compare(a: &[Vec3], b: &[Vec3], mask_above: f32) -> ImageError {
 /// C2 = 0.03^2; the mean over windows. 1 for identical images.
 pub fn ssim(a: &[Vec3], b: &[Vec3], width: usize, height: usize) -> f64 {
     let tone = |v: &[Vec3]| -> Vec<f64> {
-        v.iter().map(|p| {
-            let y = pm_color::luminance(*p).max(0.0) as f64;
-            y / (1.0 + y)
-        }).collect()
+        v.iter()
+            .map(|p| {
+                let y = pm_color::luminance(*p).max(0.0) as f64;
+                y / (1.0 + y)
+            })
+            .collect()
     };
     let (x, y) = (tone(a), tone(b));
     const R: isize = 3;
@@ -195,7 +197,8 @@ mod tests {
     #[test]
     fn ssim_is_one_for_equal_images_and_drops_with_noise_and_structure_loss() {
         let (w, h) = (32, 24);
-        let img: Vec<Vec3> = (0..w * h).map(|i| Vec3::splat(((i % w) as f32 / w as f32) * 2.0 + ((i / w) % 4) as f32 * 0.3)).collect();
+        let img: Vec<Vec3> =
+            (0..w * h).map(|i| Vec3::splat(((i % w) as f32 / w as f32) * 2.0 + ((i / w) % 4) as f32 * 0.3)).collect();
         assert!((ssim(&img, &img, w, h) - 1.0).abs() < 1e-12);
         let noisy: Vec<Vec3> = img.iter().enumerate().map(|(i, p)| *p * if i % 2 == 0 { 1.2 } else { 0.8 }).collect();
         let s_noisy = ssim(&noisy, &img, w, h);
