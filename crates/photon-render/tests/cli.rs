@@ -86,3 +86,36 @@ fn refuses_bad_inputs_without_writing_output() {
     assert!(err.contains("nocam.gltf: the scene has no perspective camera"), "{err}");
     assert!(!out.exists() && !Path::new(&out).with_extension("png").exists());
 }
+
+#[test]
+fn an_empty_global_map_renders_and_says_so() {
+    use pm_format::{CompactIrrPhoton, Header, Layout, MapKind, Order, PhotonMap};
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_boxes.gltf");
+    let hash = pm_scene::load(&s).unwrap().content_hash;
+    let mut header = Header::new(MapKind::Global, Order::KdTree, Layout::CompactIrradiance, 1000, hash, "{}".into());
+    header.has_irradiance = true;
+    let g = dir.path().join("global.irr.pmap");
+    PhotonMap::new(header, Vec::<CompactIrrPhoton>::new()).write(&g).unwrap();
+    let out = dir.path().join("x.exr");
+    let o = render(&[
+        "--scene",
+        s.to_str().unwrap(),
+        "--global",
+        g.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "12",
+        "--height",
+        "12",
+        "--gather-rays",
+        "16",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("the global photon map holds no photons"), "{err}");
+    let img = pm_image::read_exr(&out).unwrap();
+    assert!(img.layer("total").unwrap().iter().all(|p| p.is_finite()));
+    assert!(img.layer("direct").unwrap().iter().any(|p| p.max_element() > 0.0));
+}
