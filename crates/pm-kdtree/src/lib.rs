@@ -16,6 +16,7 @@
 
 use glam::Vec3;
 use pm_format::{PhotonRecord, flags};
+use rayon::prelude::*;
 use std::collections::BinaryHeap;
 
 /// Subtrees smaller than this are balanced on one thread.
@@ -50,7 +51,7 @@ struct Item {
 pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
     assert!(positions.len() < u32::MAX as usize, "photon maps hold fewer than 2^32 photons");
     let mut items: Vec<Item> =
-        positions.iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
+        positions.par_iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
     let mut axes = vec![flags::AXIS_LEAF; items.len()];
     split(&mut items, &mut axes);
     // `items` is now in "segment order": each subtree is a contiguous segment whose
@@ -115,12 +116,13 @@ fn split(items: &mut [Item], axes: &mut [u8]) {
 /// Reorder records into a left-balanced kd-tree in heap order, writing each node's
 /// split axis into its flags.
 pub fn balance<R: PhotonRecord>(records: &[R]) -> Vec<R> {
-    let positions: Vec<Vec3> = records.iter().map(|r| r.position()).collect();
+    let positions: Vec<Vec3> = records.par_iter().map(|r| r.position()).collect();
     let (order, axes) = balance_permutation(&positions);
     drop(positions);
+    // The gather is a random read per record: done in parallel, in heap order.
     order
-        .iter()
-        .zip(&axes)
+        .par_iter()
+        .zip(axes.par_iter())
         .map(|(&src, &axis)| {
             let mut r = records[src as usize];
             r.set_flags((r.flags() & !flags::AXIS_MASK) | axis);
