@@ -90,5 +90,24 @@ pub fn intersect_triangle(o: Vec3, d: Vec3, p: &[Vec3; 3], t_max: f32) -> Option
     if !(t > 0.0 && t < t_max && t.is_finite()) {
         return None;
     }
+    // Conservative lower bound on t (pbrt-v4 section 6.8.7): a t within the
+    // floating-point error of the computation is not a hit, so a ray starting on a
+    // surface (a camera lying on the floor) does not hit that surface at t ~ 0.
+    let gamma = |n: f32| {
+        let e = n * f32::EPSILON * 0.5;
+        e / (1.0 - e)
+    };
+    let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
+    let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
+    let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+    let delta_z = gamma(3.0) * max_zt;
+    let delta_x = gamma(5.0) * (max_xt + max_zt);
+    let delta_y = gamma(5.0) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t = 3.0 * (gamma(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv.abs();
+    if t <= delta_t {
+        return None;
+    }
     Some((t, [e0 * inv, e1 * inv, e2 * inv]))
 }
