@@ -35,9 +35,6 @@ impl Components {
     pub fn total(&self) -> Rgb {
         self.direct + self.caustic + self.indirect + self.specular
     }
-    fn sum(&self) -> Rgb {
-        self.total()
-    }
 }
 
 fn elapsed_ns(t: Instant) -> u64 {
@@ -127,7 +124,7 @@ pub(crate) fn trace<G: PhotonRecord>(
         let mut l = le;
         let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
             let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
-            w * trace(ctx, o2, wi, depth + 1, s, scratch, cache).sum()
+            w * trace(ctx, o2, wi, depth + 1, s, scratch, cache).total()
         };
         let u = s.next_2d();
         let uc = s.next_1d();

@@ -215,24 +215,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 }
                 let mat = &materials[material as usize];
                 if mat.emission.max_element() > 0.0 && triangles.len() > first {
-                    let tris: Vec<u32> = (first as u32..triangles.len() as u32).collect();
-                    let mut cdf = Vec::with_capacity(tris.len());
-                    let mut acc = 0.0f64;
-                    for &t in &tris {
-                        acc += triangles[t as usize].area as f64;
-                        cdf.push(acc);
-                    }
-                    lights.push(Light {
-                        name: format!("{node_name} ({})", mat.name),
-                        kind: LightKind::Area {
-                            tris,
-                            cdf,
-                            area: acc as f32,
-                            emission: mat.emission,
-                            two_sided: mat.double_sided,
-                        },
-                        power: Rgb::ZERO,
-                    });
+                    let name = format!("{node_name} ({})", mat.name);
+                    lights.push(Light::area(name, first as u32..triangles.len() as u32, &triangles, mat));
                 }
             }
         }

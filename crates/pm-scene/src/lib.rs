@@ -366,26 +366,7 @@ impl Scene {
         for o in &objects {
             let m = &materials[o.material as usize];
             if m.emission.max_element() > 0.0 {
-                let tris: Vec<u32> = o.tris.clone().collect();
-                let mut acc = 0.0f64;
-                let cdf = tris
-                    .iter()
-                    .map(|&t| {
-                        acc += triangles[t as usize].area as f64;
-                        acc
-                    })
-                    .collect();
-                lights.push(Light {
-                    name: o.name.clone(),
-                    kind: LightKind::Area {
-                        tris,
-                        cdf,
-                        area: acc as f32,
-                        emission: m.emission,
-                        two_sided: m.double_sided,
-                    },
-                    power: Rgb::ZERO,
-                });
+                lights.push(Light::area(o.name.clone(), o.tris.clone(), &triangles, m));
             }
         }
         lights.extend(extra_lights);

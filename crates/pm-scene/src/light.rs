@@ -96,6 +96,36 @@ pub struct Target {
 }
 
 impl Light {
+    /// The area light made of triangles `tris` of `triangles`, emitting like
+    /// `material` (power is filled in when the scene is built).
+    pub fn area(
+        name: String,
+        tris: std::ops::Range<u32>,
+        triangles: &[crate::Triangle],
+        material: &crate::Material,
+    ) -> Light {
+        let tris: Vec<u32> = tris.collect();
+        let mut acc = 0.0f64;
+        let cdf = tris
+            .iter()
+            .map(|&t| {
+                acc += triangles[t as usize].area as f64;
+                acc
+            })
+            .collect();
+        Light {
+            name,
+            kind: LightKind::Area {
+                tris,
+                cdf,
+                area: acc as f32,
+                emission: material.emission,
+                two_sided: material.double_sided,
+            },
+            power: Rgb::ZERO,
+        }
+    }
+
     /// Sample an emitted ray distributed like the light's emission (so every sample
     /// carries the same power: exact importance sampling of emitted power).
     pub fn sample_emission(&self, scene: &Scene, s: &mut Sampler) -> Option<EmittedRay> {
