@@ -6,7 +6,7 @@
 //! against the reference. Writes results.csv, results.md, plot.svg and plot.png.
 
 use anyhow::{Context, Result, bail};
-use serde_json::{Value, json};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -403,105 +403,85 @@ fn plot(out: &Path, rows: &[(Setting, [f64; 4], [f64; 5])], front: &[usize]) -> 
         ];
         pal[axes.iter().position(|a| *a == axis).unwrap_or(0)]
     };
-    let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-    );
-    writeln!(
-        svg,
-        "<line x1=\"{m}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/><line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{}\" stroke=\"black\"/>",
-        h - m,
-        w - m,
-        h - m,
-        h - m
-    )?;
+    // One list of shapes, written as SVG (with text) and rasterised to PNG (without).
+    let black = (0u8, 0u8, 0u8);
+    let mut shapes =
+        vec![Shape::Line((m, h - m), (w - m, h - m), black, false), Shape::Line((m, m), (m, h - m), black, false)];
     for p in lt0 as i32..=lt1 as i32 {
         let xv = x(10f64.powi(p));
-        writeln!(
-            svg,
-            "<line x1=\"{xv}\" y1=\"{}\" x2=\"{xv}\" y2=\"{}\" stroke=\"black\"/><text x=\"{xv}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
-            h - m,
-            h - m + 5.0,
-            h - m + 20.0,
-            10f64.powi(p)
-        )?;
+        shapes.push(Shape::Line((xv, h - m), (xv, h - m + 5.0), black, false));
+        shapes.push(Shape::Text((xv, h - m + 20.0), format!("{}", 10f64.powi(p)), "middle", false, 12));
     }
     for k in 0..=4 {
         let ev = emax * k as f64 / 4.0;
-        writeln!(svg, "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{ev:.3}</text>", m - 6.0, y(ev) + 4.0)?;
+        shapes.push(Shape::Text((m - 6.0, y(ev) + 4.0), format!("{ev:.3}"), "end", false, 12));
     }
-    writeln!(
-        svg,
-        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">total time [s] (log)</text><text x=\"18\" y=\"{}\" transform=\"rotate(-90 18 {})\" text-anchor=\"middle\">relative RMSE vs reference</text>",
-        w / 2.0,
-        h - 25.0,
-        h / 2.0,
-        h / 2.0
-    )?;
-    let pts: Vec<String> = front.iter().map(|&i| format!("{:.1},{:.1}", x(t[i]), y(e[i]))).collect();
-    writeln!(svg, "<polyline points=\"{}\" fill=\"none\" stroke=\"black\" stroke-dasharray=\"4 3\"/>", pts.join(" "))?;
+    shapes.push(Shape::Text((w / 2.0, h - 25.0), "total time [s] (log)".into(), "middle", false, 12));
+    shapes.push(Shape::Text((18.0, h / 2.0), "relative RMSE vs reference".into(), "middle", true, 12));
+    for wnd in front.windows(2) {
+        shapes.push(Shape::Line((x(t[wnd[0]]), y(e[wnd[0]])), (x(t[wnd[1]]), y(e[wnd[1]])), (77, 77, 77), true));
+    }
     for (i, r) in rows.iter().enumerate() {
-        let (cr, cg, cb) = colour(r.0.axis);
-        writeln!(
-            svg,
-            "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"5\" fill=\"rgb({cr},{cg},{cb})\"><title>{}</title></circle><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"9\">{}</text>",
-            x(t[i]),
-            y(e[i]),
-            r.0.label,
-            x(t[i]) + 7.0,
-            y(e[i]) - 4.0,
-            r.0.label
-        )?;
+        shapes.push(Shape::Dot((x(t[i]), y(e[i])), colour(r.0.axis)));
+        shapes.push(Shape::Text((x(t[i]) + 7.0, y(e[i]) - 4.0), r.0.label.clone(), "start", false, 9));
     }
     for (k, a) in axes.iter().enumerate() {
-        let (cr, cg, cb) = colour(a);
-        writeln!(
-            svg,
-            "<circle cx=\"{}\" cy=\"{}\" r=\"5\" fill=\"rgb({cr},{cg},{cb})\"/><text x=\"{}\" y=\"{}\">{a}</text>",
-            w - 190.0,
-            m + 16.0 * k as f64,
-            w - 180.0,
-            m + 16.0 * k as f64 + 4.0
-        )?;
+        shapes.push(Shape::Dot((w - 190.0, m + 16.0 * k as f64), colour(a)));
+        shapes.push(Shape::Text((w - 180.0, m + 16.0 * k as f64 + 4.0), a.to_string(), "start", false, 12));
     }
-    svg.push_str("</svg>\n");
-    std::fs::write(out.join("plot.svg"), svg)?;
-    // Raster: the same geometry.
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+    );
     let (wi, hi) = (w as u32, h as u32);
     let mut px = vec![glam::Vec3::ONE; (wi * hi) as usize];
-    let put = |px: &mut Vec<glam::Vec3>, xx: i64, yy: i64, c: glam::Vec3| {
+    let mut put = |xx: i64, yy: i64, (r, g, b): (u8, u8, u8)| {
         if xx >= 0 && yy >= 0 && (xx as u32) < wi && (yy as u32) < hi {
-            px[(yy as u32 * wi + xx as u32) as usize] = c;
+            let c = glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0;
+            px[(yy as u32 * wi + xx as u32) as usize] = c.to_array().map(pm_color::srgb_decode).into();
         }
     };
-    let line = |px: &mut Vec<glam::Vec3>, (x0, y0): (f64, f64), (x1, y1): (f64, f64), c: glam::Vec3| {
-        let n = ((x1 - x0).abs().max((y1 - y0).abs()) as i64).max(1);
-        for k in 0..=n {
-            let f = k as f64 / n as f64;
-            put(px, (x0 + f * (x1 - x0)) as i64, (y0 + f * (y1 - y0)) as i64, c);
-        }
-    };
-    line(&mut px, (m, h - m), (w - m, h - m), glam::Vec3::ZERO);
-    line(&mut px, (m, m), (m, h - m), glam::Vec3::ZERO);
-    for p in lt0 as i32..=lt1 as i32 {
-        let xv = x(10f64.powi(p));
-        line(&mut px, (xv, h - m), (xv, h - m + 6.0), glam::Vec3::ZERO);
-    }
-    for wnd in front.windows(2) {
-        line(&mut px, (x(t[wnd[0]]), y(e[wnd[0]])), (x(t[wnd[1]]), y(e[wnd[1]])), glam::Vec3::splat(0.3));
-    }
-    for (i, r) in rows.iter().enumerate() {
-        let (cr, cg, cb) = colour(r.0.axis);
-        let c = glam::Vec3::new(cr as f32, cg as f32, cb as f32) / 255.0;
-        let c = glam::Vec3::new(pm_color::srgb_decode(c.x), pm_color::srgb_decode(c.y), pm_color::srgb_decode(c.z));
-        for dy in -4..=4 {
-            for dx in -4..=4 {
-                if dx * dx + dy * dy <= 16 {
-                    put(&mut px, x(t[i]) as i64 + dx, y(e[i]) as i64 + dy, c);
+    for shape in &shapes {
+        match shape {
+            Shape::Line((x0, y0), (x1, y1), (r, g, b), dashed) => {
+                let dash = if *dashed { " stroke-dasharray=\"4 3\"" } else { "" };
+                writeln!(
+                    svg,
+                    "<line x1=\"{x0:.1}\" y1=\"{y0:.1}\" x2=\"{x1:.1}\" y2=\"{y1:.1}\" stroke=\"rgb({r},{g},{b})\"{dash}/>"
+                )?;
+                let n = ((x1 - x0).abs().max((y1 - y0).abs()) as i64).max(1);
+                for k in 0..=n {
+                    let f = k as f64 / n as f64;
+                    put((x0 + f * (x1 - x0)) as i64, (y0 + f * (y1 - y0)) as i64, (*r, *g, *b));
                 }
+            }
+            Shape::Dot((cx, cy), (r, g, b)) => {
+                writeln!(svg, "<circle cx=\"{cx:.1}\" cy=\"{cy:.1}\" r=\"5\" fill=\"rgb({r},{g},{b})\"/>")?;
+                for dy in -4i64..=4 {
+                    for dx in -4i64..=4 {
+                        if dx * dx + dy * dy <= 16 {
+                            put(*cx as i64 + dx, *cy as i64 + dy, (*r, *g, *b));
+                        }
+                    }
+                }
+            }
+            Shape::Text((tx, ty), text, anchor, rotated, size) => {
+                let rot = if *rotated { format!(" transform=\"rotate(-90 {tx} {ty})\"") } else { String::new() };
+                writeln!(
+                    svg,
+                    "<text x=\"{tx:.1}\" y=\"{ty:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rot}>{text}</text>"
+                )?;
             }
         }
     }
+    svg.push_str("</svg>\n");
+    std::fs::write(out.join("plot.svg"), svg)?;
     pm_image::write_png(&out.join("plot.png"), wi, hi, &px, 0.0)?;
-    let _ = json!(null);
     Ok(())
+}
+
+/// A drawing primitive of the plot (points in SVG pixel coordinates, sRGB colours).
+enum Shape {
+    Line((f64, f64), (f64, f64), (u8, u8, u8), bool),
+    Dot((f64, f64), (u8, u8, u8)),
+    Text((f64, f64), String, &'static str, bool, u8),
 }
