@@ -3,13 +3,42 @@
 
 use pm_format::{CompactIrrPhoton, FullPhoton, PhotonRecord};
 use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
-use pm_render::{Lookup, Mode, RenderConfig};
+use pm_render::{Method, RenderParams};
 use pm_scene::Scene;
 use std::path::PathBuf;
 
 /// Path of a scene in the repository's `scenes/` folder.
 pub fn scene_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)
+}
+
+/// The repository's pipeline.toml made small and fast, written to `dir/NAME.toml`:
+/// scene `scene` from `scenes/`, `effects` (a TOML value), 24 x 24 pixels, `spp`,
+/// 20,000 global and 2,000 caustic photons, 32 gather rays.
+pub fn small_pipeline(dir: &std::path::Path, scene: &str, effects: &str, spp: u32, name: &str) -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("pipeline.toml"))
+        .unwrap()
+        .replace(
+            "scene = \"scenes/cornell_spheres.gltf\"",
+            &format!("scene = {:?}", root.join("scenes").join(scene).display().to_string()),
+        )
+        .replace("effects = \"auto\"", &format!("effects = {effects}"))
+        .replace("global_photons = 400_000", "global_photons = 20_000")
+        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
+        .replace("width = 1024", "width = 24")
+        .replace("height = 1024", "height = 24")
+        .replace("spp = 16", &format!("spp = {spp}"))
+        .replace("gather_rays = 400", "gather_rays = 32");
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// The folder of the binaries the workspace test build made (this test's
+/// target/<profile>, from target/<profile>/deps/<test>).
+pub fn bin_dir() -> PathBuf {
+    std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
 }
 
 /// Load a scene from `scenes/`.
@@ -60,46 +89,48 @@ pub fn photon_maps(
     (g, pm_kdtree::balance(&c))
 }
 
-/// The renderer's defaults (as `photon-render` sets them) for a scene, at a size.
-pub fn render_config(scene: &Scene, mode: Mode, width: u32, height: u32) -> RenderConfig {
-    let diag = scene.bounds.diagonal();
-    RenderConfig {
-        width,
-        height,
-        spp: 16,
-        contrast: 0.1,
-        mode,
-        indirect: true,
-        indirect_threshold: 0.0,
-        gather_rays: 400,
-        secondary_rays: 12,
-        secondary_distance: 0.005 * diag,
-        lookup: Lookup::Precomputed,
-        k_global: 50,
-        k_caustic: 60,
-        max_radius_global: 0.1 * diag,
-        max_radius_caustic: 0.02 * diag,
-        icache_accuracy: 0.3,
-        icache_spacing: (0.005 * diag, 0.1 * diag),
-        light_samples: 4,
-        max_depth: 12,
-        seed: 1,
-    }
+/// The renderer's defaults (`RenderParams::default()`, as `photon-render` has them)
+/// with another method and size.
+pub fn render_params(mode: Method, width: u32, height: u32) -> RenderParams {
+    RenderParams { mode, width, height, ..Default::default() }
 }
 
-/// Render with the maps of [`photon_maps`].
-pub fn render(
+/// The photon-map integrator over the maps of [`photon_maps`], with its
+/// irradiance cache made by the prepass when the settings call for one (seed 1,
+/// as `photon-render` does), handed to `f`.
+pub fn with_photon_mapping<R>(
     scene: &Scene,
     maps: &(Vec<CompactIrrPhoton>, Vec<FullPhoton>),
-    cfg: &RenderConfig,
-) -> (pm_render::Image, pm_render::RenderStats) {
+    p: &RenderParams,
+    f: impl FnOnce(pm_render::PhotonMapping<CompactIrrPhoton>) -> R,
+) -> R {
     let irr = pm_render::irradiance_subset(&maps.0);
     let m = pm_render::Maps {
         global: Some(pm_kdtree::KdTree::new(&maps.0)),
         irradiance: Some(pm_kdtree::KdTree::new(&irr)),
         caustic: (!maps.1.is_empty()).then(|| pm_kdtree::KdTree::new(&maps.1)),
     };
-    pm_render::render(scene, &m, cfg, &|_, _| {}).unwrap()
+    let camera = scene.camera.as_ref().expect("test scenes have a camera");
+    let mut pm = pm_render::PhotonMapping::new(scene, m, p, true).unwrap();
+    if pm.wants_cache() && pm_render::method_uses_cache(p.mode) {
+        let cache = pm_render::IrradianceCache::prepass(&pm, camera, &p.film(1));
+        pm = pm.with_cache(cache);
+    }
+    f(pm)
+}
+
+/// Render the whole image with the maps of [`photon_maps`] (seed 1), running the
+/// irradiance-cache prepass first when the settings call for it, as `photon-render` does.
+pub fn render(
+    scene: &Scene,
+    maps: &(Vec<CompactIrrPhoton>, Vec<FullPhoton>),
+    p: &RenderParams,
+) -> (pm_render::Image, pm_render::RenderStats) {
+    let camera = scene.camera.as_ref().expect("test scenes have a camera");
+    let film = p.film(1);
+    with_photon_mapping(scene, maps, p, |pm| {
+        pm_render::render_method(p.mode, pm, camera, &film, pm_render::Rect::full(&film), false, &|_, _| {}).unwrap()
+    })
 }
 
 /// An inward-facing closed box [lo, hi] as quads (two triangles each) of material `m`.

@@ -86,24 +86,10 @@ fn root() -> PathBuf {
 
 /// Run the pipeline on `scene` at 24 x 24 with `effects` and small photon counts.
 fn run_pipeline(dir: &Path, scene: &str, effects: &str, name: &str) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("pipeline.toml"))
-        .unwrap()
-        .replace(
-            "scene = \"scenes/cornell_spheres.gltf\"",
-            &format!("scene = {:?}", root().join("scenes").join(scene).display().to_string()),
-        )
-        .replace("effects = \"auto\"", &format!("effects = {effects}"))
-        .replace("global_photons = 400_000", "global_photons = 20_000")
-        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
-        .replace("width = 1024", "width = 24")
-        .replace("height = 1024", "height = 24")
-        .replace("spp = 16", "spp = 1")
-        .replace("gather_rays = 400", "gather_rays = 32");
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, text).unwrap();
+    let p = pm_tests::small_pipeline(dir, scene, effects, 1, name);
     let out = dir.join(name);
-    let bin = std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned();
-    xtask::run::run_with(&[p.display().to_string(), "--out".into(), out.display().to_string()], &root(), &bin).unwrap();
+    let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
+    xtask::run::run_with(&args, &root(), &xtask::stages::Bins { dir: pm_tests::bin_dir() }).unwrap();
     out
 }
 

@@ -2,8 +2,8 @@
 //! number against the analytic answer or the unscaled scene.
 
 use glam::Vec3;
-use pm_render::Mode;
-use pm_tests::{photon_maps, render, render_config, scene_path};
+use pm_render::Method;
+use pm_tests::{photon_maps, render, render_params, scene_path};
 use std::path::{Path, PathBuf};
 
 /// Copy a scene into `dir` with all its nodes under one new root node carrying
@@ -38,7 +38,7 @@ fn scaled_and_translated_scenes_render_alike() {
     let render_at = |path: &Path| {
         let scene = pm_scene::load(path).unwrap();
         let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
-        let mut cfg = render_config(&scene, Mode::Full, 32, 32);
+        let mut cfg = render_params(Method::Full, 32, 32);
         cfg.spp = 1;
         cfg.gather_rays = 128;
         let (img, stats) = render(&scene, &maps, &cfg);
@@ -73,10 +73,10 @@ fn furnace_with_albedo_0_99_stays_finite_and_near_one_hundred() {
     std::fs::write(&p, text).unwrap();
     let scene = pm_scene::load(&p).unwrap();
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
-    let mut cfg = render_config(&scene, Mode::Full, 16, 16);
+    let mut cfg = render_params(Method::Full, 16, 16);
     cfg.light_samples = 16;
     let (full, _) = render(&scene, &maps, &cfg);
-    cfg.mode = Mode::Path;
+    cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, ps) = render(&scene, &maps, &cfg);
     for (name, img, tol) in [("full", &full, 0.05), ("path", &path, 0.03)] {

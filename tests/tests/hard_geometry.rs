@@ -4,8 +4,8 @@
 //! without NaN or Inf, and still agree with the path tracer.
 
 use glam::Vec3;
-use pm_render::Mode;
-use pm_tests::{photon_maps, render, render_config, scene_path};
+use pm_render::Method;
+use pm_tests::{photon_maps, render, render_params, scene_path};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -113,9 +113,9 @@ fn degenerate_geometry_renders_finite_and_agrees_with_the_path_tracer() {
         assert!(scene.warnings.iter().any(|w| w.contains("zero-area triangles skipped")), "{:?}", scene.warnings);
         assert_eq!(scene.lights.len(), 2);
         let maps = photon_maps(&scene, 100_000, 0, 0.25);
-        let mut cfg = render_config(&scene, Mode::Full, 32, 32);
+        let mut cfg = render_params(Method::Full, 32, 32);
         let (full, fs) = render(&scene, &maps, &cfg);
-        cfg.mode = Mode::Path;
+        cfg.mode = Method::Path;
         cfg.spp = 512;
         let (pt, ps) = render(&scene, &maps, &cfg);
         assert_eq!((fs.nonfinite_pixels, ps.nonfinite_pixels), (0, 0));

@@ -4,9 +4,9 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_render::Mode;
+use pm_render::Method;
 use pm_scene::Scene;
-use pm_tests::{camera, closed_box, material, photon_maps, render, render_config, sphere};
+use pm_tests::{camera, closed_box, material, photon_maps, render, render_params, sphere};
 
 /// A closed lit room next to a closed dark room sharing the wall plane x = 1 (each
 /// room has its own wall there, back to back, as a modeller would build them), the
@@ -38,7 +38,7 @@ fn no_light_leaks_into_a_closed_dark_room() {
     for cam in [lit_cam, dark_cam] {
         let scene = Scene::from_parts(tris.clone(), mats.clone(), vec![], Some(cam));
         let maps = photon_maps(&scene, 100_000, 0, 0.25);
-        let cfg = render_config(&scene, Mode::Full, 24, 24);
+        let cfg = render_params(Method::Full, 24, 24);
         let (img, s) = render(&scene, &maps, &cfg);
         assert_eq!(s.nonfinite_pixels, 0);
         totals.push(img.layer("total").unwrap().iter().map(|p| p.element_sum() as f64).sum::<f64>());
@@ -68,10 +68,10 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
     let scene =
         Scene::from_parts(tris, mats, vec![], Some(camera(Vec3::new(0.1, 0.05, 0.2), Vec3::new(1.0, 0.3, -2.0))));
     let maps = photon_maps(&scene, 100_000, 10_000, 0.25);
-    let mut cfg = render_config(&scene, Mode::Path, 16, 16);
+    let mut cfg = render_params(Method::Path, 16, 16);
     cfg.spp = 512;
     let (path, ps) = render(&scene, &maps, &cfg);
-    cfg.mode = Mode::Full;
+    cfg.mode = Method::Full;
     cfg.spp = 4;
     cfg.light_samples = 8;
     // At the default depth limit (12) about 3,900 paths are cut between the nested
@@ -96,7 +96,7 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
 fn rendering_with_empty_photon_maps_falls_back_to_direct_light() {
     let scene = pm_tests::load_scene("cornell_boxes.gltf");
     let empty: (Vec<pm_format::CompactIrrPhoton>, Vec<pm_format::FullPhoton>) = (Vec::new(), Vec::new());
-    let cfg = render_config(&scene, Mode::Full, 16, 16);
+    let cfg = render_params(Method::Full, 16, 16);
     let (img, s) = render(&scene, &empty, &cfg);
     assert_eq!(s.nonfinite_pixels, 0);
     let indirect: f32 = img.layer("indirect").unwrap().iter().map(|p| p.element_sum()).sum();

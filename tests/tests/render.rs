@@ -1,7 +1,7 @@
 //! Stage 4 against analytic answers and the path tracer.
 
-use pm_render::{Lookup, Mode};
-use pm_tests::{against_constant, load_scene, photon_maps, render, render_config};
+use pm_render::{Lookup, Method};
+use pm_tests::{against_constant, load_scene, photon_maps, render, render_params};
 
 /// Furnace: radiance is exactly 5.0 everywhere (a closed, flat-faceted sphere with
 /// albedo 0.8 and L_e = 1). `path` and `full` must both give it within 1% on average
@@ -14,10 +14,10 @@ use pm_tests::{against_constant, load_scene, photon_maps, render, render_config}
 fn furnace_renders_five_in_full_and_path_modes() {
     let scene = load_scene("furnace.gltf");
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
-    let mut cfg = render_config(&scene, Mode::Full, 24, 24);
+    let mut cfg = render_params(Method::Full, 24, 24);
     cfg.light_samples = 16;
     let (full, fs) = render(&scene, &maps, &cfg);
-    cfg.mode = Mode::Path;
+    cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     for (name, img) in [("full", &full), ("path", &path)] {
@@ -44,9 +44,9 @@ fn furnace_renders_five_in_full_and_path_modes() {
 fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
     let scene = load_scene("cornell_boxes.gltf");
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
-    let mut cfg = render_config(&scene, Mode::Full, 48, 48);
+    let mut cfg = render_params(Method::Full, 48, 48);
     let (full, _) = render(&scene, &maps, &cfg);
-    cfg.mode = Mode::Path;
+    cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     let (f, p) = (full.layer("total").unwrap(), path.layer("total").unwrap());
@@ -71,10 +71,10 @@ fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
 fn exact_and_precomputed_lookups_agree_on_cornell_spheres() {
     let scene = load_scene("cornell_spheres.gltf");
     let maps = photon_maps(&scene, 200_000, 20_000, 1.0);
-    let mut cfg = render_config(&scene, Mode::Full, 48, 48);
+    let mut cfg = render_params(Method::Full, 48, 48);
     cfg.spp = 1;
     let (pre, ps) = render(&scene, &maps, &cfg);
-    cfg.lookup = Lookup::Exact;
+    cfg.gather_lookup = Lookup::Exact;
     let (exact, es) = render(&scene, &maps, &cfg);
     let e = pm_image::compare(pre.layer("total").unwrap(), exact.layer("total").unwrap(), f32::INFINITY);
     let (rmse, bias) = (e.rel_rmse, e.rel_bias);
@@ -91,8 +91,8 @@ fn no_nan_or_inf_in_any_layer() {
     for name in ["cornell_spheres.gltf", "cornell_boxes.gltf", "furnace.gltf"] {
         let scene = load_scene(name);
         let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
-        for mode in [Mode::Full, Mode::Photons, Mode::Radiance, Mode::Indirect, Mode::Path] {
-            let mut cfg = render_config(&scene, mode, 16, 16);
+        for mode in [Method::Full, Method::Photons, Method::Radiance, Method::Indirect, Method::Path] {
+            let mut cfg = render_params(mode, 16, 16);
             cfg.spp = 4;
             cfg.gather_rays = 64;
             let (img, stats) = render(&scene, &maps, &cfg);
@@ -112,7 +112,7 @@ fn no_nan_or_inf_in_any_layer() {
 fn full_render_is_identical_for_any_thread_count() {
     let scene = load_scene("cornell_spheres.gltf");
     let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
-    let cfg = render_config(&scene, Mode::Full, 32, 32);
+    let cfg = render_params(Method::Full, 32, 32);
     let run =
         |t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap().install(|| render(&scene, &maps, &cfg).0);
     let (a, b) = (run(1), run(2));
@@ -130,7 +130,7 @@ fn full_render_is_identical_for_any_thread_count() {
 fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
     let scene = load_scene("cornell_boxes.gltf");
     let maps = photon_maps(&scene, 100_000, 0, 0.25);
-    let mut cfg = render_config(&scene, Mode::Full, 32, 32);
+    let mut cfg = render_params(Method::Full, 32, 32);
     let (gathered, gs) = render(&scene, &maps, &cfg);
     cfg.indirect_threshold = 1e9;
     let (thinned, ts) = render(&scene, &maps, &cfg);
@@ -151,9 +151,9 @@ fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
 fn components_agree_with_the_path_tracers_components() {
     let scene = load_scene("cornell_spheres.gltf");
     let maps = photon_maps(&scene, 200_000, 35_000, 0.25);
-    let mut cfg = render_config(&scene, Mode::Full, 40, 40);
+    let mut cfg = render_params(Method::Full, 40, 40);
     let (full, _) = render(&scene, &maps, &cfg);
-    cfg.mode = Mode::Path;
+    cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     let mean = |img: &pm_render::Image, layer: &str| {

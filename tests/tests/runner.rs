@@ -6,36 +6,20 @@
 //! this test (target/release).
 
 use std::path::{Path, PathBuf};
-use xtask::run::{Outcome, run_with};
-
-fn bin_dir() -> PathBuf {
-    // target/<profile>/deps/runner-<hash> -> target/<profile>
-    std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
-}
+use xtask::run::{Outcome, RunArgs, run_with};
+use xtask::stages::Bins;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn pipeline(dir: &Path, spp: u32) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("pipeline.toml")).unwrap();
-    let scene = root().join("scenes/cornell_spheres.gltf");
-    let text = text
-        .replace("scene = \"scenes/cornell_spheres.gltf\"", &format!("scene = {:?}", scene.display().to_string()))
-        .replace("global_photons = 400_000", "global_photons = 20_000")
-        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
-        .replace("width = 1024", "width = 24")
-        .replace("height = 1024", "height = 24")
-        .replace("spp = 16", &format!("spp = {spp}"))
-        .replace("gather_rays = 400", "gather_rays = 32");
-    let p = dir.join("pipeline.toml");
-    std::fs::write(&p, text).unwrap();
-    p
+    pm_tests::small_pipeline(dir, "cornell_spheres.gltf", "\"auto\"", spp, "pipeline")
 }
 
 fn run(p: &Path, out: &Path) -> anyhow::Result<Vec<Outcome>> {
-    let args = [p.display().to_string(), "--out".into(), out.display().to_string()];
-    run_with(&args, &root(), &bin_dir())
+    let args = RunArgs { pipeline: Some(p.to_owned()), out: Some(out.to_owned()), ..Default::default() };
+    run_with(&args, &root(), &Bins { dir: pm_tests::bin_dir() })
 }
 
 fn ran(outcomes: &[Outcome]) -> Vec<&str> {
@@ -49,7 +33,14 @@ fn runner_runs_every_stage_then_only_what_changed() {
     let first = run(&pipeline(dir.path(), 4), &out).unwrap();
     assert_eq!(
         ran(&first),
-        ["photon-trace", "photon-sort global", "photon-sort caustic", "photon-irradiance", "photon-render"]
+        [
+            "photon-trace",
+            "photon-sort global",
+            "photon-sort caustic",
+            "photon-irradiance",
+            "photon-render icache",
+            "photon-render"
+        ]
     );
     for f in [
         "global.pmap",
@@ -57,6 +48,7 @@ fn runner_runs_every_stage_then_only_what_changed() {
         "global.kd.pmap",
         "caustic.kd.pmap",
         "global.irr.pmap",
+        "icache.bin",
         "image.exr",
         "image.png",
         "report.json",
@@ -86,6 +78,8 @@ fn runner_runs_every_stage_then_only_what_changed() {
     std::fs::write(dir.path().join("pipeline.toml"), text).unwrap();
     let err = run(&dir.path().join("pipeline.toml"), &out).unwrap_err().to_string();
     assert!(err.contains("stage photon-irradiance failed"), "{err}");
+    // The stage's own message is kept in the error.
+    assert!(err.contains("global.kd.pmap") && err.contains("corrupted"), "{err}");
     assert_eq!(std::fs::read(out.join("global.pmap")).unwrap(), before);
 }
 

@@ -5,117 +5,93 @@
 //! soft indirect light by final gathering, (g) the complete image; a contact sheet
 //! (SVG with captions, and a PNG grid), and the table beside the paper's numbers.
 
-use anyhow::{Context, Result, bail};
-use serde_json::Value;
+use anyhow::{Context, Result};
+use pm_estimate::IrradianceParams;
+use pm_render::{Lookup, Method, RenderParams};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use xtask::stages::{self, Bins};
 
-fn stage(bin: &Path, name: &str, args: &[String]) -> Result<Value> {
+/// Options of `cargo xtask figure1`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Output folder [default: out/figure1].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Image width and height [pixels] (the paper: 1024).
+    #[arg(long, default_value_t = 1024)]
+    size: u32,
+}
+
+/// Run a stage quietly (its messages are kept for the error if it fails) and read
+/// its typed statistics.
+fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String]) -> Result<T> {
     let stats = std::env::temp_dir().join(format!("figure1-{name}-{}.json", std::process::id()));
-    let status = Command::new(bin.join(name))
-        .args(args)
-        .args(["--stats-json".to_string(), stats.display().to_string()])
-        .stderr(std::process::Stdio::null())
-        .stdout(std::process::Stdio::null())
-        .status()
-        .with_context(|| format!("cannot start {name}"))?;
-    if !status.success() {
-        bail!("{name} {} failed", args.join(" "));
-    }
-    let v = serde_json::from_slice(&std::fs::read(&stats)?)?;
+    let mut a = args.to_vec();
+    a.extend(["--stats-json".to_string(), stats.display().to_string()]);
+    stages::run(bins, name, &a, name, true)?;
+    let v = stages::read_stats(&stats);
     let _ = std::fs::remove_file(stats);
-    Ok(v)
+    v
 }
 
 /// Run it.
-pub fn run(args: &[String], root: &Path) -> Result<()> {
-    let mut size = 1024u32;
-    let mut out: Option<PathBuf> = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--out" => out = Some(PathBuf::from(it.next().context("--out needs a folder")?)),
-            "--size" => size = it.next().context("--size needs a number")?.parse()?,
-            other => bail!("unknown option {other}"),
-        }
-    }
-    let out = out.unwrap_or_else(|| root.join("out/figure1"));
+pub fn run(args: &Args, root: &Path) -> Result<()> {
+    let size = args.size;
+    let out = args.out.clone().unwrap_or_else(|| root.join("out/figure1"));
     std::fs::create_dir_all(&out)?;
-    crate::run::build_stages(root)?;
-    let bin = root.join("target/release");
+    let base = xtask::run::Pipeline::load(&root.join("pipeline.toml"))?;
+    let bins = Bins::build(root)?;
     let scene = root.join("scenes/cornell_spheres.gltf").display().to_string();
     let o = |f: &str| out.join(f).display().to_string();
     let s = |v: &dyn std::fmt::Display| v.to_string();
-    let dim = vec![s(&"--width"), s(&size), s(&"--height"), s(&size)];
 
-    let trace = stage(&bin, "photon-trace", &[s(&"--scene"), scene.clone(), s(&"--out"), out.display().to_string()])?;
+    let mut a = vec![s(&"--scene"), scene.clone(), s(&"--out"), out.display().to_string()];
+    a.extend(base.trace.to_args());
+    let trace: photon_trace::Report = stage(&bins, "photon-trace", &a)?;
     let mut sort_s = 0.0;
     for m in ["global", "caustic"] {
-        sort_s +=
-            stage(&bin, "photon-sort", &[o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))])?["seconds"]
-                .as_f64()
-                .unwrap_or(0.0);
+        let r: photon_sort::Report =
+            stage(&bins, "photon-sort", &[o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))])?;
+        sort_s += r.seconds;
     }
-    let irr_all = stage(
-        &bin,
-        "photon-irradiance",
-        &[o("global.kd.pmap"), s(&"--out"), o("global.irr1.pmap"), s(&"--fraction"), s(&1.0)],
-    )?;
-    let irr_quarter = stage(
-        &bin,
-        "photon-irradiance",
-        &[o("global.kd.pmap"), s(&"--out"), o("global.irr.pmap"), s(&"--fraction"), s(&0.25)],
-    )?;
+    let precompute = |fraction: f64, file: &str| -> Result<photon_irradiance::Report> {
+        let mut a = vec![o("global.kd.pmap"), s(&"--out"), o(file)];
+        a.extend(IrradianceParams { fraction, ..base.irradiance.clone() }.to_args());
+        stage(&bins, "photon-irradiance", &a)
+    };
+    let irr_all = precompute(1.0, "global.irr1.pmap")?;
+    let irr_quarter = precompute(0.25, "global.irr.pmap")?;
     let inspect = |map: &str, png: &str, irradiance: bool| -> Result<()> {
-        let mut a = vec![
-            o(map),
-            s(&"--image"),
-            o(png),
-            s(&"--scene"),
-            scene.clone(),
-            s(&"--width"),
-            s(&size),
-            s(&"--height"),
-            s(&size),
-        ];
+        let mut a = vec![o(map), s(&"--image"), o(png), s(&"--scene"), scene.clone()];
+        a.extend([s(&"--width"), s(&size), s(&"--height"), s(&size)]);
         if irradiance {
             a.push(s(&"--irradiance"));
         }
-        let status = Command::new(bin.join("photon-inspect")).args(&a).stdout(std::process::Stdio::null()).status()?;
-        if !status.success() {
-            bail!("photon-inspect failed");
-        }
-        Ok(())
+        stages::run(&bins, "photon-inspect", &a, "photon-inspect", true)
     };
     inspect("global.kd.pmap", "a_photon_map.png", false)?;
     inspect("global.irr1.pmap", "c_precomputed_all.png", true)?;
     inspect("global.irr.pmap", "d_precomputed_quarter.png", true)?;
-    let render = |mode: &str, png: &str, lookup: &str| -> Result<Value> {
-        let mut a = vec![
-            s(&"--scene"),
-            scene.clone(),
-            s(&"--global"),
-            o("global.irr.pmap"),
+    let render = |mode: Method, png: &str, lookup: Lookup| -> Result<photon_render::Report> {
+        let mut a = vec![s(&"--scene"), scene.clone(), s(&"--global"), o("global.irr.pmap")];
+        a.extend([
             s(&"--caustic"),
             o("caustic.kd.pmap"),
-            s(&"--mode"),
-            s(&mode),
-            s(&"--gather-lookup"),
-            s(&lookup),
             s(&"--out"),
             o(&png.replace(".png", ".exr")),
             s(&"--png"),
             o(png),
-        ];
-        a.extend(dim.iter().cloned());
-        stage(&bin, "photon-render", &a)
+        ]);
+        let p = RenderParams { mode, gather_lookup: lookup, width: size, height: size, ..base.render.clone() };
+        a.extend(p.to_args());
+        stage(&bins, "photon-render", &a)
     };
-    render("photons", "b_irradiance_at_samples.png", "precomputed")?;
-    render("radiance", "e_radiance_seen_by_gather.png", "precomputed")?;
-    render("indirect", "f_soft_indirect.png", "precomputed")?;
-    let full = render("full", "g_complete.png", "precomputed")?;
-    let exact = render("full", "g_complete_exact.png", "exact")?;
+    render(Method::Photons, "b_irradiance_at_samples.png", Lookup::Precomputed)?;
+    render(Method::Radiance, "e_radiance_seen_by_gather.png", Lookup::Precomputed)?;
+    render(Method::Indirect, "f_soft_indirect.png", Lookup::Precomputed)?;
+    let full = render(Method::Full, "g_complete.png", Lookup::Precomputed)?;
+    let exact = render(Method::Full, "g_complete_exact.png", Lookup::Exact)?;
 
     // Contact sheet: SVG with captions over the PNGs, and a PNG grid (4 x 2).
     let panels = [
@@ -157,34 +133,32 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
     pm_image::write_png(&out.join("contact_sheet.png"), 4 * tile, 2 * tile, &grid, 0.0)?;
 
     // The section 3 table.
-    let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or(0.0);
-    let fg = |v: &Value| {
-        f(v, "prepass_seconds")
-            + v["thread_seconds"]["final_gather"].as_f64().unwrap_or(0.0) / v["threads"].as_f64().unwrap_or(1.0)
+    let fg = |v: &photon_render::Report| {
+        v.prepass_seconds + v.thread_seconds.get("final_gather").copied().unwrap_or(0.0) / v.threads.max(1) as f64
     };
     let saved = fg(&exact) - fg(&full);
     let mut md = String::new();
     writeln!(md, "| | Christensen 1999 (233 MHz Pentium) | this machine (2 cores) |\n|---|---|---|")?;
     let rows = [
-        ("photons emitted", "220,000".to_string(), format!("{}", trace["global"]["emitted"])),
-        ("global photons stored", "400,000".into(), format!("{}", trace["global"]["stored"])),
+        ("photons emitted", "220,000".to_string(), format!("{}", trace.global.emitted)),
+        ("global photons stored", "400,000".into(), format!("{}", trace.global.stored)),
         (
             "caustic photons stored",
             "35,000".into(),
-            format!("{} ({} emitted)", trace["caustic"]["stored"], trace["caustic"]["emitted"]),
+            format!("{} ({} emitted)", trace.caustic.stored, trace.caustic.emitted),
         ),
-        ("photon tracing", "10 s".into(), format!("{:.2} s", f(&trace, "seconds"))),
+        ("photon tracing", "10 s".into(), format!("{:.2} s", trace.seconds)),
         ("sorting", "10 s".into(), format!("{sort_s:.2} s")),
-        ("precompute, all photons", "58 s".into(), format!("{:.2} s", f(&irr_all, "seconds"))),
-        ("precompute, a quarter", "15 s".into(), format!("{:.2} s", f(&irr_quarter, "seconds"))),
+        ("precompute, all photons", "58 s".into(), format!("{:.2} s", irr_all.seconds)),
+        ("precompute, a quarter", "15 s".into(), format!("{:.2} s", irr_quarter.seconds)),
         (
             "rendering (1024 x 1024, up to 16 spp)",
             "5 min 29 s".into(),
-            format!("{:.2} s ({size} x {size})", f(&full, "seconds")),
+            format!("{:.2} s ({size} x {size})", full.seconds),
         ),
         ("of which soft indirect (final gathering)", "2 min 45 s".into(), format!("{:.2} s", fg(&full))),
-        ("final gathers", "11,800".into(), format!("{}", full["final_gathers"])),
-        ("final gather rays", "6.5 million".into(), format!("{:.2} million", f(&full, "gather_rays") / 1e6)),
+        ("final gathers", "11,800".into(), format!("{}", full.final_gathers)),
+        ("final gather rays", "6.5 million".into(), format!("{:.2} million", full.gather_rays as f64 / 1e6)),
         ("final gathering without precomputation", "16 min".into(), format!("{:.2} s", fg(&exact))),
         (
             "final-gather speed-up from precomputation",
@@ -194,7 +168,7 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
         (
             "precompute as a share of the time saved",
             "< 2%".into(),
-            format!("{:.1}%", 100.0 * f(&irr_quarter, "seconds") / saved.max(1e-9)),
+            format!("{:.1}%", 100.0 * irr_quarter.seconds / saved.max(1e-9)),
         ),
     ];
     for (what, paper, ours) in rows {

@@ -1,6 +1,7 @@
 //! The parts of `cargo xtask` that tests also use: the scene generator (a test checks
-//! the committed scenes are what the code generates) and the pipeline runner (tests
-//! run it on a small scene).
+//! the committed scenes are what the code generates), the pipeline runner (tests run
+//! it on a small scene) and the stage binaries it runs.
 
 pub mod gen_scenes;
 pub mod run;
+pub mod stages;

@@ -1,58 +1,77 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
-//! One module per task; few dependencies.
+//! One module per task; `cargo xtask <task> --help` explains each.
 
 use xtask::{gen_scenes, run};
 
 mod figure1;
 mod tradeoff;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
+use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
-const USAGE: &str = "usage: cargo xtask <task>
-
-tasks:
-  run [PIPELINE.toml] [--scene FILE] [--out DIR] [--width W --height H] [--force]
-                         run the pipeline stages in order (default: pipeline.toml,
-                         output in out/<scene name>/); steps whose inputs and
-                         parameters are unchanged are skipped unless --force
-  compare IMAGE.exr REFERENCE.exr [--mask-above V] [--layer NAME]
-                         relative RMSE, bias and SSIM of an image against a reference
-                         (pixels where the reference exceeds V are left out)
-  tradeoff [--scene FILE] [--out DIR] [--size N]
-                         what accuracy costs in time: a path-traced reference, then
-                         one setting at a time; CSV, markdown, plot.svg and plot.png
-  figure1 [--out DIR] [--size N]
-                         Christensen's Figure 1 (a)-(g), a contact sheet and the
-                         section 3 table beside the paper's numbers
-  gen-scenes [--check]   write scenes/*.gltf + .bin from code (--check: fail if the
-                         committed files differ from what the code generates)";
-
-fn main() -> std::process::ExitCode {
-    match run() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+/// Project automation for the photon-map renderer.
+#[derive(Parser, Debug)]
+#[command(name = "cargo xtask", bin_name = "cargo xtask")]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
 }
 
-fn run() -> Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    match args.first().map(String::as_str) {
-        Some("run") => run::run(&args[1..], &workspace_root()).map(|_| ()),
-        Some("compare") => compare(&args[1..]),
-        Some("tradeoff") => tradeoff::run(&args[1..], &workspace_root()),
-        Some("figure1") => figure1::run(&args[1..], &workspace_root()),
-        Some("gen-scenes") => {
-            gen_scenes::run(&workspace_root().join("scenes"), args[1..].iter().any(|a| a == "--check"))
+#[derive(Subcommand, Debug)]
+enum Task {
+    /// Run the pipeline stages in order (photon-trace, photon-sort, photon-irradiance,
+    /// the irradiance-cache step, photon-render) as separate processes; steps whose
+    /// inputs and parameters are unchanged are skipped.
+    Run(run::RunArgs),
+    /// Relative RMSE, bias and SSIM of an image against a reference.
+    Compare(CompareArgs),
+    /// What accuracy costs in time: a path-traced reference, then one setting at a
+    /// time; CSV, markdown, plot.svg and plot.png.
+    Tradeoff(tradeoff::Args),
+    /// Christensen's Figure 1 (a)-(g), a contact sheet and the section 3 table beside
+    /// the paper's numbers.
+    Figure1(figure1::Args),
+    /// Write scenes/*.gltf + .bin from code.
+    GenScenes {
+        /// Fail if the committed files differ from what the code generates.
+        #[arg(long)]
+        check: bool,
+    },
+}
+
+/// Options of `cargo xtask compare`.
+#[derive(clap::Args, Debug)]
+struct CompareArgs {
+    /// The image (OpenEXR).
+    image: PathBuf,
+    /// The reference (OpenEXR) of the same size.
+    reference: PathBuf,
+    /// Leave out pixels where the reference exceeds this radiance [W sr^-1 m^-2]
+    /// (the light's own pixels).
+    #[arg(long, default_value_t = f32::INFINITY)]
+    mask_above: f32,
+    /// The layer to compare (total, direct, caustic, indirect, specular).
+    #[arg(long, default_value = "total")]
+    layer: String,
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let root = workspace_root();
+    let result = match cli.task {
+        Task::Run(a) => run::run(&a, &root).map(|_| ()),
+        Task::Compare(a) => compare(&a),
+        Task::Tradeoff(a) => tradeoff::run(&a, &root),
+        Task::Figure1(a) => figure1::run(&a, &root),
+        Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", format!("{e:#}").replace('\n', " "));
+            std::process::ExitCode::FAILURE
         }
-        Some("-h" | "--help") | None => {
-            println!("{USAGE}");
-            Ok(())
-        }
-        Some(other) => bail!("unknown task '{other}'\n{USAGE}"),
     }
 }
 
@@ -61,29 +80,32 @@ fn workspace_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives one level below the root").to_owned()
 }
 
-fn compare(args: &[String]) -> Result<()> {
-    let mut files = Vec::new();
-    let mut mask = f32::INFINITY;
-    let mut layer = "total".to_string();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--mask-above" => mask = it.next().map(|v| v.parse()).transpose()?.unwrap_or(f32::INFINITY),
-            "--layer" => layer = it.next().cloned().unwrap_or_default(),
-            f => files.push(PathBuf::from(f)),
-        }
-    }
-    let [a, b] = files.as_slice() else { bail!("compare needs IMAGE.exr and REFERENCE.exr") };
-    let (ia, ib) = (pm_image::read_exr(a)?, pm_image::read_exr(b)?);
+fn compare(a: &CompareArgs) -> Result<()> {
+    let (ia, ib) = (pm_image::read_exr(&a.image)?, pm_image::read_exr(&a.reference)?);
     if (ia.width, ia.height) != (ib.width, ib.height) {
-        bail!("{} is {}x{} but {} is {}x{}", a.display(), ia.width, ia.height, b.display(), ib.width, ib.height);
+        anyhow::bail!(
+            "{} is {}x{} but {} is {}x{}",
+            a.image.display(),
+            ia.width,
+            ia.height,
+            a.reference.display(),
+            ib.width,
+            ib.height
+        );
     }
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
-        i.layer(&layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {layer}", p.display()))
+        i.layer(&a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {}", p.display(), a.layer))
     };
-    let (la, lb) = (pick(&ia, a)?, pick(&ib, b)?);
-    let e = pm_image::compare(&la, &lb, mask);
+    let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);
+    let e = pm_image::compare(&la, &lb, a.mask_above);
     let ssim = pm_image::ssim(&la, &lb, ia.width as usize, ia.height as usize);
-    println!("relative RMSE {:.5}  relative bias {:+.5}  SSIM {ssim:.4}  pixels {}", e.rel_rmse, e.rel_bias, e.pixels);
+    let identical = la.iter().zip(&lb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
+    println!(
+        "relative RMSE {:.5}  relative bias {:+.5}  SSIM {ssim:.4}  pixels {}{}",
+        e.rel_rmse,
+        e.rel_bias,
+        e.pixels,
+        if identical { "  (bit-identical)" } else { "" }
+    );
     Ok(())
 }

@@ -1,156 +1,120 @@
-//! `cargo xtask run`: Christensen's steps as separate processes exchanging photon-map
-//! files in one output folder with fixed names (global.pmap, caustic.pmap,
-//! global.kd.pmap, caustic.kd.pmap, *.stats.json, report.json).
+//! `cargo xtask run`: Christensen's steps as separate processes exchanging files in
+//! one output folder with fixed names (global.pmap, caustic.pmap, global.kd.pmap,
+//! caustic.kd.pmap, global.irr.pmap, icache.bin, image.exr, *.stats.json,
+//! report.json). Each step is a value (name, program, arguments, inputs, outputs);
+//! a step whose arguments and input contents are unchanged is skipped.
 
+use crate::stages::{self, Bins};
 use anyhow::{Context, Result, bail};
+use pm_estimate::IrradianceParams;
+use pm_params::Naming;
+use pm_photon::TraceParams;
+use pm_render::RenderParams;
 use serde::Deserialize;
 use serde_json::json;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
-/// pipeline.toml, typed. Unknown keys are errors.
-#[derive(Deserialize, Debug)]
+/// pipeline.toml, typed: each stage's section is that stage's parameter type (the
+/// one definition its command line also uses). Unknown keys are errors.
+#[derive(Deserialize, Debug, Clone)]
 #[serde(deny_unknown_fields)]
-struct Pipeline {
-    scene: PathBuf,
+pub struct Pipeline {
+    /// The scene, relative to the pipeline file.
+    pub scene: PathBuf,
+    /// Random seed of every stage.
     #[serde(default = "one")]
-    seed: u64,
-    width: u32,
-    height: u32,
-    spp: u32,
-    effects: EffectsCfg,
-    trace: TraceSection,
-    irradiance: IrradianceSection,
-    render: RenderSection,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct RenderSection {
-    mode: RenderMode,
-    gather_rays: u32,
-    gather_lookup: GatherLookup,
-    secondary_rays: u32,
-    secondary_distance_rel_diag: f64,
-    k: usize,
-    caustic_k: usize,
-    max_radius_rel_diag: f64,
-    caustic_radius_rel_diag: f64,
-    icache_accuracy: f64,
-    icache_min_spacing_rel_diag: f64,
-    icache_max_spacing_rel_diag: f64,
-    indirect_threshold: f64,
-    light_samples: u32,
-    contrast: f64,
-    exposure: f64,
+    pub seed: u64,
+    /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
+    pub effects: EffectsCfg,
+    /// Light name to fraction of the photon budget; the other lights share the rest
+    /// by power.
+    #[serde(default)]
+    pub light_shares: BTreeMap<String, f64>,
+    /// Stage 1.
+    #[serde(default)]
+    pub trace: TraceParams,
+    /// Stage 3.
+    #[serde(default)]
+    pub irradiance: IrradianceParams,
+    /// Stage 4 (and the irradiance-cache step).
+    #[serde(default)]
+    pub render: RenderParams,
 }
 
 /// `effects = "auto"` or a list of forced effects.
-#[derive(Deserialize, Debug)]
+#[derive(Deserialize, Debug, Clone)]
 #[serde(untagged)]
-enum EffectsCfg {
+pub enum EffectsCfg {
+    /// The scene analysis decides.
     Auto(AutoWord),
+    /// Simulate exactly these.
     List(Vec<EffectName>),
 }
 
-#[derive(Deserialize, Debug)]
+/// The word `auto`.
+#[derive(Deserialize, Debug, Clone)]
 #[serde(rename_all = "lowercase")]
-enum AutoWord {
+pub enum AutoWord {
+    /// `"auto"`.
     Auto,
 }
 
-#[derive(Deserialize, Debug, PartialEq, Eq)]
+/// An effect that can be forced on.
+#[derive(Deserialize, Debug, Clone, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
-enum EffectName {
+pub enum EffectName {
+    /// The caustic map.
     Caustics,
+    /// The global map, irradiance precompute and final gathers.
     Indirect,
-}
-
-#[derive(Deserialize, Debug, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum RenderMode {
-    Full,
-    Photons,
-    Radiance,
-    Indirect,
-    Path,
-}
-
-#[derive(Deserialize, Debug, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum GatherLookup {
-    Precomputed,
-    Exact,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct TraceSection {
-    global_photons: u64,
-    caustic_photons: u64,
-    layout: Layout,
-    #[serde(default)]
-    light_shares: std::collections::BTreeMap<String, f64>,
-}
-
-#[derive(Deserialize, Debug)]
-#[serde(deny_unknown_fields)]
-struct IrradianceSection {
-    fraction: f64,
-    k: usize,
-    max_radius_rel_diag: f64,
-    filter: FilterKind,
-}
-
-#[derive(Deserialize, Debug, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum FilterKind {
-    None,
-    Cone,
-    Gaussian,
-}
-
-#[derive(Deserialize, Debug, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum Layout {
-    Compact,
-    Full,
 }
 
 fn one() -> u64 {
     1
 }
 
-/// Largest photon count accepted before tracing: 23 bytes per stored photon, twice
-/// (unsorted and sorted copies in memory during sorting), must fit in 16 GiB.
-const MAX_PHOTONS: u64 = 16 * (1 << 30) / (2 * 64);
-
-struct Args {
-    pipeline: PathBuf,
-    scene: Option<PathBuf>,
-    out: Option<PathBuf>,
-    width: Option<u32>,
-    height: Option<u32>,
-    force: bool,
+impl Pipeline {
+    /// Read, parse and range-check a pipeline file; every error is one line naming
+    /// the file and the key.
+    pub fn load(path: &Path) -> Result<Pipeline> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let p: Pipeline = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+        let fail = |e: String| anyhow::anyhow!("{}: {e}", path.display());
+        p.trace.validate(Naming::File("trace")).map_err(fail)?;
+        p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
+        p.render.check(Naming::File("render")).map_err(fail)?;
+        for (name, share) in &p.light_shares {
+            if !(0.0..=1.0).contains(share) {
+                bail!("{}: light_shares.{name} = {share} is out of range (in [0, 1])", path.display());
+            }
+        }
+        Ok(p)
+    }
 }
 
-fn parse(args: &[String], root: &Path) -> Result<Args> {
-    let mut a =
-        Args { pipeline: root.join("pipeline.toml"), scene: None, out: None, width: None, height: None, force: false };
-    let mut it = args.iter();
-    while let Some(x) = it.next() {
-        match x.as_str() {
-            "--scene" => a.scene = Some(PathBuf::from(it.next().context("--scene needs a file")?)),
-            "--out" => a.out = Some(PathBuf::from(it.next().context("--out needs a folder")?)),
-            "--width" => a.width = Some(it.next().context("--width needs a number")?.parse().context("--width")?),
-            "--height" => a.height = Some(it.next().context("--height needs a number")?.parse().context("--height")?),
-            "--force" => a.force = true,
-            s if s.starts_with("--") => bail!("unknown option {s}"),
-            s => a.pipeline = PathBuf::from(s),
-        }
-    }
-    Ok(a)
+/// Options of `cargo xtask run`.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct RunArgs {
+    /// Pipeline file [default: pipeline.toml at the repository root].
+    pub pipeline: Option<PathBuf>,
+    /// Scene (glTF 2.0) instead of the pipeline file's.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Output folder [default: out/<scene name>].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Image width [pixels] instead of the pipeline file's.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height [pixels] instead of the pipeline file's.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Run every step, even those whose inputs and parameters are unchanged.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// What happened to one step of a run.
@@ -162,215 +126,206 @@ pub struct Outcome {
     pub ran: bool,
 }
 
-/// Run the pipeline with the repository's release binaries, building them first.
-pub fn run(args: &[String], root: &Path) -> Result<Vec<Outcome>> {
-    build_stages(root)?;
-    run_with(args, root, &root.join("target/release"))
+/// Which stage a step runs, and so which statistics it writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Trace,
+    Sort,
+    Irradiance,
+    Icache,
+    Render,
 }
 
-/// Run the pipeline with the stage binaries in `bin_dir`.
-pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outcome>> {
-    let args = parse(args, root)?;
-    let text =
-        std::fs::read_to_string(&args.pipeline).with_context(|| format!("{}: cannot read", args.pipeline.display()))?;
-    let cfg: Pipeline = toml::from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}: {}", args.pipeline.display(), e.to_string().replace('\n', " ")))?;
-    validate(&cfg, &args.pipeline)?;
-    for (key, v) in
-        [("trace.global_photons", cfg.trace.global_photons), ("trace.caustic_photons", cfg.trace.caustic_photons)]
-    {
-        if v > MAX_PHOTONS {
-            bail!(
-                "{}: {key} = {v} would need about {} GiB; this machine allows at most {MAX_PHOTONS}",
-                args.pipeline.display(),
-                (v * 2 * 64) >> 30
-            );
+impl Kind {
+    fn program(self) -> &'static str {
+        match self {
+            Kind::Trace => "photon-trace",
+            Kind::Sort => "photon-sort",
+            Kind::Irradiance => "photon-irradiance",
+            Kind::Icache | Kind::Render => "photon-render",
         }
     }
-    let base = args.pipeline.parent().unwrap_or(Path::new("."));
+}
+
+/// One step of the pipeline.
+#[derive(Clone, Debug)]
+struct Step {
+    name: String,
+    kind: Kind,
+    args: Vec<String>,
+    /// Files whose contents the step's key hashes (a missing one hashes as absent).
+    inputs: Vec<PathBuf>,
+    /// Files it writes (all must exist for it to be skipped as unchanged).
+    outputs: Vec<PathBuf>,
+    /// Skip the step when this input is absent (the scene did not need it).
+    needs: Option<PathBuf>,
+    /// Pass `--flag file` only when the file exists when the step runs.
+    optional: Vec<(&'static str, PathBuf)>,
+    stats: PathBuf,
+}
+
+/// Run the pipeline with the repository's release binaries, building them first.
+pub fn run(args: &RunArgs, root: &Path) -> Result<Vec<Outcome>> {
+    let bins = Bins::build(root)?;
+    run_with(args, root, &bins)
+}
+
+/// The steps of the pipeline for `cfg`, writing into `out`.
+fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
+    let o = |f: &str| out.join(f);
+    let s = |p: &Path| p.display().to_string();
+    let scene_files = scene_inputs(scene)?;
+    let seed = ["--seed".to_string(), cfg.seed.to_string()];
+    let mut trace = TraceParams { ..cfg.trace.clone() };
+    if !indirect {
+        trace.global_photons = 0;
+    }
+    if !caustics {
+        trace.caustic_photons = 0;
+    }
+    let mut trace_args = vec!["--scene".into(), s(scene), "--out".into(), s(out)];
+    trace_args.extend(trace.to_args());
+    trace_args.extend(seed.clone());
+    for (name, share) in &cfg.light_shares {
+        trace_args.extend(["--light-share".into(), format!("{name}={share}")]);
+    }
+    let with_stats = |mut a: Vec<String>, stats: &Path| {
+        a.extend(["--stats-json".into(), s(stats)]);
+        a
+    };
+    let mut steps = vec![Step {
+        name: "photon-trace".into(),
+        kind: Kind::Trace,
+        args: with_stats(trace_args, &o("trace.stats.json")),
+        inputs: scene_files.clone(),
+        outputs: vec![o("global.pmap"), o("trace.stats.json")],
+        needs: None,
+        optional: vec![],
+        stats: o("trace.stats.json"),
+    }];
+    for map in ["global", "caustic"] {
+        let (input, output, stats) =
+            (o(&format!("{map}.pmap")), o(&format!("{map}.kd.pmap")), o(&format!("sort-{map}.stats.json")));
+        steps.push(Step {
+            name: format!("photon-sort {map}"),
+            kind: Kind::Sort,
+            args: with_stats(vec![s(&input), "--out".into(), s(&output)], &stats),
+            inputs: vec![input.clone()],
+            outputs: vec![output, stats.clone()],
+            needs: Some(input),
+            optional: vec![],
+            stats,
+        });
+    }
+    let mut irr_args = vec![s(&o("global.kd.pmap")), "--out".into(), s(&o("global.irr.pmap"))];
+    irr_args.extend(cfg.irradiance.to_args());
+    steps.push(Step {
+        name: "photon-irradiance".into(),
+        kind: Kind::Irradiance,
+        args: with_stats(irr_args, &o("irradiance.stats.json")),
+        inputs: vec![o("global.kd.pmap")],
+        outputs: vec![o("global.irr.pmap"), o("irradiance.stats.json")],
+        needs: Some(o("global.kd.pmap")),
+        optional: vec![],
+        stats: o("irradiance.stats.json"),
+    });
+    let r = &cfg.render;
+    let mut base = vec!["--scene".into(), s(scene)];
+    if indirect {
+        base.extend(["--global".into(), s(&o("global.irr.pmap"))]);
+    } else {
+        base.push("--no-indirect".into());
+    }
+    base.extend(seed);
+    let map_inputs = [scene_files, vec![o("global.irr.pmap")]].concat();
+    let uses_cache = indirect && r.icache_accuracy > 0.0 && pm_render::method_uses_cache(r.mode);
+    let mut render_args = base.clone();
+    let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap")]].concat();
+    if uses_cache {
+        // The cache depends on everything but how the image is sampled and shown:
+        // those values stay at their defaults here, so changing them re-runs only
+        // the render.
+        let d = RenderParams::default();
+        let cache_params =
+            RenderParams { spp: d.spp, contrast: d.contrast, exposure: d.exposure, mode: d.mode, ..r.clone() };
+        let mut a = base;
+        a.extend(cache_params.to_args());
+        a.extend(["--icache-out".into(), s(&o("icache.bin"))]);
+        steps.push(Step {
+            name: "photon-render icache".into(),
+            kind: Kind::Icache,
+            args: with_stats(a, &o("icache.stats.json")),
+            inputs: map_inputs,
+            outputs: vec![o("icache.bin"), o("icache.stats.json")],
+            needs: Some(o("global.irr.pmap")),
+            optional: vec![],
+            stats: o("icache.stats.json"),
+        });
+        render_args.extend(["--icache".into(), s(&o("icache.bin"))]);
+        render_inputs.push(o("icache.bin"));
+    }
+    render_args.extend(r.to_args());
+    render_args.extend(["--out".into(), s(&o("image.exr")), "--png".into(), s(&o("image.png"))]);
+    steps.push(Step {
+        name: "photon-render".into(),
+        kind: Kind::Render,
+        args: with_stats(render_args, &o("render.stats.json")),
+        inputs: render_inputs,
+        outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
+        needs: None,
+        optional: vec![("--caustic", o("caustic.kd.pmap"))],
+        stats: o("render.stats.json"),
+    });
+    Ok(steps)
+}
+
+/// Run the pipeline with the stage binaries in `bins`.
+pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
+    let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
+    let mut cfg = Pipeline::load(&pipeline)?;
+    cfg.render.width = args.width.unwrap_or(cfg.render.width);
+    cfg.render.height = args.height.unwrap_or(cfg.render.height);
+    cfg.render.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    let base = pipeline.parent().unwrap_or(Path::new("."));
     let scene = args.scene.clone().unwrap_or_else(|| base.join(&cfg.scene));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out").join(&name));
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+    bins.check()?;
 
-    let bin = |n: &str| bin_dir.join(n);
-    for n in ["photon-trace", "photon-sort", "photon-irradiance", "photon-render"] {
-        if !bin(n).exists() {
-            bail!("{} is missing: build the stages (cargo build --release)", bin(n).display());
-        }
-    }
     // Which effects to simulate: the scene analysis, or the list pipeline.toml forces.
-    let analysis: serde_json::Value = {
-        let o = Command::new(bin("photon-trace"))
+    let analysis: pm_scene::Effects = {
+        let o = std::process::Command::new(bins.path("photon-trace"))
             .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {
             bail!("scene analysis failed: {}", String::from_utf8_lossy(&o.stderr).trim());
         }
-        serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no JSON")?
+        serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no analysis")?
     };
     let (caustics, indirect) = match &cfg.effects {
-        EffectsCfg::Auto(_) => (analysis["caustics"]["yes"] == true, analysis["indirect"]["yes"] == true),
+        EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes),
         EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
     };
-    let layout = match cfg.trace.layout {
-        Layout::Compact => "compact",
-        Layout::Full => "full",
-    };
-    let o = |f: &str| out.join(f).display().to_string();
-    let mut trace_args: Vec<String> = vec![
-        "--scene".into(),
-        scene.display().to_string(),
-        "--out".into(),
-        out.display().to_string(),
-        "--global".into(),
-        if indirect { cfg.trace.global_photons } else { 0 }.to_string(),
-        "--caustic".into(),
-        if caustics { cfg.trace.caustic_photons } else { 0 }.to_string(),
-        "--seed".into(),
-        cfg.seed.to_string(),
-        "--layout".into(),
-        layout.into(),
-        "--stats-json".into(),
-        o("trace.stats.json"),
-    ];
-    for (name, share) in &cfg.trace.light_shares {
-        trace_args.extend(["--light-share".into(), format!("{name}={share}")]);
-    }
-    let mut steps: Vec<(String, Vec<String>, Option<String>)> = vec![("photon-trace".into(), trace_args, None)];
-    for map in ["global", "caustic"] {
-        steps.push((
-            "photon-sort".into(),
-            vec![
-                o(&format!("{map}.pmap")),
-                "--out".into(),
-                o(&format!("{map}.kd.pmap")),
-                "--stats-json".into(),
-                o(&format!("sort-{map}.stats.json")),
-            ],
-            Some(o(&format!("{map}.pmap"))),
-        ));
-    }
-    let filter = match cfg.irradiance.filter {
-        FilterKind::None => "none",
-        FilterKind::Cone => "cone",
-        FilterKind::Gaussian => "gaussian",
-    };
-    steps.push((
-        "photon-irradiance".into(),
-        vec![
-            o("global.kd.pmap"),
-            "--out".into(),
-            o("global.irr.pmap"),
-            "--fraction".into(),
-            cfg.irradiance.fraction.to_string(),
-            "--k".into(),
-            cfg.irradiance.k.to_string(),
-            "--max-radius".into(),
-            cfg.irradiance.max_radius_rel_diag.to_string(),
-            "--filter".into(),
-            filter.into(),
-            "--stats-json".into(),
-            o("irradiance.stats.json"),
-        ],
-        Some(o("global.kd.pmap")),
-    ));
-    let r = &cfg.render;
-    let name_of = |v: &dyn std::fmt::Debug| format!("{v:?}").to_lowercase();
-    let mut render_args: Vec<String> = vec![
-        "--scene".into(),
-        scene.display().to_string(),
-        "--global".into(),
-        o("global.irr.pmap"),
-        "--out".into(),
-        o("image.exr"),
-        "--png".into(),
-        o("image.png"),
-        "--width".into(),
-        args.width.unwrap_or(cfg.width).to_string(),
-        "--height".into(),
-        args.height.unwrap_or(cfg.height).to_string(),
-        "--spp".into(),
-        cfg.spp.to_string(),
-        "--seed".into(),
-        cfg.seed.to_string(),
-        "--mode".into(),
-        name_of(&r.mode),
-        "--gather-rays".into(),
-        r.gather_rays.to_string(),
-        "--gather-lookup".into(),
-        name_of(&r.gather_lookup),
-        "--secondary-rays".into(),
-        r.secondary_rays.to_string(),
-        "--secondary-distance".into(),
-        r.secondary_distance_rel_diag.to_string(),
-        "--k".into(),
-        r.k.to_string(),
-        "--caustic-k".into(),
-        r.caustic_k.to_string(),
-        "--max-radius".into(),
-        r.max_radius_rel_diag.to_string(),
-        "--caustic-radius".into(),
-        r.caustic_radius_rel_diag.to_string(),
-        "--icache-accuracy".into(),
-        r.icache_accuracy.to_string(),
-        "--icache-min-spacing".into(),
-        r.icache_min_spacing_rel_diag.to_string(),
-        "--icache-max-spacing".into(),
-        r.icache_max_spacing_rel_diag.to_string(),
-        "--indirect-threshold".into(),
-        r.indirect_threshold.to_string(),
-        "--light-samples".into(),
-        r.light_samples.to_string(),
-        "--contrast".into(),
-        r.contrast.to_string(),
-        "--exposure".into(),
-        r.exposure.to_string(),
-        "--stats-json".into(),
-        o("render.stats.json"),
-    ];
-    if caustics && cfg.trace.caustic_photons > 0 {
-        render_args.extend(["--caustic".into(), o("caustic.kd.pmap")]);
-    }
-    if !indirect {
-        // No final gathers and no global map: drop it from the render's inputs.
-        let i = render_args.iter().position(|x| x == "--global").expect("--global is in the render arguments");
-        render_args.drain(i..i + 2);
-        render_args.push("--no-indirect".into());
-    }
-    steps.push(("photon-render".into(), render_args, None));
-    // Inputs (hashed) and outputs of each step, for skipping unchanged steps.
-    let scene_files = scene_inputs(&scene)?;
-    let map_in = |f: &str| vec![PathBuf::from(o(f))];
-    let io: Vec<(String, Vec<PathBuf>, Vec<String>)> = vec![
-        ("photon-trace".into(), scene_files.clone(), vec![o("global.pmap"), o("trace.stats.json")]),
-        ("photon-sort global".into(), map_in("global.pmap"), vec![o("global.kd.pmap"), o("sort-global.stats.json")]),
-        (
-            "photon-sort caustic".into(),
-            map_in("caustic.pmap"),
-            vec![o("caustic.kd.pmap"), o("sort-caustic.stats.json")],
-        ),
-        ("photon-irradiance".into(), map_in("global.kd.pmap"), vec![o("global.irr.pmap"), o("irradiance.stats.json")]),
-        (
-            "photon-render".into(),
-            [scene_files, map_in("global.irr.pmap"), map_in("caustic.kd.pmap")].concat(),
-            vec![o("image.exr"), o("image.png"), o("render.stats.json")],
-        ),
-    ];
+    let steps = plan(&cfg, &scene, &out, caustics, indirect)?;
+
     let keys_path = out.join(".stage-keys.json");
     let mut keys: serde_json::Map<String, serde_json::Value> =
         std::fs::read(&keys_path).ok().and_then(|b| serde_json::from_slice(&b).ok()).unwrap_or_default();
-    let mut outcomes = Vec::new();
     println!(
         "effects ({}):",
         if matches!(cfg.effects, EffectsCfg::Auto(_)) { "scene analysis" } else { "forced by pipeline.toml" }
     );
-    for key in ["caustics", "indirect", "specular_seen", "glossy"] {
-        let a = &analysis[key];
-        println!("  {key}: {} ({})", if a["yes"] == true { "yes" } else { "no" }, a["reason"].as_str().unwrap_or(""));
+    for (key, d) in [
+        ("caustics", &analysis.caustics),
+        ("indirect", &analysis.indirect),
+        ("specular_seen", &analysis.specular_seen),
+        ("glossy", &analysis.glossy),
+    ] {
+        println!("  {key}: {} ({})", if d.yes { "yes" } else { "no" }, d.reason);
     }
-    println!("  direct: {}", analysis["direct"].as_str().unwrap_or(""));
+    println!("  direct: {}", analysis.direct);
     let mut skipped_effects = Vec::new();
     if !caustics {
         skipped_effects.push("caustic photon tracing, sorting and estimates");
@@ -382,60 +337,53 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
         println!("  skipped: {s}");
     }
     println!("plan ({} -> {}):", scene.display(), out.display());
-    for (stage, a, _) in &steps {
-        println!("  {stage} {}", a.join(" "));
+    for step in &steps {
+        println!("  {} {}", step.kind.program(), step.args.join(" "));
     }
+    let mut outcomes = Vec::new();
     let mut rows = Vec::new();
-    for ((stage, a, needs), (step, inputs, outputs)) in steps.iter().zip(&io) {
-        if let Some(input) = needs
-            && !Path::new(input).exists()
+    for step in &steps {
+        if let Some(input) = &step.needs
+            && !input.exists()
         {
-            println!("  {step}: skipped ({input} absent: the scene does not need it)");
+            println!("  {}: skipped ({} absent: the scene does not need it)", step.name, input.display());
             // What it wrote in an earlier run no longer belongs to this one.
-            for f in outputs {
+            for f in &step.outputs {
                 let _ = std::fs::remove_file(f);
             }
-            keys.remove(step);
-            outcomes.push(Outcome { step: step.clone(), ran: false });
+            keys.remove(&step.name);
+            outcomes.push(Outcome { step: step.name.clone(), ran: false });
             continue;
         }
-        let key = step_key(stage, a, inputs)?;
+        let key = step_key(step.kind.program(), &step.args, &step.inputs);
         if !args.force
-            && keys.get(step).and_then(|k| k.as_str()) == Some(key.as_str())
-            && outputs.iter().all(|f| Path::new(f).exists())
+            && keys.get(&step.name).and_then(|k| k.as_str()) == Some(key.as_str())
+            && step.outputs.iter().all(|f| f.exists())
         {
-            println!("  {step}: skipped (inputs and parameters unchanged)");
-            outcomes.push(Outcome { step: step.clone(), ran: false });
-            rows.push(json!({"stage": step, "seconds": 0.0, "figures": "unchanged, skipped", "skipped": true}));
+            println!("  {}: skipped (inputs and parameters unchanged)", step.name);
+            outcomes.push(Outcome { step: step.name.clone(), ran: false });
+            rows.push(json!({"stage": step.name, "seconds": 0.0, "figures": "unchanged, skipped", "skipped": true}));
             continue;
         }
         // A step about to run invalidates its recorded key until it succeeds.
-        keys.remove(step);
+        keys.remove(&step.name);
         std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
-        let mut a = a.clone();
-        // The caustic map is optional: drop it when stage 1 wrote none.
-        if let Some(i) = a.iter().position(|x| x == "--caustic")
-            && !Path::new(&a[i + 1]).exists()
-        {
-            a.drain(i..i + 2);
+        let mut a = step.args.clone();
+        for (flag, file) in &step.optional {
+            if file.exists() {
+                a.extend([flag.to_string(), file.display().to_string()]);
+            }
         }
         let t = Instant::now();
-        let status = Command::new(bin(stage)).args(&a).status().with_context(|| format!("cannot start {stage}"))?;
+        stages::run(bins, step.kind.program(), &a, &step.name, false)
+            .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", out.display()))?;
         let secs = t.elapsed().as_secs_f64();
-        if !status.success() {
-            bail!("stage {step} failed ({status}); earlier outputs in {} are intact", out.display());
-        }
-        println!("  {step}: done in {secs:.2} s");
-        keys.insert(step.clone(), json!(key));
+        println!("  {}: done in {secs:.2} s", step.name);
+        keys.insert(step.name.clone(), json!(key));
         std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
-        outcomes.push(Outcome { step: step.clone(), ran: true });
-        // Each stage's --stats-json is the argument after the flag.
-        let stats_path = a.iter().position(|x| x == "--stats-json").and_then(|i| a.get(i + 1));
-        let stats: serde_json::Value = match stats_path {
-            Some(p) => serde_json::from_slice(&std::fs::read(p).with_context(|| format!("{p}: cannot read"))?)?,
-            None => json!({}),
-        };
-        rows.push(json!({"stage": step, "seconds": secs, "figures": key_figures(stage, &stats), "stats": stats}));
+        outcomes.push(Outcome { step: step.name.clone(), ran: true });
+        let (figures, stats) = key_figures(step)?;
+        rows.push(json!({"stage": step.name, "seconds": secs, "figures": figures, "stats": stats}));
     }
     println!("\n| stage | wall time [s] | key figures |\n|---|---|---|");
     for r in &rows {
@@ -458,10 +406,10 @@ pub fn run_with(args: &[String], root: &Path, bin_dir: &Path) -> Result<Vec<Outc
     Ok(outcomes)
 }
 
-/// blake3 over the stage, its arguments and the contents of its input files.
-fn step_key(stage: &str, args: &[String], inputs: &[PathBuf]) -> Result<String> {
+/// blake3 over the program, its arguments and the contents of its input files.
+fn step_key(program: &str, args: &[String], inputs: &[PathBuf]) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(stage.as_bytes());
+    h.update(program.as_bytes());
     for a in args {
         h.update(a.as_bytes());
         h.update(&[0]);
@@ -472,11 +420,11 @@ fn step_key(stage: &str, args: &[String], inputs: &[PathBuf]) -> Result<String> 
             Err(_) => h.update(b"absent"),
         };
     }
-    Ok(h.finalize().to_hex().to_string())
+    h.finalize().to_hex().to_string()
 }
 
 /// The scene file and the external buffers and images a .gltf references.
-fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
+pub fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
     let mut files = vec![scene.to_owned()];
     let bytes = std::fs::read(scene).with_context(|| format!("{}: cannot read", scene.display()))?;
     if let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&bytes) {
@@ -492,83 +440,45 @@ fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Build the stage binaries (release).
-pub fn build_stages(root: &Path) -> Result<()> {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(root)
-        .args([
-            "build",
-            "--release",
-            "--quiet",
-            "-p",
-            "photon-trace",
-            "-p",
-            "photon-sort",
-            "-p",
-            "photon-irradiance",
-            "-p",
-            "photon-render",
-        ])
-        .status()
-        .context("cannot run cargo build")?;
-    if !status.success() {
-        bail!("building the stage binaries failed");
+/// One line of the figures that matter for a step, from its typed statistics, and
+/// the statistics themselves.
+fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
+    fn read<T: serde::de::DeserializeOwned + serde::Serialize>(p: &Path) -> Result<(T, serde_json::Value)> {
+        let t: T = stages::read_stats(p)?;
+        let v = serde_json::to_value(&t)?;
+        Ok((t, v))
     }
-    Ok(())
-}
-
-/// One line of the figures that matter for a stage, from its statistics.
-fn key_figures(stage: &str, s: &serde_json::Value) -> String {
-    match stage {
-        "photon-trace" => format!(
-            "global: {}; caustic: {}",
-            s["global"].get("stored").map_or_else(
-                || s["global"]["skipped"].to_string(),
-                |n| format!("{} emitted / {n} stored", s["global"]["emitted"])
-            ),
-            s["caustic"].get("stored").map_or_else(|| s["caustic"]["skipped"].to_string(), |n| format!("{n} stored"))
-        ),
-        "photon-sort" => format!("{} photons, tree depth {}", s["photons"], s["depth"]),
-        "photon-irradiance" => format!(
-            "{} estimates (k = {}), median radius {:.4} m",
-            s["computed"],
-            s["k"],
-            s["radius_m"]["p50"].as_f64().unwrap_or(0.0)
-        ),
-        "photon-render" => format!(
-            "{}x{} {}, {:.2} samples/pixel, {} final gathers, {} gather rays",
-            s["width"],
-            s["height"],
-            s["mode"].as_str().unwrap_or(""),
-            s["samples_per_pixel"].as_f64().unwrap_or(0.0),
-            s["final_gathers"],
-            s["gather_rays"]
-        ),
-        _ => String::new(),
-    }
-}
-
-/// Range checks that name the offending key (serde checked names and types).
-fn validate(cfg: &Pipeline, path: &Path) -> Result<()> {
-    let check = |key: &str, ok: bool, v: &dyn std::fmt::Display, want: &str| -> Result<()> {
-        if ok { Ok(()) } else { bail!("{}: {key} = {v} is out of range ({want})", path.display()) }
-    };
-    check("width", (1..=16384).contains(&cfg.width), &cfg.width, "1 to 16384")?;
-    check("height", (1..=16384).contains(&cfg.height), &cfg.height, "1 to 16384")?;
-    check("spp", cfg.spp >= 1, &cfg.spp, "at least 1")?;
-    let f = cfg.irradiance.fraction;
-    check("irradiance.fraction", f > 0.0 && f <= 1.0, &f, "in (0, 1]")?;
-    check("irradiance.k", cfg.irradiance.k >= 1, &cfg.irradiance.k, "at least 1")?;
-    let r = cfg.irradiance.max_radius_rel_diag;
-    check("irradiance.max_radius_rel_diag", r > 0.0, &r, "positive")?;
-    check("render.gather_rays", cfg.render.gather_rays >= 1, &cfg.render.gather_rays, "at least 1")?;
-    let a = cfg.render.icache_accuracy;
-    check("render.icache_accuracy", a >= 0.0, &a, "0 (off) or positive")?;
-    check("render.k", cfg.render.k >= 1, &cfg.render.k, "at least 1")?;
-    check("render.caustic_k", cfg.render.caustic_k >= 1, &cfg.render.caustic_k, "at least 1")?;
-    for (name, share) in &cfg.trace.light_shares {
-        check(&format!("trace.light_shares.{name}"), (0.0..=1.0).contains(share), share, "in [0, 1]")?;
-    }
-    Ok(())
+    Ok(match step.kind {
+        Kind::Trace => {
+            let (s, v) = read::<photon_trace::Report>(&step.stats)?;
+            let map = |m: &photon_trace::MapReport, emitted: bool| match &m.skipped {
+                Some(why) => why.clone(),
+                None if emitted => format!("{} emitted / {} stored", m.emitted, m.stored),
+                None => format!("{} stored", m.stored),
+            };
+            (format!("global: {}; caustic: {}", map(&s.global, true), map(&s.caustic, false)), v)
+        }
+        Kind::Sort => {
+            let (s, v) = read::<photon_sort::Report>(&step.stats)?;
+            (format!("{} photons, tree depth {}", s.photons, s.depth), v)
+        }
+        Kind::Irradiance => {
+            let (s, v) = read::<photon_irradiance::Report>(&step.stats)?;
+            (format!("{} estimates (k = {}), median radius {:.4} m", s.computed, s.params.k, s.radius_m[1]), v)
+        }
+        Kind::Icache => {
+            let (s, v) = read::<photon_render::Report>(&step.stats)?;
+            (format!("{} cache records, {} gather rays", s.cache_records, s.prepass_gather_rays), v)
+        }
+        Kind::Render => {
+            let (s, v) = read::<photon_render::Report>(&step.stats)?;
+            (
+                format!(
+                    "{}x{} {}, {:.2} samples/pixel, {} final gathers, {} gather rays",
+                    s.params.width, s.params.height, s.mode, s.samples_per_pixel, s.final_gathers, s.gather_rays
+                ),
+                v,
+            )
+        }
+    })
 }

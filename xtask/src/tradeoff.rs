@@ -5,56 +5,60 @@
 //! measuring the error of the image and of its caustic and indirect components
 //! against the reference. Writes results.csv, results.md, plot.svg and plot.png.
 
-use anyhow::{Context, Result, bail};
-use serde_json::Value;
+use anyhow::Result;
+use pm_estimate::IrradianceParams;
+use pm_photon::{RecordLayout, TraceParams};
+use pm_render::{Lookup, Method, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use xtask::stages::{self, Bins};
 
-/// One point of the sweep.
+/// Options of `cargo xtask tradeoff`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene (glTF 2.0).
+    #[arg(long, default_value = "scenes/cornell_spheres.gltf")]
+    scene: PathBuf,
+    /// Output folder [default: out/tradeoff/<scene name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Image width and height [pixels].
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+}
+
+/// One point of the sweep: the stage parameters it runs with.
 #[derive(Clone, Debug)]
 struct Setting {
     axis: &'static str,
     label: String,
-    global: u64,
-    caustic: u64,
-    layout: &'static str,
-    k: usize,
-    fraction: f64,
-    gather_rays: u32,
-    icache: f64,
-    lookup: &'static str,
-    mode: &'static str,
-    spp: u32,
-    light_samples: u32,
+    trace: TraceParams,
+    irradiance: IrradianceParams,
+    render: RenderParams,
 }
 
 impl Setting {
-    fn default_full() -> Setting {
-        Setting {
-            axis: "default",
-            label: "defaults".into(),
-            global: 400_000,
-            caustic: 35_000,
-            layout: "compact",
-            k: 50,
-            fraction: 0.25,
-            gather_rays: 400,
-            icache: 0.3,
-            lookup: "precomputed",
-            mode: "full",
-            spp: 16,
-            light_samples: 4,
-        }
-    }
+    /// Photon maps are shared by settings that differ only in rendering.
     fn maps_key(&self) -> String {
-        format!("g{}-c{}-{}-k{}-f{}", self.global, self.caustic, self.layout, self.k, self.fraction)
+        let t = &self.trace;
+        let i = &self.irradiance;
+        format!("g{}-c{}-{}-k{}-f{}", t.global_photons, t.caustic_photons, t.layout, i.k, i.fraction)
     }
 }
 
-fn sweep() -> Vec<Setting> {
-    let d = Setting::default_full();
+/// The defaults (pipeline.toml's values at `size`), then one setting at a time.
+fn sweep(base: &xtask::run::Pipeline, size: u32) -> Vec<Setting> {
+    let mut render = base.render.clone();
+    render.width = size;
+    render.height = size;
+    let d = Setting {
+        axis: "default",
+        label: "defaults".into(),
+        trace: base.trace.clone(),
+        irradiance: base.irradiance.clone(),
+        render,
+    };
     let mut v = vec![d.clone()];
     let with = |axis: &'static str, label: String, f: &dyn Fn(&mut Setting)| {
         let mut s = d.clone();
@@ -64,75 +68,63 @@ fn sweep() -> Vec<Setting> {
         s
     };
     for g in [25_000u64, 100_000, 1_600_000] {
-        v.push(with("global photons", format!("global {g}"), &|s| s.global = g));
+        v.push(with("global photons", format!("global {g}"), &|s| s.trace.global_photons = g));
     }
     for c in [5_000u64, 140_000] {
-        v.push(with("caustic photons", format!("caustic {c}"), &|s| s.caustic = c));
+        v.push(with("caustic photons", format!("caustic {c}"), &|s| s.trace.caustic_photons = c));
     }
     for k in [25usize, 100, 200, 400] {
-        v.push(with("k", format!("k {k}"), &|s| s.k = k));
+        v.push(with("k", format!("k {k}"), &|s| {
+            s.irradiance.k = k;
+            s.render.k = k;
+        }));
     }
     for f in [1.0f64, 0.0625] {
-        v.push(with("precompute fraction", format!("fraction {f}"), &|s| s.fraction = f));
+        v.push(with("precompute fraction", format!("fraction {f}"), &|s| s.irradiance.fraction = f));
     }
     for r in [64u32, 1024] {
-        v.push(with("gather rays", format!("gather rays {r}"), &|s| s.gather_rays = r));
+        v.push(with("gather rays", format!("gather rays {r}"), &|s| s.render.gather_rays = r));
     }
-    for a in [0.15f64, 0.6] {
-        v.push(with("cache accuracy", format!("cache a {a}"), &|s| s.icache = a));
+    for a in [0.15f32, 0.6] {
+        v.push(with("cache accuracy", format!("cache a {a}"), &|s| s.render.icache_accuracy = a));
     }
     for n in [1u32, 16] {
-        v.push(with("light samples", format!("light samples {n}"), &|s| s.light_samples = n));
+        v.push(with("light samples", format!("light samples {n}"), &|s| s.render.light_samples = n));
     }
     for spp in [4u32, 64] {
-        v.push(with("max spp", format!("max spp {spp}"), &|s| s.spp = spp));
+        v.push(with("max spp", format!("max spp {spp}"), &|s| s.render.spp = spp));
     }
-    v.push(with("lookup", "exact lookup".into(), &|s| s.lookup = "exact"));
-    v.push(with("records", "full-precision records".into(), &|s| s.layout = "full"));
+    v.push(with("lookup", "exact lookup".into(), &|s| s.render.gather_lookup = Lookup::Exact));
+    v.push(with("records", "full-precision records".into(), &|s| s.trace.layout = RecordLayout::Full));
     for spp in [16u32, 64, 256, 1024] {
         v.push(with("path", format!("path {spp} spp"), &|s| {
-            s.mode = "path";
-            s.spp = spp
+            s.render.mode = Method::Path;
+            s.render.spp = spp
         }));
     }
     v
 }
 
-fn run_stage(bin_dir: &Path, name: &str, args: &[String], stats: &Path) -> Result<Value> {
-    let status = Command::new(bin_dir.join(name))
-        .args(args)
-        .args(["--stats-json".to_string(), stats.display().to_string()])
-        .stderr(std::process::Stdio::null())
-        .status()
-        .with_context(|| format!("cannot start {name}"))?;
-    if !status.success() {
-        bail!("{name} {} failed", args.join(" "));
-    }
-    Ok(serde_json::from_slice(&std::fs::read(stats)?)?)
+/// Run one stage quietly (its messages are kept for the error if it fails) and
+/// read its typed statistics.
+fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String], stats: &Path) -> Result<T> {
+    let mut a = args.to_vec();
+    a.extend(["--stats-json".to_string(), stats.display().to_string()]);
+    stages::run(bins, name, &a, name, true)?;
+    stages::read_stats(stats)
 }
 
 /// Run the trade-off study.
-pub fn run(args: &[String], root: &Path) -> Result<()> {
-    let mut scene = root.join("scenes/cornell_spheres.gltf");
-    let mut size = 128u32;
-    let mut out: Option<PathBuf> = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--scene" => scene = PathBuf::from(it.next().context("--scene needs a file")?),
-            "--out" => out = Some(PathBuf::from(it.next().context("--out needs a folder")?)),
-            "--size" => size = it.next().context("--size needs a number")?.parse()?,
-            other => bail!("unknown option {other}"),
-        }
-    }
+pub fn run(args: &Args, root: &Path) -> Result<()> {
+    let scene = if args.scene.is_absolute() { args.scene.clone() } else { root.join(&args.scene) };
+    let size = args.size;
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-    let out = out.unwrap_or_else(|| root.join("out/tradeoff").join(&name));
+    let out = args.out.clone().unwrap_or_else(|| root.join("out/tradeoff").join(&name));
     std::fs::create_dir_all(&out)?;
-    crate::run::build_stages(root)?;
-    let bin = root.join("target/release");
+    let base = xtask::run::Pipeline::load(&root.join("pipeline.toml"))?;
+    let bins = Bins::build(root)?;
     let s = |v: &dyn std::fmt::Display| v.to_string();
     let scene_s = scene.display().to_string();
-    let dim = [s(&"--width"), s(&size), s(&"--height"), s(&size)];
 
     // The reference: 4096 paths per pixel, cached by scene content and size.
     let scene_hash = blake3::hash(&std::fs::read(&scene)?).to_hex().to_string();
@@ -140,111 +132,57 @@ pub fn run(args: &[String], root: &Path) -> Result<()> {
     let ref_key = out.join(format!("reference-{size}.key"));
     if std::fs::read_to_string(&ref_key).ok().as_deref() != Some(scene_hash.as_str()) || !ref_exr.exists() {
         println!("rendering the reference ({size}x{size}, path tracing, 4096 spp) ...");
+        let p = RenderParams { mode: Method::Path, spp: 4096, width: size, height: size, ..base.render.clone() };
         let mut a =
-            vec![s(&"--scene"), scene_s.clone(), s(&"--mode"), s(&"path"), s(&"--spp"), s(&4096), s(&"--seed"), s(&99)];
-        a.extend(dim.iter().cloned());
-        a.extend([s(&"--out"), ref_exr.display().to_string()]);
-        run_stage(&bin, "photon-render", &a, &out.join("reference.stats.json"))?;
+            vec![s(&"--scene"), scene_s.clone(), s(&"--seed"), s(&99), s(&"--out"), ref_exr.display().to_string()];
+        a.extend(p.to_args());
+        stage::<photon_render::Report>(&bins, "photon-render", &a, &out.join("reference.stats.json"))?;
         std::fs::write(&ref_key, &scene_hash)?;
     }
     let reference = pm_image::read_exr(&ref_exr)?;
 
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
     let mut rows: Vec<(Setting, [f64; 4], [f64; 5])> = Vec::new();
-    for st in sweep() {
+    for st in sweep(&base, size) {
         // Photon maps, shared by settings that differ only in rendering.
         let mut times = [0.0f64; 4];
         let mdir = out.join("maps").join(st.maps_key());
-        if st.mode == "full" {
+        let photon_mapping = st.render.mode != Method::Path;
+        if photon_mapping {
             if !maps.contains_key(&st.maps_key()) {
                 std::fs::create_dir_all(&mdir)?;
                 let o = |f: &str| mdir.join(f).display().to_string();
-                let t = run_stage(
-                    &bin,
-                    "photon-trace",
-                    &[
-                        s(&"--scene"),
-                        scene_s.clone(),
-                        s(&"--out"),
-                        mdir.display().to_string(),
-                        s(&"--global"),
-                        s(&st.global),
-                        s(&"--caustic"),
-                        s(&st.caustic),
-                        s(&"--layout"),
-                        s(&st.layout),
-                    ],
-                    &mdir.join("trace.json"),
-                )?;
+                let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), mdir.display().to_string()];
+                a.extend(st.trace.to_args());
+                let t: photon_trace::Report = stage(&bins, "photon-trace", &a, &mdir.join("trace.json"))?;
                 let mut sort = 0.0;
                 for m in ["global", "caustic"] {
                     if Path::new(&o(&format!("{m}.pmap"))).exists() {
-                        let r = run_stage(
-                            &bin,
-                            "photon-sort",
-                            &[o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))],
-                            &mdir.join("sort.json"),
-                        )?;
-                        sort += r["seconds"].as_f64().unwrap_or(0.0);
+                        let a = [o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))];
+                        let r: photon_sort::Report = stage(&bins, "photon-sort", &a, &mdir.join("sort.json"))?;
+                        sort += r.seconds;
                     }
                 }
-                let i = run_stage(
-                    &bin,
-                    "photon-irradiance",
-                    &[
-                        o("global.kd.pmap"),
-                        s(&"--out"),
-                        o("global.irr.pmap"),
-                        s(&"--k"),
-                        s(&st.k),
-                        s(&"--fraction"),
-                        s(&st.fraction),
-                    ],
-                    &mdir.join("irr.json"),
-                )?;
-                maps.insert(
-                    st.maps_key(),
-                    (mdir.clone(), [t["seconds"].as_f64().unwrap_or(0.0), sort, i["seconds"].as_f64().unwrap_or(0.0)]),
-                );
+                let mut a = vec![o("global.kd.pmap"), s(&"--out"), o("global.irr.pmap")];
+                a.extend(st.irradiance.to_args());
+                let i: photon_irradiance::Report = stage(&bins, "photon-irradiance", &a, &mdir.join("irr.json"))?;
+                maps.insert(st.maps_key(), (mdir.clone(), [t.seconds, sort, i.seconds]));
             }
             let (_, t) = &maps[&st.maps_key()];
             times[..3].copy_from_slice(t);
         }
         let id = st.label.replace(' ', "_");
         let img = out.join(format!("{id}.exr"));
-        let mut a = vec![
-            s(&"--scene"),
-            scene_s.clone(),
-            s(&"--mode"),
-            s(&st.mode),
-            s(&"--spp"),
-            s(&st.spp),
-            s(&"--light-samples"),
-            s(&st.light_samples),
-            s(&"--out"),
-            img.display().to_string(),
-        ];
-        a.extend(dim.iter().cloned());
-        if st.mode == "full" {
-            let irr = mdir.join("global.irr.pmap");
-            a.extend([
-                s(&"--global"),
-                irr.display().to_string(),
-                s(&"--gather-rays"),
-                s(&st.gather_rays),
-                s(&"--icache-accuracy"),
-                s(&st.icache),
-                s(&"--gather-lookup"),
-                s(&st.lookup),
-                s(&"--k"),
-                s(&st.k),
-            ]);
+        let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), img.display().to_string()];
+        a.extend(st.render.to_args());
+        if photon_mapping {
+            a.extend([s(&"--global"), mdir.join("global.irr.pmap").display().to_string()]);
             if mdir.join("caustic.kd.pmap").exists() {
                 a.extend([s(&"--caustic"), mdir.join("caustic.kd.pmap").display().to_string()]);
             }
         }
-        let r = run_stage(&bin, "photon-render", &a, &out.join(format!("{id}.stats.json")))?;
-        times[3] = r["seconds"].as_f64().unwrap_or(0.0);
+        let r: photon_render::Report = stage(&bins, "photon-render", &a, &out.join(format!("{id}.stats.json")))?;
+        times[3] = r.seconds;
         let image = pm_image::read_exr(&img)?;
         let layer = |i: &pm_image::Layers, n: &str| i.layer(n).map(<[_]>::to_vec).unwrap_or_default();
         let total = pm_image::compare(&layer(&image, "total"), &layer(&reference, "total"), 1.0);

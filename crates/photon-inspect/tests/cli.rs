@@ -32,7 +32,8 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
         })
         .collect();
     let nodes = pm_kdtree::balance(&photons);
-    let mut header = Header::new(MapKind::Global, Order::KdTree, Layout::FullIrradiance, 777, [5; 32], "{}".into());
+    let mut header =
+        Header::new(MapKind::Global, Order::KdTree, Layout::FullIrradiance, 777, [5; 32], 1.0, "{}".into());
     header.has_irradiance = true;
     let good = dir.path().join("good.pmap");
     PhotonMap::new(header.clone(), nodes.clone()).write(&good).unwrap();

@@ -3,24 +3,13 @@
 //! photon's surface normal, in the 23-byte (or 64-byte) records. A thin layer over
 //! `pm-estimate`.
 
-use anyhow::{Result, bail, ensure};
-use clap::{Parser, ValueEnum};
-use pm_estimate::{Filter, KnnParams};
+use anyhow::{Result, bail};
+use clap::Parser;
+use pm_estimate::{IrradianceParams, KnnParams};
 use pm_format::{MapKind, Order, ReadExpect, with_map};
 use pm_stage::Progress;
 use serde_json::json;
 use std::path::PathBuf;
-
-/// Density-estimation filter.
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum FilterArg {
-    /// Constant kernel (the paper's estimate).
-    None,
-    /// Jensen's cone filter, k = 1.1.
-    Cone,
-    /// Jensen's Gaussian filter (renormalised).
-    Gaussian,
-}
 
 /// Command line of `photon-irradiance`.
 #[derive(Parser, Debug)]
@@ -39,20 +28,9 @@ pub struct Cli {
     /// Output map (global.irr.pmap).
     #[arg(long)]
     pub out: PathBuf,
-    /// Fraction of photons that get an irradiance (the paper: 1 or 1/4): one in every
-    /// 1/fraction consecutive kd-tree positions, a stratified subset that keeps the
-    /// photon density's shape.
-    #[arg(long, default_value_t = 0.25)]
-    pub fraction: f64,
-    /// Photons per estimate (the paper: 50).
-    #[arg(long, default_value_t = 50)]
-    pub k: usize,
-    /// Largest search radius, as a fraction of the photon map's bounding-box diagonal.
-    #[arg(long, default_value_t = 0.1)]
-    pub max_radius: f64,
-    /// Density-estimation filter.
-    #[arg(long, value_enum, default_value_t = FilterArg::None)]
-    pub filter: FilterArg,
+    /// The precompute settings (pipeline.toml's [irradiance] section).
+    #[command(flatten)]
+    pub params: IrradianceParams,
     /// Write statistics (count, time, radii) as JSON.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
@@ -61,15 +39,39 @@ pub struct Cli {
     pub threads: usize,
 }
 
+/// What a precompute did: written as `--stats-json` and read back by the runner.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Report {
+    /// Input map.
+    pub input: String,
+    /// Photons in the map.
+    pub photons: usize,
+    /// Estimates computed (photons given an irradiance).
+    pub computed: u64,
+    /// Estimates that found no photon.
+    pub empty_estimates: u64,
+    /// The parameters.
+    pub params: IrradianceParams,
+    /// Largest search radius used [m].
+    pub max_radius_m: f32,
+    /// The scene diagonal the relative radius refers to [m] (from the map's header).
+    pub scene_diagonal_m: f32,
+    /// Estimate radii [m]: 5th, 50th, 95th percentile and largest.
+    pub radius_m: [f32; 4],
+    /// Estimates whose radius reached the largest search radius.
+    pub estimates_at_max_radius: usize,
+    /// Wall time [s].
+    pub seconds: f64,
+    /// Wall time per estimate [us].
+    pub microseconds_per_estimate: f64,
+    /// Worker threads.
+    pub threads: usize,
+}
+
 /// Run the stage; returns the statistics.
-pub fn run(cli: &Cli) -> Result<serde_json::Value> {
-    ensure!(cli.fraction > 0.0 && cli.fraction <= 1.0, "--fraction must be in (0, 1], got {}", cli.fraction);
-    ensure!(cli.k >= 1, "--k must be at least 1");
-    ensure!(
-        cli.max_radius > 0.0 && cli.max_radius.is_finite(),
-        "--max-radius must be positive, got {}",
-        cli.max_radius
-    );
+pub fn run(cli: &Cli) -> Result<Report> {
+    let p = &cli.params;
+    p.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     pm_stage::init_threads(cli.threads)?;
     let expect = ReadExpect { kind: Some(MapKind::Global), order: Some(Order::KdTree), ..Default::default() };
     let mut map = pm_format::read(&cli.input, &expect)?;
@@ -81,21 +83,21 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
             h.layout.name()
         );
     }
-    let diag = (0..3).map(|k| (h.bounds_max[k] as f64 - h.bounds_min[k] as f64).powi(2)).sum::<f64>().sqrt();
-    let max_radius_m = (cli.max_radius * diag).max(f64::MIN_POSITIVE) as f32;
-    let filter = match cli.filter {
-        FilterArg::None => Filter::None,
-        FilterArg::Cone => Filter::Cone { k: 1.1 },
-        FilterArg::Gaussian => Filter::Gaussian,
-    };
-    let params = KnnParams { k: cli.k, max_d2: max_radius_m * max_radius_m, filter };
+    with_map!(&map, m => pm_kdtree::KdTree::new(&m.records).verify())
+        .map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", cli.input.display()))?;
+    // Relative radii are fractions of the scene diagonal the header records, the same
+    // length stage 4 uses.
+    let diag = h.scene_diagonal;
+    let max_radius_m = (p.max_radius_rel_diag * diag).max(f32::MIN_POSITIVE);
+    let filter = p.filter.filter();
+    let params = KnnParams { k: p.k, max_d2: max_radius_m * max_radius_m, filter };
     let n = map.len();
     let progress = Progress::new("irradiance", n as u64);
     let stats = with_map!(&mut map, m => {
-        let stats = pm_estimate::precompute(&mut m.records, &params, cli.fraction, &|d| progress.set(d));
+        let stats = pm_estimate::precompute(&mut m.records, &params, p.fraction, &|d| progress.set(d));
         m.header.has_irradiance = true;
         let mut p: serde_json::Value = serde_json::from_str(&m.header.params).unwrap_or(json!({}));
-        p["irradiance"] = json!({"fraction": cli.fraction, "k": cli.k, "max_radius_m": max_radius_m, "filter": format!("{filter:?}")});
+        p["irradiance"] = json!({"params": cli.params, "max_radius_m": max_radius_m});
         m.header.params = p.to_string();
         m.write(&cli.out)?;
         stats
@@ -104,25 +106,22 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
     let pct = |q: f64| {
         stats.radii.get(((stats.radii.len() as f64 - 1.0) * q).round().max(0.0) as usize).copied().unwrap_or(0.0)
     };
-    let report = json!({
-        "stage": "photon-irradiance",
-        "input": cli.input.display().to_string(),
-        "photons": n,
-        "computed": stats.computed,
-        "fraction": cli.fraction,
-        "empty_estimates": stats.empty,
-        "k": cli.k,
-        "filter": format!("{filter:?}"),
-        "max_radius_m": max_radius_m,
-        "max_radius_rel_diag": cli.max_radius,
-        "radius_m": {"p05": pct(0.05), "p50": pct(0.5), "p95": pct(0.95), "max": pct(1.0)},
-        "estimates_at_max_radius": stats.radii.iter().filter(|&&r| r >= max_radius_m * 0.999).count(),
-        "seconds": secs,
-        "microseconds_per_estimate": 1e6 * secs / stats.computed.max(1) as f64,
-        "threads": pm_stage::thread_count(),
-    });
+    let report = Report {
+        input: cli.input.display().to_string(),
+        photons: n,
+        computed: stats.computed as u64,
+        empty_estimates: stats.empty as u64,
+        params: cli.params.clone(),
+        max_radius_m,
+        scene_diagonal_m: diag,
+        radius_m: [pct(0.05), pct(0.5), pct(0.95), pct(1.0)],
+        estimates_at_max_radius: stats.radii.iter().filter(|&&r| r >= max_radius_m * 0.999).count(),
+        seconds: secs,
+        microseconds_per_estimate: 1e6 * secs / stats.computed.max(1) as f64,
+        threads: pm_stage::thread_count(),
+    };
     if let Some(p) = &cli.stats_json {
-        pm_stage::write_json(p, &report)?;
+        pm_stage::write_json(p, &serde_json::to_value(&report)?)?;
     }
     Ok(report)
 }

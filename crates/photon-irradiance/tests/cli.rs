@@ -28,7 +28,9 @@ fn write_sorted<R: PhotonRecord>(path: &Path, n: usize, kind: MapKind, order: Or
         })
         .collect();
     let records = if order == Order::KdTree { pm_kdtree::balance(&photons) } else { photons };
-    PhotonMap::new(Header::new(kind, order, R::LAYOUT, n as u64, [1; 32], "{}".into()), records).write(path).unwrap();
+    PhotonMap::new(Header::new(kind, order, R::LAYOUT, n as u64, [1; 32], 1.0, "{}".into()), records)
+        .write(path)
+        .unwrap();
     1e-3 * n as f32 / 4.0
 }
 
@@ -82,5 +84,16 @@ fn refuses_maps_it_cannot_use() {
         assert!(!out.exists());
     }
     let o = irradiance(&[dir.path().join("unsorted.pmap").to_str().unwrap(), "--out", "x", "--fraction", "0"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--fraction must be in (0, 1]"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--fraction = 0 is out of range (in (0, 1])"));
+    // A file whose header says kd-tree but whose records are not in kd-tree order.
+    let mut m: PhotonMap<CompactIrrPhoton> =
+        pm_format::read_as(&dir.path().join("unsorted.pmap"), &ReadExpect::default()).unwrap();
+    m.header.order = Order::KdTree;
+    let scrambled = dir.path().join("scrambled.kd.pmap");
+    m.write(&scrambled).unwrap();
+    let out = dir.path().join("scrambled.irr");
+    let o = irradiance(&[scrambled.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("scrambled.kd.pmap: not a valid kd-tree"), "{err}");
+    assert!(!out.exists());
 }

@@ -3,37 +3,14 @@
 //! component layers) and optionally a PNG. A thin layer over `pm-render`.
 
 use anyhow::{Context, Result, bail, ensure};
-use clap::{Parser, ValueEnum};
-use pm_format::{FullPhoton, MapKind, Order, PhotonRecord, ReadExpect};
+use clap::Parser;
+use pm_format::{FullPhoton, MapKind, Order, PhotonRecord, ReadExpect, with_map};
 use pm_kdtree::KdTree;
-use pm_render::{Image, Lookup, Maps, Mode, RenderConfig, RenderStats};
+use pm_render::{
+    Image, Integrator, IrradianceCache, Lookup, Maps, Method, PhotonMapping, Rect, RenderParams, RenderStats,
+};
 use pm_stage::Progress;
-use serde_json::json;
 use std::path::PathBuf;
-
-/// What to render.
-#[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
-pub enum ModeArg {
-    /// Direct + specular + caustics + final-gathered indirect (the complete image).
-    Full,
-    /// Radiance from the global map directly at the eye hit (Figure 1b).
-    Photons,
-    /// Precomputed irradiance x reflectance / pi (Figure 1e; 1c/1d show the irradiance).
-    Radiance,
-    /// The soft indirect term from final gathering alone (Figure 1f).
-    Indirect,
-    /// Unbiased path tracing: the reference (needs no photon maps).
-    Path,
-}
-
-/// Final-gather lookup.
-#[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
-pub enum LookupArg {
-    /// Precomputed irradiance of the nearest photon with a similar normal (needs photon-irradiance).
-    Precomputed,
-    /// A k-nearest irradiance estimate at each gather-ray hit.
-    Exact,
-}
 
 /// Command line of `photon-render`.
 #[derive(Parser, Debug, Clone)]
@@ -57,77 +34,32 @@ pub struct Cli {
     /// Sorted caustic map (caustic.kd.pmap).
     #[arg(long)]
     pub caustic: Option<PathBuf>,
-    /// Output OpenEXR image.
+    /// Output OpenEXR image (of the --region when given). Not needed with --icache-out.
+    #[arg(long, required_unless_present = "icache_out")]
+    pub out: Option<PathBuf>,
+    /// Render only this rectangle of the image, X0,Y0,X1,Y1 in pixels (columns
+    /// X0..X1, rows Y0..Y1, row 0 at the top, X1 and Y1 exclusive). Regions of the
+    /// same render with a shared --icache equal the whole image's pixels exactly.
+    #[arg(long, value_parser = parse_region)]
+    pub region: Option<[u32; 4]>,
+    /// Run only the irradiance-cache prepass (the final gathers at cache records over
+    /// the whole image) and write its records to this file; no image is rendered.
+    #[arg(long, conflicts_with_all = ["icache", "out", "png", "region"])]
+    pub icache_out: Option<PathBuf>,
+    /// Read the irradiance cache from this file (made by --icache-out with the same
+    /// scene, maps, size and settings) instead of running the prepass.
     #[arg(long)]
-    pub out: PathBuf,
+    pub icache: Option<PathBuf>,
     /// Also write a PNG (exposure, sRGB).
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Image width [pixels].
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
-    /// Image height [pixels].
-    #[arg(long, default_value_t = 512)]
-    pub height: u32,
-    /// Most samples per pixel (adaptive; the paper: 16). In path mode, samples per pixel.
-    #[arg(long, default_value_t = 16)]
-    pub spp: u32,
-    /// Luminance contrast between neighbouring pixels that triggers supersampling.
-    #[arg(long, default_value_t = 0.1)]
-    pub contrast: f32,
-    /// What to render.
-    #[arg(long, value_enum, default_value_t = ModeArg::Full)]
-    pub mode: ModeArg,
     /// Leave out soft indirect light (no final gathers, no global map needed); for
     /// scenes where no diffusely reflected light reaches another diffuse surface.
     #[arg(long)]
     pub no_indirect: bool,
-    /// Importance threshold: where the photon map's indirect irradiance is below this
-    /// fraction of the direct irradiance, use it instead of a final gather (0: always gather).
-    #[arg(long, default_value_t = 0.0)]
-    pub indirect_threshold: f32,
-    /// Rays per final gather (stratified, cosine-weighted).
-    #[arg(long, default_value_t = 400)]
-    pub gather_rays: u32,
-    /// How gather rays read the global map.
-    #[arg(long, value_enum, default_value_t = LookupArg::Precomputed)]
-    pub gather_lookup: LookupArg,
-    /// Rays of a secondary final gather (the paper: 12; 0 disables).
-    #[arg(long, default_value_t = 12)]
-    pub secondary_rays: u32,
-    /// Gather rays shorter than this fraction of the scene diagonal get a secondary gather.
-    #[arg(long, default_value_t = 0.005)]
-    pub secondary_distance: f32,
-    /// Photons per global-map estimate (exact lookups and photons mode).
-    #[arg(long, default_value_t = 50)]
-    pub k: usize,
-    /// Photons per caustic estimate.
-    #[arg(long, default_value_t = 60)]
-    pub caustic_k: usize,
-    /// Largest global-map search radius, as a fraction of the scene diagonal.
-    #[arg(long, default_value_t = 0.1)]
-    pub max_radius: f32,
-    /// Largest caustic search radius, as a fraction of the scene diagonal.
-    #[arg(long, default_value_t = 0.02)]
-    pub caustic_radius: f32,
-    /// Irradiance-cache accuracy a (Ward's error bound, smaller is finer; 0 disables the cache).
-    #[arg(long, default_value_t = 0.3)]
-    pub icache_accuracy: f32,
-    /// Smallest irradiance-cache record spacing, as a fraction of the scene diagonal.
-    #[arg(long, default_value_t = 0.005)]
-    pub icache_min_spacing: f32,
-    /// Largest irradiance-cache record spacing, as a fraction of the scene diagonal.
-    #[arg(long, default_value_t = 0.1)]
-    pub icache_max_spacing: f32,
-    /// Light samples per shading point.
-    #[arg(long, default_value_t = 4)]
-    pub light_samples: u32,
-    /// Depth limit of specular recursion (cut paths are counted in the stats).
-    #[arg(long, default_value_t = 12)]
-    pub max_depth: u32,
-    /// PNG exposure in stops (the PNG shows radiance x 2^exposure).
-    #[arg(long, default_value_t = 0.0)]
-    pub exposure: f32,
+    /// The render settings (pipeline.toml's [render] section).
+    #[command(flatten)]
+    pub params: RenderParams,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -139,174 +71,313 @@ pub struct Cli {
     pub threads: usize,
 }
 
+fn parse_region(s: &str) -> Result<[u32; 4], String> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<u32>().map_err(|_| format!("'{x}' is not a pixel index")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok([x0, y0, x1, y1]),
+        [_, _, _, _] => Err("X0 < X1 and Y0 < Y1 are required".into()),
+        _ => Err("give four numbers X0,Y0,X1,Y1".into()),
+    }
+}
+
 /// Run the stage; returns the statistics.
-pub fn run(cli: &Cli) -> Result<serde_json::Value> {
-    ensure!(
-        cli.width > 0 && cli.height > 0 && cli.width <= 16384 && cli.height <= 16384,
-        "--width and --height must be in 1..=16384"
-    );
-    ensure!(cli.spp >= 1, "--spp must be at least 1");
-    ensure!(cli.gather_rays >= 1 || cli.mode == ModeArg::Path, "--gather-rays must be at least 1");
+pub fn run(cli: &Cli) -> Result<Report> {
+    let p = &cli.params;
+    p.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     pm_stage::init_threads(cli.threads)?;
     let scene = pm_stage::load_scene("photon-render", &cli.scene)?;
-    ensure!(scene.camera.is_some(), "{}: the scene has no perspective camera", cli.scene.display());
-    let diag = scene.bounds.diagonal().max(f32::MIN_POSITIVE);
-    let cfg = RenderConfig {
-        width: cli.width,
-        height: cli.height,
-        spp: cli.spp,
-        contrast: cli.contrast,
-        mode: match cli.mode {
-            ModeArg::Full => Mode::Full,
-            ModeArg::Photons => Mode::Photons,
-            ModeArg::Radiance => Mode::Radiance,
-            ModeArg::Indirect => Mode::Indirect,
-            ModeArg::Path => Mode::Path,
-        },
-        indirect: !cli.no_indirect,
-        indirect_threshold: cli.indirect_threshold.max(0.0),
-        gather_rays: cli.gather_rays,
-        secondary_rays: cli.secondary_rays,
-        secondary_distance: cli.secondary_distance * diag,
-        lookup: match cli.gather_lookup {
-            LookupArg::Precomputed => Lookup::Precomputed,
-            LookupArg::Exact => Lookup::Exact,
-        },
-        k_global: cli.k.max(1),
-        k_caustic: cli.caustic_k.max(1),
-        max_radius_global: cli.max_radius * diag,
-        max_radius_caustic: cli.caustic_radius * diag,
-        icache_accuracy: cli.icache_accuracy.max(0.0),
-        icache_spacing: (cli.icache_min_spacing * diag, cli.icache_max_spacing.max(cli.icache_min_spacing) * diag),
-        light_samples: cli.light_samples.max(1),
-        max_depth: cli.max_depth,
-        seed: cli.seed,
+    let camera = scene
+        .camera
+        .clone()
+        .with_context(|| format!("{}: the scene has no perspective camera", cli.scene.display()))?;
+    let film = p.film(cli.seed);
+    let rect = match cli.region {
+        Some([x0, y0, x1, y1]) => {
+            let r = Rect { x0, y0, x1, y1 };
+            ensure!(r.is_valid_in(&film), "--region {x0},{y0},{x1},{y1} is outside the {}x{} image", p.width, p.height);
+            r
+        }
+        None => Rect::full(&film),
     };
-    let needs_global = cfg.mode != Mode::Path && !(cfg.mode == Mode::Full && !cfg.indirect);
+    // The cache prepass is the indirect view's work without the image.
+    let mode = if cli.icache_out.is_some() { Method::Indirect } else { p.mode };
+    let indirect = !cli.no_indirect;
+    let full = mode == Method::Full;
+    let needs_global = mode != Method::Path && !(full && !indirect);
     let needs_irradiance =
-        matches!(cfg.mode, Mode::Full | Mode::Indirect | Mode::Radiance) && cfg.lookup == Lookup::Precomputed;
-    let caustic = match (&cli.caustic, matches!(cfg.mode, Mode::Full)) {
-        (Some(p), true) => {
+        matches!(mode, Method::Full | Method::Indirect | Method::Radiance) && p.gather_lookup == Lookup::Precomputed;
+    let caustic = match (&cli.caustic, full) {
+        (Some(path), true) => {
             let expect = ReadExpect {
                 kind: Some(MapKind::Caustic),
                 order: Some(Order::KdTree),
                 scene_hash: Some(scene.content_hash),
                 ..Default::default()
             };
-            Some(pm_format::read_as::<FullPhoton>(p, &expect)?)
+            let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
+            verify_tree(path, &map.records)?;
+            Some(map)
         }
         _ => None,
     };
     let mut notes = Vec::new();
     let global = match (&cli.global, needs_global) {
-        (Some(p), true) => {
+        (Some(path), true) => {
             let expect = ReadExpect {
                 kind: Some(MapKind::Global),
                 order: Some(Order::KdTree),
                 irradiance: needs_irradiance.then_some(true),
                 scene_hash: Some(scene.content_hash),
             };
-            let map = pm_format::read(p, &expect)?;
+            let map = pm_format::read(path, &expect)?;
             if !map.header().layout.has_normal() {
                 bail!(
                     "{}: {} records carry no surface normal; trace with photon-trace",
-                    p.display(),
+                    path.display(),
                     map.header().layout.name()
                 );
             }
+            with_map!(&map, m => verify_tree(path, &m.records))?;
             if map.is_empty() {
                 notes.push("the global photon map holds no photons: indirect light is zero".to_string());
             }
             Some(map)
         }
-        (None, true) => bail!("--global is required in {:?} mode", cli.mode),
+        (None, true) => bail!("--global is required in {mode} mode"),
         _ => None,
     };
     for n in &notes {
         eprintln!("photon-render: note: {n}");
     }
-    let progress = Progress::new("render", (cli.width * cli.height) as u64);
-    let (image, stats) = match global {
-        Some(pm_format::AnyMap::CompactIrr(m)) => {
-            render_with(&scene, Some(&m.records), caustic.as_ref(), &cfg, &progress)?
-        }
-        Some(pm_format::AnyMap::FullIrr(m)) => {
-            render_with(&scene, Some(&m.records), caustic.as_ref(), &cfg, &progress)?
-        }
+    let job = Job { cli, scene: &scene, camera: &camera, film, rect, mode, indirect };
+    let (image, stats, cache) = match &global {
+        Some(pm_format::AnyMap::CompactIrr(m)) => job.run(Some(m), caustic.as_ref())?,
+        Some(pm_format::AnyMap::FullIrr(m)) => job.run(Some(m), caustic.as_ref())?,
         Some(_) => unreachable!("layouts without normals were refused above"),
-        None => render_with::<pm_format::FullIrrPhoton>(&scene, None, caustic.as_ref(), &cfg, &progress)?,
+        None => job.run::<pm_format::FullIrrPhoton>(None, caustic.as_ref())?,
     };
-    progress.finish();
-    let layers = pm_image::Layers {
-        width: image.width,
-        height: image.height,
-        layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
-    };
-    pm_image::write_exr(&cli.out, &layers)?;
-    if let Some(png) = &cli.png {
-        pm_image::write_png(
-            png,
-            image.width,
-            image.height,
-            image.layer("total").context("no total layer")?,
-            cli.exposure,
-        )?;
+    if let Some(image) = &image {
+        let layers = pm_image::Layers {
+            width: image.width,
+            height: image.height,
+            layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
+        };
+        let out = cli.out.as_ref().context("--out is required")?;
+        pm_image::write_exr(out, &layers)?;
+        if let Some(png) = &cli.png {
+            pm_image::write_png(
+                png,
+                image.width,
+                image.height,
+                image.layer("total").context("no total layer")?,
+                p.exposure,
+            )?;
+        }
     }
-    let report = report(cli, &cfg, &stats, diag, &notes);
-    if let Some(p) = &cli.stats_json {
-        pm_stage::write_json(p, &report)?;
+    let report = report(cli, &scene, &stats, &cache, &notes);
+    if let Some(path) = &cli.stats_json {
+        pm_stage::write_json(path, &serde_json::to_value(&report)?)?;
     }
     Ok(report)
 }
 
-fn render_with<G: PhotonRecord>(
-    scene: &pm_scene::Scene,
-    global: Option<&[G]>,
-    caustic: Option<&pm_format::PhotonMap<FullPhoton>>,
-    cfg: &RenderConfig,
-    progress: &Progress,
-) -> Result<(Image, RenderStats)> {
-    let irr_nodes = global.map(pm_render::irradiance_subset).unwrap_or_default();
-    let maps = Maps {
-        global: global.map(KdTree::new),
-        irradiance: (!irr_nodes.is_empty()).then(|| KdTree::new(&irr_nodes[..])),
-        caustic: caustic.map(|c| KdTree::new(&c.records[..])),
-    };
-    pm_render::render(scene, &maps, cfg, &|done, _| progress.set(done)).map_err(|e| anyhow::anyhow!("{}", e))
+/// Stages 3 and 4 trust the kd-tree order of the maps they read: check it (a
+/// linear pass, cheap next to reading the file).
+fn verify_tree<R: PhotonRecord>(path: &std::path::Path, records: &[R]) -> Result<()> {
+    KdTree::new(records).verify().map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", path.display()))
 }
 
-fn report(cli: &Cli, cfg: &RenderConfig, s: &RenderStats, diag: f32, notes: &[String]) -> serde_json::Value {
-    json!({
-        "stage": "photon-render",
-        "mode": format!("{:?}", cli.mode).to_lowercase(),
-        "indirect": cfg.indirect,
-        "lookup": format!("{:?}", cli.gather_lookup).to_lowercase(),
-        "width": cli.width, "height": cli.height, "max_spp": cli.spp,
-        "seconds": s.seconds,
-        "prepass_seconds": s.prepass_seconds,
-        "thread_seconds": s.thread_seconds.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
-        "final_gathers": s.final_gathers,
-        "cache_records": s.cache_records,
-        "cache_hits": s.cache_hits,
-        "gather_rays": s.gather_rays,
-        "secondary_gathers": s.secondary_gathers,
-        "lookups": s.lookups,
-        "lookup_misses": s.lookup_misses,
-        "lookup_rank_1_2_more": s.lookup_rank,
-        "terminated_paths": s.terminated_paths,
-        "nonfinite_pixels": s.nonfinite_pixels,
-        "thinned_shading_points": s.thinned,
-        "samples": s.samples,
-        "samples_per_pixel": s.samples as f64 / (cli.width as f64 * cli.height as f64),
-        "supersampled_pixels": s.supersampled_pixels,
-        "scene_diagonal_m": diag,
-        "radii_m": {
-            "max_radius_global": cfg.max_radius_global,
-            "max_radius_caustic": cfg.max_radius_caustic,
-            "secondary_distance": cfg.secondary_distance,
-            "icache_spacing": [cfg.icache_spacing.0, cfg.icache_spacing.1],
-        },
-        "threads": pm_stage::thread_count(),
-        "notes": notes,
-    })
+/// What the irradiance cache did in this run.
+#[derive(Default)]
+struct CacheReport {
+    /// Records (made or read).
+    records: u64,
+    /// Wall time of the prepass [s] (0 when read from a file).
+    prepass_seconds: f64,
+    /// Final-gather rays the prepass traced.
+    prepass_rays: u64,
+    /// Where the records came from.
+    source: &'static str,
+}
+
+/// One render: everything but the photon maps, which differ in record type.
+struct Job<'a> {
+    cli: &'a Cli,
+    scene: &'a pm_scene::Scene,
+    camera: &'a pm_scene::Camera,
+    film: pm_render::Film,
+    rect: Rect,
+    mode: Method,
+    indirect: bool,
+}
+
+impl Job<'_> {
+    fn run<G: PhotonRecord>(
+        &self,
+        global: Option<&pm_format::PhotonMap<G>>,
+        caustic: Option<&pm_format::PhotonMap<FullPhoton>>,
+    ) -> Result<(Option<Image>, RenderStats, CacheReport)> {
+        let records = global.map(|m| &m.records[..]);
+        let irr_nodes = records.map(pm_render::irradiance_subset).unwrap_or_default();
+        let maps = Maps {
+            global: records.map(KdTree::new),
+            irradiance: (!irr_nodes.is_empty()).then(|| KdTree::new(&irr_nodes[..])),
+            caustic: caustic.map(|c| KdTree::new(&c.records[..])),
+        };
+        let map_hash = global.map_or([0; 32], |m| m.header.payload_hash);
+        let mut pm = PhotonMapping::new(self.scene, maps, &self.cli.params, self.indirect)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", self.cli.scene.display()))?;
+        let mut cache = CacheReport::default();
+        let uses_cache = pm.wants_cache() && pm_render::method_uses_cache(self.mode);
+        if let Some(path) = &self.cli.icache {
+            ensure!(
+                uses_cache,
+                "--icache: this render uses no irradiance cache (mode {}, --icache-accuracy {})",
+                self.mode,
+                self.cli.params.icache_accuracy
+            );
+            let file = pm_format::read_cache(path)?;
+            ensure!(file.scene_hash == self.scene.content_hash, "{}: made from another scene", path.display());
+            ensure!(file.map_hash == map_hash, "{}: made from another global photon map", path.display());
+            let key = pm.cache_key(&self.film);
+            if file.params != key {
+                // Name the first setting that differs (the keys are "name=value" words).
+                let stored: Vec<&str> = file.params.split_whitespace().collect();
+                let (had, has) = key
+                    .split_whitespace()
+                    .zip(stored.iter().chain(std::iter::repeat(&"(none)")))
+                    .find(|(a, b)| a != *b)
+                    .map_or(("?".into(), "?".into()), |(a, b)| (b.to_string(), a.to_string()));
+                bail!("{}: made with {had}, this render has {has}: run --icache-out again", path.display());
+            }
+            let p = &self.cli.params;
+            let diag = self.scene.bounds.diagonal();
+            let spacing = (p.icache_min_spacing_rel_diag * diag, p.icache_max_spacing_rel_diag * diag);
+            pm = pm.with_cache(IrradianceCache::from_records(p.icache_accuracy, spacing, &file.records));
+            cache = CacheReport { records: file.records.len() as u64, source: "file", ..Default::default() };
+        } else if uses_cache || self.cli.icache_out.is_some() {
+            ensure!(pm.wants_cache(), "--icache-out needs --icache-accuracy above 0 and indirect light");
+            let progress = Progress::new("icache", 0);
+            let c = IrradianceCache::prepass(&pm, self.camera, &self.film);
+            let prepass_seconds = progress.finish();
+            let prepass_rays = pm.counters().stats().gather_rays;
+            cache = CacheReport { records: c.len() as u64, prepass_seconds, prepass_rays, source: "prepass" };
+            if let Some(out) = &self.cli.icache_out {
+                let file = pm_format::CacheFile {
+                    width: self.film.width,
+                    height: self.film.height,
+                    scene_hash: self.scene.content_hash,
+                    map_hash,
+                    params: pm.cache_key(&self.film),
+                    records: c.to_records(),
+                };
+                pm_format::write_cache(out, &file)?;
+                return Ok((None, pm.counters().stats(), cache));
+            }
+            pm = pm.with_cache(c);
+        }
+        let progress = Progress::new("render", self.rect.area() as u64);
+        let (img, stats) =
+            pm_render::render_method(self.mode, pm, self.camera, &self.film, self.rect, false, &|d, _| progress.set(d))
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        progress.finish();
+        Ok((Some(img), stats, cache))
+    }
+}
+
+/// What a render did: written as `--stats-json` and read back by the runner, the
+/// trade-off study and figure1 into this type.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Report {
+    /// "full", "photons", "radiance", "indirect", "path", or "icache" (--icache-out).
+    pub mode: String,
+    /// Soft indirect light computed.
+    pub indirect: bool,
+    /// The render parameters.
+    pub params: RenderParams,
+    /// The region rendered (X0, Y0, X1, Y1), or none for the whole image.
+    pub region: Option<[u32; 4]>,
+    /// Wall time: the cache prepass plus the image loop [s].
+    pub seconds: f64,
+    /// Wall time of the cache prepass [s] (0 when the cache was read from a file).
+    pub prepass_seconds: f64,
+    /// Thread time per component [s] (direct, caustics, final_gather, specular, irradiance_cache).
+    pub thread_seconds: std::collections::BTreeMap<String, f64>,
+    /// Final gathers: the cache's records plus those done while rendering.
+    pub final_gathers: u64,
+    /// Irradiance-cache records.
+    pub cache_records: u64,
+    /// Where the cache came from: "prepass", "file" or "" (none).
+    pub cache_source: String,
+    /// Shading points served by the cache.
+    pub cache_hits: u64,
+    /// Final-gather rays, prepass included when it ran in this process.
+    pub gather_rays: u64,
+    /// Final-gather rays of the prepass.
+    pub prepass_gather_rays: u64,
+    /// Secondary final gathers.
+    pub secondary_gathers: u64,
+    /// Photon-map lookups at gather-ray hits.
+    pub lookups: u64,
+    /// Precomputed lookups that found no similar photon.
+    pub lookup_misses: u64,
+    /// Rank of the accepted photon in precomputed lookups: 1st, 2nd, later.
+    pub lookup_rank_1_2_more: [u64; 3],
+    /// Paths cut by the depth limit.
+    pub terminated_paths: u64,
+    /// Pixel values written as 0 because they came out NaN or infinite.
+    pub nonfinite_pixels: u64,
+    /// Shading points where the importance threshold replaced a final gather.
+    pub thinned_shading_points: u64,
+    /// Eye samples.
+    pub samples: u64,
+    /// Eye samples per pixel of the region.
+    pub samples_per_pixel: f64,
+    /// Supersampled pixels.
+    pub supersampled_pixels: u64,
+    /// The scene diagonal relative lengths refer to [m].
+    pub scene_diagonal_m: f32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Notes printed on stderr.
+    pub notes: Vec<String>,
+}
+
+fn report(cli: &Cli, scene: &pm_scene::Scene, s: &RenderStats, cache: &CacheReport, notes: &[String]) -> Report {
+    let p = &cli.params;
+    let pixels = match cli.region {
+        Some([x0, y0, x1, y1]) => (x1 - x0) as f64 * (y1 - y0) as f64,
+        None => p.width as f64 * p.height as f64,
+    };
+    Report {
+        mode: if cli.icache_out.is_some() { "icache".to_string() } else { p.mode.to_string() },
+        indirect: !cli.no_indirect,
+        params: p.clone(),
+        region: cli.region,
+        seconds: s.seconds + cache.prepass_seconds,
+        prepass_seconds: cache.prepass_seconds,
+        thread_seconds: s.thread_seconds.iter().cloned().collect(),
+        final_gathers: s.final_gathers,
+        cache_records: cache.records,
+        cache_source: cache.source.to_string(),
+        cache_hits: s.cache_hits,
+        gather_rays: s.gather_rays,
+        prepass_gather_rays: cache.prepass_rays,
+        secondary_gathers: s.secondary_gathers,
+        lookups: s.lookups,
+        lookup_misses: s.lookup_misses,
+        lookup_rank_1_2_more: s.lookup_rank,
+        terminated_paths: s.terminated_paths,
+        nonfinite_pixels: s.nonfinite_pixels,
+        thinned_shading_points: s.thinned,
+        samples: s.samples,
+        samples_per_pixel: s.samples as f64 / pixels,
+        supersampled_pixels: s.supersampled_pixels,
+        scene_diagonal_m: scene.bounds.diagonal(),
+        threads: pm_stage::thread_count(),
+        notes: notes.to_vec(),
+    }
 }

@@ -93,7 +93,8 @@ fn an_empty_global_map_renders_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene("cornell_boxes.gltf");
     let hash = pm_scene::load(&s).unwrap().content_hash;
-    let mut header = Header::new(MapKind::Global, Order::KdTree, Layout::CompactIrradiance, 1000, hash, "{}".into());
+    let mut header =
+        Header::new(MapKind::Global, Order::KdTree, Layout::CompactIrradiance, 1000, hash, 1.0, "{}".into());
     header.has_irradiance = true;
     let g = dir.path().join("global.irr.pmap");
     PhotonMap::new(header, Vec::<CompactIrrPhoton>::new()).write(&g).unwrap();

@@ -6,7 +6,6 @@ use anyhow::Result;
 use clap::Parser;
 use pm_format::{Order, ReadExpect, with_map};
 use pm_stage::Progress;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Command line of `photon-sort`.
@@ -33,8 +32,25 @@ pub struct Cli {
     pub threads: usize,
 }
 
-/// Run the stage; returns the statistics.
-pub fn run(cli: &Cli) -> Result<serde_json::Value> {
+/// What a sort did: written as `--stats-json` and read back by the runner.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Report {
+    /// Input map.
+    pub input: String,
+    /// Photons sorted.
+    pub photons: usize,
+    /// Depth of the kd-tree.
+    pub depth: u32,
+    /// Bytes per record.
+    pub record_bytes: usize,
+    /// Wall time [s].
+    pub seconds: f64,
+    /// Worker threads.
+    pub threads: usize,
+}
+
+/// Run the stage.
+pub fn run(cli: &Cli) -> Result<Report> {
     pm_stage::init_threads(cli.threads)?;
     let mut map = pm_format::read(&cli.input, &ReadExpect::default())?;
     let n = map.len();
@@ -53,17 +69,16 @@ pub fn run(cli: &Cli) -> Result<serde_json::Value> {
     let secs = progress.finish();
     anyhow::ensure!(verified, "internal error: the balanced tree failed verification");
     let layout = map.header().layout;
-    let stats = json!({
-        "stage": "photon-sort",
-        "input": cli.input.display().to_string(),
-        "photons": n,
-        "depth": depth,
-        "record_bytes": layout.record_size(),
-        "seconds": secs,
-        "threads": pm_stage::thread_count(),
-    });
+    let stats = Report {
+        input: cli.input.display().to_string(),
+        photons: n,
+        depth: depth as u32,
+        record_bytes: layout.record_size(),
+        seconds: secs,
+        threads: pm_stage::thread_count(),
+    };
     if let Some(p) = &cli.stats_json {
-        pm_stage::write_json(p, &stats)?;
+        pm_stage::write_json(p, &serde_json::to_value(&stats)?)?;
     }
     Ok(stats)
 }

@@ -24,7 +24,7 @@ fn write_input(path: &Path, n: usize) {
         })
         .collect();
     PhotonMap::new(
-        Header::new(MapKind::Global, Order::Unsorted, Layout::CompactIrradiance, n as u64, [3; 32], "{}".into()),
+        Header::new(MapKind::Global, Order::Unsorted, Layout::CompactIrradiance, n as u64, [3; 32], 1.0, "{}".into()),
         photons,
     )
     .write(path)

@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use pm_format::{
     CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Header, MapKind, Order, Photon, PhotonMap,
 };
-use pm_photon::{Budget, LightSelector, MapPass, TraceConfig, TracedMap};
+use pm_photon::{Budget, LightSelector, MapPass, RecordLayout, TraceConfig, TraceParams, TracedMap};
 use pm_stage::Progress;
 use serde_json::json;
 use std::ops::Range;
@@ -56,16 +56,14 @@ pub struct TraceArgs {
     /// Output folder for global.pmap and caustic.pmap (created if missing).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Target number of photons stored in the global map (emission continues until reached).
-    #[arg(long, default_value_t = 400_000, conflicts_with = "emit_global")]
-    pub global: u64,
-    /// Target number of photons stored in the caustic map (0: no caustic map).
-    #[arg(long, default_value_t = 35_000, conflicts_with = "emit_caustic")]
-    pub caustic: u64,
-    /// Emit exactly N global photons instead of a stored target (needed with --photon-range).
+    /// Photon counts and record layout (pipeline.toml's [trace] section).
+    #[command(flatten)]
+    pub params: TraceParams,
+    /// Emit exactly N global photons instead of a stored target (needed with
+    /// --photon-range; overrides --global-photons).
     #[arg(long)]
     pub emit_global: Option<u64>,
-    /// Emit exactly M caustic photons instead of a stored target.
+    /// Emit exactly M caustic photons instead of a stored target (overrides --caustic-photons).
     #[arg(long)]
     pub emit_caustic: Option<u64>,
     /// Stop emitting for a map after this many photons even if its target is not reached
@@ -75,9 +73,6 @@ pub struct TraceArgs {
     /// Random seed; equal seeds give byte-identical maps for any thread count.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Record layout: compact (RGBE power, 1-byte directions; 18/23 bytes) or full (f32; 40/64 bytes).
-    #[arg(long, default_value = "compact", value_parser = ["compact", "full"])]
-    pub layout: String,
     /// Trace only photons FIRST..END of the emission index space (with --emit-*); merge the
     /// slices with `photon-trace merge`.
     #[arg(long, value_parser = parse_range)]
@@ -98,18 +93,6 @@ pub struct TraceArgs {
     pub analyze: bool,
 }
 
-/// The scene analysis as JSON (see `pm_scene::analyze`).
-pub fn effects_json(e: &pm_scene::Effects) -> serde_json::Value {
-    let d = |d: &pm_scene::Decision| json!({"yes": d.yes, "reason": d.reason});
-    json!({
-        "caustics": d(&e.caustics),
-        "indirect": d(&e.indirect),
-        "specular_seen": d(&e.specular_seen),
-        "glossy": d(&e.glossy),
-        "direct": e.direct,
-    })
-}
-
 fn parse_range(s: &str) -> Result<Range<u64>, String> {
     let (a, b) = s.split_once("..").ok_or("expected FIRST..END")?;
     let a: u64 = a.trim().parse().map_err(|e| format!("FIRST: {e}"))?;
@@ -126,20 +109,78 @@ fn parse_share(s: &str) -> Result<(String, f64), String> {
     Ok((n.to_owned(), w))
 }
 
-/// What a run did (also written as the stats JSON).
-pub type Report = serde_json::Value;
+/// What a tracing run did: written as `--stats-json` and read back by the runner
+/// into this type, so the writer and the reader cannot disagree on a key.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Report {
+    /// Scene file.
+    pub scene: String,
+    /// Worker threads.
+    pub threads: usize,
+    /// Each light, its power [W per channel] and the probability of emitting from it.
+    pub lights: Vec<LightReport>,
+    /// The global map.
+    pub global: MapReport,
+    /// The caustic map.
+    pub caustic: MapReport,
+    /// Wall time of the stage [s].
+    pub seconds: f64,
+}
+
+/// One light of [`Report`].
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct LightReport {
+    /// Its name.
+    pub name: String,
+    /// Emitted power Phi [W per channel].
+    pub power_w: [f32; 3],
+    /// Probability of choosing it for a photon.
+    pub selection_probability: f64,
+}
+
+/// One map of [`Report`]: why it was skipped, or what tracing it did.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct MapReport {
+    /// Why no map was written (absent when one was).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<String>,
+    /// Photons emitted (the power scale's N).
+    pub emitted: u64,
+    /// Photons stored.
+    pub stored: u64,
+    /// Stored photons by bounces before the store (index 0: direct).
+    pub stored_per_bounce: Vec<u64>,
+    /// Photons emitted per light, by light name.
+    pub emitted_per_light: Vec<(String, u64)>,
+    /// Rays traced.
+    pub rays: u64,
+    /// Paths cut by the bounce limit.
+    pub truncated_paths: u64,
+    /// True when emission stopped at the cap before reaching the target.
+    pub hit_emission_cap: bool,
+    /// Sum of stored photon power [W per channel].
+    pub total_power_w: [f64; 3],
+    /// Wall time [s].
+    pub seconds: f64,
+    /// Photon paths per second.
+    pub paths_per_second: f64,
+    /// Rays per second.
+    pub rays_per_second: f64,
+}
 
 /// Run the stage.
-pub fn run(cli: Cli) -> Result<Report> {
+pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Some(Command::Merge { inputs, out }) => merge(&inputs, &out),
-        None => trace(&cli.trace),
+        Some(Command::Merge { inputs, out }) => merge(&inputs, &out).map(|_| ()),
+        None => trace(&cli.trace).map(|_| ()),
     }
 }
 
-/// Trace both maps and write them.
-pub fn trace(args: &TraceArgs) -> Result<Report> {
+/// Trace both maps and write them (or, with `--analyze`, print the scene analysis
+/// and return no report).
+pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
     let scene_path = args.scene.as_ref().context("--scene is required")?;
+    args.params.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let out = match (&args.out, args.analyze) {
         (Some(o), _) => o.clone(),
         (None, true) => PathBuf::new(),
@@ -150,13 +191,12 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
     let start = Instant::now();
     let scene = pm_stage::load_scene("photon-trace", scene_path)?;
     if args.analyze {
-        let e = effects_json(&pm_scene::analyze(&scene));
-        println!("{}", serde_json::to_string_pretty(&e)?);
-        return Ok(e);
+        println!("{}", serde_json::to_string_pretty(&pm_scene::analyze(&scene))?);
+        return Ok(None);
     }
     let selector = LightSelector::new(&scene, &args.light_shares).with_context(|| scene_path.display().to_string())?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
-    let full = args.layout == "full";
+    let full = args.params.layout == RecordLayout::Full;
     let budget = |emit: Option<u64>, target: u64| match emit {
         Some(n) => Budget::Emitted(n),
         None => Budget::Stored {
@@ -164,15 +204,20 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
             cap: args.max_emitted.unwrap_or(target.saturating_mul(100).saturating_add(1_000_000)),
         },
     };
-    let mut report = json!({
-        "stage": "photon-trace",
-        "scene": scene_path.display().to_string(),
-        "threads": pm_stage::thread_count(),
-        "lights": scene.lights.iter().zip(&selector.probs).map(|(l, p)| json!({"name": l.name, "power_w": l.power.to_array(), "selection_probability": p})).collect::<Vec<_>>(),
-    });
+    let mut report = Report {
+        scene: scene_path.display().to_string(),
+        threads: pm_stage::thread_count(),
+        lights: scene
+            .lights
+            .iter()
+            .zip(&selector.probs)
+            .map(|(l, p)| LightReport { name: l.name.clone(), power_w: l.power.to_array(), selection_probability: *p })
+            .collect(),
+        ..Default::default()
+    };
     let passes = [
-        (MapPass::Global, MapKind::Global, "global", budget(args.emit_global, args.global)),
-        (MapPass::Caustic, MapKind::Caustic, "caustic", budget(args.emit_caustic, args.caustic)),
+        (MapPass::Global, MapKind::Global, "global", budget(args.emit_global, args.params.global_photons)),
+        (MapPass::Caustic, MapKind::Caustic, "caustic", budget(args.emit_caustic, args.params.caustic_photons)),
     ];
     for (pass, kind, name, budget) in passes {
         let path = out.join(format!("{name}.pmap"));
@@ -181,7 +226,7 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
         if !wanted || no_targets {
             let why = if wanted { "the scene has no mirror or glass surface" } else { "no photons requested" };
             remove_stale(&path)?;
-            report[name] = json!({"skipped": why});
+            *map_slot(&mut report, pass) = MapReport { skipped: Some(why.into()), ..Default::default() };
             eprintln!("photon-trace: no {name} map: {why}");
             continue;
         }
@@ -204,7 +249,7 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
         let params = json!({
             "seed": args.seed,
             "budget": format!("{budget:?}"),
-            "layout": args.layout,
+            "layout": args.params.layout,
             "light_shares": args.light_shares,
         });
         let mut params_with_range = params.clone();
@@ -215,16 +260,24 @@ pub fn trace(args: &TraceArgs) -> Result<Report> {
             pm_format::Layout::Compact,
             traced.stats.emitted,
             scene.content_hash,
+            scene.bounds.diagonal(),
             params_with_range.to_string(),
         );
         write_map(&path, header, &traced.photons, full, pass)?;
-        report[name] = map_report(&traced, &scene, secs);
+        *map_slot(&mut report, pass) = map_report(&traced, &scene, secs);
     }
-    report["seconds"] = json!(start.elapsed().as_secs_f64());
+    report.seconds = start.elapsed().as_secs_f64();
     if let Some(p) = &args.stats_json {
-        pm_stage::write_json(p, &report)?;
+        pm_stage::write_json(p, &serde_json::to_value(&report)?)?;
     }
-    Ok(report)
+    Ok(Some(report))
+}
+
+fn map_slot(report: &mut Report, pass: MapPass) -> &mut MapReport {
+    match pass {
+        MapPass::Global => &mut report.global,
+        MapPass::Caustic => &mut report.caustic,
+    }
 }
 
 /// The global map carries the surface normal (23/64-byte layouts) so the irradiance
@@ -243,21 +296,22 @@ fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, pass: 
     }
 }
 
-fn map_report(traced: &TracedMap, scene: &pm_scene::Scene, secs: f64) -> serde_json::Value {
+fn map_report(traced: &TracedMap, scene: &pm_scene::Scene, secs: f64) -> MapReport {
     let s = &traced.stats;
-    json!({
-        "emitted": s.emitted,
-        "stored": s.stored,
-        "stored_per_bounce": s.stored_per_bounce,
-        "emitted_per_light": scene.lights.iter().zip(&s.emitted_per_light).map(|(l, n)| json!({"light": l.name, "emitted": n})).collect::<Vec<_>>(),
-        "rays": s.rays,
-        "truncated_paths": s.truncated_paths,
-        "hit_emission_cap": s.hit_cap,
-        "total_power_w": pm_photon::total_power(&traced.photons).to_array(),
-        "seconds": secs,
-        "paths_per_second": s.emitted as f64 / secs.max(1e-9),
-        "rays_per_second": s.rays as f64 / secs.max(1e-9),
-    })
+    MapReport {
+        skipped: None,
+        emitted: s.emitted,
+        stored: s.stored,
+        stored_per_bounce: s.stored_per_bounce.clone(),
+        emitted_per_light: scene.lights.iter().zip(&s.emitted_per_light).map(|(l, n)| (l.name.clone(), *n)).collect(),
+        rays: s.rays,
+        truncated_paths: s.truncated_paths,
+        hit_emission_cap: s.hit_cap,
+        total_power_w: pm_photon::total_power(&traced.photons).to_array(),
+        seconds: secs,
+        paths_per_second: s.emitted as f64 / secs.max(1e-9),
+        rays_per_second: s.rays as f64 / secs.max(1e-9),
+    }
 }
 
 fn remove_stale(path: &Path) -> Result<()> {
@@ -269,7 +323,7 @@ fn remove_stale(path: &Path) -> Result<()> {
 }
 
 /// Merge slices traced with `--photon-range` into one map.
-pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
+pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<serde_json::Value> {
     let mut maps = Vec::new();
     for p in inputs {
         let m = pm_format::read(p, &pm_format::ReadExpect { order: Some(Order::Unsorted), ..Default::default() })?;

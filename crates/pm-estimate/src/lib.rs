@@ -31,6 +31,47 @@ pub const SIMILAR_NORMAL_COS: f32 = 0.9;
 /// surface, allowing for the 1-byte direction's error (0.30 rad, so sin = 0.3).
 pub const FRONT_TOLERANCE: f32 = -0.3;
 
+pm_params::value_enum! {
+    /// The density-estimation kernel a user picks (see [`Filter`]).
+    pub enum FilterKind {
+        /// Constant kernel (the paper's estimate).
+        None,
+        /// Jensen's cone filter, k = 1.1.
+        Cone,
+        /// Jensen's Gaussian filter (renormalised).
+        Gaussian,
+    }
+}
+
+impl FilterKind {
+    /// The kernel.
+    pub fn filter(self) -> Filter {
+        match self {
+            FilterKind::None => Filter::None,
+            FilterKind::Cone => Filter::Cone { k: 1.1 },
+            FilterKind::Gaussian => Filter::Gaussian,
+        }
+    }
+}
+
+pm_params::params! {
+    /// Stage 3's parameters, defined once: `photon-irradiance`'s options and the
+    /// `[irradiance]` section of pipeline.toml (Christensen 1999 section 2.1).
+    pub struct IrradianceParams {
+        /// Fraction of photons that get an irradiance (the paper: 1 or 1/4): one in every
+        /// 1/fraction consecutive kd-tree positions, a stratified subset that keeps the
+        /// photon density's shape.
+        fraction: f64 = 0.25 => pm_params::above_up_to(0.0, 1.0);
+        /// Photons per estimate (the paper: 50).
+        k: usize = 50 => pm_params::between(1, 1 << 16);
+        /// Largest search radius, as a fraction of the scene's bounding-box diagonal
+        /// (recorded in the photon-map header; the same reference as stage 4's).
+        max_radius_rel_diag: f32 = 0.1 => pm_params::above(0.0);
+        /// Density-estimation filter.
+        filter: FilterKind = FilterKind::None => pm_params::Any;
+    }
+}
+
 /// Density-estimation kernel (Jensen 2001, "Realistic Image Synthesis Using Photon
 /// Mapping", section 7.2).
 #[derive(Clone, Copy, Debug, PartialEq)]

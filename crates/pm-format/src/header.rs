@@ -3,7 +3,7 @@
 //! ```text
 //! offset size field
 //!      0    8 magic            b"PHOTMAP\x1a"
-//!      8    4 version          u32, must be 1
+//!      8    4 version          u32, must be 2
 //!     12    4 header_len       u32: bytes before the first record; multiple of 16
 //!     16    1 kind             1 = global, 2 = caustic
 //!     17    1 order            0 = unsorted, 1 = left-balanced kd-tree in heap order
@@ -18,8 +18,10 @@
 //!     64   24 total_power      f64 x 3 [W]: sum of the decoded record powers
 //!     88   32 scene_hash       blake3 of the scene file and its buffers
 //!    120   32 payload_hash     blake3 of the record bytes
-//!    152    4 params_len       u32
-//!    156    n params           UTF-8 (JSON) of the parameters that produced the map
+//!    152    4 scene_diagonal   f32 [m]: the scene's bounding-box diagonal, the one
+//!                              reference of every relative radius (stages 3 and 4)
+//!    156    4 params_len       u32
+//!    160    n params           UTF-8 (JSON) of the parameters that produced the map
 //!      .    . zero padding
 //! len-8    8 header_check     first 8 bytes of blake3(header bytes before this field)
 //! ```
@@ -32,8 +34,8 @@ use std::path::{Path, PathBuf};
 /// File signature.
 pub const MAGIC: [u8; 8] = *b"PHOTMAP\x1a";
 /// The only version this build reads and writes.
-pub const VERSION: u32 = 1;
-const FIXED_LEN: usize = 156;
+pub const VERSION: u32 = 2;
+const FIXED_LEN: usize = 160;
 const MAX_PARAMS: usize = 1 << 20;
 
 /// Which photon map a file holds.
@@ -117,6 +119,9 @@ pub struct Header {
     pub scene_hash: [u8; 32],
     /// blake3 of the record bytes.
     pub payload_hash: [u8; 32],
+    /// The scene's bounding-box diagonal [m]: relative radii (`max_radius_rel_diag`)
+    /// mean this length times the fraction in every stage.
+    pub scene_diagonal: f32,
     /// Parameters that produced the map (JSON text).
     pub params: String,
 }
@@ -129,6 +134,7 @@ impl Header {
         layout: Layout,
         n_emitted: u64,
         scene_hash: [u8; 32],
+        scene_diagonal: f32,
         params: String,
     ) -> Header {
         Header {
@@ -143,6 +149,7 @@ impl Header {
             total_power: [0.0; 3],
             scene_hash,
             payload_hash: [0; 32],
+            scene_diagonal,
             params,
         }
     }
@@ -237,6 +244,12 @@ pub enum Problem {
         /// What the file is.
         found: String,
     },
+    /// An irradiance-cache file that cannot be used (see [`crate::icache`]).
+    #[error("not a usable irradiance cache: {what}")]
+    NotCache {
+        /// What is wrong.
+        what: String,
+    },
     /// Made from another scene.
     #[error("made from another scene (scene hash {found} differs from {expected})")]
     OtherScene {
@@ -275,6 +288,7 @@ pub fn encode(h: &Header) -> Vec<u8> {
     }
     b.extend_from_slice(&h.scene_hash);
     b.extend_from_slice(&h.payload_hash);
+    b.extend_from_slice(&h.scene_diagonal.to_le_bytes());
     b.extend_from_slice(&(params.len() as u32).to_le_bytes());
     debug_assert_eq!(b.len(), FIXED_LEN);
     b.extend_from_slice(params);
@@ -379,6 +393,10 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     let total_power = [c.f64(), c.f64(), c.f64()];
     let scene_hash: [u8; 32] = c.take();
     let payload_hash: [u8; 32] = c.take();
+    let scene_diagonal = c.f32();
+    if !(scene_diagonal > 0.0) || !scene_diagonal.is_finite() {
+        return Err(err(Problem::Field { field: "scene_diagonal (not finite and positive)", value: 0 }));
+    }
     let params_len = c.u32() as usize;
     if FIXED_LEN + params_len + 8 > header_len {
         return Err(err(Problem::Field { field: "params_len", value: params_len as u64 }));
@@ -410,6 +428,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
         total_power,
         scene_hash,
         payload_hash,
+        scene_diagonal,
         params,
     };
     Ok((header, header_len))

@@ -1,4 +1,6 @@
-//! The photon-map file format: the only code that reads or writes photon-map bytes.
+//! The pipeline's binary intermediate files: photon maps (the photon records, the
+//! vocabulary every stage shares, and their file) and irradiance caches
+//! ([`icache`]). The only code that reads or writes their bytes.
 //!
 //! A file is a versioned header of our own (explicit little-endian fields, see
 //! [`header`]) followed by a flat array of fixed-size records that is read into
@@ -20,11 +22,13 @@ compile_error!("photon-map records are cast from little-endian bytes; big-endian
 mod atomic;
 mod direction;
 pub mod header;
+pub mod icache;
 mod record;
 
 pub use atomic::write_atomically;
 pub use direction::{DIRECTION_MAX_ERROR_RAD, decode_direction, encode_direction};
 pub use header::{FormatError, Header, Layout, MapKind, Order, ReadExpect};
+pub use icache::{CacheFile, CacheRecord, read_cache, write_cache};
 pub use record::{CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Photon, PhotonRecord, flags};
 
 use std::path::Path;

@@ -21,7 +21,7 @@ fn photons(n: usize) -> Vec<Photon> {
 }
 
 fn header(kind: MapKind) -> Header {
-    Header::new(kind, Order::Unsorted, Layout::Compact, 1234, [7; 32], r#"{"seed":1}"#.into())
+    Header::new(kind, Order::Unsorted, Layout::Compact, 1234, [7; 32], 1.0, r#"{"seed":1}"#.into())
 }
 
 fn write_map<R: PhotonRecord>(dir: &std::path::Path, name: &str, n: usize) -> (PathBuf, PhotonMap<R>) {
@@ -245,4 +245,61 @@ proptest! {
             prop_assert!(!e.to_string().contains('\n'));
         }
     }
+}
+
+fn cache_file(n: usize) -> crate::CacheFile {
+    let records = (0..n)
+        .map(|i| {
+            let f = i as f32;
+            crate::CacheRecord {
+                p: [f, -f, 0.5],
+                n: [0.0, 1.0, 0.0],
+                e: [f * 0.1, 1.0, 2.0],
+                r: 0.25 + f,
+                grad_t: [f * 1e-3; 9],
+                grad_r: [-f * 1e-3; 9],
+            }
+        })
+        .collect();
+    crate::CacheFile {
+        width: 64,
+        height: 48,
+        scene_hash: [3; 32],
+        map_hash: [9; 32],
+        params: "width=64 height=48".into(),
+        records,
+    }
+}
+
+#[test]
+fn irradiance_cache_files_round_trip_and_every_bad_one_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("icache.bin");
+    let c = cache_file(37);
+    crate::write_cache(&path, &c).unwrap();
+    assert_eq!(crate::read_cache(&path).unwrap(), c);
+    let good = std::fs::read(&path).unwrap();
+    let header_len = u32::from_le_bytes(good[12..16].try_into().unwrap()) as usize;
+    let mutate = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = good.clone();
+        f(&mut b);
+        std::fs::write(&path, &b).unwrap();
+        let e = crate::read_cache(&path).unwrap_err().to_string();
+        assert!(e.starts_with(&path.display().to_string()) && !e.contains('\n'), "{e}");
+        e
+    };
+    assert!(mutate(&|b| b.truncate(20)).contains("only 20 bytes"));
+    assert!(mutate(&|b| b[0] = b'X').contains("magic"));
+    assert!(mutate(&|b| b[8] = 7).contains("version 7"));
+    assert!(mutate(&|b| b[40] ^= 1).contains("checksum"));
+    assert!(mutate(&|b| b.truncate(b.len() - 1)).contains("truncated"));
+    assert!(mutate(&|b| b[header_len + 5] ^= 0x40).contains("corrupted"));
+    // A photon map is not a cache.
+    let (map, _) = write_map::<crate::CompactPhoton>(dir.path(), "map.pmap", 3);
+    assert!(crate::read_cache(&map).unwrap_err().to_string().contains("magic"));
+    // A record with a NaN, written with a valid checksum, is refused by index.
+    let mut bad = cache_file(3);
+    bad.records[2].e[1] = f32::NAN;
+    crate::write_cache(&path, &bad).unwrap();
+    assert!(crate::read_cache(&path).unwrap_err().to_string().contains("record 2"));
 }

@@ -29,24 +29,38 @@ impl Layers {
 /// Write OpenEXR, 32-bit float: the "total" layer as R, G, B and every other layer
 /// as `<layer>.R`, `.G`, `.B` in the same part.
 pub fn write_exr(path: &Path, img: &Layers) -> Result<()> {
+    let bytes = encode_exr(img, true).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// The bytes of the EXR file [`write_exr`] writes; `parallel` compresses chunks on
+/// several threads (the bytes are the same either way: tested).
+fn encode_exr(img: &Layers, parallel: bool) -> std::result::Result<Vec<u8>, String> {
     use exr::prelude::*;
     let (w, h) = (img.width as usize, img.height as usize);
     let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for (name, px) in &img.layers {
         if px.len() != w * h {
-            bail!("{}: layer {name} has {} pixels, expected {}", path.display(), px.len(), w * h);
+            return Err(format!("layer {name} has {} pixels, expected {}", px.len(), w * h));
         }
         for (c, comp) in ["R", "G", "B"].iter().enumerate() {
             let full = if name == "total" { comp.to_string() } else { format!("{name}.{comp}") };
             channels.push(AnyChannel::new(full.as_str(), FlatSamples::F32(px.iter().map(|p| p[c]).collect())));
         }
     }
-    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
+    // Increasing line order makes the writer put compressed chunks in file order
+    // whatever order its threads finish them in; with FAST_LOSSLESS's unspecified
+    // order the offset table depended on the thread schedule, so renders with 1 and
+    // 2 threads had equal pixels but different bytes.
+    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+    let layer = Layer::new((w, h), LayerAttributes::default(), encoding, AnyChannels::sort(channels));
     let image = exr::image::Image::from_layer(layer);
     let mut buf = std::io::Cursor::new(Vec::new());
-    image.write().to_buffered(&mut buf).map_err(|e| anyhow::anyhow!("{}: cannot encode EXR: {e}", path.display()))?;
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
-        .with_context(|| format!("{}: cannot write", path.display()))
+    let written =
+        if parallel { image.write().to_buffered(&mut buf) } else { image.write().non_parallel().to_buffered(&mut buf) };
+    written.map_err(|e| format!("cannot encode EXR: {e}"))?;
+    Ok(buf.into_inner())
 }
 
 /// Read an OpenEXR file written by [`write_exr`] (or any single-part RGB EXR).
@@ -192,6 +206,21 @@ mod tests {
         let png = dir.path().join("a.png");
         write_png(&png, 4, 3, &px(1.0), 0.0).unwrap();
         assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    }
+
+    /// Regression: chunks were stored in the order threads finished compressing
+    /// them, so equal images gave different files.
+    #[test]
+    fn exr_bytes_do_not_depend_on_threads() {
+        for (w, h) in [(96u32, 96u32), (1, 1), (257, 33), (7, 300)] {
+            let px: Vec<Vec3> =
+                (0..w * h).map(|i| Vec3::new((i % 97) as f32 * 0.37, (i % 13) as f32, 1.0 / (1 + i) as f32)).collect();
+            let img = Layers { width: w, height: h, layers: vec![("total".into(), px.clone()), ("direct".into(), px)] };
+            let serial = encode_exr(&img, false).unwrap();
+            for _ in 0..3 {
+                assert!(encode_exr(&img, true).unwrap() == serial, "{w}x{h}: parallel EXR bytes differ from serial");
+            }
+        }
     }
 
     #[test]

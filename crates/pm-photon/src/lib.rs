@@ -15,7 +15,8 @@
 
 use pm_color::Rgb;
 use pm_format::{Photon, flags};
-use pm_sampling::{Sampler, mix64, sample_cdf};
+use pm_sampling::{Sampler, mix64};
+pub use pm_scene::{LightSelectError, LightSelector};
 use pm_scene::{Scene, Target};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -27,6 +28,34 @@ pub const MAX_BOUNCES: u32 = 1000;
 const BATCH: u64 = 1 << 14;
 /// Paths per parallel work item.
 const CHUNK: u64 = 256;
+
+pm_params::value_enum! {
+    /// Precision of the stored photon records.
+    pub enum RecordLayout {
+        /// RGBE power and 1-byte directions (Christensen's 18 bytes; 23 with irradiance and normal).
+        Compact,
+        /// f32 everywhere (40 bytes; 64 with irradiance and normal), for accuracy comparisons.
+        Full,
+    }
+}
+
+/// Most photons a map may be asked for: the sort holds two copies of 64-byte records
+/// (the largest layout), which must fit in 16 GiB.
+pub const MAX_PHOTONS: u64 = 16 * (1 << 30) / (2 * 64);
+
+pm_params::params! {
+    /// Stage 1's parameters, defined once: `photon-trace`'s options and the `[trace]`
+    /// section of pipeline.toml (Christensen 1999 section 1.1).
+    pub struct TraceParams {
+        /// Target number of photons stored in the global map (emission continues until
+        /// reached; 0: no global map). At most 134,217,728 (memory of the sort).
+        global_photons: u64 = 400_000 => pm_params::between(0, MAX_PHOTONS);
+        /// Target number of photons stored in the caustic map (0: no caustic map).
+        caustic_photons: u64 = 35_000 => pm_params::between(0, MAX_PHOTONS);
+        /// Record layout: compact (RGBE power, 1-byte directions; 18/23 bytes) or full (f32; 40/64 bytes).
+        layout: RecordLayout = RecordLayout::Compact => pm_params::Any;
+    }
+}
 
 /// How many photons to emit for a map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,90 +129,15 @@ pub struct TracedMap {
 /// Why a scene cannot be traced.
 #[derive(Debug, thiserror::Error)]
 pub enum TraceError {
-    /// Nothing emits.
-    #[error("the scene has no lights with non-zero power (add an emissive material or a KHR_lights_punctual light)")]
-    NoLights,
+    /// The lights cannot be chosen from (none has power, or the shares are wrong).
+    #[error(transparent)]
+    Lights(#[from] LightSelectError),
     /// Nothing to hit.
     #[error("the scene has no surfaces: photons would never be stored")]
     NoSurfaces,
     /// Slicing needs a fixed emission count.
     #[error("--photon-range needs a fixed emission count (--emit-global/--emit-caustic), not a stored-photon target")]
     RangeNeedsFixedCount,
-    /// A light share names no light.
-    #[error("light share for '{0}': no light of that name (lights: {1})")]
-    UnknownLight(String, String),
-    /// Shares out of range.
-    #[error("light shares must be in [0, 1] and sum to at most 1 (got {0})")]
-    BadShares(String),
-}
-
-/// Probabilities of choosing each light for an emitted photon: proportional to power
-/// (sum of channels) by default (Jozwowski 2002 section 3.1); lights given an
-/// explicit share of the budget get it, and the rest split the remainder by power.
-#[derive(Clone, Debug)]
-pub struct LightSelector {
-    /// Probability per light.
-    pub probs: Vec<f64>,
-    cdf: Vec<f64>,
-}
-
-impl LightSelector {
-    /// Build from the scene and `(light name, share)` overrides. A name matches a
-    /// light whose name equals it or starts with it followed by " (".
-    pub fn new(scene: &Scene, shares: &[(String, f64)]) -> Result<LightSelector, TraceError> {
-        let power: Vec<f64> = scene.lights.iter().map(|l| (l.power.x + l.power.y + l.power.z) as f64).collect();
-        if scene.lights.is_empty() || power.iter().all(|&p| !(p > 0.0)) {
-            return Err(TraceError::NoLights);
-        }
-        let mut fixed = vec![None; scene.lights.len()];
-        let total_share: f64 = shares.iter().map(|s| s.1).sum();
-        if shares.iter().any(|s| !(0.0..=1.0).contains(&s.1)) || total_share > 1.0 + 1e-9 {
-            return Err(TraceError::BadShares(format!("{shares:?}")));
-        }
-        for (name, share) in shares {
-            let i = scene
-                .lights
-                .iter()
-                .position(|l| l.name == *name || l.name.starts_with(&format!("{name} (")))
-                .ok_or_else(|| {
-                    let names: Vec<_> = scene.lights.iter().map(|l| l.name.clone()).collect();
-                    TraceError::UnknownLight(name.clone(), names.join(", "))
-                })?;
-            fixed[i] = Some(*share);
-        }
-        let free_power: f64 = power.iter().zip(&fixed).filter(|(_, f)| f.is_none()).map(|(p, _)| p.max(0.0)).sum();
-        let remainder = (1.0 - total_share).max(0.0);
-        let probs: Vec<f64> = power
-            .iter()
-            .zip(&fixed)
-            .map(|(&p, f)| match f {
-                Some(s) if p > 0.0 => *s,
-                Some(_) => 0.0,
-                None if free_power > 0.0 => remainder * p.max(0.0) / free_power,
-                None => 0.0,
-            })
-            .collect();
-        let sum: f64 = probs.iter().sum();
-        if !(sum > 0.0) {
-            return Err(TraceError::BadShares("every light with power has a zero share".into()));
-        }
-        let probs: Vec<f64> = probs.iter().map(|p| p / sum).collect();
-        let mut acc = 0.0;
-        let cdf = probs
-            .iter()
-            .map(|p| {
-                acc += p;
-                acc
-            })
-            .collect();
-        Ok(LightSelector { probs, cdf })
-    }
-
-    /// Choose a light for sample `u`; returns (index, probability).
-    pub fn pick(&self, u: f32) -> (usize, f64) {
-        let i = sample_cdf(&self.cdf, u);
-        (i, self.probs[i])
-    }
 }
 
 /// The bounding spheres of every specular object (aim points for caustic photons).

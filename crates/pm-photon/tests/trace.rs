@@ -203,7 +203,7 @@ fn scenes_that_cannot_be_traced_are_refused() {
         vec![],
         None,
     );
-    assert!(matches!(LightSelector::new(&dark, &[]), Err(TraceError::NoLights)));
+    assert!(matches!(LightSelector::new(&dark, &[]), Err(pm_scene::LightSelectError::NoLights)));
     let zero = Scene::from_parts(
         vec![Triangle::new([Vec3::ZERO, Vec3::X, Vec3::Y], 0).unwrap()],
         vec![material("m", Bsdf::Lambert { rho: Rgb::ONE }, Rgb::ZERO)],
@@ -214,7 +214,7 @@ fn scenes_that_cannot_be_traced_are_refused() {
         }],
         None,
     );
-    assert!(matches!(LightSelector::new(&zero, &[]), Err(TraceError::NoLights)));
+    assert!(matches!(LightSelector::new(&zero, &[]), Err(pm_scene::LightSelectError::NoLights)));
     let empty = Scene::from_parts(
         vec![],
         vec![],
@@ -229,10 +229,13 @@ fn scenes_that_cannot_be_traced_are_refused() {
     let c = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(10), seed: 1, selector: sel, range: None };
     assert!(matches!(trace(&empty, &c, &|_| {}), Err(TraceError::NoSurfaces)));
     let box_scene = closed_box_two_lights();
-    assert!(matches!(LightSelector::new(&box_scene, &[("nope".into(), 0.5)]), Err(TraceError::UnknownLight(..))));
+    assert!(matches!(
+        LightSelector::new(&box_scene, &[("nope".into(), 0.5)]),
+        Err(pm_scene::LightSelectError::UnknownLight(..))
+    ));
     assert!(matches!(
         LightSelector::new(&box_scene, &[("object #1 (dim)".into(), 1.5)]),
-        Err(TraceError::BadShares(_))
+        Err(pm_scene::LightSelectError::BadShares(_))
     ));
 }
 

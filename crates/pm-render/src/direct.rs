@@ -1,49 +1,57 @@
 //! Direct illumination by next-event estimation (pbrt-v4 section 13.4), with the
 //! power heuristic between light and BSDF sampling on glossy surfaces (Veach 1997).
 
-use crate::Ctx;
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
-use pm_scene::Hit;
+use pm_scene::{Hit, LightSelector, Scene};
 
-/// One light-sampling estimate of reflected direct radiance: pick a light by power,
-/// sample a point or direction on it, trace a shadow ray. With `mis`, non-delta
-/// lights are weighted by the power heuristic against BSDF sampling (the caller
-/// then also samples the BSDF).
-pub(crate) fn light_sample<G: PhotonRecord>(
-    ctx: &Ctx<G>,
-    hit: &Hit,
-    bsdf: &Bsdf,
-    wo: Vec3,
-    s: &mut Sampler,
-    mis: bool,
-) -> Rgb {
-    let scene = ctx.scene;
-    let (li, p_sel) = ctx.lights.pick(s.next_1d());
-    let u_tri = s.next_1d();
-    let u = s.next_2d();
-    let Some(ls) = scene.lights[li].sample_li(scene, hit.p, u_tri, u) else { return Rgb::ZERO };
-    if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
-        return Rgb::ZERO;
+/// Direct light from the scene's lights, chosen by power: what every integrator
+/// that samples lights shares (the photon-map renderer, its secondary gathers and
+/// the path tracer). Knows nothing about photons.
+pub struct DirectLighting<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Light choice by power (the same as the photon tracer's).
+    pub lights: LightSelector,
+}
+
+impl<'a> DirectLighting<'a> {
+    /// Direct lighting of `scene`; fails when nothing in it emits.
+    pub fn new(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+        Ok(DirectLighting { scene, lights: LightSelector::new(scene, &[])? })
     }
-    let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
-    if f.max_element() <= 0.0 {
-        return Rgb::ZERO;
+
+    /// One light-sampling estimate of reflected direct radiance: pick a light by power,
+    /// sample a point or direction on it, trace a shadow ray. With `mis`, non-delta
+    /// lights are weighted by the power heuristic against BSDF sampling (the caller
+    /// then also samples the BSDF).
+    pub fn light_sample(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, mis: bool) -> Rgb {
+        let scene = self.scene;
+        let (li, p_sel) = self.lights.pick(s.next_1d());
+        let u_tri = s.next_1d();
+        let u = s.next_2d();
+        let Some(ls) = scene.lights[li].sample_li(scene, hit.p, u_tri, u) else { return Rgb::ZERO };
+        if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
+        if f.max_element() <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
+        // Measure the shadow ray from the offset origin: the offset can exceed a relative
+        // margin in tiny scenes, and the ray would then reach the light itself (every
+        // shadow ray in a 2 mm Cornell box was blocked before this).
+        let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
+        if scene.occluded(o, ls.wi, t_max) {
+            return Rgb::ZERO;
+        }
+        let p_l = ls.pdf * p_sel as f32;
+        let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
+        f * ls.li * (w / p_l)
     }
-    let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
-    // Measure the shadow ray from the offset origin: the offset can exceed a relative
-    // margin in tiny scenes, and the ray would then reach the light itself (every
-    // shadow ray in a 2 mm Cornell box was blocked before this).
-    let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
-    if scene.occluded(o, ls.wi, t_max) {
-        return Rgb::ZERO;
-    }
-    let p_l = ls.pdf * p_sel as f32;
-    let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
-    f * ls.li * (w / p_l)
 }
 
 /// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.
@@ -53,35 +61,46 @@ pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
 }
 
-/// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit,
-/// averaged over `n` light samples.
-pub(crate) fn direct<G: PhotonRecord>(ctx: &Ctx<G>, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
-    let scene = ctx.scene;
-    let glossy = !matches!(bsdf, Bsdf::Lambert { .. });
-    let side_o = wo.dot(hit.ng);
-    let mut sum = Rgb::ZERO;
-    for _ in 0..n {
-        sum += light_sample(ctx, hit, bsdf, wo, s, glossy);
-        if glossy {
-            // BSDF sampling, weighted against light sampling.
-            let u = s.next_2d();
-            let uc = s.next_1d();
-            if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc)
-                && !bs.specular
-                && bs.wi.dot(hit.ng) * side_o > 0.0
-            {
-                let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
-                if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
-                    let le = scene.emitted(&h, -bs.wi);
-                    let l_idx = scene.light_of_triangle[h.tri as usize];
-                    if le.max_element() > 0.0 && l_idx != u32::MAX {
-                        let p_l = scene.lights[l_idx as usize].pdf_li(scene, bs.wi, h.t, h.tri)
-                            * ctx.lights.probs[l_idx as usize] as f32;
-                        sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+impl DirectLighting<'_> {
+    /// The density [sr^-1] with which [`Self::light_sample`] picks direction `wi` toward
+    /// the emitting triangle `tri` seen at distance `t` (light choice included); `None`
+    /// when the triangle belongs to no light. For MIS weights of BSDF-sampled emission.
+    pub fn pdf_emitter(&self, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
+        let li = self.scene.light_of_triangle[tri as usize];
+        (li != u32::MAX).then(|| {
+            self.scene.lights[li as usize].pdf_li(self.scene, wi, t, tri) * self.lights.probs[li as usize] as f32
+        })
+    }
+
+    /// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit,
+    /// averaged over `n` light samples.
+    pub fn direct(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
+        let scene = self.scene;
+        let glossy = !matches!(bsdf, Bsdf::Lambert { .. });
+        let side_o = wo.dot(hit.ng);
+        let mut sum = Rgb::ZERO;
+        for _ in 0..n {
+            sum += self.light_sample(hit, bsdf, wo, s, glossy);
+            if glossy {
+                // BSDF sampling, weighted against light sampling.
+                let u = s.next_2d();
+                let uc = s.next_1d();
+                if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc)
+                    && !bs.specular
+                    && bs.wi.dot(hit.ng) * side_o > 0.0
+                {
+                    let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
+                    if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
+                        let le = scene.emitted(&h, -bs.wi);
+                        if le.max_element() > 0.0
+                            && let Some(p_l) = self.pdf_emitter(h.tri, bs.wi, h.t)
+                        {
+                            sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+                        }
                     }
                 }
             }
         }
+        sum / n.max(1) as f32
     }
-    sum / n.max(1) as f32
 }

@@ -3,7 +3,8 @@
 //! photon map, with a secondary gather for short rays, and the irradiance gradients
 //! of Ward and Heckbert 1992 ("Irradiance Gradients") from the same rays.
 
-use crate::{Ctx, Lookup, facing};
+use crate::integrator::PhotonMapping;
+use crate::{Lookup, facing};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
@@ -15,11 +16,11 @@ use pm_scene::Hit;
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 
-/// Per-thread scratch for photon queries.
+/// Per-thread scratch memory of the photon-map integrators (photon queries).
 #[derive(Default)]
-pub(crate) struct Scratch {
-    pub knn: KnnScratch,
-    pub rejected: Vec<f32>,
+pub struct Scratch {
+    pub(crate) knn: KnnScratch,
+    pub(crate) rejected: Vec<f32>,
 }
 
 /// The result of a final gather at a point.
@@ -37,9 +38,14 @@ pub(crate) struct Gather {
 
 /// Irradiance at a final-gather ray's hit point from the global map: the
 /// precomputed irradiance of the nearest similar photon, or a k-nearest estimate.
-pub(crate) fn lookup_irradiance<G: PhotonRecord>(ctx: &Ctx<G>, p: Vec3, n: Vec3, scratch: &mut Scratch) -> Rgb {
-    let cfg = ctx.cfg;
-    ctx.stats.lookups.fetch_add(1, Relaxed);
+pub(crate) fn lookup_irradiance<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    p: Vec3,
+    n: Vec3,
+    scratch: &mut Scratch,
+) -> Rgb {
+    let cfg = &ctx.cfg;
+    ctx.counters.lookups.fetch_add(1, Relaxed);
     match cfg.lookup {
         Lookup::Precomputed => match &ctx.maps.irradiance {
             Some(tree) => {
@@ -58,11 +64,11 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(ctx: &Ctx<G>, p: Vec3, n: Vec3,
                 };
                 match pm_estimate::precomputed_irradiance_where(tree, p, n, max_d2, &mut scratch.rejected, visible) {
                     Some((e, hit)) => {
-                        ctx.stats.lookup_rank[(hit.rank as usize - 1).min(2)].fetch_add(1, Relaxed);
+                        ctx.counters.lookup_rank[(hit.rank as usize - 1).min(2)].fetch_add(1, Relaxed);
                         e
                     }
                     None => {
-                        ctx.stats.lookup_misses.fetch_add(1, Relaxed);
+                        ctx.counters.lookup_misses.fetch_add(1, Relaxed);
                         Rgb::ZERO
                     }
                 }
@@ -89,7 +95,7 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(ctx: &Ctx<G>, p: Vec3, n: Vec3,
 /// radiance is albedo / pi x irradiance. A ray shorter than the secondary-gather
 /// distance gets a small secondary gather there instead of a photon-map lookup.
 fn gather_radiance<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     o: Vec3,
     d: Vec3,
     s: &mut Sampler,
@@ -119,14 +125,14 @@ fn gather_radiance<G: PhotonRecord>(
         }
         let n = facing(hit.ng, -d);
         let e = if secondary && bounce == 0 && hit.t < ctx.cfg.secondary_distance && ctx.cfg.secondary_rays > 0 {
-            ctx.stats.secondary_gathers.fetch_add(1, Relaxed);
+            ctx.counters.secondary_gathers.fetch_add(1, Relaxed);
             secondary_irradiance(ctx, &hit, n, s, scratch)
         } else {
             lookup_irradiance(ctx, hit.p, n, scratch)
         };
         return (beta * bsdf.diffuse_albedo() * e / PI, first_t);
     }
-    ctx.stats.terminated_paths.fetch_add(1, Relaxed);
+    ctx.counters.terminated_paths.fetch_add(1, Relaxed);
     (Rgb::ZERO, first_t)
 }
 
@@ -134,7 +140,7 @@ fn gather_radiance<G: PhotonRecord>(
 /// sampling plus a secondary gather of `secondary_rays` rays reading the photon map
 /// (Jensen 1996; Christensen 1999 section 1.3: "we have found 12 to be sufficient").
 fn secondary_irradiance<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     hit: &Hit,
     n: Vec3,
     s: &mut Sampler,
@@ -145,7 +151,7 @@ fn secondary_irradiance<G: PhotonRecord>(
     let unit = Bsdf::Lambert { rho: Rgb::splat(PI) };
     let mut h = *hit;
     h.ns = facing(hit.ns, n);
-    let e_direct = crate::direct::direct(ctx, &h, &unit, n, s, 1);
+    let e_direct = ctx.light.direct(&h, &unit, n, s, 1);
     let g = final_gather(ctx, hit.p, h.ns, n, ctx.cfg.secondary_rays, s, false, scratch);
     e_direct + g.e
 }
@@ -156,7 +162,7 @@ fn secondary_irradiance<G: PhotonRecord>(
 /// (cosine-weighted stratified sampling, Ward and Heckbert 1992).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn final_gather<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     x: Vec3,
     ns: Vec3,
     ng: Vec3,
@@ -167,7 +173,7 @@ pub(crate) fn final_gather<G: PhotonRecord>(
 ) -> Gather {
     let m = ((rays as f32 / PI).sqrt().round() as usize).max(1);
     let n = ((rays as f32 / m as f32).round() as usize).max(1);
-    ctx.stats.gather_rays.fetch_add((m * n) as u64, Relaxed);
+    ctx.counters.gather_rays.fetch_add((m * n) as u64, Relaxed);
     let (t, b) = basis(ns);
     let world = |l: Vec3| t * l.x + b * l.y + ns * l.z;
     let mut l = vec![Rgb::ZERO; m * n];

@@ -4,14 +4,21 @@
 //! w_i = 1 / (|p - p_i| / R_i + sqrt(1 - n . n_i)); a record is used where
 //! w_i > 1 / a, a being the user's accuracy.
 
-use crate::gather::Gather;
+use crate::gather::{Gather, Scratch, final_gather};
+use crate::integrator::{PhotonMapping, cheap_indirect, diffuse_points};
+use crate::render::{Film, pixel_seed};
 use glam::{IVec3, Vec3};
 use pm_color::Rgb;
+use pm_format::{CacheRecord, PhotonRecord};
+use pm_sampling::{Sampler, mix64};
+use pm_scene::Camera;
+use rayon::prelude::*;
 use std::collections::HashMap;
 
-/// One cached final gather.
+/// One cached final gather: position [m], normal, irradiance E [W m^-2], radius of
+/// validity R [m], translational [W m^-3] and rotational [W m^-2 rad^-1] gradients.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Record {
+struct Record {
     p: Vec3,
     n: Vec3,
     e: Rgb,
@@ -22,7 +29,10 @@ pub(crate) struct Record {
 
 /// The cache: records in insertion order, indexed by a hash grid whose cells are as
 /// large as the largest region a record can serve, so a lookup reads 27 cells.
-pub(crate) struct IrradianceCache {
+/// Made once per image by [`IrradianceCache::prepass`] (its own pipeline step, so
+/// that tiles rendered apart share one cache), read-only while rendering.
+#[derive(Clone, Debug)]
+pub struct IrradianceCache {
     records: Vec<Record>,
     grid: HashMap<IVec3, Vec<u32>>,
     cell: f32,
@@ -32,7 +42,7 @@ pub(crate) struct IrradianceCache {
 
 impl IrradianceCache {
     /// An empty cache for accuracy `a` and record spacing (min, max) [m].
-    pub fn new(a: f32, spacing: (f32, f32)) -> Self {
+    pub(crate) fn new(a: f32, spacing: (f32, f32)) -> Self {
         // Cells as large as the farthest a record can serve at slack 2.
         IrradianceCache {
             records: Vec::new(),
@@ -52,10 +62,15 @@ impl IrradianceCache {
         self.records.len()
     }
 
+    /// True when the cache holds no record.
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
     /// Add a final gather at `p` (normal `n`) as a record. The record's radius is the
     /// gather's harmonic mean distance, limited by its gradient and clamped to the
     /// spacing limits.
-    pub fn insert(&mut self, p: Vec3, n: Vec3, g: &Gather) {
+    pub(crate) fn insert(&mut self, p: Vec3, n: Vec3, g: &Gather) {
         // Gradient-based radius limit (Tabellion and Lamorlette 2004): a record does not
         // reach farther than the distance over which its translational gradient
         // would change its irradiance by its own value, R_i <= E_i / |grad_t E_i|.
@@ -77,10 +92,112 @@ impl IrradianceCache {
                 grad_t[c] *= if gl > 0.0 { g.e[c] / (gl * r) } else { 0.0 };
             }
         }
-        let rec = Record { p, n, e: g.e, r, grad_t, grad_r: g.grad_r };
-        let k = self.key(p);
+        self.push(Record { p, n, e: g.e, r, grad_t, grad_r: g.grad_r });
+    }
+
+    fn push(&mut self, rec: Record) {
+        let k = self.key(rec.p);
         self.grid.entry(k).or_default().push(self.records.len() as u32);
         self.records.push(rec);
+    }
+
+    /// The records as the file format stores them, in insertion order.
+    pub fn to_records(&self) -> Vec<CacheRecord> {
+        let v = |v: Vec3| v.to_array();
+        let g = |g: &[Vec3; 3]| {
+            let mut out = [0.0; 9];
+            for (c, gc) in g.iter().enumerate() {
+                out[3 * c..3 * c + 3].copy_from_slice(&gc.to_array());
+            }
+            out
+        };
+        self.records
+            .iter()
+            .map(|r| CacheRecord {
+                p: v(r.p),
+                n: v(r.n),
+                e: v(r.e),
+                r: r.r,
+                grad_t: g(&r.grad_t),
+                grad_r: g(&r.grad_r),
+            })
+            .collect()
+    }
+
+    /// A cache of accuracy `a` and spacing (min, max) [m] holding `records` (from
+    /// [`Self::to_records`]), in the same order: lookups give the same results.
+    pub fn from_records(a: f32, spacing: (f32, f32), records: &[CacheRecord]) -> Self {
+        let mut c = IrradianceCache::new(a, spacing);
+        let g = |g: &[f32; 9]| [0, 1, 2].map(|c| Vec3::from_slice(&g[3 * c..3 * c + 3]));
+        for r in records {
+            c.push(Record {
+                p: r.p.into(),
+                n: r.n.into(),
+                e: r.e.into(),
+                r: r.r,
+                grad_t: g(&r.grad_t),
+                grad_r: g(&r.grad_r),
+            });
+        }
+        c
+    }
+
+    /// The irradiance-cache prepass over the image `film` of `camera`: coarse-to-fine
+    /// grids of pixel centres (steps 32, 16, ..., 1); at each level the points no
+    /// record covers yet get a final gather (in parallel), and the new records are
+    /// inserted in pixel order, so the cache does not depend on threads. Eye rays
+    /// follow mirrors and glass to the surfaces they show (Ward and Heckbert 1992's
+    /// records at the points rendering will look up).
+    pub fn prepass<G: PhotonRecord>(pm: &PhotonMapping<G>, camera: &Camera, film: &Film) -> IrradianceCache {
+        let cfg = pm.config();
+        let mut cache = IrradianceCache::new(cfg.icache_accuracy, cfg.icache_spacing);
+        let (w, h) = (film.width as usize, film.height as usize);
+        let aspect = film.width as f32 / film.height as f32;
+        let mut step = 32usize;
+        loop {
+            let pts: Vec<usize> = (0..h)
+                .step_by(step)
+                .flat_map(|y| (0..w).step_by(step).map(move |x| y * w + x))
+                .filter(|&i| step == 32 || (i / w) % (2 * step) != 0 || (i % w) % (2 * step) != 0)
+                .collect();
+            let new: Vec<_> = pts
+                .par_iter()
+                .flat_map_iter(|&i| {
+                    let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                    let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
+                    let mut points = Vec::new();
+                    diffuse_points(pm, camera.position, d, 0, &mut points);
+                    let mut scratch = Scratch::default();
+                    let cache = &cache;
+                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo))| {
+                        let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
+                        if cache.lookup(hit.p, ns, 1.0).is_some() {
+                            return None;
+                        }
+                        let mut s = Sampler::new(mix64(pixel_seed(film.seed, i) ^ 0x0063_6163_6865 ^ b as u64), 0);
+                        // No record where indirect light is unimportant: rendering will
+                        // use the photon-map estimate there (same test, same result).
+                        if cfg.indirect_threshold > 0.0 {
+                            let bsdf = pm.scene.bsdf(&hit);
+                            let direct = pm.light.direct(&hit, &bsdf, wo, &mut s, cfg.light_samples);
+                            if cheap_indirect(pm, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
+                                return None;
+                            }
+                        }
+                        let g = final_gather(pm, hit.p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
+                        Some((hit.p, ns, g))
+                    })
+                })
+                .collect();
+            for (p, ns, g) in &new {
+                cache.insert(*p, *ns, g);
+            }
+            if step == 1 {
+                break;
+            }
+            step /= 2;
+        }
+        cache
     }
 
     /// Interpolated indirect irradiance at `p` with normal `n`, or `None` when no
@@ -88,7 +205,7 @@ impl IrradianceCache {
     /// records go with slack 1; rendering accepts a little extrapolation, slack 2, as
     /// Ward's RADIANCE does for secondary samples, so jittered supersamples near a
     /// record's edge do not each trigger a fresh final gather).
-    pub fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
+    pub(crate) fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
         let a = self.a * slack;
         let k = self.key(p);
         let mut sum = Rgb::ZERO;

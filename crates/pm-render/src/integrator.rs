@@ -1,15 +1,20 @@
-//! Eye paths of the photon-map renderer: recursive specular reflection and
-//! refraction, and at non-specular hits the components of Christensen 1999
-//! section 1.3 (direct, caustics, soft indirect) or one of the inspection modes.
+//! What is computed per eye sample: the [`Integrator`] interface, the photon-map
+//! integrator of Christensen 1999 section 1.3 (direct, caustics, soft indirect, with
+//! recursive specular reflection and refraction), and the inspection views of
+//! Figure 1 as their own small integrators over the same specular recursion.
 
+use crate::direct::DirectLighting;
 use crate::gather::{Scratch, final_gather, lookup_irradiance};
 use crate::icache::IrradianceCache;
-use crate::{Ctx, Mode, facing};
+use crate::render::{Counters, Film};
+use crate::{Maps, RenderParams, Settings, facing};
 use glam::Vec3;
+use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
+use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Instant;
@@ -20,7 +25,7 @@ const SPLIT_DEPTH: u32 = 3;
 
 /// Radiance components of one eye sample [W sr^-1 m^-2].
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct Components {
+pub struct Components {
     /// Emission seen directly plus direct light at the first non-specular hit.
     pub direct: Rgb,
     /// Caustic-map radiance at the first non-specular hit.
@@ -32,10 +37,214 @@ pub(crate) struct Components {
 }
 
 impl Components {
+    /// The sum of the components: the radiance of the sample.
     pub fn total(&self) -> Rgb {
         self.direct + self.caustic + self.indirect + self.specular
     }
+
+    /// Add another sample's components.
+    pub fn add(&mut self, c: &Components) {
+        self.direct += c.direct;
+        self.caustic += c.caustic;
+        self.indirect += c.indirect;
+        self.specular += c.specular;
+    }
 }
+
+/// The first surface an eye ray hits: one entry of the G-buffer (pbrt-v4's
+/// `VisibleSurface`), filled by the integrator while it computes the sample, so it
+/// costs no extra ray.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct VisibleSurface {
+    /// False where the eye ray leaves the scene (the other fields are then zero).
+    pub hit: bool,
+    /// Position [m].
+    pub p: Vec3,
+    /// Shading normal, turned toward the camera.
+    pub ns: Vec3,
+    /// Geometric normal, turned toward the camera.
+    pub ng: Vec3,
+    /// Distance from the camera along the eye ray [m].
+    pub depth: f32,
+    /// Index into `Scene::objects` (`u32::MAX` for a triangle in no object).
+    pub object: u32,
+    /// Index into `Scene::triangles`.
+    pub tri: u32,
+    /// The BSDF there, textures applied.
+    pub bsdf: Option<Bsdf>,
+    /// Radiance emitted toward the camera [W sr^-1 m^-2].
+    pub le: Rgb,
+    /// Reflected direct radiance toward the camera [W sr^-1 m^-2] as the integrator
+    /// computed it there (zero at mirrors and glass, and in views that compute none).
+    pub direct: Rgb,
+}
+
+impl VisibleSurface {
+    /// The entry for `hit`, seen from direction `wo` (pointing at the camera).
+    pub fn at(scene: &Scene, hit: &Hit, wo: Vec3, bsdf: Bsdf, le: Rgb) -> VisibleSurface {
+        VisibleSurface {
+            hit: true,
+            p: hit.p,
+            ns: facing(hit.ns, wo),
+            ng: facing(hit.ng, wo),
+            depth: hit.t,
+            object: scene.object_of(hit.tri).unwrap_or(u32::MAX),
+            tri: hit.tri,
+            bsdf: Some(bsdf),
+            le,
+            direct: Rgb::ZERO,
+        }
+    }
+}
+
+/// What an image is made of, per eye sample (pbrt-v4's `Li`): the image loop
+/// ([`crate::render_region`]) knows nothing about how the radiance is found.
+pub trait Integrator: Sync {
+    /// Per-thread scratch memory.
+    type Scratch: Default + Send;
+
+    /// Radiance components arriving at `o` from direction `-d` [W sr^-1 m^-2].
+    /// With `vs`, also fill the G-buffer entry of the first hit.
+    fn li(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        s: &mut Sampler,
+        scratch: &mut Self::Scratch,
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components;
+
+    /// True: the image loop takes one sample at each pixel centre and supersamples
+    /// where neighbours differ. False: every pixel takes all samples, jittered.
+    fn adaptive(&self) -> bool {
+        true
+    }
+
+    /// Work counters (final gathers, lookups, cut paths, time per component).
+    fn counters(&self) -> &Counters;
+}
+
+/// The photon-map integrator (Christensen 1999 section 1.3): at the first
+/// non-specular hit, direct light + caustics + soft indirect light; mirrors and glass
+/// by recursive ray tracing. The inspection views wrap it.
+pub struct PhotonMapping<'a, G> {
+    pub(crate) scene: &'a Scene,
+    pub(crate) maps: Maps<'a, G>,
+    pub(crate) cfg: Settings,
+    pub(crate) light: DirectLighting<'a>,
+    pub(crate) cache: Option<IrradianceCache>,
+    pub(crate) counters: Counters,
+}
+
+impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
+    /// The integrator over `scene` and its photon maps with the settings of
+    /// `params` (lengths relative to the scene's bounding-box diagonal); `indirect`
+    /// false leaves out soft indirect light (for scenes where the analysis finds no
+    /// diffusely reflected light reaching another diffuse surface). Fails when
+    /// nothing emits.
+    pub fn new(
+        scene: &'a Scene,
+        maps: Maps<'a, G>,
+        params: &RenderParams,
+        indirect: bool,
+    ) -> Result<Self, pm_scene::LightSelectError> {
+        let cfg = Settings::new(params, scene.bounds.diagonal(), indirect);
+        Ok(PhotonMapping {
+            scene,
+            maps,
+            cfg,
+            light: DirectLighting::new(scene)?,
+            cache: None,
+            counters: Counters::default(),
+        })
+    }
+
+    /// Interpolate soft indirect light from `cache` (made by
+    /// [`IrradianceCache::prepass`] for the same maps and settings).
+    pub fn with_cache(mut self, cache: IrradianceCache) -> Self {
+        self.counters.cache_records.store(cache.len() as u64, Relaxed);
+        self.cache = Some(cache);
+        self
+    }
+
+    /// The irradiance cache in use.
+    pub fn cache(&self) -> Option<&IrradianceCache> {
+        self.cache.as_ref()
+    }
+
+    /// True when the settings call for an irradiance cache (accuracy above 0 and
+    /// soft indirect light computed).
+    pub fn wants_cache(&self) -> bool {
+        self.cfg.icache_accuracy > 0.0 && self.cfg.indirect
+    }
+
+    pub(crate) fn config(&self) -> &Settings {
+        &self.cfg
+    }
+
+    /// The settings that shape an irradiance cache, as text: a cache made with other
+    /// values (or for another image size or seed) must not be used.
+    pub fn cache_key(&self, film: &Film) -> String {
+        let c = &self.cfg;
+        format!(
+            "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
+             max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
+             max_depth={}",
+            film.width,
+            film.height,
+            film.seed,
+            c.gather_rays,
+            c.secondary_rays,
+            c.secondary_distance,
+            c.lookup,
+            c.k_global,
+            c.max_radius_global,
+            c.icache_accuracy,
+            c.icache_spacing.0,
+            c.icache_spacing.1,
+            c.indirect_threshold,
+            c.light_samples,
+            c.max_depth
+        )
+    }
+}
+
+/// Precomputed irradiance x reflectance / pi at the eye hit: Figure 1 (e), what
+/// the final gather sees.
+pub struct RadianceView<'a, G>(pub PhotonMapping<'a, G>);
+/// Radiance estimated from the global map at the eye hit: Figure 1 (b).
+pub struct PhotonsView<'a, G>(pub PhotonMapping<'a, G>);
+/// The final-gathered soft indirect term alone: Figure 1 (f).
+pub struct IndirectView<'a, G>(pub PhotonMapping<'a, G>);
+
+/// The photon-map integrators differ only in what they compute at the first
+/// non-specular hit (`shade`); the specular recursion is [`trace`]'s.
+macro_rules! photon_map_integrator {
+    ($ty:ident, |$pm:ident| $get:expr, $shade:path) => {
+        impl<G: PhotonRecord> Integrator for $ty<'_, G> {
+            type Scratch = Scratch;
+            fn li(
+                &self,
+                o: Vec3,
+                d: Vec3,
+                s: &mut Sampler,
+                scratch: &mut Scratch,
+                vs: Option<&mut VisibleSurface>,
+            ) -> Components {
+                let $pm = self;
+                trace($get, &($shade as Shade<G>), o, d, 0, s, scratch, vs)
+            }
+            fn counters(&self) -> &Counters {
+                let $pm = self;
+                &$get.counters
+            }
+        }
+    };
+}
+photon_map_integrator!(PhotonMapping, |pm| pm, shade_full);
+photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
+photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
+photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
 
 fn elapsed_ns(t: Instant) -> u64 {
     t.elapsed().as_nanos() as u64
@@ -44,27 +253,26 @@ fn elapsed_ns(t: Instant) -> u64 {
 /// Soft indirect irradiance at a non-specular point: interpolated from the cache
 /// when a record covers it, else a fresh final gather.
 pub(crate) fn indirect_irradiance<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     p: Vec3,
     ns: Vec3,
     ng: Vec3,
     s: &mut Sampler,
     scratch: &mut Scratch,
-    cache: Option<&IrradianceCache>,
 ) -> Rgb {
-    if let Some(c) = cache {
+    if let Some(c) = &ctx.cache {
         let t = Instant::now();
         let e = c.lookup(p, ns, 2.0);
-        ctx.stats.ns_icache.fetch_add(elapsed_ns(t), Relaxed);
+        ctx.counters.ns_icache.fetch_add(elapsed_ns(t), Relaxed);
         if let Some(e) = e {
-            ctx.stats.cache_hits.fetch_add(1, Relaxed);
+            ctx.counters.cache_hits.fetch_add(1, Relaxed);
             return e;
         }
     }
     let t = Instant::now();
-    ctx.stats.gathers.fetch_add(1, Relaxed);
+    ctx.counters.gathers.fetch_add(1, Relaxed);
     let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, true, scratch);
-    ctx.stats.ns_gather.fetch_add(elapsed_ns(t), Relaxed);
+    ctx.counters.ns_gather.fetch_add(elapsed_ns(t), Relaxed);
     g.e
 }
 
@@ -75,7 +283,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
 /// `indirect_threshold` x the direct irradiance. `direct_l` is the reflected direct
 /// radiance, turned back into irradiance through the albedo.
 pub(crate) fn cheap_indirect<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     p: Vec3,
     n: Vec3,
     albedo: Rgb,
@@ -94,112 +302,186 @@ pub(crate) fn cheap_indirect<G: PhotonRecord>(
     let e_total = lookup_irradiance(ctx, p, n, scratch);
     let e_ind = (e_total - e_direct).max(Rgb::ZERO);
     (pm_color::mean(e_ind) < t * pm_color::mean(e_direct)).then(|| {
-        ctx.stats.thinned.fetch_add(1, Relaxed);
+        ctx.counters.thinned.fetch_add(1, Relaxed);
         e_ind
     })
 }
 
-/// Radiance components along the ray from `o` in direction `d`.
-pub(crate) fn trace<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+/// What an integrator computes at the first non-specular hit of an eye path: the
+/// hit, its BSDF, the direction toward the viewer, the emitted radiance there, and
+/// the G-buffer entry to complete (at the eye ray's own hit only).
+type Shade<G> = fn(
+    &PhotonMapping<G>,
+    &Hit,
+    &Bsdf,
+    Vec3,
+    Rgb,
+    &mut Sampler,
+    &mut Scratch,
+    Option<&mut VisibleSurface>,
+) -> Components;
+
+/// Radiance components along the ray from `o` in direction `d`: recursive specular
+/// reflection and refraction, and `shade` at the first non-specular hit.
+#[allow(clippy::too_many_arguments)]
+fn trace<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    shade: &Shade<G>,
     o: Vec3,
     d: Vec3,
     depth: u32,
     s: &mut Sampler,
     scratch: &mut Scratch,
-    cache: Option<&IrradianceCache>,
+    mut vs: Option<&mut VisibleSurface>,
 ) -> Components {
     let scene = ctx.scene;
-    let cfg = ctx.cfg;
+    let cfg = &ctx.cfg;
     let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return Components::default() };
     let wo = -d;
     let le = scene.emitted(&hit, wo);
     let bsdf = scene.bsdf(&hit);
-    if bsdf.is_specular() {
-        if depth >= cfg.max_depth {
-            ctx.stats.terminated_paths.fetch_add(1, Relaxed);
-            return Components { specular: le, ..Default::default() };
-        }
-        let t0 = Instant::now();
-        let mut l = le;
-        let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
-            let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
-            w * trace(ctx, o2, wi, depth + 1, s, scratch, cache).total()
-        };
-        let u = s.next_2d();
-        let uc = s.next_1d();
-        if depth < SPLIT_DEPTH {
-            // Both Fresnel branches: sample with uc at either end of [0, 1).
-            let refl = bsdf.sample(wo, hit.ns, u, 0.0);
-            let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
-            match (refl, refr) {
-                (Some(a), Some(b)) if b.transmitted => {
-                    l += follow(s, scratch, a.wi, a.weight * a.pdf);
-                    l += follow(s, scratch, b.wi, b.weight * b.pdf);
-                }
-                // Mirror, or total internal reflection: one branch of probability 1.
-                (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
-                _ => {}
-            }
-        } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
-            l += follow(s, scratch, bs.wi, bs.weight);
-        }
-        ctx.stats.ns_specular.fetch_add(elapsed_ns(t0), Relaxed);
-        return Components { specular: l, ..Default::default() };
+    if let Some(v) = vs.as_deref_mut() {
+        *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
     }
+    if !bsdf.is_specular() {
+        return shade(ctx, &hit, &bsdf, wo, le, s, scratch, vs);
+    }
+    if depth >= cfg.max_depth {
+        ctx.counters.terminated_paths.fetch_add(1, Relaxed);
+        return Components { specular: le, ..Default::default() };
+    }
+    let t0 = Instant::now();
+    let mut l = le;
+    let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
+        let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
+        w * trace(ctx, shade, o2, wi, depth + 1, s, scratch, None).total()
+    };
+    let u = s.next_2d();
+    let uc = s.next_1d();
+    if depth < SPLIT_DEPTH {
+        // Both Fresnel branches: sample with uc at either end of [0, 1).
+        let refl = bsdf.sample(wo, hit.ns, u, 0.0);
+        let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
+        match (refl, refr) {
+            (Some(a), Some(b)) if b.transmitted => {
+                l += follow(s, scratch, a.wi, a.weight * a.pdf);
+                l += follow(s, scratch, b.wi, b.weight * b.pdf);
+            }
+            // Mirror, or total internal reflection: one branch of probability 1.
+            (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
+            _ => {}
+        }
+    } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
+        l += follow(s, scratch, bs.wi, bs.weight);
+    }
+    ctx.counters.ns_specular.fetch_add(elapsed_ns(t0), Relaxed);
+    Components { specular: l, ..Default::default() }
+}
+
+/// Figure 1 (b): reflectance / pi x a k-nearest irradiance estimate from the global map.
+#[allow(clippy::too_many_arguments)]
+fn shade_photons<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    le: Rgb,
+    _: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let cfg = &ctx.cfg;
+    let e = match &ctx.maps.global {
+        Some(tree) => {
+            let p = KnnParams {
+                k: cfg.k_global,
+                max_d2: cfg.max_radius_global * cfg.max_radius_global,
+                filter: Filter::None,
+            };
+            pm_estimate::irradiance(tree, hit.p, facing(hit.ng, wo), &p, &mut scratch.knn).e
+        }
+        None => Rgb::ZERO,
+    };
+    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// Figure 1 (e): reflectance / pi x the precomputed irradiance the final gather reads.
+#[allow(clippy::too_many_arguments)]
+fn shade_radiance<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    le: Rgb,
+    _: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let e = lookup_irradiance(ctx, hit.p, facing(hit.ng, wo), scratch);
+    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// Figure 1 (f): the soft indirect term alone.
+#[allow(clippy::too_many_arguments)]
+fn shade_indirect<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    _: Rgb,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), s, scratch);
+    Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// The complete image (section 1.3): direct light by light sampling, caustics from
+/// the caustic map, soft indirect light from the cache or a final gather.
+#[allow(clippy::too_many_arguments)]
+fn shade_full<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    le: Rgb,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let cfg = &ctx.cfg;
     let n = facing(hit.ng, wo);
     let ns = facing(hit.ns, wo);
     let albedo = bsdf.diffuse_albedo();
-    match cfg.mode {
-        Mode::Photons => {
-            let e = match &ctx.maps.global {
-                Some(tree) => {
-                    let p = KnnParams {
-                        k: cfg.k_global,
-                        max_d2: cfg.max_radius_global * cfg.max_radius_global,
-                        filter: Filter::None,
-                    };
-                    pm_estimate::irradiance(tree, hit.p, n, &p, &mut scratch.knn).e
-                }
-                None => Rgb::ZERO,
-            };
-            Components { direct: le, indirect: albedo * e / PI, ..Default::default() }
-        }
-        Mode::Radiance => {
-            let e = lookup_irradiance(ctx, hit.p, n, scratch);
-            Components { direct: le, indirect: albedo * e / PI, ..Default::default() }
-        }
-        Mode::Indirect => {
-            let e = indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache);
-            Components { indirect: albedo * e / PI, ..Default::default() }
-        }
-        Mode::Full | Mode::Path => {
-            let t = Instant::now();
-            let direct = le + crate::direct::direct(ctx, &hit, &bsdf, wo, s, cfg.light_samples);
-            ctx.stats.ns_direct.fetch_add(elapsed_ns(t), Relaxed);
-            let t = Instant::now();
-            let caustic = match &ctx.maps.caustic {
-                Some(tree) => {
-                    let p = KnnParams {
-                        k: cfg.k_caustic,
-                        max_d2: cfg.max_radius_caustic * cfg.max_radius_caustic,
-                        filter: Filter::Cone { k: 1.1 },
-                    };
-                    pm_estimate::radiance(tree, hit.p, n, &p, &mut scratch.knn, |wi| bsdf.f(wo, wi, hit.ns))
-                }
-                None => Rgb::ZERO,
-            };
-            ctx.stats.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
-            let e = if !cfg.indirect {
-                Rgb::ZERO
-            } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
-                e
-            } else {
-                indirect_irradiance(ctx, hit.p, ns, n, s, scratch, cache)
-            };
-            Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
-        }
+    let t = Instant::now();
+    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
+    let direct = le + reflected;
+    if let Some(v) = vs {
+        v.direct = reflected;
     }
+    ctx.counters.ns_direct.fetch_add(elapsed_ns(t), Relaxed);
+    let t = Instant::now();
+    let caustic = match &ctx.maps.caustic {
+        Some(tree) => {
+            let p = KnnParams {
+                k: cfg.k_caustic,
+                max_d2: cfg.max_radius_caustic * cfg.max_radius_caustic,
+                filter: Filter::Cone { k: 1.1 },
+            };
+            pm_estimate::radiance(tree, hit.p, n, &p, &mut scratch.knn, |wi| bsdf.f(wo, wi, hit.ns))
+        }
+        None => Rgb::ZERO,
+    };
+    ctx.counters.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
+    let e = if !cfg.indirect {
+        Rgb::ZERO
+    } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
+        e
+    } else {
+        indirect_irradiance(ctx, hit.p, ns, n, s, scratch)
+    };
+    Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
 }
 
 /// The non-specular hits an eye ray reaches, following specular bounces exactly as
@@ -207,7 +489,7 @@ pub(crate) fn trace<G: PhotonRecord>(
 /// after): where the irradiance-cache prepass puts records. Each is the hit and the
 /// direction toward the viewer.
 pub(crate) fn diffuse_points<G: PhotonRecord>(
-    ctx: &Ctx<G>,
+    ctx: &PhotonMapping<G>,
     o: Vec3,
     d: Vec3,
     depth: u32,

@@ -1,14 +1,26 @@
-//! Rendering from photon maps (Christensen 1999 sections 1.3, 2.2 and 3): eye rays
-//! with adaptive supersampling, recursive specular reflection and refraction, direct
-//! light by sampling the lights (multiple importance sampling for glossy surfaces),
-//! caustics from the caustic map, and soft indirect light by final gathering, whose
-//! rays read either an exact k-nearest estimate or the precomputed irradiance of
-//! the nearest photon with a similar normal; final gathers are made sparse by Ward and
-//! Heckbert's irradiance cache with gradients. An unbiased path tracer over the same
-//! scene model and BSDFs is the reference.
+//! Rendering from photon maps (Christensen 1999 sections 1.3, 2.2 and 3).
+//!
+//! The image loop is not the integrator (as pbrt-v4 separates
+//! `ImageTileIntegrator::Render` from `Li`): [`render_region`] renders any rectangle
+//! of the image with pixel-keyed sample streams and adaptive supersampling decided
+//! on a one-pixel apron, so tiles assembled from regions equal the whole image byte
+//! for byte; what is computed per sample is an [`Integrator`]:
+//! - [`PhotonMapping`]: eye rays with recursive specular reflection and refraction,
+//!   direct light by sampling the lights (multiple importance sampling on glossy
+//!   surfaces), caustics from the caustic map, and soft indirect light by final
+//!   gathering whose rays read the precomputed irradiance of the nearest photon with
+//!   a similar normal (or an exact k-nearest estimate), made sparse by Ward and
+//!   Heckbert's irradiance cache with gradients ([`IrradianceCache`], its own step);
+//! - [`PhotonsView`], [`RadianceView`], [`IndirectView`]: Christensen's Figure 1
+//!   (b), (e) and (f) as their own small integrators;
+//! - [`PathTracer`]: unbiased path tracing over the same scene and BSDFs, with no
+//!   photon map: the independent estimator the tests compare against.
+//!
+//! Each integrator can fill a [`VisibleSurface`] per pixel sample: the first-hit
+//! G-buffer that image-space photon mapping splats into.
 //!
 //! Radiance everywhere is W sr^-1 m^-2 per RGB channel. This crate does no I/O: it
-//! returns an in-memory image with component layers and statistics.
+//! returns in-memory images with component layers, statistics, and cache records.
 
 mod direct;
 mod gather;
@@ -17,85 +29,161 @@ mod integrator;
 mod path;
 mod render;
 
-pub use render::{Image, RenderStats, render};
+pub use direct::DirectLighting;
+pub use gather::Scratch;
+pub use icache::IrradianceCache;
+pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};
+pub use path::PathTracer;
+pub use render::{Counters, Film, Image, Rect, RenderStats, render_region};
 
 use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
-use pm_scene::Scene;
 
-/// What the renderer computes at each pixel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// Direct light, specular, caustics and final-gathered indirect light.
-    Full,
-    /// Radiance estimated from the global map at the eye hit (Figure 1b).
-    Photons,
-    /// Precomputed irradiance x reflectance / pi at the eye hit (Figures 1c-1e).
-    Radiance,
-    /// The final-gathered soft indirect term alone (Figure 1f).
-    Indirect,
-    /// Unbiased path tracing with next-event estimation and MIS: the reference.
-    Path,
+pm_params::value_enum! {
+    /// What the renderer computes: the integrator.
+    pub enum Method {
+        /// Direct + specular + caustics + final-gathered indirect (the complete image).
+        Full,
+        /// Radiance from the global map directly at the eye hit (Figure 1b).
+        Photons,
+        /// Precomputed irradiance x reflectance / pi (Figure 1e; 1c/1d show the irradiance).
+        Radiance,
+        /// The soft indirect term from final gathering alone (Figure 1f).
+        Indirect,
+        /// Unbiased path tracing: the reference (needs no photon maps).
+        Path,
+    }
 }
 
-/// How final-gather rays get the radiance at their hit points.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Lookup {
-    /// Precomputed irradiance of the nearest photon with a similar normal (section 2.2).
-    Precomputed,
-    /// A k-nearest irradiance estimate at the hit point.
-    Exact,
+pm_params::value_enum! {
+    /// How final-gather rays get the radiance at their hit points.
+    pub enum Lookup {
+        /// Precomputed irradiance of the nearest photon with a similar normal (section 2.2; needs photon-irradiance).
+        Precomputed,
+        /// A k-nearest irradiance estimate at each gather-ray hit.
+        Exact,
+    }
 }
 
-/// Render settings. Lengths are absolute metres (the stage converts the relative
-/// values the user gives).
+use pm_params::{Any, above, at_least, between};
+
+pm_params::params! {
+    /// Stage 4's parameters, defined once: `photon-render`'s options, the `[render]`
+    /// section of pipeline.toml, and what the runner, the trade-off study and the
+    /// tests set. Lengths are fractions of the scene's bounding-box diagonal (the
+    /// one reference every stage uses; the photon-map header records it).
+    pub struct RenderParams {
+        /// Image width [pixels].
+        width: u32 = 512 => between(1, 16384);
+        /// Image height [pixels].
+        height: u32 = 512 => between(1, 16384);
+        /// Most samples per pixel (adaptive; the paper: 16). In path mode, samples per pixel.
+        spp: u32 = 16 => between(1, 1 << 20);
+        /// Luminance contrast |a - b| / (a + b) between neighbouring pixels that triggers supersampling.
+        contrast: f32 = 0.1 => at_least(0.0);
+        /// What to render (the integrator).
+        mode: Method = Method::Full => Any;
+        /// Final-gather rays per gather (stratified, cosine-weighted; the paper: several hundred).
+        gather_rays: u32 = 400 => between(1, 1 << 20);
+        /// How gather rays read the global map.
+        gather_lookup: Lookup = Lookup::Precomputed => Any;
+        /// Rays of a secondary final gather (the paper: 12; 0 disables).
+        secondary_rays: u32 = 12 => between(0, 1 << 16);
+        /// Gather rays shorter than this fraction of the scene diagonal get a secondary gather.
+        secondary_distance_rel_diag: f32 = 0.005 => at_least(0.0);
+        /// Photons per global-map estimate (exact lookups and photons mode).
+        k: usize = 50 => between(1, 1 << 16);
+        /// Photons per caustic estimate.
+        caustic_k: usize = 60 => between(1, 1 << 16);
+        /// Largest global-map search radius, as a fraction of the scene diagonal.
+        max_radius_rel_diag: f32 = 0.1 => above(0.0);
+        /// Largest caustic search radius, as a fraction of the scene diagonal.
+        caustic_radius_rel_diag: f32 = 0.02 => above(0.0);
+        /// Irradiance-cache accuracy a (Ward's error bound, smaller is finer; 0 disables the cache).
+        icache_accuracy: f32 = 0.3 => at_least(0.0);
+        /// Smallest irradiance-cache record spacing, as a fraction of the scene diagonal.
+        icache_min_spacing_rel_diag: f32 = 0.005 => above(0.0);
+        /// Largest irradiance-cache record spacing, as a fraction of the scene diagonal (at least the smallest).
+        icache_max_spacing_rel_diag: f32 = 0.1 => above(0.0);
+        /// Importance threshold: where the photon map's indirect irradiance is below this
+        /// fraction of the direct irradiance, use it instead of a final gather (0: always gather).
+        indirect_threshold: f32 = 0.0 => at_least(0.0);
+        /// Light samples per shading point.
+        light_samples: u32 = 4 => between(1, 1 << 16);
+        /// Depth limit of specular recursion (cut paths are counted in the stats).
+        max_depth: u32 = 12 => between(0, 1000);
+        /// PNG exposure in stops (the PNG shows radiance x 2^exposure).
+        exposure: f32 = 0.0 => between(-64.0, 64.0);
+    }
+}
+
+impl RenderParams {
+    /// [`Self::validate`] plus the checks that relate two values.
+    pub fn check(&self, naming: pm_params::Naming) -> Result<(), String> {
+        self.validate(naming)?;
+        if self.icache_max_spacing_rel_diag < self.icache_min_spacing_rel_diag {
+            return Err(format!(
+                "{} = {} is below {} = {}",
+                naming.name("icache_max_spacing_rel_diag"),
+                self.icache_max_spacing_rel_diag,
+                naming.name("icache_min_spacing_rel_diag"),
+                self.icache_min_spacing_rel_diag
+            ));
+        }
+        Ok(())
+    }
+
+    /// The image these parameters describe, with `seed`.
+    pub fn film(&self, seed: u64) -> Film {
+        Film { width: self.width, height: self.height, spp: self.spp, contrast: self.contrast, seed }
+    }
+}
+
+/// The photon-map integrators' settings in absolute units, resolved from
+/// [`RenderParams`] against the scene diagonal.
 #[derive(Clone, Debug)]
-pub struct RenderConfig {
-    /// Image width [pixels].
-    pub width: u32,
-    /// Image height [pixels].
-    pub height: u32,
-    /// Most samples per pixel (adaptive supersampling; `path` mode always takes all).
-    pub spp: u32,
-    /// Contrast between neighbouring pixels that triggers supersampling.
-    pub contrast: f32,
-    /// What to compute.
-    pub mode: Mode,
-    /// Compute soft indirect light (final gathering); off when the scene analysis
-    /// finds no diffusely reflected light reaching another diffuse surface.
+pub(crate) struct Settings {
+    /// Compute soft indirect light (final gathering).
     pub indirect: bool,
-    /// Importance threshold (Christensen 1999 section 1.3): where the photon map says
-    /// indirect irradiance is below this fraction of the direct irradiance, the
-    /// photon-map estimate is used instead of a final gather; 0 always gathers.
     pub indirect_threshold: f32,
-    /// Final-gather rays per gather (stratified, cosine-distributed).
     pub gather_rays: u32,
-    /// Rays of a secondary final gather (the paper: 12).
     pub secondary_rays: u32,
-    /// Gather rays shorter than this trigger a secondary gather [m].
+    /// [m]
     pub secondary_distance: f32,
-    /// Final-gather lookup.
     pub lookup: Lookup,
-    /// Photons per estimate in the global map.
     pub k_global: usize,
-    /// Photons per caustic estimate.
     pub k_caustic: usize,
-    /// Largest search radius in the global map [m].
+    /// [m]
     pub max_radius_global: f32,
-    /// Largest search radius in the caustic map [m].
+    /// [m]
     pub max_radius_caustic: f32,
-    /// Irradiance-cache accuracy a (Ward's error bound; smaller is finer); 0 disables
-    /// the cache (a final gather at every shading point).
     pub icache_accuracy: f32,
-    /// Smallest and largest record spacing of the irradiance cache [m].
+    /// (min, max) [m]
     pub icache_spacing: (f32, f32),
-    /// Light samples per shading point for direct light.
     pub light_samples: u32,
-    /// Specular recursion depth; paths cut here are counted.
     pub max_depth: u32,
-    /// Random seed.
-    pub seed: u64,
+}
+
+impl Settings {
+    pub(crate) fn new(p: &RenderParams, diag: f32, indirect: bool) -> Settings {
+        Settings {
+            indirect,
+            indirect_threshold: p.indirect_threshold,
+            gather_rays: p.gather_rays,
+            secondary_rays: p.secondary_rays,
+            secondary_distance: p.secondary_distance_rel_diag * diag,
+            lookup: p.gather_lookup,
+            k_global: p.k,
+            k_caustic: p.caustic_k,
+            max_radius_global: p.max_radius_rel_diag * diag,
+            max_radius_caustic: p.caustic_radius_rel_diag * diag,
+            icache_accuracy: p.icache_accuracy,
+            icache_spacing: (p.icache_min_spacing_rel_diag * diag, p.icache_max_spacing_rel_diag * diag),
+            light_samples: p.light_samples,
+            max_depth: p.max_depth,
+        }
+    }
 }
 
 /// The photon maps the renderer reads, as kd-trees.
@@ -116,17 +204,38 @@ pub fn irradiance_subset<G: PhotonRecord>(global: &[G]) -> Vec<G> {
     pm_kdtree::balance(&with)
 }
 
-/// The renderer's view of everything it needs.
-pub(crate) struct Ctx<'a, G> {
-    pub scene: &'a Scene,
-    pub maps: &'a Maps<'a, G>,
-    pub cfg: &'a RenderConfig,
-    pub lights: pm_photon::LightSelector,
-    pub stats: &'a render::Counters,
-}
-
 /// Flip `n` to the side of `w`.
 #[inline]
 pub(crate) fn facing(n: Vec3, w: Vec3) -> Vec3 {
     if n.dot(w) < 0.0 { -n } else { n }
+}
+
+/// Render `rect` of `film` with the integrator `method` names, over the photon maps
+/// (and cache) of `pm`; [`Method::Path`] uses only its scene. The one place a method
+/// becomes an integrator.
+pub fn render_method<G: PhotonRecord>(
+    method: Method,
+    pm: PhotonMapping<G>,
+    camera: &pm_scene::Camera,
+    film: &Film,
+    rect: Rect,
+    gbuffer: bool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Image, RenderStats), String> {
+    match method {
+        Method::Full => render_region(camera, film, rect, &pm, gbuffer, progress),
+        Method::Photons => render_region(camera, film, rect, &PhotonsView(pm), gbuffer, progress),
+        Method::Radiance => render_region(camera, film, rect, &RadianceView(pm), gbuffer, progress),
+        Method::Indirect => render_region(camera, film, rect, &IndirectView(pm), gbuffer, progress),
+        Method::Path => {
+            let pt = PathTracer::new(pm.scene).map_err(|e| e.to_string())?;
+            render_region(camera, film, rect, &pt, gbuffer, progress)
+        }
+    }
+}
+
+/// True when `method` reads soft indirect light from an irradiance cache (when the
+/// settings enable one).
+pub fn method_uses_cache(method: Method) -> bool {
+    matches!(method, Method::Full | Method::Indirect)
 }

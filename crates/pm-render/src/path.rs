@@ -2,14 +2,44 @@
 //! power heuristic against BSDF sampling, and Russian roulette. The reference and
 //! speed baseline for the photon-map renderer, over the same scene and BSDFs.
 
-use crate::Ctx;
-use crate::direct::power_heuristic;
-use crate::integrator::Components;
+use crate::direct::{DirectLighting, power_heuristic};
+use crate::integrator::{Components, Integrator, VisibleSurface};
+use crate::render::Counters;
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_format::PhotonRecord;
 use pm_sampling::Sampler;
+use pm_scene::Scene;
 use std::sync::atomic::Ordering::Relaxed;
+
+/// The path tracer: needs the scene and its lights, no photon map.
+pub struct PathTracer<'a> {
+    light: DirectLighting<'a>,
+    counters: Counters,
+}
+
+impl<'a> PathTracer<'a> {
+    /// A path tracer for `scene`; fails when nothing in it emits.
+    pub fn new(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+        Ok(PathTracer { light: DirectLighting::new(scene)?, counters: Counters::default() })
+    }
+}
+
+impl Integrator for PathTracer<'_> {
+    type Scratch = ();
+
+    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
+        path_radiance(&self.light, &self.counters, o, d, s, vs)
+    }
+
+    /// Every pixel takes all its samples, jittered: the estimate stays unbiased.
+    fn adaptive(&self) -> bool {
+        false
+    }
+
+    fn counters(&self) -> &Counters {
+        &self.counters
+    }
+}
 
 /// Hard path-length limit; Russian roulette ends paths long before in physical
 /// scenes. Paths cut here are counted.
@@ -40,8 +70,15 @@ fn add(c: &mut Components, layer: Layer, v: Rgb) {
 
 /// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2], split into the
 /// renderer's component layers.
-pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: &mut Sampler) -> Components {
-    let scene = ctx.scene;
+fn path_radiance(
+    light: &DirectLighting,
+    counters: &Counters,
+    o: Vec3,
+    d: Vec3,
+    s: &mut Sampler,
+    mut vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let scene = light.scene;
     let (mut o, mut d) = (o, d);
     let mut beta = Rgb::ONE;
     let mut l = Components::default();
@@ -58,16 +95,16 @@ pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: 
         if le.max_element() > 0.0 {
             if prev_specular {
                 add(&mut l, emission_layer, beta * le);
-            } else {
-                let li = scene.light_of_triangle[hit.tri as usize];
-                if li != u32::MAX {
-                    let p_l = scene.lights[li as usize].pdf_li(scene, d, hit.t, hit.tri)
-                        * ctx.lights.probs[li as usize] as f32;
-                    add(&mut l, emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
-                }
+            } else if let Some(p_l) = light.pdf_emitter(hit.tri, d, hit.t) {
+                add(&mut l, emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
             }
         }
         let bsdf = scene.bsdf(&hit);
+        if depth == 0
+            && let Some(v) = vs.as_deref_mut()
+        {
+            *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
+        }
         let specular = bsdf.is_specular();
         if specular && n_diffuse == 0 {
             specular_before_d1 = true;
@@ -83,7 +120,13 @@ pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: 
             } else {
                 Layer::Indirect
             };
-            add(&mut l, nee_layer, beta * crate::direct::light_sample(ctx, &hit, &bsdf, wo, s, true));
+            let nee = beta * light.light_sample(&hit, &bsdf, wo, s, true);
+            add(&mut l, nee_layer, nee);
+            if depth == 0
+                && let Some(v) = vs.as_deref_mut()
+            {
+                v.direct = nee;
+            }
         }
         let u = s.next_2d();
         let uc = s.next_1d();
@@ -124,6 +167,6 @@ pub(crate) fn path_radiance<G: PhotonRecord>(ctx: &Ctx<G>, o: Vec3, d: Vec3, s: 
         o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;
     }
-    ctx.stats.terminated_paths.fetch_add(1, Relaxed);
+    counters.terminated_paths.fetch_add(1, Relaxed);
     l
 }

@@ -1,54 +1,103 @@
-//! The image loop: the irradiance-cache prepass, then one sample per pixel,
-//! then adaptive supersampling where neighbouring pixels differ (Christensen 1999
-//! section 3: "up to 16 samples per pixel"), with a box pixel filter.
+//! The image loop (pbrt-v4's `ImageTileIntegrator::Render`): any rectangle of the
+//! image, one sample per pixel, then adaptive supersampling where neighbouring
+//! pixels differ (Christensen 1999 section 3: "up to 16 samples per pixel"), with a
+//! box pixel filter. It knows nothing about what a sample computes.
 
-use crate::gather::{Scratch, final_gather};
-use crate::icache::IrradianceCache;
-use crate::integrator::{Components, cheap_indirect, diffuse_points, trace};
-use crate::{Ctx, Maps, Mode, RenderConfig};
+use crate::integrator::{Components, Integrator, VisibleSurface};
 use glam::Vec2;
 use pm_color::Rgb;
-use pm_format::PhotonRecord;
 use pm_sampling::{Sampler, mix64};
-use pm_scene::Scene;
+use pm_scene::Camera;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
 
-/// Counters shared by all threads (sums, so their totals do not depend on the
-/// thread schedule).
-#[derive(Default)]
-pub(crate) struct Counters {
-    pub gathers: AtomicU64,
-    pub cache_hits: AtomicU64,
-    pub gather_rays: AtomicU64,
-    pub secondary_gathers: AtomicU64,
-    pub lookups: AtomicU64,
-    pub lookup_misses: AtomicU64,
-    pub lookup_rank: [AtomicU64; 3],
-    pub terminated_paths: AtomicU64,
-    pub nonfinite: AtomicU64,
-    pub thinned: AtomicU64,
-    pub ns_direct: AtomicU64,
-    pub ns_caustic: AtomicU64,
-    pub ns_gather: AtomicU64,
-    pub ns_specular: AtomicU64,
-    pub ns_icache: AtomicU64,
+/// Counters an integrator keeps while rendering (sums, so their totals do not
+/// depend on the thread schedule; the nanosecond sums are thread time).
+#[derive(Default, Debug)]
+pub struct Counters {
+    pub(crate) gathers: AtomicU64,
+    pub(crate) cache_records: AtomicU64,
+    pub(crate) cache_hits: AtomicU64,
+    pub(crate) gather_rays: AtomicU64,
+    pub(crate) secondary_gathers: AtomicU64,
+    pub(crate) lookups: AtomicU64,
+    pub(crate) lookup_misses: AtomicU64,
+    pub(crate) lookup_rank: [AtomicU64; 3],
+    pub(crate) terminated_paths: AtomicU64,
+    pub(crate) thinned: AtomicU64,
+    pub(crate) ns_direct: AtomicU64,
+    pub(crate) ns_caustic: AtomicU64,
+    pub(crate) ns_gather: AtomicU64,
+    pub(crate) ns_specular: AtomicU64,
+    pub(crate) ns_icache: AtomicU64,
+}
+
+/// The image being rendered: its size, sampling and seed. A region of it is
+/// rendered with the same per-pixel sample streams as the whole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Film {
+    /// Width [pixels].
+    pub width: u32,
+    /// Height [pixels].
+    pub height: u32,
+    /// Most samples per pixel (adaptive integrators), or samples per pixel.
+    pub spp: u32,
+    /// Luminance contrast |a - b| / (a + b) between 4-neighbours that triggers
+    /// supersampling (Mitchell's contrast), as a fraction.
+    pub contrast: f32,
+    /// Random seed.
+    pub seed: u64,
+}
+
+/// A rectangle of pixels [x0, x1) x [y0, y1); row 0 is the top row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl Rect {
+    /// The whole image of `film`.
+    pub fn full(film: &Film) -> Rect {
+        Rect { x0: 0, y0: 0, x1: film.width, y1: film.height }
+    }
+    /// Width [pixels].
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    /// Height [pixels].
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    /// Pixel count.
+    pub fn area(&self) -> usize {
+        self.width() as usize * self.height() as usize
+    }
+    /// True when the rectangle is non-empty and inside `film`.
+    pub fn is_valid_in(&self, film: &Film) -> bool {
+        self.x0 < self.x1 && self.y0 < self.y1 && self.x1 <= film.width && self.y1 <= film.height
+    }
 }
 
 /// What a render did.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStats {
-    /// Wall time of the whole render [s].
+    /// Wall time of the region's image loop [s].
     pub seconds: f64,
-    /// Wall time of the irradiance-cache prepass [s].
-    pub prepass_seconds: f64,
-    /// Thread time in direct lighting, caustic estimates, final gathers (outside the
-    /// prepass), specular recursion (inclusive of what it calls) and cache lookups [s].
+    /// Thread time in direct lighting, caustic estimates, final gathers, specular
+    /// recursion (inclusive of what it calls) and cache lookups [s].
     pub thread_seconds: [(String, f64); 5],
-    /// Final gathers done (cache records plus uncached gathers).
+    /// Final gathers: those of the cache's records plus those done while rendering
+    /// (cache misses and uncached shading points).
     pub final_gathers: u64,
-    /// Irradiance-cache records.
+    /// Records of the irradiance cache in use.
     pub cache_records: u64,
     /// Shading points served by cache interpolation.
     pub cache_hits: u64,
@@ -69,22 +118,54 @@ pub struct RenderStats {
     pub thinned: u64,
     /// Pixel values that came out NaN or infinite and were written as 0 (should be 0).
     pub nonfinite_pixels: u64,
-    /// Eye samples traced.
+    /// Eye samples traced in the region.
     pub samples: u64,
-    /// Pixels that were supersampled.
+    /// Pixels of the region that were supersampled.
     pub supersampled_pixels: u64,
 }
 
-/// A rendered image: linear radiance [W sr^-1 m^-2] per pixel, row 0 at the top,
-/// with its component layers.
+impl Counters {
+    /// The counters as statistics (the image loop fills its own fields).
+    pub fn stats(&self) -> RenderStats {
+        let secs = |a: &AtomicU64| a.load(Relaxed) as f64 * 1e-9;
+        RenderStats {
+            thread_seconds: [
+                ("direct".into(), secs(&self.ns_direct)),
+                ("caustics".into(), secs(&self.ns_caustic)),
+                ("final_gather".into(), secs(&self.ns_gather)),
+                ("specular".into(), secs(&self.ns_specular)),
+                ("irradiance_cache".into(), secs(&self.ns_icache)),
+            ],
+            final_gathers: self.gathers.load(Relaxed) + self.cache_records.load(Relaxed),
+            cache_records: self.cache_records.load(Relaxed),
+            cache_hits: self.cache_hits.load(Relaxed),
+            gather_rays: self.gather_rays.load(Relaxed),
+            secondary_gathers: self.secondary_gathers.load(Relaxed),
+            lookups: self.lookups.load(Relaxed),
+            lookup_misses: self.lookup_misses.load(Relaxed),
+            lookup_rank: self.lookup_rank.each_ref().map(|a| a.load(Relaxed)),
+            terminated_paths: self.terminated_paths.load(Relaxed),
+            thinned: self.thinned.load(Relaxed),
+            ..Default::default()
+        }
+    }
+}
+
+/// A rendered region: linear radiance [W sr^-1 m^-2] per pixel, row by row from
+/// the region's top-left pixel, with its component layers and, when asked for, the
+/// G-buffer of each pixel's first sample.
 #[derive(Clone, Debug)]
 pub struct Image {
-    /// Width [pixels].
+    /// The region of the film this is.
+    pub rect: Rect,
+    /// Width [pixels] (the region's).
     pub width: u32,
-    /// Height [pixels].
+    /// Height [pixels] (the region's).
     pub height: u32,
     /// ("total" | "direct" | "caustic" | "indirect" | "specular", pixels).
     pub layers: Vec<(&'static str, Vec<Rgb>)>,
+    /// First-hit G-buffer, one entry per pixel (its first sample).
+    pub gbuffer: Option<Vec<VisibleSurface>>,
 }
 
 impl Image {
@@ -96,107 +177,72 @@ impl Image {
 
 const LAYERS: [&str; 5] = ["total", "direct", "caustic", "indirect", "specular"];
 
-/// Render the scene's first camera. Deterministic: every sample's random numbers are
-/// keyed by (seed, pixel, sample index).
-pub fn render<G: PhotonRecord>(
-    scene: &Scene,
-    maps: &Maps<G>,
-    cfg: &RenderConfig,
+/// The seed of pixel `i` (row-major index in the whole image): every sample's
+/// random numbers are keyed by (seed, pixel, sample index), never by thread or tile.
+pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
+    mix64(seed ^ mix64(0x7069_7865_6c00 ^ i as u64))
+}
+
+/// Render the pixels of `rect` of `film` seen by `camera`. Deterministic, and a
+/// region equals the same pixels of the whole image: supersampling decisions read
+/// the region's one-pixel apron, which is sampled (once) for that purpose.
+pub fn render_region<I: Integrator>(
+    camera: &Camera,
+    film: &Film,
+    rect: Rect,
+    integ: &I,
+    gbuffer: bool,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, RenderStats), String> {
-    let camera = scene.camera.as_ref().ok_or("the scene has no camera")?;
-    let lights = pm_photon::LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
-    let counters = Counters::default();
-    let ctx = Ctx { scene, maps, cfg, lights, stats: &counters };
-    let (w, h) = (cfg.width as usize, cfg.height as usize);
-    let aspect = cfg.width as f32 / cfg.height as f32;
-    let start = Instant::now();
-    let pixel_seed = |i: usize| mix64(cfg.seed ^ mix64(0x7069_7865_6c00 ^ i as u64));
-
-    // Irradiance-cache prepass: coarse-to-fine grids of pixel centres; at each level
-    // the points no record covers yet get a final gather (in parallel), and the new
-    // records are inserted in pixel order, so the cache does not depend on threads.
-    let use_cache = cfg.icache_accuracy > 0.0 && cfg.indirect && matches!(cfg.mode, Mode::Full | Mode::Indirect);
-    let mut cache = IrradianceCache::new(cfg.icache_accuracy, cfg.icache_spacing);
-    let t_pre = Instant::now();
-    if use_cache {
-        let mut step = 32usize;
-        loop {
-            let pts: Vec<usize> = (0..h)
-                .step_by(step)
-                .flat_map(|y| (0..w).step_by(step).map(move |x| y * w + x))
-                .filter(|&i| step == 32 || (i / w) % (2 * step) != 0 || (i % w) % (2 * step) != 0)
-                .collect();
-            let new: Vec<_> = pts
-                .par_iter()
-                .flat_map_iter(|&i| {
-                    let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                    let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
-                    let mut points = Vec::new();
-                    diffuse_points(&ctx, camera.position, d, 0, &mut points);
-                    let mut scratch = Scratch::default();
-                    let cache = &cache;
-                    let ctx = &ctx;
-                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo))| {
-                        let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
-                        if cache.lookup(hit.p, ns, 1.0).is_some() {
-                            return None;
-                        }
-                        let mut s = Sampler::new(mix64(pixel_seed(i) ^ 0x0063_6163_6865 ^ b as u64), 0);
-                        // No record where indirect light is unimportant: rendering will
-                        // use the photon-map estimate there (same test, same result).
-                        if cfg.indirect_threshold > 0.0 {
-                            let bsdf = ctx.scene.bsdf(&hit);
-                            let direct = crate::direct::direct(ctx, &hit, &bsdf, wo, &mut s, cfg.light_samples);
-                            if cheap_indirect(ctx, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
-                                return None;
-                            }
-                        }
-                        let g = final_gather(ctx, hit.p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
-                        Some((hit.p, ns, g))
-                    })
-                })
-                .collect();
-            for (p, ns, g) in &new {
-                cache.insert(*p, *ns, g);
-            }
-            if step == 1 {
-                break;
-            }
-            step /= 2;
-        }
+    if !rect.is_valid_in(film) {
+        return Err(format!("region {rect:?} is empty or outside the {}x{} image", film.width, film.height));
     }
-    let prepass_seconds = t_pre.elapsed().as_secs_f64();
-    let cache_ref = use_cache.then_some(&cache);
-    let records = cache.len() as u64;
+    let (w, h) = (film.width as usize, film.height as usize);
+    let aspect = film.width as f32 / film.height as f32;
+    let start = Instant::now();
+    let adaptive = integ.adaptive();
+    // The apron: one pixel around the region, inside the image.
+    let apron = Rect {
+        x0: rect.x0.saturating_sub(1),
+        y0: rect.y0.saturating_sub(1),
+        x1: (rect.x1 + 1).min(film.width),
+        y1: (rect.y1 + 1).min(film.height),
+    };
+    let in_rect = |x: usize, y: usize| {
+        (rect.x0 as usize..rect.x1 as usize).contains(&x) && (rect.y0 as usize..rect.y1 as usize).contains(&y)
+    };
+    // Sampling the apron only matters for supersampling decisions.
+    let pass1 = if adaptive && film.spp > 1 { apron } else { rect };
+    let p1w = pass1.width() as usize;
 
-    let sample = |i: usize, k: u32, scratch: &mut Scratch| -> Components {
-        let mut s = Sampler::new(pixel_seed(i), k as u64);
-        let j = if k == 0 && cfg.mode != Mode::Path { Vec2::splat(0.5) } else { s.next_2d() };
+    let sample = |i: usize, k: u32, scratch: &mut I::Scratch, vs: Option<&mut VisibleSurface>| -> Components {
+        let mut s = Sampler::new(pixel_seed(film.seed, i), k as u64);
+        let j = if k == 0 && adaptive { Vec2::splat(0.5) } else { s.next_2d() };
         let (x, y) = ((i % w) as f32 + j.x, (i / w) as f32 + j.y);
         let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
-        if cfg.mode == Mode::Path {
-            crate::path::path_radiance(&ctx, camera.position, d, &mut s)
-        } else {
-            trace(&ctx, camera.position, d, 0, &mut s, scratch, cache_ref)
-        }
+        integ.li(camera.position, d, &mut s, scratch, vs)
     };
     let done = AtomicU64::new(0);
-    let total = (w * h) as u64;
-    let first_spp = if cfg.mode == Mode::Path { cfg.spp.max(1) } else { 1 };
-    // Pass 1: every pixel.
-    let mut pixels: Vec<(Components, u32)> = (0..w * h)
+    let total = pass1.area() as u64;
+    let first_spp = if adaptive { 1 } else { film.spp.max(1) };
+    // Pass 1: every pixel of the region (and the apron, when supersampling).
+    let pixel_of = |j: usize| (pass1.x0 as usize + j % p1w, pass1.y0 as usize + j / p1w);
+    let mut pixels: Vec<(Components, u32, Option<VisibleSurface>)> = (0..pass1.area())
         .into_par_iter()
         .chunks(64)
-        .map_init(Scratch::default, |scratch, idx| {
-            let out: Vec<(Components, u32)> = idx
+        .map_init(I::Scratch::default, |scratch, idx| {
+            let out: Vec<_> = idx
                 .iter()
-                .map(|&i| {
+                .map(|&j| {
+                    let (x, y) = pixel_of(j);
+                    let i = y * w + x;
                     let mut acc = Components::default();
+                    let mut vs = (gbuffer && in_rect(x, y)).then(VisibleSurface::default);
                     for k in 0..first_spp {
-                        add(&mut acc, &sample(i, k, scratch));
+                        let v = if k == 0 { vs.as_mut() } else { None };
+                        acc.add(&sample(i, k, scratch, v));
                     }
-                    (acc, first_spp)
+                    (acc, first_spp, vs)
                 })
                 .collect();
             let n = done.fetch_add(out.len() as u64, Relaxed) + out.len() as u64;
@@ -205,41 +251,53 @@ pub fn render<G: PhotonRecord>(
         })
         .flatten()
         .collect();
-    // Pass 2: supersample where a 4-neighbour differs by more than the contrast
-    // threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
+    // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
+    // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
+    // The neighbours of a region pixel are in pass 1's apron.
     let mut supersampled = 0;
-    if cfg.mode != Mode::Path && cfg.spp > 1 {
-        let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
+    if adaptive && film.spp > 1 {
+        let lum: Vec<f32> = pixels.iter().map(|(c, n, _)| pm_color::luminance(c.total()) / *n as f32).collect();
         let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
-        let mark: Vec<usize> = (0..w * h)
-            .filter(|&i| {
-                let (x, y) = (i % w, i / w);
-                let l = lum[i];
-                (x > 0 && contrast(l, lum[i - 1]) > cfg.contrast)
-                    || (x + 1 < w && contrast(l, lum[i + 1]) > cfg.contrast)
-                    || (y > 0 && contrast(l, lum[i - w]) > cfg.contrast)
-                    || (y + 1 < h && contrast(l, lum[i + w]) > cfg.contrast)
+        let mark: Vec<usize> = (0..pass1.area())
+            .filter(|&j| {
+                let (x, y) = pixel_of(j);
+                if !in_rect(x, y) {
+                    return false;
+                }
+                let l = lum[j];
+                (x > 0 && contrast(l, lum[j - 1]) > film.contrast)
+                    || (x + 1 < w && contrast(l, lum[j + 1]) > film.contrast)
+                    || (y > 0 && contrast(l, lum[j - p1w]) > film.contrast)
+                    || (y + 1 < h && contrast(l, lum[j + p1w]) > film.contrast)
             })
             .collect();
         supersampled = mark.len() as u64;
         let extra: Vec<(usize, Components)> = mark
             .par_iter()
-            .map_init(Scratch::default, |scratch, &i| {
+            .map_init(I::Scratch::default, |scratch, &j| {
+                let (x, y) = pixel_of(j);
                 let mut acc = Components::default();
-                for k in 1..cfg.spp {
-                    add(&mut acc, &sample(i, k, scratch));
+                for k in 1..film.spp {
+                    acc.add(&sample(y * w + x, k, scratch, None));
                 }
-                (i, acc)
+                (j, acc)
             })
             .collect();
-        for (i, acc) in extra {
-            add(&mut pixels[i].0, &acc);
-            pixels[i].1 = cfg.spp;
+        for (j, acc) in extra {
+            pixels[j].0.add(&acc);
+            pixels[j].1 = film.spp;
         }
     }
-    let mut layers: Vec<(&'static str, Vec<Rgb>)> = LAYERS.iter().map(|&n| (n, Vec::with_capacity(w * h))).collect();
+    let mut layers: Vec<(&'static str, Vec<Rgb>)> =
+        LAYERS.iter().map(|&n| (n, Vec::with_capacity(rect.area()))).collect();
+    let mut gb = gbuffer.then(|| Vec::with_capacity(rect.area()));
     let mut samples = 0u64;
-    for (c, n) in &pixels {
+    let mut nonfinite = 0u64;
+    for (j, (c, n, vs)) in pixels.iter().enumerate() {
+        let (x, y) = pixel_of(j);
+        if !in_rect(x, y) {
+            continue;
+        }
         samples += *n as u64;
         let inv = 1.0 / *n as f32;
         let vals = [c.total(), c.direct, c.caustic, c.indirect, c.specular];
@@ -248,43 +306,20 @@ pub fn render<G: PhotonRecord>(
             if v.is_finite() {
                 layer.1.push((v * inv).max(Rgb::ZERO));
             } else {
-                counters.nonfinite.fetch_add(1, Relaxed);
+                nonfinite += 1;
                 layer.1.push(Rgb::ZERO);
             }
         }
+        if let (Some(gb), Some(vs)) = (gb.as_mut(), vs) {
+            gb.push(*vs);
+        }
     }
-    let c = &counters;
-    let secs = |a: &AtomicU64| a.load(Relaxed) as f64 * 1e-9;
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
-        prepass_seconds,
-        thread_seconds: [
-            ("direct".into(), secs(&c.ns_direct)),
-            ("caustics".into(), secs(&c.ns_caustic)),
-            ("final_gather".into(), secs(&c.ns_gather)),
-            ("specular".into(), secs(&c.ns_specular)),
-            ("irradiance_cache".into(), secs(&c.ns_icache)),
-        ],
-        final_gathers: c.gathers.load(Relaxed) + records,
-        cache_records: records,
-        cache_hits: c.cache_hits.load(Relaxed),
-        gather_rays: c.gather_rays.load(Relaxed),
-        secondary_gathers: c.secondary_gathers.load(Relaxed),
-        lookups: c.lookups.load(Relaxed),
-        lookup_misses: c.lookup_misses.load(Relaxed),
-        lookup_rank: [c.lookup_rank[0].load(Relaxed), c.lookup_rank[1].load(Relaxed), c.lookup_rank[2].load(Relaxed)],
-        terminated_paths: c.terminated_paths.load(Relaxed),
-        nonfinite_pixels: c.nonfinite.load(Relaxed),
-        thinned: c.thinned.load(Relaxed),
+        nonfinite_pixels: nonfinite,
         samples,
         supersampled_pixels: supersampled,
+        ..integ.counters().stats()
     };
-    Ok((Image { width: cfg.width, height: cfg.height, layers }, stats))
-}
-
-fn add(acc: &mut Components, c: &Components) {
-    acc.direct += c.direct;
-    acc.caustic += c.caustic;
-    acc.indirect += c.indirect;
-    acc.specular += c.specular;
+    Ok((Image { rect, width: rect.width(), height: rect.height(), layers, gbuffer: gb }, stats))
 }

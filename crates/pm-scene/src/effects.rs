@@ -7,7 +7,7 @@ use pm_bsdf::Bsdf;
 use pm_sampling::{Sampler, cosine_hemisphere, to_world};
 
 /// A yes/no decision with the reason in words.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Decision {
     /// Whether the effect can occur.
     pub yes: bool,
@@ -24,8 +24,9 @@ impl Decision {
     }
 }
 
-/// The effects a scene can produce.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// The effects a scene can produce (`photon-trace --analyze` prints it as JSON and
+/// the runner reads it back into this type).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Effects {
     /// Light-specular+-diffuse paths: a mirror or glass object a light reaches, and a
     /// non-specular surface for it to light.
@@ -105,18 +106,13 @@ pub fn analyze(scene: &Scene) -> Effects {
 
     // Indirect: follow probe photons to their first non-specular hit, bounce once
     // diffusely, and see whether that reaches another non-specular surface.
-    let selector_total: f32 = lit.iter().map(|&l| scene.lights[l].power.element_sum()).sum();
+    // Probe photons leave the lights as the tracer's do: chosen by power.
+    let selector = crate::LightSelector::new(scene, &[]).ok();
     let mut pair: Option<(u32, u32)> = None;
-    if selector_total > 0.0 && any_diffuse {
+    if let Some(selector) = selector.filter(|_| any_diffuse) {
         'probe: for i in 0..PROBES {
             let mut s = Sampler::new(0x696e_6469, i);
-            let u = s.next_1d() * selector_total;
-            let mut acc = 0.0;
-            let l = lit.iter().copied().find(|&l| {
-                acc += scene.lights[l].power.element_sum();
-                u < acc
-            });
-            let Some(l) = l else { continue };
+            let (l, _) = selector.pick(s.next_1d());
             let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
             let (mut o, mut d) = (ray.origin, ray.dir);
             for _ in 0..8 {

@@ -16,11 +16,13 @@ mod effects;
 mod geometry;
 mod gltf_load;
 mod light;
+mod select;
 
 pub use effects::{Decision, Effects, analyze};
 pub use geometry::{intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load};
 pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};
+pub use select::{LightSelectError, LightSelector};
 
 use glam::{Vec2, Vec3};
 use pm_bsdf::Bsdf;
@@ -437,6 +439,12 @@ impl Scene {
         };
         let uv = tr.uv.map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
         Hit { t, tri, b, p, ng, ns, uv }
+    }
+
+    /// The index of the object (in `objects`) that triangle `tri` belongs to.
+    pub fn object_of(&self, tri: u32) -> Option<u32> {
+        let i = self.objects.partition_point(|o| o.tris.end <= tri);
+        self.objects.get(i).filter(|o| o.tris.contains(&tri)).map(|_| i as u32)
     }
 
     /// The material of a hit's triangle.

@@ -1,0 +1,97 @@
+//! Repository rules as tests: the crate layers of ARCHITECTURE.md and its "knows
+//! nothing about" column, read from every crate's Cargo.toml. A stage crate may not
+//! depend on another stage crate, and no crate may depend on a layer above its own.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// Layer of each crate: 0 vocabulary, 1 middle (scene, files, kd-tree, tracing,
+/// estimates, rendering, images), 2 the stage shell, 3 stage binaries.
+const LAYERS: [(&str, u8); 18] = [
+    ("pm-color", 0),
+    ("pm-sampling", 0),
+    ("pm-params", 0),
+    ("pm-bsdf", 0),
+    ("pm-format", 1),
+    ("pm-scene", 1),
+    ("pm-kdtree", 1),
+    ("pm-photon", 1),
+    ("pm-estimate", 1),
+    ("pm-render", 1),
+    ("pm-image", 1),
+    ("pm-stage", 2),
+    ("photon-trace", 3),
+    ("photon-sort", 3),
+    ("photon-irradiance", 3),
+    ("photon-render", 3),
+    ("photon-inspect", 3),
+    ("pm-tests", 4),
+];
+
+/// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
+const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 10] = [
+    ("pm-params", &["pm-color", "pm-sampling", "pm-bsdf"]),
+    ("pm-sampling", &["pm-color", "pm-bsdf", "pm-scene"]),
+    ("pm-bsdf", &["pm-scene", "pm-format", "pm-photon"]),
+    ("pm-scene", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-image"]),
+    ("pm-format", &["pm-scene", "pm-kdtree", "pm-estimate", "pm-photon", "pm-render", "pm-image"]),
+    ("pm-kdtree", &["pm-scene", "pm-estimate", "pm-photon", "pm-image"]),
+    ("pm-photon", &["pm-kdtree", "pm-estimate", "pm-render", "pm-image"]),
+    ("pm-estimate", &["pm-scene", "pm-photon", "pm-render", "pm-image"]),
+    ("pm-render", &["pm-photon", "pm-image"]),
+    ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
+];
+
+/// Each workspace crate and the workspace crates in its `[dependencies]`.
+fn dependencies() -> BTreeMap<String, Vec<String>> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut manifests: Vec<PathBuf> =
+        std::fs::read_dir(root.join("crates")).unwrap().map(|e| e.unwrap().path().join("Cargo.toml")).collect();
+    manifests.push(root.join("tests/Cargo.toml"));
+    let mut out = BTreeMap::new();
+    for m in manifests {
+        let text = std::fs::read_to_string(&m).unwrap();
+        let doc: toml::Table = toml::from_str(&text).unwrap();
+        let name = doc["package"]["name"].as_str().unwrap().to_string();
+        let deps = doc
+            .get("dependencies")
+            .and_then(|d| d.as_table())
+            .map(|t| t.keys().filter(|k| k.starts_with("pm-") || k.starts_with("photon-")).cloned().collect())
+            .unwrap_or_default();
+        out.insert(name, deps);
+    }
+    out
+}
+
+#[test]
+fn crates_depend_only_downward_and_stages_never_on_each_other() {
+    let layer: BTreeMap<&str, u8> = LAYERS.into_iter().collect();
+    let mut problems = Vec::new();
+    for (name, deps) in dependencies() {
+        let Some(&own) = layer.get(name.as_str()) else {
+            problems.push(format!("{name} has no layer in tests/tests/tidy.rs (add it there and to ARCHITECTURE.md)"));
+            continue;
+        };
+        for d in deps {
+            let theirs = layer.get(d.as_str()).copied().unwrap_or(u8::MAX);
+            if theirs > own || (own == 3 && theirs == 3) {
+                problems.push(format!("{name} (layer {own}) depends on {d} (layer {theirs})"));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}
+
+#[test]
+fn crates_know_nothing_about_what_architecture_md_says() {
+    let deps = dependencies();
+    let mut problems = Vec::new();
+    for (name, forbidden) in KNOWS_NOTHING_ABOUT {
+        for d in deps.get(name).unwrap_or_else(|| panic!("{name} is not in crates/")) {
+            if forbidden.contains(&d.as_str()) {
+                problems.push(format!("{name} depends on {d}"));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}

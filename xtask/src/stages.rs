@@ -1,0 +1,98 @@
+//! The stage binaries: where cargo puts them, building them, and running one so
+//! that a failure's error keeps what the stage said.
+
+use anyhow::{Context, Result, bail};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// Every binary the README tells a user to run, built by [`Bins::build`].
+pub const STAGES: [&str; 5] = ["photon-trace", "photon-sort", "photon-irradiance", "photon-render", "photon-inspect"];
+
+/// The folder of the release stage binaries.
+#[derive(Clone, Debug)]
+pub struct Bins {
+    /// The folder.
+    pub dir: PathBuf,
+}
+
+impl Bins {
+    /// Where cargo puts release binaries of the workspace at `root`:
+    /// `$CARGO_TARGET_DIR/release` when that is set (relative to the current
+    /// folder, as cargo reads it), else `root/target/release`.
+    pub fn locate(root: &Path) -> Bins {
+        let target = match std::env::var_os("CARGO_TARGET_DIR") {
+            Some(t) if !t.is_empty() => {
+                let t = PathBuf::from(t);
+                if t.is_absolute() { t } else { std::env::current_dir().unwrap_or_default().join(t) }
+            }
+            _ => root.join("target"),
+        };
+        Bins { dir: target.join("release") }
+    }
+
+    /// Build every stage binary (release) and locate them.
+    pub fn build(root: &Path) -> Result<Bins> {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let mut cmd = Command::new(cargo);
+        cmd.current_dir(root).args(["build", "--release", "--quiet"]);
+        for s in STAGES {
+            cmd.args(["-p", s]);
+        }
+        let status = cmd.status().context("cannot run cargo build")?;
+        if !status.success() {
+            bail!("building the stage binaries failed");
+        }
+        Ok(Bins::locate(root))
+    }
+
+    /// The path of binary `name`.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX))
+    }
+
+    /// Fail, naming the first one, unless every stage binary is there.
+    pub fn check(&self) -> Result<()> {
+        for s in STAGES {
+            if !self.path(s).exists() {
+                bail!("{} is missing: build the stages (cargo build --release)", self.path(s).display());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Run stage `program` with `args` as step `step`. Its stderr is passed through
+/// (unless `quiet`) and kept: when the stage fails, the error names the step and
+/// ends with the stage's own last message.
+pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool) -> Result<()> {
+    let mut child = Command::new(bins.path(program))
+        .args(args)
+        .stdout(if quiet { Stdio::null() } else { Stdio::inherit() })
+        .stderr(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("cannot start {}", bins.path(program).display()))?;
+    let mut last = String::new();
+    if let Some(err) = child.stderr.take() {
+        for line in BufReader::new(err).lines() {
+            let line = line.unwrap_or_default();
+            if !quiet {
+                let _ = writeln!(std::io::stderr(), "{line}");
+            }
+            if !line.trim().is_empty() {
+                last = line;
+            }
+        }
+    }
+    let status = child.wait().with_context(|| format!("{program} did not finish"))?;
+    if !status.success() {
+        bail!("stage {step} failed ({status}): {}", last.trim());
+    }
+    Ok(())
+}
+
+/// Read a stage's statistics file into its typed report.
+pub fn read_stats<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_slice(&bytes).with_context(|| format!("{}: not the statistics this runner reads", path.display()))
+}
