@@ -271,7 +271,7 @@ fn short_hex(h: &[u8; 32]) -> String {
 /// Serialise a header for a payload of `payload_len` bytes.
 pub fn encode(h: &Header) -> Vec<u8> {
     let params = h.params.as_bytes();
-    let header_len = (FIXED_LEN + params.len() + 8).div_ceil(16) * 16;
+    let header_len = framed_len(FIXED_LEN, params.len());
     let mut b = Vec::with_capacity(header_len);
     b.extend_from_slice(&MAGIC);
     b.extend_from_slice(&VERSION.to_le_bytes());
@@ -291,11 +291,53 @@ pub fn encode(h: &Header) -> Vec<u8> {
     b.extend_from_slice(&h.scene_diagonal.to_le_bytes());
     b.extend_from_slice(&(params.len() as u32).to_le_bytes());
     debug_assert_eq!(b.len(), FIXED_LEN);
+    seal(&mut b, params, header_len);
+    b
+}
+
+/// The length of a header whose fixed part is `fixed_len` bytes and whose
+/// parameter text is `params_len` bytes: padded, with an 8-byte check, to a
+/// multiple of 16 (both file formats of this crate frame their headers so).
+pub(crate) fn framed_len(fixed_len: usize, params_len: usize) -> usize {
+    (fixed_len + params_len + 8).div_ceil(16) * 16
+}
+
+/// Finish a header whose fixed part is in `b`: the parameter text, zero padding
+/// and the check (the first 8 bytes of blake3 over everything before it).
+pub(crate) fn seal(b: &mut Vec<u8>, params: &[u8], header_len: usize) {
     b.extend_from_slice(params);
     b.resize(header_len - 8, 0);
-    let check = blake3::hash(&b);
+    let check = blake3::hash(b);
     b.extend_from_slice(&check.as_bytes()[..8]);
-    b
+}
+
+/// True when `header_len` can frame a header of fixed part `fixed_len` in a file
+/// of `file_len` bytes.
+pub(crate) fn header_len_ok(header_len: usize, fixed_len: usize, file_len: u64) -> bool {
+    header_len >= fixed_len + 8
+        && header_len.is_multiple_of(16)
+        && header_len <= fixed_len + MAX_PARAMS + 24
+        && header_len as u64 <= file_len
+}
+
+/// True when the header's check matches its bytes.
+pub(crate) fn check_ok(bytes: &[u8], header_len: usize) -> bool {
+    blake3::hash(&bytes[..header_len - 8]).as_bytes()[..8] == bytes[header_len - 8..header_len]
+}
+
+/// The parameter text after a fixed part of `fixed_len` bytes.
+pub(crate) fn params_text(
+    bytes: &[u8],
+    fixed_len: usize,
+    params_len: usize,
+    header_len: usize,
+) -> Result<String, Problem> {
+    if fixed_len + params_len + 8 > header_len {
+        return Err(Problem::Field { field: "params_len", value: params_len as u64 });
+    }
+    std::str::from_utf8(&bytes[fixed_len..fixed_len + params_len])
+        .map(str::to_owned)
+        .map_err(|_| Problem::Field { field: "params (not UTF-8)", value: params_len as u64 })
 }
 
 pub(crate) fn write_file(path: &Path, h: &Header, payload: &[u8]) -> Result<(), FormatError> {
@@ -345,18 +387,13 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
         return Err(err(Problem::Version { found: version }));
     }
     let header_len = c.u32() as usize;
-    if header_len < FIXED_LEN + 8
-        || !header_len.is_multiple_of(16)
-        || header_len > FIXED_LEN + MAX_PARAMS + 24
-        || header_len as u64 > file_len
-    {
+    if !header_len_ok(header_len, FIXED_LEN, file_len) {
         return Err(err(Problem::Field { field: "header_len", value: header_len as u64 }));
     }
     if bytes.len() < header_len {
         return Err(err(Problem::TooShort { len: file_len }));
     }
-    let check = blake3::hash(&bytes[..header_len - 8]);
-    if check.as_bytes()[..8] != bytes[header_len - 8..header_len] {
+    if !check_ok(bytes, header_len) {
         return Err(err(Problem::HeaderChecksum));
     }
     let [kind, order, layout, hflags] = c.take();
@@ -397,13 +434,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     if !(scene_diagonal > 0.0) || !scene_diagonal.is_finite() {
         return Err(err(Problem::Field { field: "scene_diagonal (not finite and positive)", value: 0 }));
     }
-    let params_len = c.u32() as usize;
-    if FIXED_LEN + params_len + 8 > header_len {
-        return Err(err(Problem::Field { field: "params_len", value: params_len as u64 }));
-    }
-    let params = std::str::from_utf8(&bytes[FIXED_LEN..FIXED_LEN + params_len])
-        .map_err(|_| err(Problem::Field { field: "params (not UTF-8)", value: params_len as u64 }))?
-        .to_owned();
+    let params = params_text(bytes, FIXED_LEN, c.u32() as usize, header_len).map_err(err)?;
     let expected = n_photons.checked_mul(record_size as u64).and_then(|p| p.checked_add(header_len as u64));
     if expected != Some(file_len) {
         return Err(err(Problem::Length {

@@ -22,7 +22,7 @@
 //! ```
 //! All integers and floats are little-endian. Records are [`CacheRecord`]s.
 
-use crate::header::{FormatError, Problem};
+use crate::header::{FormatError, Problem, check_ok, framed_len, header_len_ok, params_text, seal};
 use bytemuck::{Pod, Zeroable};
 use std::io::{Read, Write};
 use std::path::Path;
@@ -32,7 +32,6 @@ pub const CACHE_MAGIC: [u8; 8] = *b"PMICACHE";
 /// The only version this build reads and writes.
 pub const CACHE_VERSION: u32 = 1;
 const FIXED_LEN: usize = 140;
-const MAX_PARAMS: usize = 1 << 20;
 
 /// One irradiance-cache record (112 bytes).
 #[repr(C)]
@@ -77,7 +76,7 @@ fn fail(path: &Path, problem: Problem) -> FormatError {
 pub fn write_cache(path: &Path, c: &CacheFile) -> Result<(), FormatError> {
     let payload: &[u8] = bytemuck::cast_slice(&c.records);
     let params = c.params.as_bytes();
-    let header_len = (FIXED_LEN + params.len() + 8).div_ceil(16) * 16;
+    let header_len = framed_len(FIXED_LEN, params.len());
     let mut b = Vec::with_capacity(header_len);
     b.extend_from_slice(&CACHE_MAGIC);
     b.extend_from_slice(&CACHE_VERSION.to_le_bytes());
@@ -92,10 +91,7 @@ pub fn write_cache(path: &Path, c: &CacheFile) -> Result<(), FormatError> {
     b.extend_from_slice(blake3::hash(payload).as_bytes());
     b.extend_from_slice(&(params.len() as u32).to_le_bytes());
     debug_assert_eq!(b.len(), FIXED_LEN);
-    b.extend_from_slice(params);
-    b.resize(header_len - 8, 0);
-    let check = blake3::hash(&b);
-    b.extend_from_slice(&check.as_bytes()[..8]);
+    seal(&mut b, params, header_len);
     crate::write_atomically(path, |w| {
         w.write_all(&b)?;
         w.write_all(payload)
@@ -124,14 +120,10 @@ pub fn read_cache(path: &Path) -> Result<CacheFile, FormatError> {
         }));
     }
     let header_len = u32_at(12) as usize;
-    if header_len < FIXED_LEN + 8
-        || !header_len.is_multiple_of(16)
-        || header_len > FIXED_LEN + MAX_PARAMS + 24
-        || header_len > bytes.len()
-    {
+    if !header_len_ok(header_len, FIXED_LEN, len) {
         return Err(err(Problem::Field { field: "header_len", value: header_len as u64 }));
     }
-    if blake3::hash(&bytes[..header_len - 8]).as_bytes()[..8] != bytes[header_len - 8..header_len] {
+    if !check_ok(&bytes, header_len) {
         return Err(err(Problem::HeaderChecksum));
     }
     let record_size = u32_at(16) as usize;
@@ -140,13 +132,7 @@ pub fn read_cache(path: &Path) -> Result<CacheFile, FormatError> {
     }
     let (width, height) = (u32_at(20), u32_at(24));
     let n = u64::from_le_bytes(bytes[32..40].try_into().expect("8 bytes"));
-    let params_len = u32_at(136) as usize;
-    if FIXED_LEN + params_len + 8 > header_len {
-        return Err(err(Problem::Field { field: "params_len", value: params_len as u64 }));
-    }
-    let params = std::str::from_utf8(&bytes[FIXED_LEN..FIXED_LEN + params_len])
-        .map_err(|_| err(Problem::Field { field: "params (not UTF-8)", value: params_len as u64 }))?
-        .to_owned();
+    let params = params_text(&bytes, FIXED_LEN, u32_at(136) as usize, header_len).map_err(err)?;
     let expected = n.checked_mul(record_size as u64).and_then(|p| p.checked_add(header_len as u64));
     if expected != Some(len) {
         return Err(err(Problem::NotCache {
@@ -160,7 +146,7 @@ pub fn read_cache(path: &Path) -> Result<CacheFile, FormatError> {
     if blake3::hash(payload).as_bytes() != &hash_at(104) {
         return Err(err(Problem::PayloadChecksum));
     }
-    let records: Vec<CacheRecord> = bytemuck::pod_collect_to_vec(payload);
+    let records: Vec<CacheRecord> = payload.chunks_exact(record_size).map(bytemuck::pod_read_unaligned).collect();
     for (i, r) in records.iter().enumerate() {
         let finite = r.p.iter().chain(&r.n).chain(&r.e).chain(&r.grad_t).chain(&r.grad_r).all(|v| v.is_finite());
         if !finite || !(r.r > 0.0) || !r.r.is_finite() || r.e.iter().any(|&e| e < 0.0) {

@@ -310,16 +310,18 @@ pub(crate) fn cheap_indirect<G: PhotonRecord>(
 /// What an integrator computes at the first non-specular hit of an eye path: the
 /// hit, its BSDF, the direction toward the viewer, the emitted radiance there, and
 /// the G-buffer entry to complete (at the eye ray's own hit only).
-type Shade<G> = fn(
-    &PhotonMapping<G>,
-    &Hit,
-    &Bsdf,
-    Vec3,
-    Rgb,
-    &mut Sampler,
-    &mut Scratch,
-    Option<&mut VisibleSurface>,
-) -> Components;
+type Shade<G> = fn(&PhotonMapping<G>, &At, &mut Sampler, &mut Scratch, Option<&mut VisibleSurface>) -> Components;
+
+/// A non-specular hit as the shading functions see it.
+#[derive(Clone, Copy)]
+struct At<'h> {
+    hit: &'h Hit,
+    bsdf: &'h Bsdf,
+    /// Toward the viewer.
+    wo: Vec3,
+    /// Emitted radiance toward the viewer [W sr^-1 m^-2].
+    le: Rgb,
+}
 
 /// Radiance components along the ray from `o` in direction `d`: recursive specular
 /// reflection and refraction, and `shade` at the first non-specular hit.
@@ -344,7 +346,7 @@ fn trace<G: PhotonRecord>(
         *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
     }
     if !bsdf.is_specular() {
-        return shade(ctx, &hit, &bsdf, wo, le, s, scratch, vs);
+        return shade(ctx, &At { hit: &hit, bsdf: &bsdf, wo, le }, s, scratch, vs);
     }
     if depth >= cfg.max_depth {
         ctx.counters.terminated_paths.fetch_add(1, Relaxed);
@@ -379,17 +381,14 @@ fn trace<G: PhotonRecord>(
 }
 
 /// Figure 1 (b): reflectance / pi x a k-nearest irradiance estimate from the global map.
-#[allow(clippy::too_many_arguments)]
 fn shade_photons<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
-    hit: &Hit,
-    bsdf: &Bsdf,
-    wo: Vec3,
-    le: Rgb,
+    at: &At,
     _: &mut Sampler,
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
     let cfg = &ctx.cfg;
     let e = match &ctx.maps.global {
         Some(tree) => {
@@ -406,50 +405,41 @@ fn shade_photons<G: PhotonRecord>(
 }
 
 /// Figure 1 (e): reflectance / pi x the precomputed irradiance the final gather reads.
-#[allow(clippy::too_many_arguments)]
 fn shade_radiance<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
-    hit: &Hit,
-    bsdf: &Bsdf,
-    wo: Vec3,
-    le: Rgb,
+    at: &At,
     _: &mut Sampler,
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
     let e = lookup_irradiance(ctx, hit.p, facing(hit.ng, wo), scratch);
     Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
 }
 
 /// Figure 1 (f): the soft indirect term alone.
-#[allow(clippy::too_many_arguments)]
 fn shade_indirect<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
-    hit: &Hit,
-    bsdf: &Bsdf,
-    wo: Vec3,
-    _: Rgb,
+    at: &At,
     s: &mut Sampler,
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
+    let At { hit, bsdf, wo, le: _ } = *at;
     let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), s, scratch);
     Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
 }
 
 /// The complete image (section 1.3): direct light by light sampling, caustics from
 /// the caustic map, soft indirect light from the cache or a final gather.
-#[allow(clippy::too_many_arguments)]
 fn shade_full<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
-    hit: &Hit,
-    bsdf: &Bsdf,
-    wo: Vec3,
-    le: Rgb,
+    at: &At,
     s: &mut Sampler,
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
     let cfg = &ctx.cfg;
     let n = facing(hit.ng, wo);
     let ns = facing(hit.ns, wo);
