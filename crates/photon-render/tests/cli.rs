@@ -120,3 +120,86 @@ fn an_empty_global_map_renders_and_says_so() {
     assert!(img.layer("total").unwrap().iter().all(|p| p.is_finite()));
     assert!(img.layer("direct").unwrap().iter().any(|p| p.max_element() > 0.0));
 }
+
+/// Stages 1-3 in memory (pm-tests), written as the kd-tree map files stage 4 reads.
+fn write_maps(dir: &Path, scene_file: &Path) -> (PathBuf, PathBuf) {
+    use pm_format::{Header, Layout, MapKind, Order, PhotonMap};
+    let scene = pm_scene::load(scene_file).unwrap();
+    let (g, c) = pm_tests::photon_maps(&scene, 20_000, 2_000, 0.25);
+    let header = |kind, layout| {
+        Header::new(kind, Order::KdTree, layout, 1, scene.content_hash, scene.bounds.diagonal(), "{}".into())
+    };
+    let mut gh = header(MapKind::Global, Layout::CompactIrradiance);
+    gh.has_irradiance = true;
+    let (gp, cp) = (dir.join("global.irr.pmap"), dir.join("caustic.kd.pmap"));
+    PhotonMap::new(gh, g).write(&gp).unwrap();
+    PhotonMap::new(header(MapKind::Caustic, Layout::Full), c).write(&cp).unwrap();
+    (gp, cp)
+}
+
+/// The irradiance cache as a file, and regions: rendering with `--icache` gives the
+/// same EXR bytes as the in-process prepass, each `--region` gives exactly the
+/// whole image's pixels there (supersampling crosses the region borders at spp 4),
+/// and a cache made with other settings is refused naming the setting.
+#[test]
+fn a_cache_file_and_regions_reproduce_the_whole_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_spheres.gltf");
+    let (g, c) = write_maps(dir.path(), &s);
+    let p = |f: &str| dir.path().join(f).display().to_string();
+    let base = [
+        "--scene",
+        s.to_str().unwrap(),
+        "--global",
+        g.to_str().unwrap(),
+        "--width",
+        "37",
+        "--height",
+        "29",
+        "--spp",
+        "4",
+        "--gather-rays",
+        "32",
+    ]
+    .map(String::from);
+    let go = |extra: &[String]| {
+        let mut a = base.to_vec();
+        a.extend(extra.iter().cloned());
+        let o = Command::new(env!("CARGO_BIN_EXE_photon-render")).args(&a).output().unwrap();
+        (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let strs = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let caustic = ["--caustic".to_string(), c.display().to_string()];
+    let whole = [&caustic[..], &strs(&["--out", &p("whole.exr")])].concat();
+    assert!(go(&whole).0);
+    let (ok, err) = go(&strs(&["--icache-out", &p("icache.bin")]));
+    assert!(ok, "{err}");
+    let from_file = [&caustic[..], &strs(&["--icache", &p("icache.bin"), "--out", &p("file.exr")])].concat();
+    assert!(go(&from_file).0);
+    assert_eq!(std::fs::read(p("whole.exr")).unwrap(), std::fs::read(p("file.exr")).unwrap());
+    let whole_img = pm_image::read_exr(Path::new(&p("whole.exr"))).unwrap();
+    for (k, region) in ["0,0,37,1", "5,3,18,17", "18,3,37,29", "0,17,18,29"].iter().enumerate() {
+        let out = p(&format!("r{k}.exr"));
+        let a = [&caustic[..], &strs(&["--icache", &p("icache.bin"), "--region", region, "--out", &out])].concat();
+        let (ok, err) = go(&a);
+        assert!(ok, "{err}");
+        let img = pm_image::read_exr(Path::new(&out)).unwrap();
+        let r: Vec<u32> = region.split(',').map(|v| v.parse().unwrap()).collect();
+        assert_eq!((img.width, img.height), (r[2] - r[0], r[3] - r[1]));
+        for (name, px) in &img.layers {
+            let all = whole_img.layer(name).unwrap();
+            for (j, v) in px.iter().enumerate() {
+                let (x, y) = (r[0] + j as u32 % img.width, r[1] + j as u32 / img.width);
+                assert_eq!(v.to_array().map(f32::to_bits), all[(y * 37 + x) as usize].to_array().map(f32::to_bits));
+            }
+        }
+    }
+    let other = [&caustic[..], &strs(&["--icache", &p("icache.bin"), "--light-samples", "5", "--out", &p("x.exr")])];
+    let (ok, err) = go(&other.concat());
+    assert!(!ok && err.contains("icache.bin: made with light_samples=4, this render has light_samples=5"), "{err}");
+    let (ok, err) = go(&strs(&["--region", "30,0,40,10", "--out", &p("x.exr")]));
+    assert!(!ok && err.contains("--region 30,0,40,10 is outside the 37x29 image"), "{err}");
+    let (ok, err) = go(&strs(&["--k", "0", "--out", &p("x.exr")]));
+    assert!(!ok && err.contains("--k = 0 is out of range"), "{err}");
+    assert!(!Path::new(&p("x.exr")).exists());
+}
