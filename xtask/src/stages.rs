@@ -21,11 +21,14 @@ impl Bins {
     /// `$CARGO_TARGET_DIR/release` when that is set (relative to the current
     /// folder, as cargo reads it), else `root/target/release`.
     pub fn locate(root: &Path) -> Bins {
-        let target = match std::env::var_os("CARGO_TARGET_DIR") {
-            Some(t) if !t.is_empty() => {
-                let t = PathBuf::from(t);
-                if t.is_absolute() { t } else { std::env::current_dir().unwrap_or_default().join(t) }
-            }
+        let cwd = std::env::current_dir().unwrap_or_default();
+        Bins::locate_with(root, std::env::var_os("CARGO_TARGET_DIR"), &cwd)
+    }
+
+    /// [`Bins::locate`] with the variable's value and the current folder given.
+    fn locate_with(root: &Path, target_dir: Option<std::ffi::OsString>, cwd: &Path) -> Bins {
+        let target = match target_dir {
+            Some(t) if !t.is_empty() => cwd.join(t),
             _ => root.join("target"),
         };
         Bins { dir: target.join("release") }
@@ -95,4 +98,21 @@ pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool)
 pub fn read_stats<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     serde_json::from_slice(&bytes).with_context(|| format!("{}: not the statistics this runner reads", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: with CARGO_TARGET_DIR set, the runner said "photon-trace is
+    /// missing" because it looked in target/release.
+    #[test]
+    fn binaries_are_found_where_cargo_puts_them() {
+        let (root, cwd) = (Path::new("/repo"), Path::new("/home/u/work"));
+        let at = |t: Option<&str>| Bins::locate_with(root, t.map(Into::into), cwd).dir;
+        assert_eq!(at(None), Path::new("/repo/target/release"));
+        assert_eq!(at(Some("")), Path::new("/repo/target/release"));
+        assert_eq!(at(Some("/tmp/t")), Path::new("/tmp/t/release"));
+        assert_eq!(at(Some("build")), Path::new("/home/u/work/build/release"));
+    }
 }

@@ -106,7 +106,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let mode = if cli.icache_out.is_some() { Method::Indirect } else { p.mode };
     let indirect = !cli.no_indirect;
     let full = mode == Method::Full;
-    let needs_global = mode != Method::Path && !(full && !indirect);
+    let needs_global = mode != Method::Path && (indirect || !full);
     let needs_irradiance =
         matches!(mode, Method::Full | Method::Indirect | Method::Radiance) && p.gather_lookup == Lookup::Precomputed;
     let caustic = match (&cli.caustic, full) {

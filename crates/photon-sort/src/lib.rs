@@ -72,7 +72,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let stats = Report {
         input: cli.input.display().to_string(),
         photons: n,
-        depth: depth as u32,
+        depth,
         record_bytes: layout.record_size(),
         seconds: secs,
         threads: pm_stage::thread_count(),
