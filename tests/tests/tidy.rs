@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 /// Layer of each crate: 0 vocabulary, 1 middle (scene, files, kd-tree, tracing,
 /// estimates, rendering, images), 2 the stage shell, 3 stage binaries.
-const LAYERS: [(&str, u8); 18] = [
+const LAYERS: [(&str, u8); 20] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -19,17 +19,19 @@ const LAYERS: [(&str, u8); 18] = [
     ("pm-estimate", 1),
     ("pm-render", 1),
     ("pm-image", 1),
+    ("pm-live", 1),
     ("pm-stage", 2),
     ("photon-trace", 3),
     ("photon-sort", 3),
     ("photon-irradiance", 3),
     ("photon-render", 3),
     ("photon-inspect", 3),
+    ("photon-live", 3),
     ("pm-tests", 4),
 ];
 
 /// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
-const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 10] = [
+const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 11] = [
     ("pm-params", &["pm-color", "pm-sampling", "pm-bsdf"]),
     ("pm-sampling", &["pm-color", "pm-bsdf", "pm-scene"]),
     ("pm-bsdf", &["pm-scene", "pm-format", "pm-photon"]),
@@ -40,6 +42,7 @@ const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 10] = [
     ("pm-estimate", &["pm-scene", "pm-photon", "pm-render", "pm-image"]),
     ("pm-render", &["pm-photon", "pm-image"]),
     ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
+    ("pm-live", &["pm-image"]),
 ];
 
 /// Each workspace crate and the workspace crates in its `[dependencies]`.

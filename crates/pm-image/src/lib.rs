@@ -99,16 +99,41 @@ pub fn read_exr(path: &Path) -> Result<Layers> {
 
 /// Write an 8-bit sRGB PNG of `pixels` scaled by 2^exposure and clamped.
 pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    let scale = 2f32.powf(exposure);
-    let bytes: Vec<u8> = pixels
-        .iter()
-        .flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8))
-        .collect();
+    let bytes = srgb8(pixels, exposure);
     let img = image::RgbImage::from_raw(width, height, bytes).context("image size mismatch")?;
     let mut buf = std::io::Cursor::new(Vec::new());
     img.write_to(&mut buf, image::ImageFormat::Png)
         .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
     pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// 8-bit sRGB bytes (R, G, B per pixel) of linear radiance times 2^exposure.
+pub fn srgb8(pixels: &[Vec3], exposure: f32) -> Vec<u8> {
+    let scale = 2f32.powf(exposure);
+    pixels.iter().flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8)).collect()
+}
+
+/// Write an animated PNG of `frames` (each [`srgb8`] bytes of `width` x `height`),
+/// shown at `fps` frames per second and looping, atomically.
+pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: f32) -> Result<()> {
+    let encode = || -> std::result::Result<Vec<u8>, png::EncodingError> {
+        let mut buf = Vec::new();
+        let mut enc = png::Encoder::new(&mut buf, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_animated(frames.len().max(1) as u32, 0)?;
+        // Frame delay in milliseconds (APNG stores a fraction of a second).
+        enc.set_frame_delay((1000.0 / fps).round().clamp(1.0, 65535.0) as u16, 1000)?;
+        let mut w = enc.write_header()?;
+        for f in frames {
+            w.write_image_data(f)?;
+        }
+        w.finish()?;
+        Ok(buf)
+    };
+    let bytes = encode().map_err(|e| anyhow::anyhow!("{}: cannot encode APNG: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
         .with_context(|| format!("{}: cannot write", path.display()))
 }
 

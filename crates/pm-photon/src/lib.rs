@@ -151,16 +151,29 @@ pub fn specular_targets(scene: &Scene) -> Vec<Target> {
 }
 
 /// One traced path: its photons (unscaled power) and bookkeeping.
-#[derive(Default)]
-struct PathOut {
-    photons: Vec<(Photon, u32)>,
-    light: usize,
-    rays: u64,
-    truncated: bool,
+#[derive(Default, Clone, Debug)]
+pub struct PathOut {
+    /// The stored photons with the number of surfaces (specular ones included) the
+    /// path hit before each: 0 for a photon straight from the light. Power is
+    /// Phi-hat / p_select [W per channel], not yet divided by the number emitted.
+    pub photons: Vec<(Photon, u32)>,
+    /// The light the path left.
+    pub light: usize,
+    /// Rays traced.
+    pub rays: u64,
+    /// True when the path was cut at [`MAX_BOUNCES`].
+    pub truncated: bool,
 }
 
-/// Trace one photon path. Powers are Phi-hat / p_select (not yet divided by N).
-fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u64, out: &mut PathOut) {
+/// Trace photon path `index` of the pass `cfg` describes, into `out` (cleared
+/// first). The path draws its samples from the stream keyed by (seed, pass, index)
+/// alone, exactly as [`trace`] does for its `index`-th photon, so a caller that
+/// traces paths one by one (the real-time ring buffer) gets the batch map's photons.
+/// `targets` are [`specular_targets`] (used by the caustic pass only).
+pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u64, out: &mut PathOut) {
+    out.photons.clear();
+    out.rays = 0;
+    out.truncated = false;
     let stream = match cfg.pass {
         MapPass::Global => 0x676c_6f62_616c,
         MapPass::Caustic => 0x6361_7573_7469,
@@ -291,7 +304,6 @@ pub fn trace(scene: &Scene, cfg: &TraceConfig, progress: &(dyn Fn(u64) + Sync)) 
     };
     stats.emitted = n_emitted;
     stats.hit_cap = matches!(cfg.budget, Budget::Stored { target, .. } if (photons.len() as u64) < target);
-    let scale = if n_emitted > 0 { 1.0 / n_emitted as f64 } else { 0.0 };
     let photons: Vec<Photon> = photons
         .into_iter()
         .map(|(mut p, bounce)| {
@@ -300,12 +312,20 @@ pub fn trace(scene: &Scene, cfg: &TraceConfig, progress: &(dyn Fn(u64) + Sync)) 
                 stats.stored_per_bounce.resize(b + 1, 0);
             }
             stats.stored_per_bounce[b] += 1;
-            p.power = (p.power.as_dvec3() * scale).as_vec3();
+            p.power = scale_power(p.power, n_emitted);
             p
         })
         .collect();
     stats.stored = photons.len() as u64;
     Ok(TracedMap { photons, stats })
+}
+
+/// A stored photon's power [W per channel] from its path's Phi-hat / p_select when
+/// `n_emitted` paths share the lights' power (Jensen's scaling; Jozwowski 2002
+/// Figure 18 for a buffer that holds `n_emitted` paths), computed in f64.
+pub fn scale_power(phi: Rgb, n_emitted: u64) -> Rgb {
+    let scale = if n_emitted > 0 { 1.0 / n_emitted as f64 } else { 0.0 };
+    (phi.as_dvec3() * scale).as_vec3()
 }
 
 /// Total power of a set of photons [W per channel], summed in f64 in index order.

@@ -228,7 +228,9 @@ struct BvhTri {
     id: u32,
 }
 
-/// A loaded scene. Immutable, `Send + Sync`.
+/// A loaded scene. Immutable while rendered, `Send + Sync`; a live renderer clones
+/// it to move punctual lights between frames.
+#[derive(Clone)]
 pub struct Scene {
     /// Triangles in file order; the triangle id indexes this.
     pub triangles: Vec<Triangle>,

@@ -1,0 +1,239 @@
+//! Real-time photon mapping (Jozwowski 2002, "Real Time Photon Mapping", sections 4
+//! and 5): every frame re-shoots the oldest `per_frame` of `total` photon paths into
+//! a ring buffer ([`RingBuffer`], section 4.1.1-4.1.2), rebalances a kd-tree over the
+//! used slots, estimates irradiance at the mesh's corners ([`Corners`], sections
+//! 4.1.3 and 4.4.2), and draws the mesh with the corner radiance interpolated across
+//! each triangle (Gouraud) times the reflectance, with direct light by shadow rays
+//! per pixel (sharp shadows) or from the photons alone (as in the thesis).
+//!
+//! It reuses the batch pipeline's pieces rather than forking them: the tracer's own
+//! per-path streams (`pm_photon::trace_path`), the kd-tree, the k-nearest irradiance
+//! estimate, the BSDFs, light sampling, and the image loop of `pm-render` (the frame
+//! is an [`Integrator`](pm_render::Integrator) over the region loop). Radiance is
+//! W sr^-1 m^-2 per RGB channel; photon power W; irradiance W m^-2.
+//!
+//! This crate does no I/O: a frame is an in-memory image and its statistics.
+
+mod mesh;
+mod ring;
+mod shade;
+
+pub use mesh::Corners;
+pub use ring::{Distribution, RingBuffer, ShootStats};
+pub use shade::LiveShading;
+
+use pm_format::{FullIrrPhoton, PhotonRecord, flags};
+use pm_params::{Any, above, at_least, between};
+use pm_photon::{Budget, MapPass, TraceConfig};
+use pm_render::{Film, Image, Rect, RenderStats};
+use pm_scene::{Camera, LightSelector, Scene, Target};
+use std::time::Instant;
+
+pm_params::value_enum! {
+    /// Where direct light comes from.
+    pub enum DirectMode {
+        /// A shadow ray per light sample at every pixel: sharp shadows.
+        Rays,
+        /// The photons' estimate at the corners, like indirect light (the thesis).
+        Photons,
+    }
+}
+
+pm_params::params! {
+    /// The real-time mode's parameters, defined once: `photon-live`'s options and the
+    /// `[live]` section of pipeline.toml (Jozwowski 2002 sections 4.1 and 4.4).
+    pub struct LiveParams {
+        /// Photon paths re-shot every frame (the thesis: 100-2,000).
+        per_frame: u32 = 2_000 => between(1, 1 << 24);
+        /// Photon paths the ring buffer holds (the thesis: 2,000; at least per_frame).
+        total: u32 = 20_000 => between(1, 1 << 24);
+        /// Hits kept per path (the thesis: 3 is sufficient).
+        max_level: u32 = 3 => between(1, 64);
+        /// Which paths re-shot slots get: random, same-per-frame or same-over-total.
+        distribution: Distribution = Distribution::SameOverTotal => Any;
+        /// Photons per corner estimate.
+        k: usize = 50 => between(1, 1 << 16);
+        /// Largest estimate radius, as a fraction of the scene's bounding-box diagonal.
+        max_radius_rel_diag: f32 = 0.1 => above(0.0);
+        /// Direct light by shadow rays per pixel (rays) or from the photons (photons).
+        direct: DirectMode = DirectMode::Rays => Any;
+        /// Light samples per pixel for direct light by rays.
+        light_samples: u32 = 1 => between(1, 1 << 10);
+        /// One estimate per shared corner (section 4.4.2) instead of one per triangle vertex.
+        cornering: bool = true => Any;
+        /// Skip corners of triangles facing away from the camera (one-sided materials).
+        back_face_culling: bool = true => Any;
+        /// Skip corners of triangles outside the view frustum.
+        frustum_culling: bool = true => Any;
+        /// Depth limit of mirror and glass recursion when drawing.
+        max_depth: u32 = 8 => between(0, 1000);
+        /// Frame width [pixels].
+        width: u32 = 512 => between(1, 16384);
+        /// Frame height [pixels].
+        height: u32 = 512 => between(1, 16384);
+        /// Frames per second of animation time (frame f shows time f / fps) [1/s].
+        fps: f32 = 60.0 => above(0.0);
+        /// Exposure of the PNG frames in stops.
+        exposure: f32 = 0.0 => at_least(-64.0);
+    }
+}
+
+impl LiveParams {
+    /// [`Self::validate`] plus the checks that relate two values.
+    pub fn check(&self, naming: pm_params::Naming) -> Result<(), String> {
+        self.validate(naming)?;
+        if self.per_frame > self.total {
+            return Err(format!(
+                "{} = {} is above {} = {}",
+                naming.name("per_frame"),
+                self.per_frame,
+                naming.name("total"),
+                self.total
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Wall time of each step of a frame [s] (the thesis's Figures 21-27 split).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct FrameTimes {
+    /// Shooting `per_frame` paths into the ring buffer.
+    pub shoot: f64,
+    /// Rebuilding the kd-tree over the used slots.
+    pub balance: f64,
+    /// Corner culling and irradiance estimates.
+    pub estimate: f64,
+    /// Drawing the frame (eye rays, interpolation, direct light).
+    pub draw: f64,
+}
+
+/// What one frame did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct FrameStats {
+    /// Frame number (0 first).
+    pub frame: u64,
+    /// Times per step [s].
+    pub times: FrameTimes,
+    /// Paths shot this frame.
+    pub paths_shot: u64,
+    /// Rays the photon paths traced.
+    pub photon_rays: u64,
+    /// Paths the buffer holds.
+    pub paths_held: usize,
+    /// Photons in the kd-tree (used slots that the estimates read).
+    pub photons_in_tree: usize,
+    /// Corner estimates made (active corners).
+    pub estimates: usize,
+    /// Corners in all.
+    pub corners: usize,
+    /// Eye samples drawn.
+    pub samples: u64,
+}
+
+/// The real-time renderer's state between frames.
+pub struct Live<'a> {
+    scene: &'a Scene,
+    photon_scene: &'a Scene,
+    camera: Camera,
+    params: LiveParams,
+    seed: u64,
+    trace: TraceConfig,
+    targets: Vec<Target>,
+    ring: RingBuffer,
+    corners: Corners,
+    frame: u64,
+}
+
+impl<'a> Live<'a> {
+    /// A live renderer of `scene` drawn from its first camera; photons are traced in
+    /// `photon_scene` (the same scene, or a simpler stand-in: section 4.4.1). Fails
+    /// when the photon scene has no light with power or the scene no camera.
+    pub fn new(scene: &'a Scene, photon_scene: &'a Scene, params: LiveParams, seed: u64) -> Result<Live<'a>, String> {
+        params.check(pm_params::Naming::Cli)?;
+        let camera = scene.camera.clone().ok_or("the scene has no perspective camera")?;
+        let selector = LightSelector::new(photon_scene, &[]).map_err(|e| e.to_string())?;
+        let trace = TraceConfig {
+            pass: MapPass::Global,
+            budget: Budget::Emitted(params.total as u64),
+            seed,
+            selector,
+            range: None,
+        };
+        let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
+        let corners = Corners::new(scene, params.cornering);
+        Ok(Live { scene, photon_scene, camera, params, seed, trace, targets: Vec::new(), ring, corners, frame: 0 })
+    }
+
+    /// The ring buffer.
+    pub fn ring(&self) -> &RingBuffer {
+        &self.ring
+    }
+
+    /// The corners.
+    pub fn corners(&self) -> &Corners {
+        &self.corners
+    }
+
+    /// Frames drawn so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Replace the photon scene (a light or object moved); the buffer keeps its
+    /// photons, which age out over the next total / per_frame frames.
+    pub fn set_photon_scene(&mut self, photon_scene: &'a Scene) -> Result<(), String> {
+        self.trace.selector = LightSelector::new(photon_scene, &[]).map_err(|e| e.to_string())?;
+        self.photon_scene = photon_scene;
+        Ok(())
+    }
+
+    /// The photons the estimates read this frame: the used slots (power scaled by
+    /// the paths held), without the direct photons when direct light comes from rays.
+    pub fn tree_photons(&self) -> Vec<FullIrrPhoton> {
+        let no_direct = self.params.direct == DirectMode::Rays;
+        self.ring
+            .photons()
+            .iter()
+            .filter(|p| !(no_direct && p.flags & flags::DIRECT != 0))
+            .map(FullIrrPhoton::encode)
+            .collect()
+    }
+
+    /// Shoot, balance, estimate and draw one frame.
+    pub fn step(&mut self) -> Result<(Image, FrameStats), String> {
+        let p = &self.params;
+        let t = Instant::now();
+        let shot = self.ring.shoot(self.photon_scene, &self.trace, &self.targets, p.per_frame as usize, p.distribution);
+        let shoot = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let records = pm_kdtree::balance(&self.tree_photons());
+        let tree = pm_kdtree::KdTree::new(&records);
+        let balance = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let aspect = p.width as f32 / p.height as f32;
+        let active = self.corners.active(self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
+        let max_radius = p.max_radius_rel_diag * self.scene.bounds.diagonal();
+        let e = self.corners.irradiance(&tree, &active, p.k, max_radius);
+        let estimate = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let shading = LiveShading::new(self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
+        let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
+        let (image, rs): (Image, RenderStats) =
+            pm_render::render_region(&self.camera, &film, Rect::full(&film), &shading, false, &|_, _| {})?;
+        let draw = t.elapsed().as_secs_f64();
+        let stats = FrameStats {
+            frame: self.frame,
+            times: FrameTimes { shoot, balance, estimate, draw },
+            paths_shot: shot.paths,
+            photon_rays: shot.rays,
+            paths_held: self.ring.filled(),
+            photons_in_tree: records.len(),
+            estimates: active.iter().filter(|&&a| a).count(),
+            corners: self.corners.len(),
+            samples: rs.samples,
+        };
+        self.frame += 1;
+        Ok((image, stats))
+    }
+}

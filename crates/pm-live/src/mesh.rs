@@ -1,0 +1,114 @@
+//! Radiance estimates at mesh vertices (Jozwowski 2002, sections 4.1.3 and 4.4.2):
+//! the scene's triangles as indexed meshes of *corners*, one per distinct
+//! (object, position, normal), so triangles that share a vertex share its estimate
+//! ("vertex cornering"); back-face and view-frustum culling decide which corners
+//! need an estimate this frame.
+
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_estimate::{Filter, KnnParams};
+use pm_format::FullIrrPhoton;
+use pm_kdtree::{KdTree, KnnScratch};
+use pm_scene::{Camera, Scene};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// The scene's triangles as indexed meshes: corner positions and normals, and the
+/// corners of each triangle (same order as `Scene::triangles`).
+#[derive(Clone, Debug)]
+pub struct Corners {
+    /// Corner position [m].
+    pub p: Vec<Vec3>,
+    /// Unit normal at the corner (the triangle's shading normal there).
+    pub n: Vec<Vec3>,
+    /// The three corners of each triangle.
+    pub tri: Vec<[u32; 3]>,
+}
+
+impl Corners {
+    /// Corners of `scene`. With `cornering`, triangle vertices of one object with the
+    /// same position and normal share a corner (section 4.4.2, Figure 20); without,
+    /// every triangle vertex is its own corner (three estimates per triangle).
+    pub fn new(scene: &Scene, cornering: bool) -> Corners {
+        let mut c = Corners { p: Vec::new(), n: Vec::new(), tri: Vec::with_capacity(scene.triangles.len()) };
+        let mut index: HashMap<(u32, [u32; 3], [i32; 3]), u32> = HashMap::new();
+        for (t, tri) in scene.triangles.iter().enumerate() {
+            let object = scene.object_of(t as u32).unwrap_or(u32::MAX);
+            let mut ids = [0u32; 3];
+            for (k, id) in ids.iter_mut().enumerate() {
+                let p = tri.p[k];
+                let n = tri.n.map_or(tri.ng, |n| n[k]).normalize_or(tri.ng);
+                let key = (object, p.to_array().map(f32::to_bits), (n * 1e4).round().as_ivec3().to_array());
+                let new = c.p.len() as u32;
+                *id = if cornering { *index.entry(key).or_insert(new) } else { new };
+                if *id == new {
+                    c.p.push(p);
+                    c.n.push(n);
+                }
+            }
+            c.tri.push(ids);
+        }
+        c
+    }
+
+    /// Number of corners (radiance estimates when all are active).
+    pub fn len(&self) -> usize {
+        self.p.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.p.is_empty()
+    }
+
+    /// The corners of the triangles the camera may see: with `back_faces` off,
+    /// triangles facing away from the camera (one-sided materials) are skipped; with
+    /// `frustum`, triangles entirely outside one side of the view frustum are.
+    pub fn active(&self, scene: &Scene, camera: &Camera, aspect: f32, back_faces: bool, frustum: bool) -> Vec<bool> {
+        let mut on = vec![false; self.len()];
+        let tan_y = (0.5 * camera.yfov).tan();
+        let tan_x = tan_y * aspect;
+        for (t, tri) in scene.triangles.iter().enumerate() {
+            if back_faces
+                && (tri.p[0] - camera.position).dot(tri.ng) >= 0.0
+                && !scene.materials[tri.material as usize].double_sided
+            {
+                continue;
+            }
+            if frustum {
+                // View-space coordinates of the vertices; outside when all three lie
+                // beyond the same plane (behind the camera, left, right, above, below).
+                let v = tri.p.map(|p| {
+                    let d = p - camera.position;
+                    Vec3::new(d.dot(camera.right), d.dot(camera.up), d.dot(camera.forward))
+                });
+                let all = |f: &dyn Fn(Vec3) -> bool| v.iter().all(|&q| f(q));
+                if all(&|q| q.z <= 0.0)
+                    || all(&|q| q.x > q.z * tan_x)
+                    || all(&|q| q.x < -q.z * tan_x)
+                    || all(&|q| q.y > q.z * tan_y)
+                    || all(&|q| q.y < -q.z * tan_y)
+                {
+                    continue;
+                }
+            }
+            for &c in &self.tri[t] {
+                on[c as usize] = true;
+            }
+        }
+        on
+    }
+
+    /// Irradiance E [W m^-2 per channel] at every active corner from the k nearest
+    /// photons of `tree` on the corner's side within `max_radius` [m]
+    /// (`pm_estimate::irradiance`, the batch pipeline's estimate); zero elsewhere.
+    pub fn irradiance(&self, tree: &KdTree<FullIrrPhoton>, active: &[bool], k: usize, max_radius: f32) -> Vec<Rgb> {
+        let p = KnnParams { k, max_d2: max_radius * max_radius, filter: Filter::None };
+        (0..self.len())
+            .into_par_iter()
+            .map_init(KnnScratch::default, |scratch, c| {
+                if active[c] { pm_estimate::irradiance(tree, self.p[c], self.n[c], &p, scratch).e } else { Rgb::ZERO }
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,99 @@
+//! Drawing a frame: the mesh with corner radiance interpolated across each
+//! triangle (Gouraud shading, Jozwowski 2002 section 4.1.3) times the reflectance at
+//! the pixel, direct light by shadow rays or from the photons, and mirrors and glass
+//! by ray tracing. An [`Integrator`] over `pm-render`'s region loop, so frames get
+//! its deterministic per-pixel streams and G-buffer.
+
+use crate::{Corners, DirectMode, LiveParams};
+use glam::Vec3;
+use pm_color::Rgb;
+use pm_render::{Components, Counters, DirectLighting, Integrator, VisibleSurface};
+use pm_sampling::Sampler;
+use pm_scene::Scene;
+use std::f32::consts::PI;
+
+/// The per-pixel work of a live frame.
+pub struct LiveShading<'a> {
+    light: DirectLighting<'a>,
+    corners: &'a Corners,
+    /// Irradiance at each corner [W m^-2 per channel].
+    e: &'a [Rgb],
+    direct: DirectMode,
+    light_samples: u32,
+    max_depth: u32,
+    counters: Counters,
+}
+
+impl<'a> LiveShading<'a> {
+    /// Shading of `scene` with irradiance `e` at `corners`.
+    pub fn new(
+        scene: &'a Scene,
+        corners: &'a Corners,
+        e: &'a [Rgb],
+        p: &LiveParams,
+    ) -> Result<Self, pm_scene::LightSelectError> {
+        Ok(LiveShading {
+            light: DirectLighting::new(scene)?,
+            corners,
+            e,
+            direct: p.direct,
+            light_samples: p.light_samples,
+            max_depth: p.max_depth,
+            counters: Counters::default(),
+        })
+    }
+
+    /// Irradiance at barycentrics `b` of triangle `tri`: the corners' values
+    /// interpolated linearly (Gouraud; perspective-correct, since eye rays give
+    /// true barycentrics).
+    pub fn irradiance_at(&self, tri: u32, b: [f32; 3]) -> Rgb {
+        let c = self.corners.tri[tri as usize];
+        self.e[c[0] as usize] * b[0] + self.e[c[1] as usize] * b[1] + self.e[c[2] as usize] * b[2]
+    }
+}
+
+impl Integrator for LiveShading<'_> {
+    type Scratch = ();
+
+    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), mut vs: Option<&mut VisibleSurface>) -> Components {
+        let scene = self.light.scene;
+        let (mut o, mut d) = (o, d);
+        let mut beta = Rgb::ONE;
+        for depth in 0..=self.max_depth {
+            let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { break };
+            let wo = -d;
+            let le = scene.emitted(&hit, wo);
+            let bsdf = scene.bsdf(&hit);
+            if depth == 0
+                && let Some(v) = vs.as_deref_mut()
+            {
+                *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
+            }
+            if bsdf.is_specular() {
+                // Mirrors and glass: one Fresnel-chosen branch per sample.
+                let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { break };
+                beta *= bs.weight;
+                o = scene.offset_origin(hit.p, hit.ng, bs.wi);
+                d = bs.wi;
+                continue;
+            }
+            let direct = match self.direct {
+                DirectMode::Rays => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
+                DirectMode::Photons => Rgb::ZERO,
+            };
+            let indirect = bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI;
+            if depth == 0 {
+                if let Some(v) = vs {
+                    v.direct = direct;
+                }
+                return Components { direct: le + direct, indirect, ..Default::default() };
+            }
+            return Components { specular: beta * (le + direct + indirect), ..Default::default() };
+        }
+        Components::default()
+    }
+
+    fn counters(&self) -> &Counters {
+        &self.counters
+    }
+}
