@@ -75,7 +75,11 @@ pub fn run(cli: &Cli) -> Result<Report> {
         Some(p) => Some(pm_stage::load_scene("photon-live", p)?),
         None => None,
     };
-    let mut live = Live::new(&scene, photon_scene.as_ref().unwrap_or(&scene), cli.params.clone(), cli.seed)
+    // Photons are traced in the scene as given (or the --photon-scene); only the
+    // drawn mesh is subdivided.
+    let subdivided = (cli.params.subdivide > 0.0).then(|| scene.subdivided(cli.params.subdivide));
+    let drawn = subdivided.as_ref().unwrap_or(&scene);
+    let mut live = Live::new(drawn, photon_scene.as_ref().unwrap_or(&scene), cli.params.clone(), cli.seed)
         .map_err(|e| anyhow::anyhow!("{}: {e}", cli.scene.display()))?;
     let frames_dir = cli.out.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;

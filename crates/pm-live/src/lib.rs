@@ -25,7 +25,7 @@ pub use shade::LiveShading;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
-use pm_render::{Film, Image, Rect, RenderStats};
+use pm_render::{Film, Image, Rect, RenderStats, Visibility};
 use pm_scene::{Camera, LightSelector, Scene, Target};
 use std::time::Instant;
 
@@ -36,6 +36,16 @@ pm_params::value_enum! {
         Rays,
         /// The photons' estimate at the corners, like indirect light (the thesis).
         Photons,
+    }
+}
+
+pm_params::value_enum! {
+    /// How a frame finds the surface at each pixel.
+    pub enum DrawMode {
+        /// A CPU rasteriser with a z-buffer and perspective-correct interpolation.
+        Raster,
+        /// An eye ray per pixel through the BVH.
+        Rays,
     }
 }
 
@@ -65,6 +75,12 @@ pm_params::params! {
         back_face_culling: bool = true => Any;
         /// Skip corners of triangles outside the view frustum.
         frustum_culling: bool = true => Any;
+        /// Split every triangle uniformly until no edge is longer than this [m] (section
+        /// 4.3: more corners, finer indirect light; photons are still traced in the
+        /// unsplit scene); 0 leaves the mesh as it is.
+        subdivide: f32 = 0.0 => at_least(0.0);
+        /// Surfaces seen at pixels by the rasteriser or by eye rays (the same except at silhouettes).
+        draw: DrawMode = DrawMode::Raster => Any;
         /// Depth limit of mirror and glass recursion when drawing.
         max_depth: u32 = 8 => between(0, 1000);
         /// Frame width [pixels].
@@ -219,8 +235,19 @@ impl<'a> Live<'a> {
         let t = Instant::now();
         let shading = LiveShading::new(self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
         let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
-        let (image, rs): (Image, RenderStats) =
-            pm_render::render_region(&self.camera, &film, Rect::full(&film), &shading, false, &|_, _| {})?;
+        let visibility = match p.draw {
+            DrawMode::Raster => Visibility::Raster(self.scene),
+            DrawMode::Rays => Visibility::Rays,
+        };
+        let (image, rs): (Image, RenderStats) = pm_render::render_region_with(
+            &self.camera,
+            &film,
+            Rect::full(&film),
+            &shading,
+            false,
+            visibility,
+            &|_, _| {},
+        )?;
         let draw = t.elapsed().as_secs_f64();
         let stats = FrameStats {
             frame: self.frame,

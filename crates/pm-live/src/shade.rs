@@ -9,7 +9,7 @@ use glam::Vec3;
 use pm_color::Rgb;
 use pm_render::{Components, Counters, DirectLighting, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
-use pm_scene::Scene;
+use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 
 /// The per-pixel work of a live frame.
@@ -52,15 +52,15 @@ impl<'a> LiveShading<'a> {
     }
 }
 
-impl Integrator for LiveShading<'_> {
-    type Scratch = ();
-
-    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), mut vs: Option<&mut VisibleSurface>) -> Components {
+impl LiveShading<'_> {
+    /// The components seen along direction `d` whose first hit is `first`.
+    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
         let scene = self.light.scene;
-        let (mut o, mut d) = (o, d);
+        let mut d = d;
         let mut beta = Rgb::ONE;
+        let mut next = first;
         for depth in 0..=self.max_depth {
-            let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { break };
+            let Some(hit) = next else { break };
             let wo = -d;
             let le = scene.emitted(&hit, wo);
             let bsdf = scene.bsdf(&hit);
@@ -73,8 +73,8 @@ impl Integrator for LiveShading<'_> {
                 // Mirrors and glass: one Fresnel-chosen branch per sample.
                 let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { break };
                 beta *= bs.weight;
-                o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                 d = bs.wi;
+                next = scene.intersect(scene.offset_origin(hit.p, hit.ng, bs.wi), d, f32::INFINITY);
                 continue;
             }
             let direct = match self.direct {
@@ -91,6 +91,26 @@ impl Integrator for LiveShading<'_> {
             return Components { specular: beta * (le + direct + indirect), ..Default::default() };
         }
         Components::default()
+    }
+}
+
+impl Integrator for LiveShading<'_> {
+    type Scratch = ();
+
+    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
+        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, vs)
+    }
+
+    fn li_hit(
+        &self,
+        _: Vec3,
+        d: Vec3,
+        hit: Option<Hit>,
+        s: &mut Sampler,
+        _: &mut (),
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        self.shade(hit, d, s, vs)
     }
 
     fn counters(&self) -> &Counters {

@@ -114,6 +114,22 @@ pub trait Integrator: Sync {
         vs: Option<&mut VisibleSurface>,
     ) -> Components;
 
+    /// [`Self::li`] for an eye ray whose first hit is already known (`hit` is what
+    /// `scene.intersect(o, d, inf)` returns, found by the rasteriser). The default
+    /// ignores it and traces the ray.
+    fn li_hit(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        hit: Option<Hit>,
+        s: &mut Sampler,
+        scratch: &mut Self::Scratch,
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        let _ = hit;
+        self.li(o, d, s, scratch, vs)
+    }
+
     /// True: the image loop takes one sample at each pixel centre and supersamples
     /// where neighbours differ. False: every pixel takes all samples, jittered.
     fn adaptive(&self) -> bool {

@@ -27,6 +27,7 @@ mod gather;
 mod icache;
 mod integrator;
 mod path;
+pub mod raster;
 mod render;
 
 pub use direct::DirectLighting;
@@ -34,7 +35,7 @@ pub use gather::Scratch;
 pub use icache::IrradianceCache;
 pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};
 pub use path::PathTracer;
-pub use render::{Counters, Film, Image, Rect, RenderStats, render_region};
+pub use render::{Counters, Film, Image, Rect, RenderStats, Visibility, render_region, render_region_with};
 
 use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};

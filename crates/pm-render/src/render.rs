@@ -183,6 +183,17 @@ pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
     mix64(seed ^ mix64(0x7069_7865_6c00 ^ i as u64))
 }
 
+/// How the image loop finds the surfaces seen at pixel centres.
+#[derive(Clone, Copy)]
+pub enum Visibility<'s> {
+    /// Eye rays through the BVH.
+    Rays,
+    /// The rasteriser ([`crate::raster::first_hits`]) for the first sample of each
+    /// pixel (the centre), which the integrator gets through
+    /// [`Integrator::li_hit`]; supersamples still cast rays.
+    Raster(&'s pm_scene::Scene),
+}
+
 /// Render the pixels of `rect` of `film` seen by `camera`. Deterministic, and a
 /// region equals the same pixels of the whole image: supersampling decisions read
 /// the region's one-pixel apron, which is sampled (once) for that purpose.
@@ -192,6 +203,19 @@ pub fn render_region<I: Integrator>(
     rect: Rect,
     integ: &I,
     gbuffer: bool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Image, RenderStats), String> {
+    render_region_with(camera, film, rect, integ, gbuffer, Visibility::Rays, progress)
+}
+
+/// [`render_region`] with the first surfaces found as `visibility` says.
+pub fn render_region_with<I: Integrator>(
+    camera: &Camera,
+    film: &Film,
+    rect: Rect,
+    integ: &I,
+    gbuffer: bool,
+    visibility: Visibility,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, RenderStats), String> {
     if !rect.is_valid_in(film) {
@@ -215,48 +239,72 @@ pub fn render_region<I: Integrator>(
     let pass1 = if adaptive && film.spp > 1 { apron } else { rect };
     let p1w = pass1.width() as usize;
 
+    // Rasterised first hits at the centres of pass 1's pixels (its first samples).
+    let first: Option<Vec<Option<pm_scene::Hit>>> = match visibility {
+        Visibility::Raster(scene) => Some(crate::raster::first_hits(scene, camera, film, pass1)),
+        Visibility::Rays => None,
+    };
+    let centre_first = first.is_some() && adaptive;
+    let rays = camera.rays(aspect);
     let sample = |i: usize, k: u32, scratch: &mut I::Scratch, vs: Option<&mut VisibleSurface>| -> Components {
         let mut s = Sampler::new(pixel_seed(film.seed, i), k as u64);
         let j = if k == 0 && adaptive { Vec2::splat(0.5) } else { s.next_2d() };
         let (x, y) = ((i % w) as f32 + j.x, (i / w) as f32 + j.y);
-        let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
-        integ.li(camera.position, d, &mut s, scratch, vs)
+        let d = rays.direction(x / w as f32, y / h as f32);
+        match &first {
+            Some(hits) if k == 0 && centre_first => {
+                let (px, py) = (i % w - pass1.x0 as usize, i / w - pass1.y0 as usize);
+                integ.li_hit(camera.position, d, hits[py * p1w + px], &mut s, scratch, vs)
+            }
+            _ => integ.li(camera.position, d, &mut s, scratch, vs),
+        }
     };
     let done = AtomicU64::new(0);
     let total = pass1.area() as u64;
     let first_spp = if adaptive { 1 } else { film.spp.max(1) };
     // Pass 1: every pixel of the region (and the apron, when supersampling).
     let pixel_of = |j: usize| (pass1.x0 as usize + j % p1w, pass1.y0 as usize + j / p1w);
-    let mut pixels: Vec<(Components, u32, Option<VisibleSurface>)> = (0..pass1.area())
-        .into_par_iter()
-        .chunks(64)
-        .map_init(I::Scratch::default, |scratch, idx| {
-            let out: Vec<_> = idx
-                .iter()
-                .map(|&j| {
-                    let (x, y) = pixel_of(j);
-                    let i = y * w + x;
-                    let mut acc = Components::default();
-                    let mut vs = (gbuffer && in_rect(x, y)).then(VisibleSurface::default);
-                    for k in 0..first_spp {
-                        let v = if k == 0 { vs.as_mut() } else { None };
-                        acc.add(&sample(i, k, scratch, v));
-                    }
-                    (acc, first_spp, vs)
-                })
-                .collect();
-            let n = done.fetch_add(out.len() as u64, Relaxed) + out.len() as u64;
+    let pixel = |j: usize, scratch: &mut I::Scratch, mut vs: Option<&mut VisibleSurface>| -> (Components, u32) {
+        let (x, y) = pixel_of(j);
+        let i = y * w + x;
+        let mut acc = Components::default();
+        for k in 0..first_spp {
+            let v = if k == 0 { vs.take() } else { None };
+            acc.add(&sample(i, k, scratch, v));
+        }
+        if (j + 1) % 256 == 0 {
+            let n = done.fetch_add(256, Relaxed) + 256;
             progress(n, total);
-            out
-        })
-        .flatten()
-        .collect();
+        }
+        (acc, first_spp)
+    };
+    // The G-buffer is kept apart from the pixels: it is large and usually not asked for.
+    let (mut pixels, mut gbuffer_of_pass1): (Vec<(Components, u32)>, Vec<VisibleSurface>) = if gbuffer {
+        (0..pass1.area())
+            .into_par_iter()
+            .with_min_len(64)
+            .map_init(I::Scratch::default, |scratch, j| {
+                let mut vs = VisibleSurface::default();
+                let (x, y) = pixel_of(j);
+                let p = pixel(j, scratch, in_rect(x, y).then_some(&mut vs));
+                (p, vs)
+            })
+            .unzip()
+    } else {
+        let p = (0..pass1.area())
+            .into_par_iter()
+            .with_min_len(64)
+            .map_init(I::Scratch::default, |scratch, j| pixel(j, scratch, None))
+            .collect();
+        (p, Vec::new())
+    };
+    progress(total, total);
     // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
     // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
     // The neighbours of a region pixel are in pass 1's apron.
     let mut supersampled = 0;
     if adaptive && film.spp > 1 {
-        let lum: Vec<f32> = pixels.iter().map(|(c, n, _)| pm_color::luminance(c.total()) / *n as f32).collect();
+        let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
         let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
         let mark: Vec<usize> = (0..pass1.area())
             .filter(|&j| {
@@ -293,7 +341,7 @@ pub fn render_region<I: Integrator>(
     let mut gb = gbuffer.then(|| Vec::with_capacity(rect.area()));
     let mut samples = 0u64;
     let mut nonfinite = 0u64;
-    for (j, (c, n, vs)) in pixels.iter().enumerate() {
+    for (j, (c, n)) in pixels.iter().enumerate() {
         let (x, y) = pixel_of(j);
         if !in_rect(x, y) {
             continue;
@@ -310,8 +358,8 @@ pub fn render_region<I: Integrator>(
                 layer.1.push(Rgb::ZERO);
             }
         }
-        if let (Some(gb), Some(vs)) = (gb.as_mut(), vs) {
-            gb.push(*vs);
+        if let Some(gb) = gb.as_mut() {
+            gb.push(std::mem::take(&mut gbuffer_of_pass1[j]));
         }
     }
     let stats = RenderStats {

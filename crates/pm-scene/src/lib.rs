@@ -153,10 +153,13 @@ impl Camera {
     /// Unit direction of the ray through film position (sx, sy) in [0,1]^2, with
     /// (0,0) the top-left corner (row 0 is the top row) and `aspect` = width/height.
     pub fn ray_direction(&self, sx: f32, sy: f32, aspect: f32) -> Vec3 {
-        let tan_y = (0.5 * self.yfov).tan();
-        let x = (2.0 * sx - 1.0) * tan_y * aspect;
-        let y = (1.0 - 2.0 * sy) * tan_y;
-        (self.forward + self.right * x + self.up * y).normalize()
+        self.rays(aspect).direction(sx, sy)
+    }
+
+    /// Eye-ray directions for an image of `aspect`, with the field of view's tangent
+    /// computed once (for loops over many pixels).
+    pub fn rays(&self, aspect: f32) -> CameraRays {
+        CameraRays { forward: self.forward, right: self.right, up: self.up, tan_y: (0.5 * self.yfov).tan(), aspect }
     }
 
     /// Inverse of [`Camera::ray_direction`]: film position of a world point, if in front.
@@ -170,6 +173,27 @@ impl Camera {
         let x = v.dot(self.right) / (z * tan_y * aspect);
         let y = v.dot(self.up) / (z * tan_y);
         Some(Vec2::new(0.5 * (x + 1.0), 0.5 * (1.0 - y)))
+    }
+}
+
+/// Eye-ray directions of a [`Camera`] for one image (see [`Camera::rays`]).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraRays {
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    tan_y: f32,
+    aspect: f32,
+}
+
+impl CameraRays {
+    /// Unit direction through film position (sx, sy) in [0, 1]^2, y down: the same
+    /// value as [`Camera::ray_direction`].
+    #[inline]
+    pub fn direction(&self, sx: f32, sy: f32) -> Vec3 {
+        let x = (2.0 * sx - 1.0) * self.tan_y * self.aspect;
+        let y = (1.0 - 2.0 * sy) * self.tan_y;
+        (self.forward + self.right * x + self.up * y).normalize()
     }
 }
 
@@ -375,6 +399,77 @@ impl Scene {
         }
         lights.extend(extra_lights);
         Scene::build(triangles, materials, Vec::new(), lights, objects, camera, [0; 32], Vec::new())
+    }
+
+    /// The scene with every triangle split uniformly into n^2 triangles, n the
+    /// smallest count with (longest edge / n) <= `max_edge` [m] (Jozwowski 2002
+    /// section 4.3: more vertices, so estimates at vertices resolve more detail).
+    /// Positions, shading normals and texture coordinates are interpolated from the
+    /// parent, so the surface and its shading are unchanged; objects, materials,
+    /// punctual lights and the camera are kept, and area lights cover their split
+    /// triangles. A `max_edge` that is not positive and finite returns a copy.
+    pub fn subdivided(&self, max_edge: f32) -> Scene {
+        if !(max_edge > 0.0) || !max_edge.is_finite() {
+            return self.clone();
+        }
+        let mut triangles = Vec::new();
+        // First new triangle of each old one (and one past the end).
+        let mut first = Vec::with_capacity(self.triangles.len() + 1);
+        for t in &self.triangles {
+            first.push(triangles.len() as u32);
+            let longest = (0..3).map(|k| (t.p[(k + 1) % 3] - t.p[k]).length()).fold(0.0f32, f32::max);
+            let n = ((longest / max_edge).ceil() as usize).clamp(1, 1024);
+            let at = |i: usize, j: usize| {
+                let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+                [1.0 - u - v, u, v]
+            };
+            let mut emit = |b: [[f32; 3]; 3]| {
+                let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
+                let p = b.map(|w| lerp3(&t.p, w));
+                if let Some(mut sub) = Triangle::new(p, t.material) {
+                    sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
+                    sub.uv = t.uv.map(|uv| b.map(|w| uv[0] * w[0] + uv[1] * w[1] + uv[2] * w[2]));
+                    triangles.push(sub);
+                }
+            };
+            for i in 0..n {
+                for j in 0..n - i {
+                    emit([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                    if i + j + 1 < n {
+                        emit([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                    }
+                }
+            }
+        }
+        first.push(triangles.len() as u32);
+        let remap = |r: &std::ops::Range<u32>| first[r.start as usize]..first[r.end as usize];
+        let objects: Vec<Object> = self.objects.iter().map(|o| Object { tris: remap(&o.tris), ..o.clone() }).collect();
+        let lights: Vec<Light> = self
+            .lights
+            .iter()
+            .map(|l| match &l.kind {
+                LightKind::Area { tris, .. } if !tris.is_empty() => {
+                    let (lo, hi) = (*tris.iter().min().unwrap_or(&0), *tris.iter().max().unwrap_or(&0) + 1);
+                    let material = &self.materials[self.triangles[lo as usize].material as usize];
+                    Light::area(l.name.clone(), remap(&(lo..hi)), &triangles, material)
+                }
+                _ => l.clone(),
+            })
+            .collect();
+        let mut scene = Scene::build(
+            triangles,
+            self.materials.clone(),
+            self.textures.clone(),
+            lights,
+            objects,
+            self.camera.clone(),
+            self.content_hash,
+            self.warnings.clone(),
+        );
+        // Subdivision does not move a surface: keep the original's bounds, so every
+        // relative radius means the same length.
+        scene.bounds = self.bounds;
+        scene
     }
 
     /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).

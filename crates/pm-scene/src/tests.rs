@@ -131,3 +131,45 @@ fn camera_rays_round_trip_through_projection() {
     // Row 0 is the top: y = 0 looks up.
     assert!(cam.ray_direction(0.5, 0.0, 1.0).y > 0.0);
 }
+
+/// Uniform subdivision (Jozwowski 2002 section 4.3) splits every triangle into n^2
+/// with edges no longer than the limit, keeps the surface (area, every ray's hit
+/// point and shading normal), the objects, and each light's power.
+#[test]
+fn subdivision_keeps_the_surface_lights_and_objects() {
+    let s = load_scene("cornell_spheres.gltf");
+    let sub = s.subdivided(0.25);
+    // The walls split (2 m quads); the spheres' small triangles stay whole.
+    assert!(sub.triangles.len() > s.triangles.len() + 1000, "{} -> {}", s.triangles.len(), sub.triangles.len());
+    for t in &sub.triangles {
+        for k in 0..3 {
+            assert!((t.p[(k + 1) % 3] - t.p[k]).length() <= 0.25 * (1.0 + 1e-5));
+        }
+    }
+    let area = |sc: &Scene| sc.triangles.iter().map(|t| t.area as f64).sum::<f64>();
+    assert!((area(&sub) / area(&s) - 1.0).abs() < 1e-5);
+    assert_eq!(sub.objects.len(), s.objects.len());
+    for (a, b) in s.objects.iter().zip(&sub.objects) {
+        assert_eq!((a.material, &a.name), (b.material, &b.name));
+    }
+    assert_eq!(sub.lights.len(), s.lights.len());
+    for (a, b) in s.lights.iter().zip(&sub.lights) {
+        assert!((a.power - b.power).abs().max_element() < 1e-4 * a.power.max_element(), "{} vs {}", a.power, b.power);
+    }
+    let cam = s.camera.as_ref().unwrap();
+    let mut hits = 0;
+    for i in 0..400u32 {
+        let d = cam.ray_direction((i % 20) as f32 / 20.0 + 0.013, (i / 20) as f32 / 20.0 + 0.017, 1.0);
+        let (a, b) = (s.intersect(cam.position, d, f32::INFINITY), sub.intersect(cam.position, d, f32::INFINITY));
+        assert_eq!(a.is_some(), b.is_some());
+        if let (Some(a), Some(b)) = (a, b) {
+            hits += 1;
+            assert!((a.p - b.p).length() < 1e-4, "ray {i}: {} vs {}", a.p, b.p);
+            assert!(a.ns.dot(b.ns) > 0.999, "ray {i}");
+            assert_eq!(s.object_of(a.tri), sub.object_of(b.tri));
+        }
+    }
+    assert!(hits > 300);
+    // No limit: a copy.
+    assert_eq!(s.subdivided(0.0).triangles.len(), s.triangles.len());
+}

@@ -1,0 +1,180 @@
+//! Visibility by rasterisation: the first hit at every pixel centre of a region,
+//! found by projecting triangles instead of casting eye rays (a z-buffer over
+//! triangles clipped to the near plane, perspective-correct barycentrics). The
+//! result is the same [`Hit`] a pinhole eye ray through the pixel centre finds,
+//! except where a pixel centre lies exactly on an edge or silhouette; the real-time
+//! and image-space modes draw from it.
+
+use crate::render::{Film, Rect};
+use glam::{Vec2, Vec3};
+use pm_scene::{Camera, Hit, Scene};
+use rayon::prelude::*;
+
+/// Rows per parallel band.
+const BAND: u32 = 16;
+/// Near clipping distance as a fraction of the scene diagonal.
+const NEAR_REL: f32 = 1e-6;
+
+/// A triangle in screen space: pixel coordinates, 1/z and the view-space vertices'
+/// barycentric bookkeeping.
+#[derive(Clone, Copy)]
+struct ScreenTri {
+    /// Pixel coordinates (x right, y down) of the (possibly clipped) vertices.
+    s: [Vec2; 3],
+    /// 1 / view depth of each vertex.
+    inv_z: [f32; 3],
+    /// Barycentrics of each vertex in the original triangle (clipping makes new ones).
+    b: [Vec3; 3],
+    tri: u32,
+    /// Rows covered, [y0, y1).
+    y0: u32,
+    y1: u32,
+}
+
+/// The first hit at each pixel centre of `rect` (row by row), or none.
+pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Hit>> {
+    let (w, h) = (film.width as f32, film.height as f32);
+    let aspect = w / h;
+    let tan_y = (0.5 * camera.yfov).tan();
+    let tan_x = tan_y * aspect;
+    let near = NEAR_REL * scene.bounds.diagonal().max(f32::MIN_POSITIVE);
+    let view = |p: Vec3| {
+        let d = p - camera.position;
+        Vec3::new(d.dot(camera.right), d.dot(camera.up), d.dot(camera.forward))
+    };
+    let screen = |v: Vec3| Vec2::new(0.5 * (v.x / (v.z * tan_x) + 1.0) * w, 0.5 * (1.0 - v.y / (v.z * tan_y)) * h);
+    // Project every triangle (clipped to the near plane) once.
+    let mut tris: Vec<ScreenTri> = scene
+        .triangles
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(t, tri)| {
+            let v = tri.p.map(view);
+            let bary = [Vec3::X, Vec3::Y, Vec3::Z];
+            let mut out = Vec::new();
+            for (poly_v, poly_b) in clip_near(v, bary, near) {
+                let s = poly_v.map(screen);
+                let (ymin, ymax) = (
+                    s.iter().map(|p| p.y).fold(f32::INFINITY, f32::min),
+                    s.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max),
+                );
+                let (xmin, xmax) = (
+                    s.iter().map(|p| p.x).fold(f32::INFINITY, f32::min),
+                    s.iter().map(|p| p.x).fold(f32::NEG_INFINITY, f32::max),
+                );
+                if !(ymax > rect.y0 as f32 - 1.0
+                    && ymin < rect.y1 as f32 + 1.0
+                    && xmax > rect.x0 as f32 - 1.0
+                    && xmin < rect.x1 as f32 + 1.0)
+                {
+                    continue;
+                }
+                // Pixel rows whose centres (y + 0.5) may lie inside.
+                let y0 = (ymin - 0.5).ceil().max(rect.y0 as f32) as u32;
+                let y1 = ((ymax - 0.5).floor() + 1.0).min(rect.y1 as f32).max(y0 as f32) as u32;
+                if y0 < y1 {
+                    out.push(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, y0, y1 });
+                }
+            }
+            out.into_iter()
+        })
+        .collect();
+    tris.sort_by_key(|t| (t.y0, t.tri));
+    let rw = rect.width() as usize;
+    let rays = camera.rays(aspect);
+    let bands: Vec<u32> = (rect.y0..rect.y1).step_by(BAND as usize).collect();
+    let per_band: Vec<Vec<Option<Hit>>> = bands
+        .par_iter()
+        .map(|&by0| {
+            let by1 = (by0 + BAND).min(rect.y1);
+            let mut depth = vec![f32::INFINITY; rw * (by1 - by0) as usize];
+            let mut best: Vec<Option<(u32, Vec3)>> = vec![None; depth.len()];
+            for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
+                raster_tri(st, rect, by0, by1, &mut depth, &mut best);
+            }
+            best.iter()
+                .enumerate()
+                .map(|(j, b)| {
+                    b.map(|(tri, bc)| {
+                        let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
+                        let d = rays.direction(x / w, y / h);
+                        let p = scene.triangles[tri as usize].p;
+                        let hp = p[0] * bc.x + p[1] * bc.y + p[2] * bc.z;
+                        scene.make_hit(tri, (hp - camera.position).dot(d), bc.to_array())
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    per_band.into_iter().flatten().collect()
+}
+
+/// Rasterise one screen triangle into the band [by0, by1): keep, per pixel centre,
+/// the nearest surface (smallest view depth; ties to the lower triangle id).
+fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, depth: &mut [f32], best: &mut [Option<(u32, Vec3)>]) {
+    let [a, b, c] = st.s;
+    let area = (b - a).perp_dot(c - a);
+    if !(area.abs() > 0.0) || !area.is_finite() {
+        return;
+    }
+    let xs = [a.x, b.x, c.x];
+    let x0 = (xs.iter().cloned().fold(f32::INFINITY, f32::min) - 0.5).ceil().max(rect.x0 as f32) as u32;
+    let x1 = ((xs.iter().cloned().fold(f32::NEG_INFINITY, f32::max) - 0.5).floor() + 1.0)
+        .min(rect.x1 as f32)
+        .max(x0 as f32) as u32;
+    let rw = rect.width() as usize;
+    for y in st.y0.max(by0)..st.y1.min(by1) {
+        for x in x0..x1 {
+            let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            // Screen-space barycentrics; a centre on an edge belongs to the triangle
+            // (both neighbours may claim it: the nearer one, then the lower id, wins).
+            let l0 = (b - q).perp_dot(c - q) / area;
+            let l1 = (c - q).perp_dot(a - q) / area;
+            let l2 = 1.0 - l0 - l1;
+            if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                continue;
+            }
+            // Perspective-correct: interpolate 1/z linearly in screen space.
+            let iz = l0 * st.inv_z[0] + l1 * st.inv_z[1] + l2 * st.inv_z[2];
+            if !(iz > 0.0) {
+                continue;
+            }
+            let z = 1.0 / iz;
+            let j = (y - by0) as usize * rw + (x - rect.x0) as usize;
+            let closer = z < depth[j] || (z == depth[j] && best[j].is_some_and(|(t, _)| st.tri < t));
+            if closer {
+                depth[j] = z;
+                let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) * z;
+                let bc = st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z;
+                best[j] = Some((st.tri, bc));
+            }
+        }
+    }
+}
+
+/// Clip a view-space triangle (with the barycentrics of its vertices) against the
+/// near plane z = near: none, one or two triangles.
+fn clip_near(v: [Vec3; 3], b: [Vec3; 3], near: f32) -> Vec<([Vec3; 3], [Vec3; 3])> {
+    let inside = v.map(|p| p.z >= near);
+    match inside.iter().filter(|&&i| i).count() {
+        3 => vec![(v, b)],
+        0 => vec![],
+        _ => {
+            let mut pv = Vec::with_capacity(4);
+            let mut pb = Vec::with_capacity(4);
+            for i in 0..3 {
+                let j = (i + 1) % 3;
+                if inside[i] {
+                    pv.push(v[i]);
+                    pb.push(b[i]);
+                }
+                if inside[i] != inside[j] {
+                    let t = (near - v[i].z) / (v[j].z - v[i].z);
+                    pv.push(v[i].lerp(v[j], t));
+                    pb.push(b[i].lerp(b[j], t));
+                }
+            }
+            (1..pv.len() - 1).map(|k| ([pv[0], pv[k], pv[k + 1]], [pb[0], pb[k], pb[k + 1]])).collect()
+        }
+    }
+}

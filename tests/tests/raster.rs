@@ -1,0 +1,52 @@
+//! The rasteriser against eye rays: at every pixel centre the same surface point,
+//! except where the centre lies on an object's silhouette or a triangle edge.
+
+use pm_render::{Film, Rect};
+use pm_tests::load_scene;
+
+#[test]
+fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
+    for name in ["cornell_spheres.gltf", "cornell_boxes.gltf", "furnace.gltf"] {
+        let scene = load_scene(name);
+        let camera = scene.camera.clone().unwrap();
+        let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 1 };
+        let (w, h) = (96usize, 72usize);
+        let aspect = w as f32 / h as f32;
+        let raster = pm_render::raster::first_hits(&scene, &camera, &film, Rect::full(&film));
+        let rays: Vec<_> = (0..w * h)
+            .map(|i| {
+                let d =
+                    camera.ray_direction(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32, aspect);
+                scene.intersect(camera.position, d, f32::INFINITY)
+            })
+            .collect();
+        let object = |i: usize| rays[i].map(|hit| scene.object_of(hit.tri));
+        let tol = 1e-4 * scene.bounds.diagonal();
+        let (mut differ, mut at_silhouette) = (0, 0);
+        for i in 0..w * h {
+            let same = match (raster[i], rays[i]) {
+                (Some(a), Some(b)) => (a.p - b.p).length() < tol && (a.t - b.t).abs() < tol,
+                (None, None) => true,
+                _ => false,
+            };
+            if same {
+                continue;
+            }
+            differ += 1;
+            let (x, y) = (i % w, i / w);
+            let edge = [(-1i32, 0i32), (1, 0), (0, -1), (0, 1)].iter().any(|(dx, dy)| {
+                let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                nx >= 0
+                    && ny >= 0
+                    && (nx as usize) < w
+                    && (ny as usize) < h
+                    && object(ny as usize * w + nx as usize) != object(i)
+            });
+            at_silhouette += edge as usize;
+        }
+        eprintln!("{name}: {differ} of {} pixels differ, {at_silhouette} of them at a silhouette", w * h);
+        assert_eq!(differ, at_silhouette, "{name}: a pixel away from any silhouette differs");
+        assert!(differ * 100 < w * h, "{name}: {differ} pixels differ");
+        assert!(raster.iter().filter(|h| h.is_some()).count() > w * h / 2);
+    }
+}
