@@ -17,6 +17,7 @@ struct Doc {
     nodes: Vec<Value>,
     lights: Vec<Value>,
     cameras: Vec<Value>,
+    animations: Vec<Value>,
     extensions: Vec<&'static str>,
 }
 
@@ -56,6 +57,27 @@ impl Doc {
         }
         self.accessors.push(acc);
         self.accessors.len() - 1
+    }
+
+    /// Key times [s] of an animation (a SCALAR float accessor with the min and max the
+    /// specification requires of sampler inputs) and VEC3 values, in views without a
+    /// target (animation data is neither vertex nor index data).
+    fn animation_accessors(&mut self, times: &[f32], values: &[[f32; 3]]) -> (usize, usize) {
+        let tb: Vec<u8> = times.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let vb: Vec<u8> = values.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let mut untargeted = |bytes: &[u8]| {
+            let view = self.push_view(bytes, 0);
+            self.views[view].as_object_mut().expect("a view is an object").remove("target");
+            view
+        };
+        let (tv, vv) = (untargeted(&tb), untargeted(&vb));
+        let (lo, hi) = (
+            times.iter().cloned().fold(f32::INFINITY, f32::min),
+            times.iter().cloned().fold(f32::NEG_INFINITY, f32::max),
+        );
+        self.accessors.push(json!({"bufferView": tv, "componentType": 5126, "count": times.len(), "type": "SCALAR", "min": [lo], "max": [hi]}));
+        self.accessors.push(json!({"bufferView": vv, "componentType": 5126, "count": values.len(), "type": "VEC3"}));
+        (self.accessors.len() - 2, self.accessors.len() - 1)
     }
 
     fn index_accessor(&mut self, idx: &[u32]) -> usize {
@@ -108,6 +130,9 @@ impl Doc {
         });
         if !self.cameras.is_empty() {
             root["cameras"] = json!(self.cameras);
+        }
+        if !self.animations.is_empty() {
+            root["animations"] = json!(self.animations);
         }
         let mut ext = self.extensions.clone();
         if !self.lights.is_empty() {
@@ -303,6 +328,87 @@ fn plane_point() -> Doc {
     doc
 }
 
+/// An axis-aligned quad split into n x n quads (for scenes of a given surface count).
+fn grid_quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], n: usize) -> Mesh {
+    let at = |u: f32, v: f32| {
+        let lerp = |p: [f32; 3], q: [f32; 3], t: f32| {
+            [p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t, p[2] + (q[2] - p[2]) * t]
+        };
+        lerp(lerp(a, b, u), lerp(d, c, u), v)
+    };
+    let mut parts = Vec::with_capacity(n * n);
+    for j in 0..n {
+        for i in 0..n {
+            let (u0, u1, v0, v1) =
+                (i as f32 / n as f32, (i + 1) as f32 / n as f32, j as f32 / n as f32, (j + 1) as f32 / n as f32);
+            parts.push(quad(at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)));
+        }
+    }
+    merge(&parts)
+}
+
+/// Jozwowski 2002's test scene (Figure 28): a room with two smaller boxes and a point
+/// light circling the room (a glTF animation, 8 s per turn, looping). The room is
+/// [-2, 2] x [0, 2.5] x [-2, 2] m with a red left and a green right wall; at
+/// `n` = 1 it has 16 surfaces (6 room faces and 5 faces per box), and every face is
+/// split into n x n quads, so the scene has 16 n^2 surfaces.
+fn jozwowski_room(n: usize) -> Doc {
+    let mut doc = Doc::default();
+    let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
+    let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
+    let green = doc.material(diffuse("green", [0.15, 0.6, 0.15]));
+    let boxes = doc.material(diffuse("box", [0.7, 0.65, 0.5]));
+    let (l, h) = (2.0, 2.5);
+    let room = merge(&[
+        grid_quad([-l, 0.0, l], [l, 0.0, l], [l, 0.0, -l], [-l, 0.0, -l], n), // floor, +y
+        grid_quad([-l, h, -l], [l, h, -l], [l, h, l], [-l, h, l], n),         // ceiling, -y
+        grid_quad([-l, 0.0, -l], [l, 0.0, -l], [l, h, -l], [-l, h, -l], n),   // back, +z
+        grid_quad([-l, 0.0, l], [-l, h, l], [l, h, l], [l, 0.0, l], n),       // front, -z
+    ]);
+    doc.mesh_node("room", &room, white);
+    doc.mesh_node("left_wall", &grid_quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l], n), red);
+    doc.mesh_node("right_wall", &grid_quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l], n), green);
+    // Two boxes: each face of `block` split n x n.
+    let split = |m: Mesh| {
+        let quads: Vec<Mesh> = m
+            .idx
+            .chunks(6)
+            .map(|q| grid_quad(m.p[q[0] as usize], m.p[q[1] as usize], m.p[q[2] as usize], m.p[q[5] as usize], n))
+            .collect();
+        merge(&quads)
+    };
+    doc.mesh_node(
+        "boxes",
+        &merge(&[split(block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4)), split(block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3))]),
+        boxes,
+    );
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 6.0, "color": [1.0, 1.0, 1.0]}));
+    doc.nodes.push(
+        json!({"name": "bulb", "translation": [1.2, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+    );
+    let light_node = doc.nodes.len() - 1;
+    // The light's path: 33 keys around a circle of radius 1.2 m at 2 m height, linear
+    // between them, 8 s per turn.
+    let keys = 32;
+    let times: Vec<f32> = (0..=keys).map(|k| 8.0 * k as f32 / keys as f32).collect();
+    let path: Vec<[f32; 3]> = (0..=keys)
+        .map(|k| {
+            let a = 2.0 * PI * k as f32 / keys as f32;
+            [1.2 * a.cos(), 2.0, 1.2 * a.sin()]
+        })
+        .collect();
+    let (input, output) = doc.animation_accessors(&times, &path);
+    doc.animations.push(json!({
+        "name": "light_circle",
+        "samplers": [{"input": input, "output": output, "interpolation": "LINEAR"}],
+        "channels": [{"sampler": 0, "target": {"node": light_node, "path": "translation"}}]
+    }));
+    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 1.3, "aspectRatio": 1.0, "znear": 0.01}}));
+    // At the front, 1.4 m up, looking toward the back wall and slightly down.
+    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 1.4, 1.9], "rotation": [-0.0871557, 0.0, 0.0, 0.9961947]}));
+    doc
+}
+
 /// Write (or with `check`, compare) every scene.
 pub fn run(dir: &Path, check: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
@@ -311,6 +417,11 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("cornell_boxes", cornell_boxes()),
         ("furnace", furnace()),
         ("plane_point", plane_point()),
+        ("jozwowski_room_16", jozwowski_room(1)),
+        ("jozwowski_room_64", jozwowski_room(2)),
+        ("jozwowski_room_256", jozwowski_room(4)),
+        ("jozwowski_room_1024", jozwowski_room(8)),
+        ("jozwowski_room_4096", jozwowski_room(16)),
     ] {
         doc.write(dir, name, check)?;
         println!("{} {name}", if check { "up to date:" } else { "wrote" });

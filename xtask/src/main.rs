@@ -24,6 +24,9 @@ enum Task {
     /// the irradiance-cache step, photon-render) as separate processes; steps whose
     /// inputs and parameters are unchanged are skipped.
     Run(run::RunArgs),
+    /// Real-time photon mapping (Jozwowski 2002): photon-live with pipeline.toml's
+    /// [live] settings, writing frames, live.apng and frames.csv.
+    Live(run::LiveArgs),
     /// Relative RMSE, bias and SSIM of an image against a reference.
     Compare(CompareArgs),
     /// What accuracy costs in time: a path-traced reference, then one setting at a
@@ -61,6 +64,7 @@ fn main() -> std::process::ExitCode {
     let root = workspace_root();
     let result = match cli.task {
         Task::Run(a) => run::run(&a, &root).map(|_| ()),
+        Task::Live(a) => run::live(&a, &root),
         Task::Compare(a) => compare(&a),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),

@@ -41,6 +41,13 @@ pub struct Pipeline {
     /// Stage 4 (and the irradiance-cache step).
     #[serde(default)]
     pub render: RenderParams,
+    /// The scene `cargo xtask live` renders, relative to the pipeline file
+    /// (default: `scene`).
+    #[serde(default)]
+    pub live_scene: Option<PathBuf>,
+    /// The real-time mode (`photon-live`, `cargo xtask live`).
+    #[serde(default)]
+    pub live: pm_live::LiveParams,
 }
 
 /// `effects = "auto"` or a list of forced effects.
@@ -86,6 +93,7 @@ impl Pipeline {
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
         p.render.check(Naming::File("render")).map_err(fail)?;
+        p.live.check(Naming::File("live")).map_err(fail)?;
         for (name, share) in &p.light_shares {
             if !(0.0..=1.0).contains(share) {
                 bail!("{}: light_shares.{name} = {share} is out of range (in [0, 1])", path.display());
@@ -481,4 +489,40 @@ fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
             )
         }
     })
+}
+
+/// Options of `cargo xtask live`.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct LiveArgs {
+    /// Pipeline file [default: pipeline.toml at the repository root]; its `[live]`
+    /// section and `live_scene` are used.
+    pub pipeline: Option<PathBuf>,
+    /// Scene (glTF 2.0) instead of the pipeline file's `live_scene`.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Output folder [default: out/live/<scene name>].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Frames to render.
+    #[arg(long, default_value_t = 120)]
+    pub frames: u32,
+}
+
+/// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline
+/// file's `[live]` settings.
+pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
+    let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
+    let cfg = Pipeline::load(&pipeline)?;
+    let base = pipeline.parent().unwrap_or(Path::new("."));
+    let scene = args.scene.clone().unwrap_or_else(|| base.join(cfg.live_scene.as_ref().unwrap_or(&cfg.scene)));
+    let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    let out = args.out.clone().unwrap_or_else(|| root.join("out/live").join(&name));
+    let bins = Bins::build(root)?;
+    let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
+    a.extend(["--frames".into(), args.frames.to_string(), "--seed".into(), cfg.seed.to_string()]);
+    a.extend(cfg.live.to_args());
+    println!("photon-live {}", a.join(" "));
+    stages::run(&bins, "photon-live", &a, "photon-live", false)?;
+    println!("wrote {}/frames, live.apng and frames.csv", out.display());
+    Ok(())
 }

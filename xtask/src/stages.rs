@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 /// Every binary the README tells a user to run, built by [`Bins::build`].
-pub const STAGES: [&str; 5] = ["photon-trace", "photon-sort", "photon-irradiance", "photon-render", "photon-inspect"];
+pub const STAGES: [&str; 6] =
+    ["photon-trace", "photon-sort", "photon-irradiance", "photon-render", "photon-inspect", "photon-live"];
 
 /// The folder of the release stage binaries.
 #[derive(Clone, Debug)]

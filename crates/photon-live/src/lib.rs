@@ -77,9 +77,15 @@ pub fn run(cli: &Cli) -> Result<Report> {
     };
     // Photons are traced in the scene as given (or the --photon-scene); only the
     // drawn mesh is subdivided.
-    let subdivided = (cli.params.subdivide > 0.0).then(|| scene.subdivided(cli.params.subdivide));
-    let drawn = subdivided.as_ref().unwrap_or(&scene);
-    let mut live = Live::new(drawn, photon_scene.as_ref().unwrap_or(&scene), cli.params.clone(), cli.seed)
+    let content_hash = scene.content_hash;
+    let diagonal = scene.bounds.diagonal();
+    let (drawn, photon_scene) = if cli.params.subdivide > 0.0 {
+        let sub = scene.subdivided(cli.params.subdivide);
+        (sub, Some(photon_scene.unwrap_or(scene)))
+    } else {
+        (scene, photon_scene)
+    };
+    let mut live = Live::new(drawn, photon_scene, cli.params.clone(), cli.seed)
         .map_err(|e| anyhow::anyhow!("{}: {e}", cli.scene.display()))?;
     let frames_dir = cli.out.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
@@ -88,6 +94,8 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let mut stats = Vec::new();
     let mut apng = Vec::new();
     for f in 0..cli.frames {
+        // Frame f shows time f / fps: animated lights and camera move there.
+        live.set_time(f as f32 / cli.params.fps);
         let (image, s) = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let total = image.layer("total").context("no total layer")?;
         pm_image::write_png(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;
@@ -100,7 +108,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
         }
         if cli.dump_frame == Some(f as u64) {
-            dump(&live, &scene, &cli.out.join(format!("buffer-{f}.pmap")))?;
+            dump(&live, content_hash, diagonal, &cli.out.join(format!("buffer-{f}.pmap")))?;
         }
         apng.push(pm_image::srgb8(total, cli.params.exposure));
         stats.push(s);
@@ -147,7 +155,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
 }
 
 /// The ring buffer's used slots as a global photon map (full records, unsorted).
-fn dump(live: &Live, scene: &pm_scene::Scene, path: &std::path::Path) -> Result<()> {
+fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, path: &std::path::Path) -> Result<()> {
     use pm_format::{FullIrrPhoton, Header, Layout, MapKind, Order, PhotonMap, PhotonRecord};
     let photons = live.ring().photons();
     let header = Header::new(
@@ -155,8 +163,8 @@ fn dump(live: &Live, scene: &pm_scene::Scene, path: &std::path::Path) -> Result<
         Order::Unsorted,
         Layout::FullIrradiance,
         live.ring().filled() as u64,
-        scene.content_hash,
-        scene.bounds.diagonal(),
+        scene_hash,
+        diagonal,
         serde_json::json!({"photon-live frame": live.frame() - 1}).to_string(),
     );
     PhotonMap::new(header, photons.iter().map(FullIrrPhoton::encode).collect::<Vec<_>>()).write(path)?;

@@ -148,9 +148,10 @@ pub struct FrameStats {
 }
 
 /// The real-time renderer's state between frames.
-pub struct Live<'a> {
-    scene: &'a Scene,
-    photon_scene: &'a Scene,
+pub struct Live {
+    scene: Scene,
+    /// A simpler scene to trace photons in (section 4.4.1), or none (the scene).
+    photon_scene: Option<Scene>,
     camera: Camera,
     params: LiveParams,
     seed: u64,
@@ -161,14 +162,15 @@ pub struct Live<'a> {
     frame: u64,
 }
 
-impl<'a> Live<'a> {
+impl Live {
     /// A live renderer of `scene` drawn from its first camera; photons are traced in
-    /// `photon_scene` (the same scene, or a simpler stand-in: section 4.4.1). Fails
-    /// when the photon scene has no light with power or the scene no camera.
-    pub fn new(scene: &'a Scene, photon_scene: &'a Scene, params: LiveParams, seed: u64) -> Result<Live<'a>, String> {
+    /// `photon_scene` (a simpler stand-in, section 4.4.1) or, without one, in the
+    /// scene. Fails when the photon scene has no light with power or the scene no
+    /// camera.
+    pub fn new(scene: Scene, photon_scene: Option<Scene>, params: LiveParams, seed: u64) -> Result<Live, String> {
         params.check(pm_params::Naming::Cli)?;
         let camera = scene.camera.clone().ok_or("the scene has no perspective camera")?;
-        let selector = LightSelector::new(photon_scene, &[]).map_err(|e| e.to_string())?;
+        let selector = LightSelector::new(photon_scene.as_ref().unwrap_or(&scene), &[]).map_err(|e| e.to_string())?;
         let trace = TraceConfig {
             pass: MapPass::Global,
             budget: Budget::Emitted(params.total as u64),
@@ -177,7 +179,7 @@ impl<'a> Live<'a> {
             range: None,
         };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
-        let corners = Corners::new(scene, params.cornering);
+        let corners = Corners::new(&scene, params.cornering);
         Ok(Live { scene, photon_scene, camera, params, seed, trace, targets: Vec::new(), ring, corners, frame: 0 })
     }
 
@@ -196,12 +198,24 @@ impl<'a> Live<'a> {
         self.frame
     }
 
-    /// Replace the photon scene (a light or object moved); the buffer keeps its
-    /// photons, which age out over the next total / per_frame frames.
-    pub fn set_photon_scene(&mut self, photon_scene: &'a Scene) -> Result<(), String> {
-        self.trace.selector = LightSelector::new(photon_scene, &[]).map_err(|e| e.to_string())?;
-        self.photon_scene = photon_scene;
+    /// Replace the scene photons are traced in (a light jumped); the buffer keeps
+    /// its photons, which age out over the next total / per_frame frames.
+    pub fn set_photon_scene(&mut self, photon_scene: Scene) -> Result<(), String> {
+        self.trace.selector = LightSelector::new(&photon_scene, &[]).map_err(|e| e.to_string())?;
+        self.photon_scene = Some(photon_scene);
         Ok(())
+    }
+
+    /// Move the animated lights and camera of both scenes to time `t` [s]: nothing
+    /// is rebuilt, and the buffer's older photons age out as paths are re-shot.
+    pub fn set_time(&mut self, t: f32) {
+        self.scene.set_time(t);
+        if let Some(p) = self.photon_scene.as_mut() {
+            p.set_time(t);
+        }
+        if let Some(c) = &self.scene.camera {
+            self.camera = c.clone();
+        }
     }
 
     /// The photons the estimates read this frame: the used slots (power scaled by
@@ -220,7 +234,8 @@ impl<'a> Live<'a> {
     pub fn step(&mut self) -> Result<(Image, FrameStats), String> {
         let p = &self.params;
         let t = Instant::now();
-        let shot = self.ring.shoot(self.photon_scene, &self.trace, &self.targets, p.per_frame as usize, p.distribution);
+        let photons_in = self.photon_scene.as_ref().unwrap_or(&self.scene);
+        let shot = self.ring.shoot(photons_in, &self.trace, &self.targets, p.per_frame as usize, p.distribution);
         let shoot = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let records = pm_kdtree::balance(&self.tree_photons());
@@ -228,15 +243,15 @@ impl<'a> Live<'a> {
         let balance = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let aspect = p.width as f32 / p.height as f32;
-        let active = self.corners.active(self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
+        let active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
         let max_radius = p.max_radius_rel_diag * self.scene.bounds.diagonal();
         let e = self.corners.irradiance(&tree, &active, p.k, max_radius);
         let estimate = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let shading = LiveShading::new(self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
+        let shading = LiveShading::new(&self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
         let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
         let visibility = match p.draw {
-            DrawMode::Raster => Visibility::Raster(self.scene),
+            DrawMode::Raster => Visibility::Raster(&self.scene),
             DrawMode::Rays => Visibility::Rays,
         };
         let (image, rs): (Image, RenderStats) = pm_render::render_region_with(

@@ -119,11 +119,11 @@ fn after_total_over_per_frame_frames_no_photon_from_a_moved_light_remains() {
         distribution: Distribution::SameOverTotal,
         ..Default::default()
     };
-    let mut live = Live::new(&s, &s, params, 1).unwrap();
+    let mut live = Live::new(s, None, params, 1).unwrap();
     for _ in 0..4 {
         live.step().unwrap();
     }
-    live.set_photon_scene(&moved).unwrap();
+    live.set_photon_scene(moved).unwrap();
     let from = |p: &Photon, l: Vec3| p.wi.dot((l - p.position).normalize()) > 0.99999;
     for frame in 0..4 {
         live.step().unwrap();
@@ -156,7 +156,7 @@ fn a_full_buffer_is_the_batch_map_and_its_estimates_are_the_batchs() {
         height: 8,
         ..Default::default()
     };
-    let mut live = Live::new(&s, &s, params.clone(), seed).unwrap();
+    let mut live = Live::new(s.clone(), None, params.clone(), seed).unwrap();
     for _ in 0..3 {
         live.step().unwrap();
     }
@@ -193,10 +193,55 @@ fn frames_repeat_exactly_for_the_same_inputs() {
     let s = scene("cornell_boxes.gltf");
     let params = LiveParams { per_frame: 500, total: 2_000, width: 24, height: 24, ..Default::default() };
     let run = || {
-        let mut live = Live::new(&s, &s, params.clone(), 5).unwrap();
+        let mut live = Live::new(s.clone(), None, params.clone(), 5).unwrap();
         (0..3).map(|_| live.step().unwrap().0.layer("total").unwrap().to_vec()).collect::<Vec<_>>()
     };
     let (x, y) = (run(), run());
     assert!(x == y);
     assert!(x[2].iter().all(|p| p.is_finite()) && x[2].iter().any(|p| p.max_element() > 0.0));
+}
+
+/// The thesis's scene: its point light circles the room as a glTF animation (33
+/// LINEAR keys, 8 s per turn). At time t the light is on the circle at angle
+/// 2 pi t / 8 (between keys, on the chord), and the photons follow it: after
+/// total / per_frame frames every direct photon comes from the light's position at
+/// the frame that shot it.
+#[test]
+fn an_animated_light_moves_and_its_photons_follow() {
+    let s = scene("jozwowski_room_16.gltf");
+    assert!(!s.animation.is_empty() && (s.animation.duration - 8.0).abs() < 1e-6);
+    let mut at = s.clone();
+    for (t, angle) in
+        [(0.0f32, 0.0f32), (2.0, std::f32::consts::FRAC_PI_2), (8.0, 0.0), (10.0, std::f32::consts::FRAC_PI_2)]
+    {
+        at.set_time(t);
+        let LightKind::Point { position, .. } = at.lights[0].kind else { panic!("a point light") };
+        let want = Vec3::new(1.2 * angle.cos(), 2.0, 1.2 * angle.sin());
+        assert!((position - want).length() < 1e-5, "t = {t}: {position} vs {want}");
+    }
+    // Between keys 0 and 1 (t = 0.125 s at the chord's midpoint).
+    at.set_time(0.125);
+    let LightKind::Point { position: mid, .. } = at.lights[0].kind else { panic!() };
+    let k1 = Vec3::new(1.2 * (std::f32::consts::TAU / 32.0).cos(), 2.0, 1.2 * (std::f32::consts::TAU / 32.0).sin());
+    assert!((mid - (Vec3::new(1.2, 2.0, 0.0) + k1) * 0.5).length() < 1e-5);
+    // Frames at 4 fps: each frame's direct photons come from that frame's light.
+    let params = LiveParams { per_frame: 400, total: 800, width: 8, height: 8, fps: 4.0, ..Default::default() };
+    let mut live = Live::new(s.clone(), None, params, 3).unwrap();
+    let mut lights = Vec::new();
+    for f in 0..4 {
+        let t = f as f32 / 4.0;
+        live.set_time(t);
+        let mut probe = s.clone();
+        probe.set_time(t);
+        let LightKind::Point { position, .. } = probe.lights[0].kind else { panic!() };
+        lights.push(position);
+        live.step().unwrap();
+    }
+    // The buffer now holds the paths of frames 2 and 3.
+    let direct: Vec<Photon> = live.ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
+    assert!(!direct.is_empty());
+    for p in &direct {
+        let from = |l: Vec3| p.wi.dot((l - p.position).normalize()) > 0.9999;
+        assert!(from(lights[2]) || from(lights[3]), "a direct photon from an older light position");
+    }
 }

@@ -2,9 +2,10 @@
 //!
 //! Every input check happens here, once; the rest of the workspace trusts a `Scene`.
 
+use crate::anim::{Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
 use crate::{Camera, LightKind, Material, Object, Scene, Texture, Triangle};
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use pm_bsdf::Bsdf;
 use pm_color::{Rgb, srgb_decode};
 use std::collections::BTreeSet;
@@ -168,6 +169,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         double_sided: false,
     });
 
+    let mut animation = read_animations(&doc, &buffers).map_err(content)?;
     let scene =
         doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| content("the file has no scene".into()))?;
     let mut triangles = Vec::new();
@@ -188,6 +190,9 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             return Err(content(format!("node {}: transform is not finite", node.index())));
         }
         let node_name = node.name().map_or_else(|| format!("node #{}", node.index()), str::to_owned);
+        if node.mesh().is_some() && animation.moves(node.index()) {
+            warnings.push(format!("node '{node_name}': animated meshes are not supported yet; drawn at rest"));
+        }
         if let Some(mesh) = node.mesh() {
             let normal_m = Mat3::from_mat4(world).inverse().transpose();
             for (pi, prim) in mesh.primitives().enumerate() {
@@ -256,6 +261,9 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                     LightKind::Directional { direction: axis, irradiance: value, center: Vec3::ZERO, radius: 0.0 }
                 }
             };
+            if animation.moves(node.index()) {
+                animation.lights.push((lights.len(), node.index()));
+            }
             lights.push(Light { name: node_name.clone(), kind, power: Rgb::ZERO });
         }
         if camera.is_none()
@@ -271,6 +279,9 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                     let yfov = p.yfov();
                     if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
                         return Err(content(format!("camera on '{node_name}': degenerate orientation or yfov {yfov}")));
+                    }
+                    if animation.moves(node.index()) {
+                        animation.camera = Some(node.index());
                     }
                     camera = Some(Camera {
                         position: world.transform_point3(Vec3::ZERO),
@@ -293,7 +304,69 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     if skipped_degenerate > 0 {
         warnings.push(format!("{skipped_degenerate} zero-area triangles skipped"));
     }
-    Ok(Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings))
+    let mut scene = Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings);
+    scene.animation = animation;
+    Ok(scene)
+}
+
+/// The node hierarchy and every translation, rotation and scale channel of every
+/// animation (morph-target weights are not read).
+fn read_animations(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Result<Animation, String> {
+    let mut nodes: Vec<NodeRest> = doc
+        .nodes()
+        .map(|n| {
+            let (t, r, s) = n.transform().decomposed();
+            NodeRest { parent: None, t: Vec3::from(t), r: Quat::from_array(r), s: Vec3::from(s) }
+        })
+        .collect();
+    for n in doc.nodes() {
+        for c in n.children() {
+            nodes[c.index()].parent = Some(n.index());
+        }
+    }
+    let mut anim = Animation { nodes, ..Default::default() };
+    let n_accessors = doc.accessors().len();
+    for a in doc.animations() {
+        for ch in a.channels() {
+            let sampler = ch.sampler();
+            if sampler.input().index() >= n_accessors || sampler.output().index() >= n_accessors {
+                return Err("animation sampler accessor index out of range".into());
+            }
+            let path = match ch.target().property() {
+                gltf::animation::Property::Translation => AnimPath::Translation,
+                gltf::animation::Property::Rotation => AnimPath::Rotation,
+                gltf::animation::Property::Scale => AnimPath::Scale,
+                gltf::animation::Property::MorphTargetWeights => continue,
+            };
+            let interp = match sampler.interpolation() {
+                gltf::animation::Interpolation::Step => Interp::Step,
+                gltf::animation::Interpolation::Linear => Interp::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interp::CubicSpline,
+            };
+            let reader = ch.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
+            let what = || format!("animation channel of node {}", ch.target().node().index());
+            let times: Vec<f32> = reader.read_inputs().ok_or_else(|| format!("{}: no key times", what()))?.collect();
+            let values: Vec<Vec4> = match reader.read_outputs().ok_or_else(|| format!("{}: no values", what()))? {
+                gltf::animation::util::ReadOutputs::Translations(v) => v.map(|x| Vec3::from(x).extend(0.0)).collect(),
+                gltf::animation::util::ReadOutputs::Scales(v) => v.map(|x| Vec3::from(x).extend(0.0)).collect(),
+                gltf::animation::util::ReadOutputs::Rotations(v) => v.into_f32().map(Vec4::from).collect(),
+                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
+            };
+            let per_key = if interp == Interp::CubicSpline { 3 } else { 1 };
+            if times.is_empty() || values.len() != per_key * times.len() {
+                return Err(format!("{}: {} key times but {} values", what(), times.len(), values.len()));
+            }
+            if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] < w[0]) {
+                return Err(format!("{}: key times are not finite and increasing", what()));
+            }
+            if values.iter().any(|v| !v.is_finite()) {
+                return Err(format!("{}: a value is not finite", what()));
+            }
+            anim.duration = anim.duration.max(*times.last().unwrap_or(&0.0));
+            anim.channels.push(Channel { node: ch.target().node().index(), path, interp, times, values });
+        }
+    }
+    Ok(anim)
 }
 
 /// Every mesh attribute and morph-target accessor index must name an accessor.

@@ -12,12 +12,14 @@
 //! `Scene` is immutable after loading and `Send + Sync`, so one instance serves all
 //! rayon threads, and later the per-frame real-time and image-space modes.
 
+mod anim;
 mod effects;
 mod geometry;
 mod gltf_load;
 mod light;
 mod select;
 
+pub use anim::Animation;
 pub use effects::{Decision, Effects, analyze};
 pub use geometry::{intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load};
@@ -277,6 +279,8 @@ pub struct Scene {
     pub content_hash: [u8; 32],
     /// Problems that did not stop loading, each reported once.
     pub warnings: Vec<String>,
+    /// The glTF animations that move lights and the camera ([`Scene::set_time`]).
+    pub animation: Animation,
     bvh: Option<obvhs::cwbvh::CwBvh>,
     bvh_tris: Vec<BvhTri>,
     /// The BVH is built and traversed in normalised coordinates (p - centre) / diagonal,
@@ -345,6 +349,7 @@ impl Scene {
         }
         let mut scene = Scene {
             light_of_triangle,
+            animation: Animation::default(),
             triangles,
             materials,
             textures,
@@ -399,6 +404,45 @@ impl Scene {
         }
         lights.extend(extra_lights);
         Scene::build(triangles, materials, Vec::new(), lights, objects, camera, [0; 32], Vec::new())
+    }
+
+    /// Move the animated lights and camera to time `t` [s] (animations loop over
+    /// their length). Nothing is rebuilt: punctual lights keep their intensity and
+    /// power, the camera its field of view; meshes stay at rest.
+    pub fn set_time(&mut self, t: f32) {
+        let anim = &self.animation;
+        for &(li, node) in &anim.lights {
+            let world = anim.world(node, t);
+            let position = world.transform_point3(Vec3::ZERO);
+            let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+            match &mut self.lights[li].kind {
+                LightKind::Point { position: p, .. } => *p = position,
+                LightKind::Spot { position: p, direction, .. } => {
+                    *p = position;
+                    if axis != Vec3::ZERO {
+                        *direction = axis;
+                    }
+                }
+                LightKind::Directional { direction, .. } => {
+                    if axis != Vec3::ZERO {
+                        *direction = axis;
+                    }
+                }
+                LightKind::Area { .. } => {}
+            }
+        }
+        if let (Some(node), Some(cam)) = (anim.camera, self.camera.as_mut()) {
+            let world = anim.world(node, t);
+            let r = glam::Mat3::from_mat4(world);
+            let forward = (r * -Vec3::Z).normalize_or_zero();
+            let right = forward.cross((r * Vec3::Y).normalize_or_zero()).normalize_or_zero();
+            if right != Vec3::ZERO {
+                cam.position = world.transform_point3(Vec3::ZERO);
+                cam.forward = forward;
+                cam.right = right;
+                cam.up = right.cross(forward);
+            }
+        }
     }
 
     /// The scene with every triangle split uniformly into n^2 triangles, n the
@@ -467,8 +511,10 @@ impl Scene {
             self.warnings.clone(),
         );
         // Subdivision does not move a surface: keep the original's bounds, so every
-        // relative radius means the same length.
+        // relative radius means the same length; lights keep their indices, so the
+        // animation carries over.
         scene.bounds = self.bounds;
+        scene.animation = self.animation.clone();
         scene
     }
 

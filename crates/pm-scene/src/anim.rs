@@ -1,0 +1,154 @@
+//! glTF animations (glTF 2.0 section 3.11): translation, rotation and scale channels
+//! of nodes with STEP, LINEAR (spherical for rotations) and CUBICSPLINE (Hermite)
+//! interpolation, evaluated at a time to move the lights and the camera that hang
+//! below animated nodes. Animations loop over their longest channel.
+
+use glam::{Mat4, Quat, Vec3, Vec4};
+
+/// Which property a channel animates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Path {
+    Translation,
+    Rotation,
+    Scale,
+}
+
+/// How a channel interpolates between keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Interp {
+    Step,
+    Linear,
+    CubicSpline,
+}
+
+/// One animation channel: key times [s] and values (x, y, z[, w]); CUBICSPLINE keeps
+/// (in-tangent, value, out-tangent) per key.
+#[derive(Clone, Debug)]
+pub(crate) struct Channel {
+    pub node: usize,
+    pub path: Path,
+    pub interp: Interp,
+    pub times: Vec<f32>,
+    pub values: Vec<Vec4>,
+}
+
+/// A node's rest pose and parent.
+#[derive(Clone, Debug)]
+pub(crate) struct NodeRest {
+    pub parent: Option<usize>,
+    pub t: Vec3,
+    pub r: Quat,
+    pub s: Vec3,
+}
+
+/// What moves with the animation: the node hierarchy, the channels, and the nodes
+/// lights and the camera hang on.
+#[derive(Clone, Debug, Default)]
+pub struct Animation {
+    pub(crate) nodes: Vec<NodeRest>,
+    pub(crate) channels: Vec<Channel>,
+    /// (light index, node) of every light below an animated node.
+    pub(crate) lights: Vec<(usize, usize)>,
+    /// The camera's node, when it is below an animated node.
+    pub(crate) camera: Option<usize>,
+    /// Length of the animation [s] (its last key time).
+    pub duration: f32,
+}
+
+impl Channel {
+    /// The channel's value at time `t` [s] (clamped to its first and last keys).
+    fn sample(&self, t: f32) -> Vec4 {
+        let n = self.times.len();
+        let key = |i: usize| match self.interp {
+            Interp::CubicSpline => self.values[3 * i + 1],
+            _ => self.values[i],
+        };
+        if n == 0 {
+            return Vec4::ZERO;
+        }
+        if !(t > self.times[0]) || n == 1 {
+            return key(0);
+        }
+        if t >= self.times[n - 1] {
+            return key(n - 1);
+        }
+        let k = self.times.partition_point(|&x| x <= t) - 1;
+        let (t0, t1) = (self.times[k], self.times[k + 1]);
+        let dt = t1 - t0;
+        let u = if dt > 0.0 { (t - t0) / dt } else { 0.0 };
+        match self.interp {
+            Interp::Step => key(k),
+            Interp::Linear if self.path == Path::Rotation => {
+                Vec4::from(Quat::from_vec4(key(k)).normalize().slerp(Quat::from_vec4(key(k + 1)).normalize(), u))
+            }
+            Interp::Linear => key(k).lerp(key(k + 1), u),
+            Interp::CubicSpline => {
+                // glTF Appendix C: p(u) = (2u^3 - 3u^2 + 1) v_k + dt (u^3 - 2u^2 + u) b_k
+                //                 + (-2u^3 + 3u^2) v_k+1 + dt (u^3 - u^2) a_k+1.
+                let (u2, u3) = (u * u, u * u * u);
+                let b_k = self.values[3 * k + 2];
+                let a_k1 = self.values[3 * (k + 1)];
+                key(k) * (2.0 * u3 - 3.0 * u2 + 1.0)
+                    + b_k * (dt * (u3 - 2.0 * u2 + u))
+                    + key(k + 1) * (-2.0 * u3 + 3.0 * u2)
+                    + a_k1 * (dt * (u3 - u2))
+            }
+        }
+    }
+}
+
+impl Animation {
+    /// True when nothing moves.
+    pub fn is_empty(&self) -> bool {
+        self.channels.is_empty()
+    }
+
+    /// The local transform of `node` at time `t` [s].
+    fn local(&self, node: usize, t: f32) -> Mat4 {
+        let rest = &self.nodes[node];
+        let (mut tr, mut r, mut s) = (rest.t, rest.r, rest.s);
+        for c in self.channels.iter().filter(|c| c.node == node) {
+            let v = c.sample(t);
+            match c.path {
+                Path::Translation => tr = v.truncate(),
+                Path::Rotation => r = Quat::from_vec4(v).normalize(),
+                Path::Scale => s = v.truncate(),
+            }
+        }
+        Mat4::from_scale_rotation_translation(s, r, tr)
+    }
+
+    /// The world transform of `node` at time `t` [s]; animations loop.
+    pub(crate) fn world(&self, node: usize, t: f32) -> Mat4 {
+        let t = if self.duration > 0.0 { t.rem_euclid(self.duration) } else { 0.0 };
+        let mut m = self.local(node, t);
+        let mut n = node;
+        let mut guard = 0;
+        while let Some(p) = self.nodes[n].parent {
+            m = self.local(p, t) * m;
+            n = p;
+            guard += 1;
+            if guard > 256 {
+                break;
+            }
+        }
+        m
+    }
+
+    /// True when `node` or one of its ancestors has a channel.
+    pub(crate) fn moves(&self, node: usize) -> bool {
+        let mut n = Some(node);
+        let mut guard = 0;
+        while let Some(k) = n {
+            if self.channels.iter().any(|c| c.node == k) {
+                return true;
+            }
+            n = self.nodes[k].parent;
+            guard += 1;
+            if guard > 256 {
+                return false;
+            }
+        }
+        false
+    }
+}
