@@ -77,6 +77,10 @@ pub fn run(cli: &Cli) -> Result<Report> {
     };
     // Photons are traced in the scene as given (or the --photon-scene); only the
     // drawn mesh is subdivided.
+    let photon_scene = match cli.params.photon_proxy {
+        pm_live::PhotonProxy::Boxes => Some(photon_scene.as_ref().unwrap_or(&scene).bounding_box_proxy()),
+        pm_live::PhotonProxy::None => photon_scene,
+    };
     let content_hash = scene.content_hash;
     let diagonal = scene.bounds.diagonal();
     let (drawn, photon_scene) = if cli.params.subdivide > 0.0 {
@@ -98,7 +102,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         live.set_time(f as f32 / cli.params.fps);
         let (image, s) = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let total = image.layer("total").context("no total layer")?;
-        pm_image::write_png(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;
+        pm_image::write_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;
         if cli.exr {
             let layers = pm_image::Layers {
                 width: w,
@@ -117,13 +121,13 @@ pub fn run(cli: &Cli) -> Result<Report> {
     progress.finish();
     pm_image::write_apng(&cli.out.join("live.apng"), w, h, &apng, cli.params.fps)?;
     let mut csv = String::from(
-        "frame,shoot_s,balance_s,estimate_s,draw_s,total_s,paths_shot,photon_rays,paths_held,photons_in_tree,estimates,corners,samples\n",
+        "frame,shoot_s,balance_s,estimate_s,draw_s,total_s,paths_shot,photon_rays,paths_held,photons_in_tree,estimates,corners,samples,flicker\n",
     );
     for s in &stats {
         let t = &s.times;
         writeln!(
             csv,
-            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{},{},{},{}",
+            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{},{},{},{},{:.6}",
             s.frame,
             t.shoot,
             t.balance,
@@ -136,7 +140,8 @@ pub fn run(cli: &Cli) -> Result<Report> {
             s.photons_in_tree,
             s.estimates,
             s.corners,
-            s.samples
+            s.samples,
+            s.flicker
         )?;
     }
     pm_format::write_atomically(&cli.out.join("frames.csv"), |f| std::io::Write::write_all(f, csv.as_bytes()))

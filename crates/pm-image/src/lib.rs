@@ -114,6 +114,26 @@ pub fn srgb8(pixels: &[Vec3], exposure: f32) -> Vec<u8> {
     pixels.iter().flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8)).collect()
 }
 
+/// [`write_png`] with fast compression (fdeflate), for frames written many per
+/// second: larger files, several times less encoding time.
+pub fn write_png_fast(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
+    let bytes = srgb8(pixels, exposure);
+    let encode = || -> std::result::Result<Vec<u8>, png::EncodingError> {
+        let mut buf = Vec::new();
+        let mut enc = png::Encoder::new(&mut buf, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Fast);
+        let mut w = enc.write_header()?;
+        w.write_image_data(&bytes)?;
+        w.finish()?;
+        Ok(buf)
+    };
+    let png = encode().map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &png))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
 /// Write an animated PNG of `frames` (each [`srgb8`] bytes of `width` x `height`),
 /// shown at `fps` frames per second and looping, atomically.
 pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: f32) -> Result<()> {
@@ -122,6 +142,7 @@ pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps:
         let mut enc = png::Encoder::new(&mut buf, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Fast);
         enc.set_animated(frames.len().max(1) as u32, 0)?;
         // Frame delay in milliseconds (APNG stores a fraction of a second).
         enc.set_frame_delay((1000.0 / fps).round().clamp(1.0, 65535.0) as u16, 1000)?;

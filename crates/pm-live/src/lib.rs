@@ -22,6 +22,7 @@ pub use mesh::Corners;
 pub use ring::{Distribution, RingBuffer, ShootStats};
 pub use shade::LiveShading;
 
+use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
@@ -46,6 +47,16 @@ pm_params::value_enum! {
         Raster,
         /// An eye ray per pixel through the BVH.
         Rays,
+    }
+}
+
+pm_params::value_enum! {
+    /// What photons are traced in (section 4.4.1, scene simplification).
+    pub enum PhotonProxy {
+        /// The scene itself (or the --photon-scene given).
+        None,
+        /// Every non-emitting object replaced by its bounding box.
+        Boxes,
     }
 }
 
@@ -79,6 +90,11 @@ pm_params::params! {
         /// 4.3: more corners, finer indirect light; photons are still traced in the
         /// unsplit scene); 0 leaves the mesh as it is.
         subdivide: f32 = 0.0 => at_least(0.0);
+        /// Trace photons in the scene (none) or in its bounding boxes (boxes).
+        photon_proxy: PhotonProxy = PhotonProxy::None => Any;
+        /// Temporal filter: weight of the previous frame's corner irradiance in this
+        /// frame's (E = (1 - w) E_new + w E_previous; 0: off). Trades flicker for lag.
+        temporal: f32 = 0.0 => between(0.0, 0.99);
         /// Surfaces seen at pixels by the rasteriser or by eye rays (the same except at silhouettes).
         draw: DrawMode = DrawMode::Raster => Any;
         /// Depth limit of mirror and glass recursion when drawing.
@@ -143,8 +159,19 @@ pub struct FrameStats {
     pub estimates: usize,
     /// Corners in all.
     pub corners: usize,
+    /// Flicker: mean absolute change of corner irradiance since the previous frame
+    /// over the mean irradiance, at corners active in both (0 at the first frame).
+    pub flicker: f64,
     /// Eye samples drawn.
     pub samples: u64,
+}
+
+/// Flicker of `now` against `before` (same corners): mean |now - before| over
+/// mean(before), over channels; 0 when `before` is dark.
+pub fn flicker_of(now: &[pm_color::Rgb], before: &[pm_color::Rgb]) -> f64 {
+    let diff: f64 = now.iter().zip(before).map(|(a, b)| (*a - *b).abs().element_sum() as f64).sum();
+    let base: f64 = before.iter().map(|b| b.element_sum() as f64).sum();
+    if base > 0.0 { diff / base } else { 0.0 }
 }
 
 /// The real-time renderer's state between frames.
@@ -160,6 +187,8 @@ pub struct Live {
     ring: RingBuffer,
     corners: Corners,
     frame: u64,
+    /// The previous frame's corner irradiance, and which corners had one.
+    previous: Option<(Vec<Rgb>, Vec<bool>)>,
 }
 
 impl Live {
@@ -180,7 +209,19 @@ impl Live {
         };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(&scene, params.cornering);
-        Ok(Live { scene, photon_scene, camera, params, seed, trace, targets: Vec::new(), ring, corners, frame: 0 })
+        Ok(Live {
+            scene,
+            photon_scene,
+            camera,
+            params,
+            seed,
+            trace,
+            targets: Vec::new(),
+            ring,
+            corners,
+            frame: 0,
+            previous: None,
+        })
     }
 
     /// The ring buffer.
@@ -245,7 +286,20 @@ impl Live {
         let aspect = p.width as f32 / p.height as f32;
         let active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
         let max_radius = p.max_radius_rel_diag * self.scene.bounds.diagonal();
-        let e = self.corners.irradiance(&tree, &active, p.k, max_radius);
+        let mut e = self.corners.irradiance(&tree, &active, p.k, max_radius);
+        let mut flicker = 0.0;
+        if let Some((prev, was)) = &self.previous {
+            let both: Vec<usize> = (0..e.len()).filter(|&c| active[c] && was[c]).collect();
+            if p.temporal > 0.0 {
+                for &c in &both {
+                    e[c] = e[c] * (1.0 - p.temporal) + prev[c] * p.temporal;
+                }
+            }
+            // Flicker of what is shown: this frame's (filtered) estimates against the last.
+            let now: Vec<Rgb> = both.iter().map(|&c| e[c]).collect();
+            let before: Vec<Rgb> = both.iter().map(|&c| prev[c]).collect();
+            flicker = flicker_of(&now, &before);
+        }
         let estimate = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let shading = LiveShading::new(&self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
@@ -274,7 +328,9 @@ impl Live {
             estimates: active.iter().filter(|&&a| a).count(),
             corners: self.corners.len(),
             samples: rs.samples,
+            flicker,
         };
+        self.previous = Some((e, active));
         self.frame += 1;
         Ok((image, stats))
     }

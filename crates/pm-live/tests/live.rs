@@ -245,3 +245,32 @@ fn an_animated_light_moves_and_its_photons_follow() {
         assert!(from(lights[2]) || from(lights[3]), "a direct photon from an older light position");
     }
 }
+
+/// Flicker under a static light: the same-over-total distribution repeats its paths,
+/// so once the buffer is full the corner estimates do not change at all; random
+/// paths change them every frame, and the temporal filter damps that change.
+#[test]
+fn flicker_depends_on_the_distribution_and_the_temporal_filter() {
+    let s = scene("cornell_boxes.gltf");
+    let run = |distribution: Distribution, temporal: f32| {
+        let params = LiveParams {
+            per_frame: 500,
+            total: 2_000,
+            width: 8,
+            height: 8,
+            distribution,
+            temporal,
+            ..Default::default()
+        };
+        let mut live = Live::new(s.clone(), None, params, 9).unwrap();
+        let f: Vec<f64> = (0..10).map(|_| live.step().unwrap().1.flicker).collect();
+        f[6..].iter().sum::<f64>() / 4.0
+    };
+    let (same, random, filtered) =
+        (run(Distribution::SameOverTotal, 0.0), run(Distribution::Random, 0.0), run(Distribution::Random, 0.8));
+    eprintln!(
+        "flicker after warm-up: same-over-total {same:.4}, random {random:.4}, random + filter 0.8 {filtered:.4}"
+    );
+    assert_eq!(same, 0.0);
+    assert!(random > 0.01 && filtered < 0.5 * random, "{random} {filtered}");
+}

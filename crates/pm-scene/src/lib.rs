@@ -456,46 +456,100 @@ impl Scene {
         if !(max_edge > 0.0) || !max_edge.is_finite() {
             return self.clone();
         }
-        let mut triangles = Vec::new();
-        // First new triangle of each old one (and one past the end).
-        let mut first = Vec::with_capacity(self.triangles.len() + 1);
-        for t in &self.triangles {
-            first.push(triangles.len() as u32);
-            let longest = (0..3).map(|k| (t.p[(k + 1) % 3] - t.p[k]).length()).fold(0.0f32, f32::max);
-            let n = ((longest / max_edge).ceil() as usize).clamp(1, 1024);
-            let at = |i: usize, j: usize| {
-                let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-                [1.0 - u - v, u, v]
-            };
-            let mut emit = |b: [[f32; 3]; 3]| {
-                let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
-                let p = b.map(|w| lerp3(&t.p, w));
-                if let Some(mut sub) = Triangle::new(p, t.material) {
-                    sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
-                    sub.uv = t.uv.map(|uv| b.map(|w| uv[0] * w[0] + uv[1] * w[1] + uv[2] * w[2]));
-                    triangles.push(sub);
-                }
-            };
-            for i in 0..n {
-                for j in 0..n - i {
-                    emit([at(i, j), at(i + 1, j), at(i, j + 1)]);
-                    if i + j + 1 < n {
-                        emit([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+        self.map_objects(|_, tris| {
+            let mut out = Vec::new();
+            for t in tris {
+                let longest = (0..3).map(|k| (t.p[(k + 1) % 3] - t.p[k]).length()).fold(0.0f32, f32::max);
+                let n = ((longest / max_edge).ceil() as usize).clamp(1, 1024);
+                let at = |i: usize, j: usize| {
+                    let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+                    [1.0 - u - v, u, v]
+                };
+                let mut emit = |b: [[f32; 3]; 3]| {
+                    let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
+                    let p = b.map(|w| lerp3(&t.p, w));
+                    if let Some(mut sub) = Triangle::new(p, t.material) {
+                        sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
+                        sub.uv = t.uv.map(|uv| b.map(|w| uv[0] * w[0] + uv[1] * w[1] + uv[2] * w[2]));
+                        out.push(sub);
+                    }
+                };
+                for i in 0..n {
+                    for j in 0..n - i {
+                        emit([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                        if i + j + 1 < n {
+                            emit([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                        }
                     }
                 }
             }
+            out
+        })
+    }
+
+    /// A stand-in for photon tracing (Jozwowski 2002 section 4.4.1, scene
+    /// simplification): every object that does not emit is replaced by its
+    /// axis-aligned bounding box (12 triangles of the object's material, facing out);
+    /// emitting objects, punctual lights, the camera and the animation are kept.
+    pub fn bounding_box_proxy(&self) -> Scene {
+        self.map_objects(|o, tris| {
+            if self.materials[o.material as usize].emission.max_element() > 0.0 {
+                return tris.to_vec();
+            }
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for t in tris {
+                for p in t.p {
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+            }
+            let v = |i: u32| {
+                Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                )
+            };
+            // Faces as corner indices, counter-clockwise seen from outside.
+            let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+            let mut out = Vec::new();
+            for f in faces {
+                for tri in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
+                    // A flat object has a flat box: its zero-area faces are left out.
+                    if let Some(t) = Triangle::new(tri.map(v), o.material) {
+                        out.push(t);
+                    }
+                }
+            }
+            out
+        })
+    }
+
+    /// The scene with each object's triangles replaced by `f(object, its
+    /// triangles)`; materials, textures, punctual lights, camera, identity and
+    /// animation are kept, and each area light covers its object's new triangles.
+    fn map_objects(&self, f: impl Fn(&Object, &[Triangle]) -> Vec<Triangle>) -> Scene {
+        let mut triangles = Vec::new();
+        let mut objects = Vec::with_capacity(self.objects.len());
+        // New range of every old triangle's object, for area lights.
+        let mut object_range = vec![0u32..0u32; self.triangles.len()];
+        for o in &self.objects {
+            let start = triangles.len() as u32;
+            triangles.extend(f(o, &self.triangles[o.tris.start as usize..o.tris.end as usize]));
+            let range = start..triangles.len() as u32;
+            for t in o.tris.clone() {
+                object_range[t as usize] = range.clone();
+            }
+            objects.push(Object { tris: range, ..o.clone() });
         }
-        first.push(triangles.len() as u32);
-        let remap = |r: &std::ops::Range<u32>| first[r.start as usize]..first[r.end as usize];
-        let objects: Vec<Object> = self.objects.iter().map(|o| Object { tris: remap(&o.tris), ..o.clone() }).collect();
         let lights: Vec<Light> = self
             .lights
             .iter()
             .map(|l| match &l.kind {
                 LightKind::Area { tris, .. } if !tris.is_empty() => {
-                    let (lo, hi) = (*tris.iter().min().unwrap_or(&0), *tris.iter().max().unwrap_or(&0) + 1);
-                    let material = &self.materials[self.triangles[lo as usize].material as usize];
-                    Light::area(l.name.clone(), remap(&(lo..hi)), &triangles, material)
+                    let t0 = tris[0] as usize;
+                    let material = &self.materials[self.triangles[t0].material as usize];
+                    Light::area(l.name.clone(), object_range[t0].clone(), &triangles, material)
                 }
                 _ => l.clone(),
             })
@@ -510,9 +564,9 @@ impl Scene {
             self.content_hash,
             self.warnings.clone(),
         );
-        // Subdivision does not move a surface: keep the original's bounds, so every
-        // relative radius means the same length; lights keep their indices, so the
-        // animation carries over.
+        // The same surfaces (or a stand-in for them): keep the original's bounds, so
+        // every relative radius means the same length; lights keep their indices, so
+        // the animation carries over.
         scene.bounds = self.bounds;
         scene.animation = self.animation.clone();
         scene

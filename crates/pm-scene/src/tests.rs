@@ -173,3 +173,29 @@ fn subdivision_keeps_the_surface_lights_and_objects() {
     // No limit: a copy.
     assert_eq!(s.subdivided(0.0).triangles.len(), s.triangles.len());
 }
+
+/// The photon-tracing stand-in (Jozwowski 2002 section 4.4.1): each non-emitting
+/// object becomes its bounding box, the light stays, and the boxes bound the
+/// objects: every eye ray that hits the proxy hits no farther than the object it
+/// stands for would be hit, and the ceiling light keeps its power.
+#[test]
+fn the_bounding_box_proxy_bounds_every_object_and_keeps_the_lights() {
+    let s = load_scene("cornell_spheres.gltf");
+    let proxy = s.bounding_box_proxy();
+    assert_eq!(proxy.objects.len(), s.objects.len());
+    // Spheres (1,104 triangles each) become 12 triangles; flat walls 4 (their box is flat).
+    assert!(proxy.triangles.len() < 100, "{}", proxy.triangles.len());
+    for (a, b) in s.lights.iter().zip(&proxy.lights) {
+        assert!((a.power - b.power).abs().max_element() < 1e-4 * a.power.max_element());
+    }
+    let cam = s.camera.as_ref().unwrap();
+    for i in 0..400u32 {
+        let d = cam.ray_direction((i % 20) as f32 / 20.0 + 0.013, (i / 20) as f32 / 20.0 + 0.017, 1.0);
+        let (Some(a), Some(b)) =
+            (s.intersect(cam.position, d, f32::INFINITY), proxy.intersect(cam.position, d, f32::INFINITY))
+        else {
+            panic!("ray {i} escapes the closed box");
+        };
+        assert!(b.t <= a.t + 1e-4, "ray {i}: proxy hit at {} beyond the object at {}", b.t, a.t);
+    }
+}
