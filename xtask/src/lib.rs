@@ -3,5 +3,6 @@
 //! it on a small scene) and the stage binaries it runs.
 
 pub mod gen_scenes;
+pub mod plot;
 pub mod run;
 pub mod stages;

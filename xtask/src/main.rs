@@ -4,6 +4,7 @@
 use xtask::{gen_scenes, run};
 
 mod figure1;
+mod live_study;
 mod tradeoff;
 
 use anyhow::Result;
@@ -27,6 +28,10 @@ enum Task {
     /// Real-time photon mapping (Jozwowski 2002): photon-live with pipeline.toml's
     /// [live] settings, writing frames, live.apng and frames.csv.
     Live(run::LiveArgs),
+    /// What the real-time mode's settings cost and buy: frame time split against
+    /// per_frame, total, max_level and surfaces (Jozwowski 2002 Figures 21-27), and
+    /// flicker and error against the batch image per distribution.
+    LiveStudy(live_study::Args),
     /// Relative RMSE, bias and SSIM of an image against a reference.
     Compare(CompareArgs),
     /// What accuracy costs in time: a path-traced reference, then one setting at a
@@ -65,6 +70,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.task {
         Task::Run(a) => run::run(&a, &root).map(|_| ()),
         Task::Live(a) => run::live(&a, &root),
+        Task::LiveStudy(a) => live_study::run(&a, &root),
         Task::Compare(a) => compare(&a),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),

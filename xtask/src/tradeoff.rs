@@ -12,6 +12,7 @@ use pm_render::{Lookup, Method, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use xtask::plot::{self, Shape};
 use xtask::stages::{self, Bins};
 
 /// Options of `cargo xtask tradeoff`.
@@ -367,59 +368,5 @@ fn plot(out: &Path, rows: &[(Setting, [f64; 4], [f64; 5])], front: &[usize]) -> 
         shapes.push(Shape::Dot((w - 190.0, m + 16.0 * k as f64), colour(a)));
         shapes.push(Shape::Text((w - 180.0, m + 16.0 * k as f64 + 4.0), a.to_string(), "start", false, 12));
     }
-    let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-    );
-    let (wi, hi) = (w as u32, h as u32);
-    let mut px = vec![glam::Vec3::ONE; (wi * hi) as usize];
-    let mut put = |xx: i64, yy: i64, (r, g, b): (u8, u8, u8)| {
-        if xx >= 0 && yy >= 0 && (xx as u32) < wi && (yy as u32) < hi {
-            let c = glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0;
-            px[(yy as u32 * wi + xx as u32) as usize] = c.to_array().map(pm_color::srgb_decode).into();
-        }
-    };
-    for shape in &shapes {
-        match shape {
-            Shape::Line((x0, y0), (x1, y1), (r, g, b), dashed) => {
-                let dash = if *dashed { " stroke-dasharray=\"4 3\"" } else { "" };
-                writeln!(
-                    svg,
-                    "<line x1=\"{x0:.1}\" y1=\"{y0:.1}\" x2=\"{x1:.1}\" y2=\"{y1:.1}\" stroke=\"rgb({r},{g},{b})\"{dash}/>"
-                )?;
-                let n = ((x1 - x0).abs().max((y1 - y0).abs()) as i64).max(1);
-                for k in 0..=n {
-                    let f = k as f64 / n as f64;
-                    put((x0 + f * (x1 - x0)) as i64, (y0 + f * (y1 - y0)) as i64, (*r, *g, *b));
-                }
-            }
-            Shape::Dot((cx, cy), (r, g, b)) => {
-                writeln!(svg, "<circle cx=\"{cx:.1}\" cy=\"{cy:.1}\" r=\"5\" fill=\"rgb({r},{g},{b})\"/>")?;
-                for dy in -4i64..=4 {
-                    for dx in -4i64..=4 {
-                        if dx * dx + dy * dy <= 16 {
-                            put(*cx as i64 + dx, *cy as i64 + dy, (*r, *g, *b));
-                        }
-                    }
-                }
-            }
-            Shape::Text((tx, ty), text, anchor, rotated, size) => {
-                let rot = if *rotated { format!(" transform=\"rotate(-90 {tx} {ty})\"") } else { String::new() };
-                writeln!(
-                    svg,
-                    "<text x=\"{tx:.1}\" y=\"{ty:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rot}>{text}</text>"
-                )?;
-            }
-        }
-    }
-    svg.push_str("</svg>\n");
-    std::fs::write(out.join("plot.svg"), svg)?;
-    pm_image::write_png(&out.join("plot.png"), wi, hi, &px, 0.0)?;
-    Ok(())
-}
-
-/// A drawing primitive of the plot (points in SVG pixel coordinates, sRGB colours).
-enum Shape {
-    Line((f64, f64), (f64, f64), (u8, u8, u8), bool),
-    Dot((f64, f64), (u8, u8, u8)),
-    Text((f64, f64), String, &'static str, bool, u8),
+    plot::draw(&shapes, w, h, &out.join("plot.svg"), &out.join("plot.png"))
 }

@@ -45,6 +45,10 @@ pub struct Cli {
     /// photon-inspect reads.
     #[arg(long)]
     pub dump_frame: Option<u64>,
+    /// Show every frame at this animation time [s] (a static scene) instead of
+    /// frame / fps.
+    #[arg(long)]
+    pub time: Option<f32>,
     /// Random seed; equal seeds give identical frames for any thread count.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -99,7 +103,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let mut apng = Vec::new();
     for f in 0..cli.frames {
         // Frame f shows time f / fps: animated lights and camera move there.
-        live.set_time(f as f32 / cli.params.fps);
+        live.set_time(cli.time.unwrap_or(f as f32 / cli.params.fps));
         let (image, s) = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let total = image.layer("total").context("no total layer")?;
         pm_image::write_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;

@@ -68,8 +68,10 @@ pm_params::params! {
         per_frame: u32 = 2_000 => between(1, 1 << 24);
         /// Photon paths the ring buffer holds (the thesis: 2,000; at least per_frame).
         total: u32 = 20_000 => between(1, 1 << 24);
-        /// Hits kept per path (the thesis: 3 is sufficient).
-        max_level: u32 = 3 => between(1, 64);
+        /// Hits kept per path. The thesis finds 3 sufficient, but in a closed room
+        /// (albedo about 0.7) 3 loses 28% of the light and 8 loses 7% against the
+        /// batch pipeline (`cargo xtask live-study`, BENCHMARKS.md), for 5% more time.
+        max_level: u32 = 8 => between(1, 64);
         /// Which paths re-shot slots get: random, same-per-frame or same-over-total.
         distribution: Distribution = Distribution::SameOverTotal => Any;
         /// Photons per corner estimate.
