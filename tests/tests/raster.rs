@@ -24,7 +24,7 @@ fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
         let tol = 1e-4 * scene.bounds.diagonal();
         let (mut differ, mut at_silhouette) = (0, 0);
         for i in 0..w * h {
-            let same = match (raster[i], rays[i]) {
+            let same = match (raster[i].map(|f| f.hit(&scene)), rays[i]) {
                 (Some(a), Some(b)) => (a.p - b.p).length() < tol && (a.t - b.t).abs() < tol,
                 (None, None) => true,
                 _ => false,

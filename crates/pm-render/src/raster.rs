@@ -31,8 +31,27 @@ struct ScreenTri {
     y1: u32,
 }
 
-/// The first hit at each pixel centre of `rect` (row by row), or none.
-pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Hit>> {
+/// What the rasteriser keeps per pixel: the nearest triangle, the barycentrics of
+/// the pixel centre on it, and the distance along the eye ray [m].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    /// Triangle id.
+    pub tri: u32,
+    /// Barycentric coordinates of the pixel centre's point.
+    pub b: [f32; 3],
+    /// Distance from the camera along the unit eye ray [m].
+    pub t: f32,
+}
+
+impl Fragment {
+    /// The full hit record (position, normals, texture coordinates).
+    pub fn hit(&self, scene: &Scene) -> Hit {
+        scene.make_hit(self.tri, self.t, self.b)
+    }
+}
+
+/// The first surface at each pixel centre of `rect` (row by row), or none.
+pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Fragment>> {
     let (w, h) = (film.width as f32, film.height as f32);
     let aspect = w / h;
     let tan_y = (0.5 * camera.yfov).tan();
@@ -82,31 +101,26 @@ pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Ve
     tris.sort_by_key(|t| (t.y0, t.tri));
     let rw = rect.width() as usize;
     let rays = camera.rays(aspect);
-    let bands: Vec<u32> = (rect.y0..rect.y1).step_by(BAND as usize).collect();
-    let per_band: Vec<Vec<Option<Hit>>> = bands
-        .par_iter()
-        .map(|&by0| {
-            let by1 = (by0 + BAND).min(rect.y1);
-            let mut depth = vec![f32::INFINITY; rw * (by1 - by0) as usize];
-            let mut best: Vec<Option<(u32, Vec3)>> = vec![None; depth.len()];
-            for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
-                raster_tri(st, rect, by0, by1, &mut depth, &mut best);
-            }
-            best.iter()
-                .enumerate()
-                .map(|(j, b)| {
-                    b.map(|(tri, bc)| {
-                        let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
-                        let d = rays.direction(x / w, y / h);
-                        let p = scene.triangles[tri as usize].p;
-                        let hp = p[0] * bc.x + p[1] * bc.y + p[2] * bc.z;
-                        scene.make_hit(tri, (hp - camera.position).dot(d), bc.to_array())
-                    })
-                })
-                .collect()
-        })
-        .collect();
-    per_band.into_iter().flatten().collect()
+    let mut out: Vec<Option<Fragment>> = vec![None; rect.area()];
+    out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
+        let by0 = rect.y0 + band as u32 * BAND;
+        let by1 = (by0 + BAND).min(rect.y1);
+        let mut depth = vec![f32::INFINITY; chunk.len()];
+        let mut best: Vec<Option<(u32, Vec3)>> = vec![None; chunk.len()];
+        for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
+            raster_tri(st, rect, by0, by1, &mut depth, &mut best);
+        }
+        for (j, (slot, b)) in chunk.iter_mut().zip(&best).enumerate() {
+            *slot = b.map(|(tri, bc)| {
+                let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
+                let d = rays.direction(x / w, y / h);
+                let p = scene.triangles[tri as usize].p;
+                let hp = p[0] * bc.x + p[1] * bc.y + p[2] * bc.z;
+                Fragment { tri, b: bc.to_array(), t: (hp - camera.position).dot(d) }
+            });
+        }
+    });
+    out
 }
 
 /// Rasterise one screen triangle into the band [by0, by1): keep, per pixel centre,

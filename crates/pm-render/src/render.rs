@@ -240,8 +240,8 @@ pub fn render_region_with<I: Integrator>(
     let p1w = pass1.width() as usize;
 
     // Rasterised first hits at the centres of pass 1's pixels (its first samples).
-    let first: Option<Vec<Option<pm_scene::Hit>>> = match visibility {
-        Visibility::Raster(scene) => Some(crate::raster::first_hits(scene, camera, film, pass1)),
+    let first: Option<(&pm_scene::Scene, Vec<Option<crate::raster::Fragment>>)> = match visibility {
+        Visibility::Raster(scene) => Some((scene, crate::raster::first_hits(scene, camera, film, pass1))),
         Visibility::Rays => None,
     };
     let centre_first = first.is_some() && adaptive;
@@ -252,9 +252,10 @@ pub fn render_region_with<I: Integrator>(
         let (x, y) = ((i % w) as f32 + j.x, (i / w) as f32 + j.y);
         let d = rays.direction(x / w as f32, y / h as f32);
         match &first {
-            Some(hits) if k == 0 && centre_first => {
+            Some((scene, hits)) if k == 0 && centre_first => {
                 let (px, py) = (i % w - pass1.x0 as usize, i / w - pass1.y0 as usize);
-                integ.li_hit(camera.position, d, hits[py * p1w + px], &mut s, scratch, vs)
+                let hit = hits[py * p1w + px].map(|f| f.hit(scene));
+                integ.li_hit(camera.position, d, hit, &mut s, scratch, vs)
             }
             _ => integ.li(camera.position, d, &mut s, scratch, vs),
         }
@@ -336,32 +337,33 @@ pub fn render_region_with<I: Integrator>(
             pixels[j].1 = film.spp;
         }
     }
-    let mut layers: Vec<(&'static str, Vec<Rgb>)> =
-        LAYERS.iter().map(|&n| (n, Vec::with_capacity(rect.area()))).collect();
-    let mut gb = gbuffer.then(|| Vec::with_capacity(rect.area()));
-    let mut samples = 0u64;
-    let mut nonfinite = 0u64;
-    for (j, (c, n)) in pixels.iter().enumerate() {
-        let (x, y) = pixel_of(j);
-        if !in_rect(x, y) {
-            continue;
-        }
-        samples += *n as u64;
-        let inv = 1.0 / *n as f32;
-        let vals = [c.total(), c.direct, c.caustic, c.indirect, c.specular];
-        for (layer, v) in layers.iter_mut().zip(vals) {
-            // No NaN or Inf leaves the renderer.
-            if v.is_finite() {
-                layer.1.push((v * inv).max(Rgb::ZERO));
-            } else {
-                nonfinite += 1;
-                layer.1.push(Rgb::ZERO);
-            }
-        }
-        if let Some(gb) = gb.as_mut() {
-            gb.push(std::mem::take(&mut gbuffer_of_pass1[j]));
-        }
-    }
+    // The region's pixels of pass 1 (which may include the apron), in row order.
+    let in_region: Vec<usize> = if pass1 == rect {
+        (0..pixels.len()).collect()
+    } else {
+        (0..pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)).collect()
+    };
+    let samples: u64 = in_region.iter().map(|&j| pixels[j].1 as u64).sum();
+    // One layer per parallel pass; no NaN or Inf leaves the renderer.
+    let value = |k: usize, j: usize| -> Rgb {
+        let (c, n) = &pixels[j];
+        let v = [c.total(), c.direct, c.caustic, c.indirect, c.specular][k];
+        if v.is_finite() { (v * (1.0 / *n as f32)).max(Rgb::ZERO) } else { Rgb::ZERO }
+    };
+    let layers: Vec<(&'static str, Vec<Rgb>)> = LAYERS
+        .iter()
+        .enumerate()
+        .map(|(k, &name)| (name, in_region.par_iter().with_min_len(4096).map(|&j| value(k, j)).collect()))
+        .collect();
+    let nonfinite: u64 = in_region
+        .par_iter()
+        .with_min_len(4096)
+        .map(|&j| {
+            let c = &pixels[j].0;
+            [c.total(), c.direct, c.caustic, c.indirect, c.specular].iter().filter(|v| !v.is_finite()).count() as u64
+        })
+        .sum();
+    let gb = gbuffer.then(|| in_region.iter().map(|&j| std::mem::take(&mut gbuffer_of_pass1[j])).collect());
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         nonfinite_pixels: nonfinite,
