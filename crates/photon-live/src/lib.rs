@@ -104,14 +104,15 @@ pub fn run(cli: &Cli) -> Result<Report> {
     for f in 0..cli.frames {
         // Frame f shows time f / fps: animated lights and camera move there.
         live.set_time(cli.time.unwrap_or(f as f32 / cli.params.fps));
-        let (image, s) = live.step().map_err(|e| anyhow::anyhow!(e))?;
+        let s = live.step().map_err(|e| anyhow::anyhow!(e))?;
+        let image = live.frame_layers();
         let total = image.layer("total").context("no total layer")?;
         pm_image::write_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;
         if cli.exr {
             let layers = pm_image::Layers {
                 width: w,
                 height: h,
-                layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
+                layers: image.layers().map(|(n, px)| (n.to_string(), px.to_vec())).collect(),
             };
             pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
         }

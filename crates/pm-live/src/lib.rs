@@ -26,7 +26,7 @@ use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
-use pm_render::{Film, Image, Rect, RenderStats, Visibility};
+use pm_render::{Film, FrameBuffers, Rect, RenderStats, Visibility};
 use pm_scene::{Camera, LightSelector, Scene, Target};
 use std::time::Instant;
 
@@ -35,6 +35,9 @@ pm_params::value_enum! {
     pub enum DirectMode {
         /// A shadow ray per light sample at every pixel: sharp shadows.
         Rays,
+        /// Point and spot lights: every light at every pixel, visibility from a cube
+        /// shadow map drawn by the rasteriser each frame (other lights: shadow rays).
+        ShadowMap,
         /// The photons' estimate at the corners, like indirect light (the thesis).
         Photons,
     }
@@ -80,6 +83,8 @@ pm_params::params! {
         max_radius_rel_diag: f32 = 0.1 => above(0.0);
         /// Direct light by shadow rays per pixel (rays) or from the photons (photons).
         direct: DirectMode = DirectMode::Rays => Any;
+        /// Texels per side of each face of a cube shadow map (direct = shadow-map).
+        shadow_map_res: u32 = 256 => between(16, 8192);
         /// Light samples per pixel for direct light by rays.
         light_samples: u32 = 1 => between(1, 1 << 10);
         /// One estimate per shared corner (section 4.4.2) instead of one per triangle vertex.
@@ -191,6 +196,8 @@ pub struct Live {
     frame: u64,
     /// The previous frame's corner irradiance, and which corners had one.
     previous: Option<(Vec<Rgb>, Vec<bool>)>,
+    /// The drawing's memory, kept between frames.
+    buffers: FrameBuffers,
 }
 
 impl Live {
@@ -223,6 +230,7 @@ impl Live {
             corners,
             frame: 0,
             previous: None,
+            buffers: FrameBuffers::default(),
         })
     }
 
@@ -264,7 +272,7 @@ impl Live {
     /// The photons the estimates read this frame: the used slots (power scaled by
     /// the paths held), without the direct photons when direct light comes from rays.
     pub fn tree_photons(&self) -> Vec<FullIrrPhoton> {
-        let no_direct = self.params.direct == DirectMode::Rays;
+        let no_direct = self.params.direct != DirectMode::Photons;
         self.ring
             .photons()
             .iter()
@@ -273,8 +281,14 @@ impl Live {
             .collect()
     }
 
-    /// Shoot, balance, estimate and draw one frame.
-    pub fn step(&mut self) -> Result<(Image, FrameStats), String> {
+    /// The layers of the last frame drawn ("total", "direct", "caustic" (zero),
+    /// "indirect", "specular"), row 0 at the top.
+    pub fn frame_layers(&self) -> &FrameBuffers {
+        &self.buffers
+    }
+
+    /// Shoot, balance, estimate and draw one frame (its image: [`Self::frame_layers`]).
+    pub fn step(&mut self) -> Result<FrameStats, String> {
         let p = &self.params;
         let t = Instant::now();
         let photons_in = self.photon_scene.as_ref().unwrap_or(&self.scene);
@@ -304,19 +318,34 @@ impl Live {
         }
         let estimate = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let shading = LiveShading::new(&self.scene, &self.corners, &e, p).map_err(|e| e.to_string())?;
+        let maps: Vec<Option<pm_render::raster::CubeDepth>> = if p.direct == DirectMode::ShadowMap {
+            self.scene
+                .lights
+                .iter()
+                .map(|l| match l.kind {
+                    pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => {
+                        Some(pm_render::raster::CubeDepth::new(&self.scene, position, p.shadow_map_res))
+                    }
+                    _ => None,
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let shading = LiveShading::new(&self.scene, &self.corners, &e, p, &maps).map_err(|e| e.to_string())?;
         let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
         let visibility = match p.draw {
             DrawMode::Raster => Visibility::Raster(&self.scene),
             DrawMode::Rays => Visibility::Rays,
         };
-        let (image, rs): (Image, RenderStats) = pm_render::render_region_with(
+        let (_, rs): (_, RenderStats) = pm_render::render_into(
             &self.camera,
             &film,
             Rect::full(&film),
             &shading,
             false,
             visibility,
+            &mut self.buffers,
             &|_, _| {},
         )?;
         let draw = t.elapsed().as_secs_f64();
@@ -334,6 +363,6 @@ impl Live {
         };
         self.previous = Some((e, active));
         self.frame += 1;
-        Ok((image, stats))
+        Ok(stats)
     }
 }

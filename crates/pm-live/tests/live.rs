@@ -194,7 +194,12 @@ fn frames_repeat_exactly_for_the_same_inputs() {
     let params = LiveParams { per_frame: 500, total: 2_000, width: 24, height: 24, ..Default::default() };
     let run = || {
         let mut live = Live::new(s.clone(), None, params.clone(), 5).unwrap();
-        (0..3).map(|_| live.step().unwrap().0.layer("total").unwrap().to_vec()).collect::<Vec<_>>()
+        (0..3)
+            .map(|_| {
+                live.step().unwrap();
+                live.frame_layers().layer("total").unwrap().to_vec()
+            })
+            .collect::<Vec<_>>()
     };
     let (x, y) = (run(), run());
     assert!(x == y);
@@ -263,7 +268,7 @@ fn flicker_depends_on_the_distribution_and_the_temporal_filter() {
             ..Default::default()
         };
         let mut live = Live::new(s.clone(), None, params, 9).unwrap();
-        let f: Vec<f64> = (0..10).map(|_| live.step().unwrap().1.flicker).collect();
+        let f: Vec<f64> = (0..10).map(|_| live.step().unwrap().flicker).collect();
         f[6..].iter().sum::<f64>() / 4.0
     };
     let (same, random, filtered) =

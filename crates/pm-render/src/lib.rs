@@ -35,7 +35,9 @@ pub use gather::Scratch;
 pub use icache::IrradianceCache;
 pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};
 pub use path::PathTracer;
-pub use render::{Counters, Film, Image, Rect, RenderStats, Visibility, render_region, render_region_with};
+pub use render::{
+    Counters, Film, FrameBuffers, Image, Rect, RenderStats, Visibility, render_into, render_region, render_region_with,
+};
 
 use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};

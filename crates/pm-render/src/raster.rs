@@ -52,6 +52,13 @@ impl Fragment {
 
 /// The first surface at each pixel centre of `rect` (row by row), or none.
 pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Fragment>> {
+    let mut out = Vec::new();
+    first_hits_into(scene, camera, film, rect, &mut out);
+    out
+}
+
+/// [`first_hits`] into `out`, reusing its memory (frames of a live view).
+pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<Option<Fragment>>) {
     let (w, h) = (film.width as f32, film.height as f32);
     let aspect = w / h;
     let tan_y = (0.5 * camera.yfov).tan();
@@ -101,16 +108,20 @@ pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Ve
     tris.sort_by_key(|t| (t.y0, t.tri));
     let rw = rect.width() as usize;
     let rays = camera.rays(aspect);
-    let mut out: Vec<Option<Fragment>> = vec![None; rect.area()];
-    out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
+    out.clear();
+    out.resize(rect.area(), None);
+    let scratch = || (Vec::<f32>::new(), Vec::<Option<(u32, Vec3)>>::new());
+    out.par_chunks_mut(rw * BAND as usize).enumerate().for_each_init(scratch, |(depth, best), (band, chunk)| {
         let by0 = rect.y0 + band as u32 * BAND;
         let by1 = (by0 + BAND).min(rect.y1);
-        let mut depth = vec![f32::INFINITY; chunk.len()];
-        let mut best: Vec<Option<(u32, Vec3)>> = vec![None; chunk.len()];
+        depth.clear();
+        depth.resize(chunk.len(), f32::INFINITY);
+        best.clear();
+        best.resize(chunk.len(), None);
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
-            raster_tri(st, rect, by0, by1, &mut depth, &mut best);
+            raster_tri(st, rect, by0, by1, depth, best);
         }
-        for (j, (slot, b)) in chunk.iter_mut().zip(&best).enumerate() {
+        for (j, (slot, b)) in chunk.iter_mut().zip(best.iter()).enumerate() {
             *slot = b.map(|(tri, bc)| {
                 let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
                 let d = rays.direction(x / w, y / h);
@@ -120,7 +131,6 @@ pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Ve
             });
         }
     });
-    out
 }
 
 /// Rasterise one screen triangle into the band [by0, by1): keep, per pixel centre,
@@ -190,5 +200,71 @@ fn clip_near(v: [Vec3; 3], b: [Vec3; 3], near: f32) -> Vec<([Vec3; 3], [Vec3; 3]
             }
             (1..pv.len() - 1).map(|k| ([pv[0], pv[k], pv[k + 1]], [pb[0], pb[k], pb[k + 1]])).collect()
         }
+    }
+}
+
+/// A cube shadow map: the distance [m] from `position` to the nearest surface
+/// through the centre of each texel of six 90-degree faces (+x, -x, +y, -y, +z, -z),
+/// drawn by the rasteriser. Direct light from a point or spot light then needs one
+/// lookup per pixel instead of a shadow ray.
+pub struct CubeDepth {
+    position: Vec3,
+    res: u32,
+    /// Faces' cameras (forward, right, up).
+    faces: [(Vec3, Vec3, Vec3); 6],
+    depth: Vec<f32>,
+}
+
+impl CubeDepth {
+    /// The shadow map of `scene` seen from `position`, `res` x `res` texels a face.
+    pub fn new(scene: &Scene, position: Vec3, res: u32) -> CubeDepth {
+        let faces = [
+            (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+        ];
+        let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
+        let mut depth = Vec::with_capacity(6 * (res * res) as usize);
+        let mut frags = Vec::new();
+        for &(forward, right, up) in &faces {
+            let cam = Camera { position, forward, up, right, yfov: std::f32::consts::FRAC_PI_2, aspect: Some(1.0) };
+            first_hits_into(scene, &cam, &film, Rect::full(&film), &mut frags);
+            depth.extend(frags.iter().map(|f| f.map_or(f32::INFINITY, |f| f.t)));
+        }
+        CubeDepth { position, res, faces, depth }
+    }
+
+    /// True when nothing the map saw lies between the light and `p`, allowing
+    /// `bias` [m] (against self-shadowing from the texels' finite size).
+    pub fn visible(&self, p: Vec3, bias: f32) -> bool {
+        let d = p - self.position;
+        let a = d.abs();
+        let face = if a.x >= a.y && a.x >= a.z {
+            if d.x > 0.0 { 0 } else { 1 }
+        } else if a.y >= a.z {
+            if d.y > 0.0 { 2 } else { 3 }
+        } else if d.z > 0.0 {
+            4
+        } else {
+            5
+        };
+        let (forward, right, up) = self.faces[face];
+        let z = d.dot(forward);
+        if !(z > 0.0) {
+            return true;
+        }
+        let (u, v) = (0.5 * (d.dot(right) / z + 1.0), 0.5 * (1.0 - d.dot(up) / z));
+        let r = self.res as f32;
+        let (x, y) = (((u * r) as u32).min(self.res - 1), ((v * r) as u32).min(self.res - 1));
+        let stored = self.depth[face * (self.res * self.res) as usize + (y * self.res + x) as usize];
+        d.length() <= stored + bias
+    }
+
+    /// The angle a texel subtends at the centre of a face [rad] (for biases).
+    pub fn texel_angle(&self) -> f32 {
+        2.0 / self.res as f32
     }
 }

@@ -208,6 +208,30 @@ pub fn render_region<I: Integrator>(
     render_region_with(camera, film, rect, integ, gbuffer, Visibility::Rays, progress)
 }
 
+/// The memory of the region loop, kept between calls by a caller that renders many
+/// frames (a frame allocates tens of megabytes; freeing and faulting them back in
+/// cost a third of a live frame).
+#[derive(Default)]
+pub struct FrameBuffers {
+    fragments: Vec<Option<crate::raster::Fragment>>,
+    pixels: Vec<(Components, u32)>,
+    in_region: Vec<usize>,
+    /// The rendered layers ("total", "direct", "caustic", "indirect", "specular").
+    layers: [Vec<Rgb>; 5],
+}
+
+impl FrameBuffers {
+    /// The layer called `name` of the last region rendered into these buffers.
+    pub fn layer(&self, name: &str) -> Option<&[Rgb]> {
+        LAYERS.iter().position(|&n| n == name).map(|k| self.layers[k].as_slice())
+    }
+
+    /// All layers, named, of the last region rendered.
+    pub fn layers(&self) -> impl Iterator<Item = (&'static str, &[Rgb])> {
+        LAYERS.iter().copied().zip(self.layers.iter().map(Vec::as_slice))
+    }
+}
+
 /// [`render_region`] with the first surfaces found as `visibility` says.
 pub fn render_region_with<I: Integrator>(
     camera: &Camera,
@@ -218,6 +242,25 @@ pub fn render_region_with<I: Integrator>(
     visibility: Visibility,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, RenderStats), String> {
+    let mut bufs = FrameBuffers::default();
+    let (gb, stats) = render_into(camera, film, rect, integ, gbuffer, visibility, &mut bufs, progress)?;
+    let layers = LAYERS.iter().copied().zip(std::mem::take(&mut bufs.layers)).collect();
+    Ok((Image { rect, width: rect.width(), height: rect.height(), layers, gbuffer: gb }, stats))
+}
+
+/// The region loop into `bufs` (its layers hold the result), reusing their memory;
+/// returns the G-buffer when asked for and the statistics.
+#[allow(clippy::too_many_arguments)]
+pub fn render_into<I: Integrator>(
+    camera: &Camera,
+    film: &Film,
+    rect: Rect,
+    integ: &I,
+    gbuffer: bool,
+    visibility: Visibility,
+    bufs: &mut FrameBuffers,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Option<Vec<VisibleSurface>>, RenderStats), String> {
     if !rect.is_valid_in(film) {
         return Err(format!("region {rect:?} is empty or outside the {}x{} image", film.width, film.height));
     }
@@ -240,8 +283,11 @@ pub fn render_region_with<I: Integrator>(
     let p1w = pass1.width() as usize;
 
     // Rasterised first hits at the centres of pass 1's pixels (its first samples).
-    let first: Option<(&pm_scene::Scene, Vec<Option<crate::raster::Fragment>>)> = match visibility {
-        Visibility::Raster(scene) => Some((scene, crate::raster::first_hits(scene, camera, film, pass1))),
+    let first: Option<(&pm_scene::Scene, &[Option<crate::raster::Fragment>])> = match visibility {
+        Visibility::Raster(scene) => {
+            crate::raster::first_hits_into(scene, camera, film, pass1, &mut bufs.fragments);
+            Some((scene, &bufs.fragments))
+        }
         Visibility::Rays => None,
     };
     let centre_first = first.is_some() && adaptive;
@@ -280,8 +326,11 @@ pub fn render_region_with<I: Integrator>(
         (acc, first_spp)
     };
     // The G-buffer is kept apart from the pixels: it is large and usually not asked for.
-    let (mut pixels, mut gbuffer_of_pass1): (Vec<(Components, u32)>, Vec<VisibleSurface>) = if gbuffer {
-        (0..pass1.area())
+    let pixels = &mut bufs.pixels;
+    pixels.clear();
+    let mut gbuffer_of_pass1: Vec<VisibleSurface> = Vec::new();
+    if gbuffer {
+        let (p, g): (Vec<(Components, u32)>, Vec<VisibleSurface>) = (0..pass1.area())
             .into_par_iter()
             .with_min_len(64)
             .map_init(I::Scratch::default, |scratch, j| {
@@ -290,15 +339,17 @@ pub fn render_region_with<I: Integrator>(
                 let p = pixel(j, scratch, in_rect(x, y).then_some(&mut vs));
                 (p, vs)
             })
-            .unzip()
+            .unzip();
+        *pixels = p;
+        gbuffer_of_pass1 = g;
     } else {
-        let p = (0..pass1.area())
-            .into_par_iter()
-            .with_min_len(64)
-            .map_init(I::Scratch::default, |scratch, j| pixel(j, scratch, None))
-            .collect();
-        (p, Vec::new())
-    };
+        pixels.par_extend(
+            (0..pass1.area())
+                .into_par_iter()
+                .with_min_len(64)
+                .map_init(I::Scratch::default, |scratch, j| pixel(j, scratch, None)),
+        );
+    }
     progress(total, total);
     // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
     // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
@@ -338,11 +389,10 @@ pub fn render_region_with<I: Integrator>(
         }
     }
     // The region's pixels of pass 1 (which may include the apron), in row order.
-    let in_region: Vec<usize> = if pass1 == rect {
-        (0..pixels.len()).collect()
-    } else {
-        (0..pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)).collect()
-    };
+    let in_region = &mut bufs.in_region;
+    in_region.clear();
+    in_region.extend((0..pixels.len()).filter(|&j| pass1 == rect || in_rect(pixel_of(j).0, pixel_of(j).1)));
+    let pixels = &bufs.pixels;
     let samples: u64 = in_region.iter().map(|&j| pixels[j].1 as u64).sum();
     // One layer per parallel pass; no NaN or Inf leaves the renderer.
     let value = |k: usize, j: usize| -> Rgb {
@@ -350,11 +400,10 @@ pub fn render_region_with<I: Integrator>(
         let v = [c.total(), c.direct, c.caustic, c.indirect, c.specular][k];
         if v.is_finite() { (v * (1.0 / *n as f32)).max(Rgb::ZERO) } else { Rgb::ZERO }
     };
-    let layers: Vec<(&'static str, Vec<Rgb>)> = LAYERS
-        .iter()
-        .enumerate()
-        .map(|(k, &name)| (name, in_region.par_iter().with_min_len(4096).map(|&j| value(k, j)).collect()))
-        .collect();
+    for (k, layer) in bufs.layers.iter_mut().enumerate() {
+        layer.clear();
+        layer.par_extend(in_region.par_iter().with_min_len(4096).map(|&j| value(k, j)));
+    }
     let nonfinite: u64 = in_region
         .par_iter()
         .with_min_len(4096)
@@ -371,5 +420,5 @@ pub fn render_region_with<I: Integrator>(
         supersampled_pixels: supersampled,
         ..integ.counters().stats()
     };
-    Ok((Image { rect, width: rect.width(), height: rect.height(), layers, gbuffer: gb }, stats))
+    Ok((gb, stats))
 }
