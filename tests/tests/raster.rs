@@ -50,3 +50,31 @@ fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
         assert!(raster.iter().filter(|h| h.is_some()).count() > w * h / 2);
     }
 }
+
+/// The cube shadow map against shadow rays: from the room's light, points on
+/// surfaces seen by the camera are visible in the map exactly when a shadow ray
+/// reaches them, except within a few texels of a shadow's edge.
+#[test]
+fn cube_shadow_maps_agree_with_shadow_rays_away_from_shadow_edges() {
+    let scene = load_scene("jozwowski_room_256.gltf");
+    let pm_scene::LightKind::Point { position, .. } = scene.lights[0].kind else { panic!("a point light") };
+    let map = pm_render::raster::CubeDepth::new(&scene, position, 256);
+    let camera = scene.camera.clone().unwrap();
+    let (w, h) = (64usize, 64usize);
+    let (mut differ, mut shadowed, mut total) = (0, 0, 0);
+    for i in 0..w * h {
+        let d = camera.ray_direction(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32, 1.0);
+        let Some(hit) = scene.intersect(camera.position, d, f32::INFINITY) else { continue };
+        let to = position - hit.p;
+        let dist = to.length();
+        let o = scene.offset_origin(hit.p, hit.ng, to / dist);
+        let ray_visible = !scene.occluded(o, to / dist, dist * (1.0 - 1e-4));
+        let map_visible = map.visible(hit.p, 2.0 * map.texel_angle() * dist);
+        total += 1;
+        shadowed += !ray_visible as usize;
+        differ += (ray_visible != map_visible) as usize;
+    }
+    eprintln!("{differ} of {total} points differ ({shadowed} in shadow by rays)");
+    assert!(shadowed > total / 20, "the scene casts shadows: {shadowed}");
+    assert!(differ * 50 < total, "{differ} of {total}");
+}

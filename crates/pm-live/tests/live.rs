@@ -279,3 +279,21 @@ fn flicker_depends_on_the_distribution_and_the_temporal_filter() {
     assert_eq!(same, 0.0);
     assert!(random > 0.01 && filtered < 0.5 * random, "{random} {filtered}");
 }
+
+/// Direct light from cube shadow maps against shadow rays on the thesis's room
+/// (static light): the same image but for the shadow maps' texel-sized edges.
+#[test]
+fn shadow_map_direct_light_matches_shadow_rays() {
+    let s = scene("jozwowski_room_256.gltf");
+    let frame = |direct: DirectMode| {
+        let params = LiveParams { per_frame: 500, total: 500, width: 96, height: 96, direct, ..Default::default() };
+        let mut live = Live::new(s.clone(), None, params, 4).unwrap();
+        live.set_time(0.0);
+        live.step().unwrap();
+        live.frame_layers().layer("direct").unwrap().to_vec()
+    };
+    let (mapped, rays) = (frame(DirectMode::ShadowMap), frame(DirectMode::Rays));
+    let e = pm_image::compare(&mapped, &rays, f32::INFINITY);
+    eprintln!("shadow map vs shadow rays, direct layer: relative RMSE {:.4}, bias {:+.4}", e.rel_rmse, e.rel_bias);
+    assert!(e.rel_rmse < 0.08 && e.rel_bias.abs() < 0.01, "{e:?}");
+}
