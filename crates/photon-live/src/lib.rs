@@ -55,6 +55,11 @@ pub struct Cli {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Show the frames in a window as they are drawn; arrow keys move the lights
+    /// (0.1 m a key, PageUp/PageDown up and down), Escape stops. Needs the `window`
+    /// cargo feature and a display; without a display the frames are only written.
+    #[arg(long)]
+    pub window: bool,
     /// The real-time settings (pipeline.toml's [live] section).
     #[command(flatten)]
     pub params: LiveParams,
@@ -98,6 +103,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let frames_dir = cli.out.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
     let (w, h) = (cli.params.width, cli.params.height);
+    let mut view = if cli.window { window::View::open(w, h)? } else { None };
     let progress = Progress::new("frames", cli.frames as u64);
     let mut stats = Vec::new();
     let mut apng = Vec::new();
@@ -122,6 +128,12 @@ pub fn run(cli: &Cli) -> Result<Report> {
         apng.push(pm_image::srgb8(total, cli.params.exposure));
         stats.push(s);
         progress.set(f as u64 + 1);
+        if let Some(v) = view.as_mut() {
+            match v.show(apng.last().expect("pushed above"), w, h) {
+                Some(delta) => live.move_lights(delta),
+                None => break,
+            }
+        }
     }
     progress.finish();
     pm_image::write_apng(&cli.out.join("live.apng"), w, h, &apng, cli.params.fps)?;
@@ -179,4 +191,86 @@ fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, path: &std::path::Path
     );
     PhotonMap::new(header, photons.iter().map(FullIrrPhoton::encode).collect::<Vec<_>>()).write(path)?;
     Ok(())
+}
+
+/// The interactive window (cargo feature `window`).
+#[cfg(feature = "window")]
+mod window {
+    use anyhow::Result;
+    use glam::Vec3;
+    use minifb::{Key, Window, WindowOptions};
+
+    /// A window showing frames.
+    pub struct View {
+        win: Window,
+        buf: Vec<u32>,
+    }
+
+    impl View {
+        /// Open a window of `w` x `h` pixels, or say why not and return none (no
+        /// display): the frames are then only written.
+        pub fn open(w: u32, h: u32) -> Result<Option<View>> {
+            match Window::new(
+                "photon-live (arrows, PageUp/PageDown: move the light; Esc: stop)",
+                w as usize,
+                h as usize,
+                WindowOptions::default(),
+            ) {
+                Ok(win) => Ok(Some(View { win, buf: Vec::new() })),
+                Err(e) => {
+                    eprintln!("photon-live: note: no window ({e}); writing files only");
+                    Ok(None)
+                }
+            }
+        }
+
+        /// Show a frame of sRGB bytes; returns how the keys move the lights [m], or
+        /// none when the window was closed or Escape pressed.
+        pub fn show(&mut self, rgb: &[u8], w: u32, h: u32) -> Option<Vec3> {
+            self.buf.clear();
+            self.buf.extend(rgb.chunks_exact(3).map(|p| (p[0] as u32) << 16 | (p[1] as u32) << 8 | p[2] as u32));
+            if !self.win.is_open() || self.win.is_key_down(Key::Escape) {
+                return None;
+            }
+            self.win.update_with_buffer(&self.buf, w as usize, h as usize).ok()?;
+            let step = 0.1;
+            let mut d = Vec3::ZERO;
+            for (key, v) in [
+                (Key::Left, Vec3::new(-step, 0.0, 0.0)),
+                (Key::Right, Vec3::new(step, 0.0, 0.0)),
+                (Key::Up, Vec3::new(0.0, 0.0, -step)),
+                (Key::Down, Vec3::new(0.0, 0.0, step)),
+                (Key::PageUp, Vec3::new(0.0, step, 0.0)),
+                (Key::PageDown, Vec3::new(0.0, -step, 0.0)),
+            ] {
+                if self.win.is_key_down(key) {
+                    d += v;
+                }
+            }
+            Some(d)
+        }
+    }
+}
+
+/// Without the `window` feature: `--window` is refused with how to build it.
+#[cfg(not(feature = "window"))]
+mod window {
+    use anyhow::{Result, bail};
+
+    /// Never constructed.
+    pub struct View;
+
+    impl View {
+        /// Refuse: this build has no window.
+        pub fn open(_: u32, _: u32) -> Result<Option<View>> {
+            bail!(
+                "--window: this photon-live was built without the window feature (cargo build --release -p photon-live --features window)"
+            )
+        }
+
+        /// Unreachable: no view is ever opened.
+        pub fn show(&mut self, _: &[u8], _: u32, _: u32) -> Option<glam::Vec3> {
+            None
+        }
+    }
 }

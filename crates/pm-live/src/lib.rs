@@ -198,6 +198,11 @@ pub struct Live {
     previous: Option<(Vec<Rgb>, Vec<bool>)>,
     /// The drawing's memory, kept between frames.
     buffers: FrameBuffers,
+    /// Added to every point and spot light's position after the animation (the
+    /// interactive window moves lights with it) [m].
+    light_offset: glam::Vec3,
+    /// The lights as loaded, of the scene and the photon scene.
+    rest_lights: (Vec<pm_scene::Light>, Option<Vec<pm_scene::Light>>),
 }
 
 impl Live {
@@ -218,6 +223,7 @@ impl Live {
         };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(&scene, params.cornering);
+        let rest_lights = (scene.lights.clone(), photon_scene.as_ref().map(|p| p.lights.clone()));
         Ok(Live {
             scene,
             photon_scene,
@@ -231,6 +237,8 @@ impl Live {
             frame: 0,
             previous: None,
             buffers: FrameBuffers::default(),
+            light_offset: glam::Vec3::ZERO,
+            rest_lights,
         })
     }
 
@@ -253,6 +261,7 @@ impl Live {
     /// its photons, which age out over the next total / per_frame frames.
     pub fn set_photon_scene(&mut self, photon_scene: Scene) -> Result<(), String> {
         self.trace.selector = LightSelector::new(&photon_scene, &[]).map_err(|e| e.to_string())?;
+        self.rest_lights.1 = Some(photon_scene.lights.clone());
         self.photon_scene = Some(photon_scene);
         Ok(())
     }
@@ -260,9 +269,23 @@ impl Live {
     /// Move the animated lights and camera of both scenes to time `t` [s]: nothing
     /// is rebuilt, and the buffer's older photons age out as paths are re-shot.
     pub fn set_time(&mut self, t: f32) {
+        self.scene.lights.clone_from(&self.rest_lights.0);
         self.scene.set_time(t);
         if let Some(p) = self.photon_scene.as_mut() {
+            if let Some(rest) = &self.rest_lights.1 {
+                p.lights.clone_from(rest);
+            }
             p.set_time(t);
+        }
+        let offset = self.light_offset;
+        for scene in std::iter::once(&mut self.scene).chain(self.photon_scene.as_mut()) {
+            for l in &mut scene.lights {
+                if let pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } =
+                    &mut l.kind
+                {
+                    *position += offset;
+                }
+            }
         }
         if let Some(c) = &self.scene.camera {
             self.camera = c.clone();
@@ -279,6 +302,12 @@ impl Live {
             .filter(|p| !(no_direct && p.flags & flags::DIRECT != 0))
             .map(FullIrrPhoton::encode)
             .collect()
+    }
+
+    /// Move every point and spot light by `delta` [m] from the next [`Self::set_time`]
+    /// on (on top of the animation).
+    pub fn move_lights(&mut self, delta: glam::Vec3) {
+        self.light_offset += delta;
     }
 
     /// The layers of the last frame drawn ("total", "direct", "caustic" (zero),

@@ -60,7 +60,7 @@ impl<'a> LiveShading<'a> {
 impl LiveShading<'_> {
     /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps: every point and
     /// spot light evaluated exactly (f I cos / d^2), visibility from its cube map with
-    /// a bias of two texels at the point's distance. A scene with other lights (area,
+    /// a bias of two texels at the point's distance over the cosine of incidence. A scene with other lights (area,
     /// directional) keeps shadow rays for all of them.
     fn mapped_direct(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
@@ -73,7 +73,9 @@ impl LiveShading<'_> {
             if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
                 continue;
             }
-            let bias = 2.0 * map.texel_angle() * ls.dist;
+            // Two texels at the point's distance, more at grazing light where one
+            // texel spans a longer stretch of the surface (shadow acne otherwise).
+            let bias = 2.0 * map.texel_angle() * ls.dist / ls.wi.dot(hit.ng).abs().max(0.25);
             if map.visible(hit.p, bias) {
                 sum += bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs() * ls.li / ls.pdf;
             }

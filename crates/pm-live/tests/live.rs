@@ -297,3 +297,22 @@ fn shadow_map_direct_light_matches_shadow_rays() {
     eprintln!("shadow map vs shadow rays, direct layer: relative RMSE {:.4}, bias {:+.4}", e.rel_rmse, e.rel_bias);
     assert!(e.rel_rmse < 0.08 && e.rel_bias.abs() < 0.01, "{e:?}");
 }
+
+/// Lights moved by hand (the window's keys) sit at their animated (or rest)
+/// position plus the offset at every time, however often the time is set.
+#[test]
+fn moved_lights_keep_one_offset_on_top_of_the_animation() {
+    let s = scene("plane_point.gltf");
+    let LightKind::Point { position: rest, .. } = s.lights[0].kind else { panic!("a point light") };
+    let params = LiveParams { per_frame: 100, total: 100, width: 8, height: 8, ..Default::default() };
+    let mut live = Live::new(s, None, params, 1).unwrap();
+    live.move_lights(Vec3::new(0.1, 0.0, -0.2));
+    for _ in 0..3 {
+        live.set_time(0.5);
+        live.step().unwrap();
+    }
+    let direct: Vec<Photon> = live.ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
+    let at = rest + Vec3::new(0.1, 0.0, -0.2);
+    assert!(!direct.is_empty());
+    assert!(direct.iter().all(|p| p.wi.dot((at - p.position).normalize()) > 0.99999));
+}
