@@ -290,6 +290,13 @@ impl Live {
         if let Some(c) = &self.scene.camera {
             self.camera = c.clone();
         }
+        if self.scene.has_moving_meshes() {
+            self.corners.follow(&self.scene);
+        }
+        // Moving emitters can change a light's power, and so its share of photons.
+        if let Ok(selector) = LightSelector::new(self.photon_scene.as_ref().unwrap_or(&self.scene), &[]) {
+            self.trace.selector = selector;
+        }
     }
 
     /// The photons the estimates read this frame: the used slots (power scaled by

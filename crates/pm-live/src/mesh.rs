@@ -51,6 +51,18 @@ impl Corners {
         c
     }
 
+    /// Move the corners with the scene's triangles (animated meshes): every corner
+    /// takes the position and normal of the triangle vertices it stands for.
+    pub fn follow(&mut self, scene: &Scene) {
+        for (t, ids) in self.tri.iter().enumerate() {
+            let tri = &scene.triangles[t];
+            for (k, &c) in ids.iter().enumerate() {
+                self.p[c as usize] = tri.p[k];
+                self.n[c as usize] = tri.n.map_or(tri.ng, |n| n[k]).normalize_or(tri.ng);
+            }
+        }
+    }
+
     /// Number of corners (radiance estimates when all are active).
     pub fn len(&self) -> usize {
         self.p.len()

@@ -32,6 +32,15 @@ pub(crate) struct Channel {
     pub values: Vec<Vec4>,
 }
 
+/// An object below an animated node: its index in `Scene::objects`, the node,
+/// and its triangles in the node's own space (in the object's triangle order).
+#[derive(Clone, Debug)]
+pub(crate) struct AnimatedMesh {
+    pub object: usize,
+    pub node: usize,
+    pub local: Vec<crate::Triangle>,
+}
+
 /// A node's rest pose and parent.
 #[derive(Clone, Debug)]
 pub(crate) struct NodeRest {
@@ -51,6 +60,8 @@ pub struct Animation {
     pub(crate) lights: Vec<(usize, usize)>,
     /// The camera's node, when it is below an animated node.
     pub(crate) camera: Option<usize>,
+    /// Meshes below animated nodes, with their triangles in the node's space.
+    pub(crate) meshes: Vec<AnimatedMesh>,
     /// Length of the animation [s] (its last key time).
     pub duration: f32,
 }

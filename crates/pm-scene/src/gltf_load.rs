@@ -2,7 +2,7 @@
 //!
 //! Every input check happens here, once; the rest of the workspace trusts a `Scene`.
 
-use crate::anim::{Animation, Channel, Interp, NodeRest, Path as AnimPath};
+use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
 use crate::{Camera, LightKind, Material, Object, Scene, Texture, Triangle};
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
@@ -190,9 +190,6 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             return Err(content(format!("node {}: transform is not finite", node.index())));
         }
         let node_name = node.name().map_or_else(|| format!("node #{}", node.index()), str::to_owned);
-        if node.mesh().is_some() && animation.moves(node.index()) {
-            warnings.push(format!("node '{node_name}': animated meshes are not supported yet; drawn at rest"));
-        }
         if let Some(mesh) = node.mesh() {
             let normal_m = Mat3::from_mat4(world).inverse().transpose();
             for (pi, prim) in mesh.primitives().enumerate() {
@@ -216,6 +213,19 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                         Some(m) if m != node_name => format!("{node_name} ({m})"),
                         _ => node_name.clone(),
                     };
+                    if animation.moves(node.index()) {
+                        // The same primitive in the node's own space, re-posed per frame.
+                        let mut local = Vec::new();
+                        read_primitive(&prim, &buffers, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut local)
+                            .map_err(|m| content(format!("{what}: {m}")))?;
+                        if local.len() == triangles.len() - first {
+                            animation.meshes.push(AnimatedMesh { object: objects.len(), node: node.index(), local });
+                        } else {
+                            warnings.push(format!(
+                                "node '{node_name}': its triangles degenerate differently at rest; not animated"
+                            ));
+                        }
+                    }
                     objects.push(Object { name, tris: first as u32..triangles.len() as u32, material });
                 }
                 let mat = &materials[material as usize];

@@ -290,6 +290,47 @@ pub struct Scene {
     bvh_inv_scale: f32,
 }
 
+/// The BVH over `triangles` in the normalised coordinates of `bounds` (see
+/// `Scene::bvh_center`), and the triangles in its primitive order.
+fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (Option<obvhs::cwbvh::CwBvh>, Vec<BvhTri>) {
+    if triangles.is_empty() {
+        return (None, Vec::new());
+    }
+    let (c, inv) = (bounds.center(), 1.0 / bounds.diagonal().max(f32::MIN_POSITIVE));
+    let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
+    // Each triangle's box is padded by 2e-7 of the scene's size: with exact
+    // boxes, obvhs's slab tests missed rays that pass exactly through an edge
+    // lying on a node boundary (30 of 13,000 rays aimed at a sphere's vertices
+    // and edge midpoints slipped through; tests/tests/hard_cases.rs).
+    let boxes: Vec<PaddedBox> = triangles
+        .iter()
+        .map(|t| {
+            let (a, b, c) = (norm(t.p[0]), norm(t.p[1]), norm(t.p[2]));
+            let pad = glam::Vec3A::splat(2e-7);
+            PaddedBox(obvhs::aabb::Aabb::new(a.min(b).min(c) - pad, a.max(b).max(c) + pad))
+        })
+        .collect();
+    let bvh = obvhs::cwbvh::builder::build_cwbvh(
+        &boxes,
+        obvhs::BvhBuildParams::medium_build(),
+        &mut std::time::Duration::default(),
+    );
+    let bvh_tris = bvh.primitive_indices.iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
+    (Some(bvh), bvh_tris)
+}
+
+/// The bounds of `triangles` (zero for none).
+fn bounds_of(triangles: &[Triangle]) -> Bounds {
+    let mut bounds = Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+    for t in triangles {
+        for p in t.p {
+            bounds.min = bounds.min.min(p);
+            bounds.max = bounds.max.max(p);
+        }
+    }
+    if triangles.is_empty() { Bounds { min: Vec3::ZERO, max: Vec3::ZERO } } else { bounds }
+}
+
 impl Scene {
     /// Build the acceleration structure over `triangles` (degenerate ones must
     /// already be removed).
@@ -303,42 +344,8 @@ impl Scene {
         content_hash: [u8; 32],
         warnings: Vec<String>,
     ) -> Scene {
-        let mut bounds = Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
-        for t in &triangles {
-            for p in t.p {
-                bounds.min = bounds.min.min(p);
-                bounds.max = bounds.max.max(p);
-            }
-        }
-        if triangles.is_empty() {
-            bounds = Bounds { min: Vec3::ZERO, max: Vec3::ZERO };
-        }
-        let (bvh, bvh_tris) = if triangles.is_empty() {
-            (None, Vec::new())
-        } else {
-            let (c, inv) = (bounds.center(), 1.0 / bounds.diagonal().max(f32::MIN_POSITIVE));
-            let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
-            // Each triangle's box is padded by 2e-7 of the scene's size: with exact
-            // boxes, obvhs's slab tests missed rays that pass exactly through an edge
-            // lying on a node boundary (30 of 13,000 rays aimed at a sphere's vertices
-            // and edge midpoints slipped through; tests/tests/hard_cases.rs).
-            let boxes: Vec<PaddedBox> = triangles
-                .iter()
-                .map(|t| {
-                    let (a, b, c) = (norm(t.p[0]), norm(t.p[1]), norm(t.p[2]));
-                    let pad = glam::Vec3A::splat(2e-7);
-                    PaddedBox(obvhs::aabb::Aabb::new(a.min(b).min(c) - pad, a.max(b).max(c) + pad))
-                })
-                .collect();
-            let bvh = obvhs::cwbvh::builder::build_cwbvh(
-                &boxes,
-                obvhs::BvhBuildParams::medium_build(),
-                &mut std::time::Duration::default(),
-            );
-            let bvh_tris =
-                bvh.primitive_indices.iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
-            (Some(bvh), bvh_tris)
-        };
+        let bounds = bounds_of(&triangles);
+        let (bvh, bvh_tris) = build_bvh(&triangles, &bounds);
         let mut light_of_triangle = vec![u32::MAX; triangles.len()];
         for (i, l) in lights.iter().enumerate() {
             if let LightKind::Area { tris, .. } = &l.kind {
@@ -406,9 +413,14 @@ impl Scene {
         Scene::build(triangles, materials, Vec::new(), lights, objects, camera, [0; 32], Vec::new())
     }
 
-    /// Move the animated lights and camera to time `t` [s] (animations loop over
-    /// their length). Nothing is rebuilt: punctual lights keep their intensity and
-    /// power, the camera its field of view; meshes stay at rest.
+    /// True when the animation moves meshes (their triangles change with the time).
+    pub fn has_moving_meshes(&self) -> bool {
+        !self.animation.meshes.is_empty()
+    }
+
+    /// Move the animated lights, camera and meshes to time `t` [s] (animations loop
+    /// over their length). Lights and the camera move without rebuilding anything;
+    /// moved meshes are re-transformed from their rest pose and the BVH is rebuilt.
     pub fn set_time(&mut self, t: f32) {
         let anim = &self.animation;
         for &(li, node) in &anim.lights {
@@ -431,6 +443,55 @@ impl Scene {
                 LightKind::Area { .. } => {}
             }
         }
+        if !anim.meshes.is_empty() {
+            for m in &anim.meshes {
+                let world = anim.world(m.node, t);
+                let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
+                let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+                let range = self.objects[m.object].tris.clone();
+                for (local, out) in m.local.iter().zip(&mut self.triangles[range.start as usize..range.end as usize]) {
+                    let mut p = local.p.map(|q| world.transform_point3(q));
+                    let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
+                    let mut uv = local.uv;
+                    if flip {
+                        p.swap(1, 2);
+                        if let Some(n) = n.as_mut() {
+                            n.swap(1, 2);
+                        }
+                        if let Some(uv) = uv.as_mut() {
+                            uv.swap(1, 2);
+                        }
+                    }
+                    // A transform that flattens a triangle keeps its last good pose.
+                    if let Some(moved) = Triangle::new(p, local.material) {
+                        *out = Triangle { n, uv, ..moved };
+                    }
+                }
+            }
+            // Area lights on moved meshes cover their new triangles.
+            let anim = &self.animation;
+            for l in &mut self.lights {
+                if let LightKind::Area { tris, .. } = &l.kind
+                    && let Some(&t0) = tris.first()
+                    && anim.meshes.iter().any(|m| self.objects[m.object].tris.contains(&t0))
+                {
+                    let range = *tris.iter().min().unwrap_or(&t0)..*tris.iter().max().unwrap_or(&t0) + 1;
+                    let material = &self.materials[self.triangles[t0 as usize].material as usize];
+                    *l = Light::area(l.name.clone(), range, &self.triangles, material);
+                }
+            }
+            // obvhs refits only its binary BVH, not the wide one traversed here: rebuild
+            // (a few milliseconds for thousands of triangles), in the moved scene's own
+            // normalised coordinates; the radius reference (`bounds`) stays.
+            let bvh_bounds = bounds_of(&self.triangles);
+            let (bvh, bvh_tris) = build_bvh(&self.triangles, &bvh_bounds);
+            self.bvh = bvh;
+            self.bvh_tris = bvh_tris;
+            self.bvh_center = bvh_bounds.center();
+            self.bvh_inv_scale = 1.0 / bvh_bounds.diagonal().max(f32::MIN_POSITIVE);
+            light::finish_lights(self);
+        }
+        let anim = &self.animation;
         if let (Some(node), Some(cam)) = (anim.camera, self.camera.as_mut()) {
             let world = anim.world(node, t);
             let r = glam::Mat3::from_mat4(world);
