@@ -168,34 +168,16 @@ fn write(out: &Path, rows: &[Row]) -> Result<()> {
         "| sweep | setting | shoot | balance | estimate | draw | frame [ms] | fps | flicker | rel. RMSE vs batch |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
-        let err = r.error.map_or(String::new(), |e| format!("{e:.4}"));
-        writeln!(
-            csv,
-            "{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.2},{:.5},{err}",
-            r.sweep,
-            r.label,
-            r.x,
-            r.ms[0],
-            r.ms[1],
-            r.ms[2],
-            r.ms[3],
-            r.ms[4],
-            1e3 / r.ms[4].max(1e-9),
-            r.flicker
-        )?;
-        writeln!(
-            md,
-            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.4} | {err} |",
-            r.sweep,
-            r.label,
-            r.ms[0],
-            r.ms[1],
-            r.ms[2],
-            r.ms[3],
-            r.ms[4],
-            1e3 / r.ms[4].max(1e-9),
-            r.flicker
-        )?;
+        // The same cells in both tables (the CSV also has the swept value).
+        let mut cells = vec![r.sweep.to_string(), r.label.clone()];
+        cells.extend(r.ms.iter().map(|m| format!("{m:.3}")));
+        cells.push(format!("{:.2}", 1e3 / r.ms[4].max(1e-9)));
+        cells.push(format!("{:.5}", r.flicker));
+        cells.push(r.error.map_or(String::new(), |e| format!("{e:.4}")));
+        let mut with_x = cells.clone();
+        with_x.insert(2, r.x.to_string());
+        writeln!(csv, "{}", with_x.join(","))?;
+        writeln!(md, "| {} |", cells.join(" | "))?;
     }
     std::fs::write(out.join("results.csv"), csv)?;
     std::fs::write(out.join("results.md"), &md)?;

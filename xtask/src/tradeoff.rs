@@ -325,23 +325,7 @@ fn plot(out: &Path, rows: &[(Setting, [f64; 4], [f64; 5])], front: &[usize]) -> 
         "light samples",
         "max spp",
     ];
-    let colour = |axis: &str| {
-        let pal = [
-            (0, 0, 0),
-            (230, 25, 75),
-            (60, 180, 75),
-            (0, 130, 200),
-            (245, 130, 48),
-            (145, 30, 180),
-            (70, 150, 150),
-            (200, 160, 0),
-            (128, 128, 128),
-            (170, 110, 40),
-            (250, 100, 200),
-            (0, 0, 128),
-        ];
-        pal[axes.iter().position(|a| *a == axis).unwrap_or(0)]
-    };
+    let colour = |axis: &str| plot::PALETTE[axes.iter().position(|a| *a == axis).unwrap_or(0) % plot::PALETTE.len()];
     // One list of shapes, written as SVG (with text) and rasterised to PNG (without).
     let black = (0u8, 0u8, 0u8);
     let mut shapes =

@@ -117,35 +117,28 @@ pub fn srgb8(pixels: &[Vec3], exposure: f32) -> Vec<u8> {
 /// [`write_png`] with fast compression (fdeflate), for frames written many per
 /// second: larger files, several times less encoding time.
 pub fn write_png_fast(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    let bytes = srgb8(pixels, exposure);
-    let encode = || -> std::result::Result<Vec<u8>, png::EncodingError> {
-        let mut buf = Vec::new();
-        let mut enc = png::Encoder::new(&mut buf, width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_compression(png::Compression::Fast);
-        let mut w = enc.write_header()?;
-        w.write_image_data(&bytes)?;
-        w.finish()?;
-        Ok(buf)
-    };
-    let png = encode().map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &png))
-        .with_context(|| format!("{}: cannot write", path.display()))
+    write_fast(path, width, height, &[srgb8(pixels, exposure)], None)
 }
 
 /// Write an animated PNG of `frames` (each [`srgb8`] bytes of `width` x `height`),
 /// shown at `fps` frames per second and looping, atomically.
 pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: f32) -> Result<()> {
+    write_fast(path, width, height, frames, Some(fps))
+}
+
+/// A PNG of one frame, or with `fps` an animated PNG of all, fast compression.
+fn write_fast(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: Option<f32>) -> Result<()> {
     let encode = || -> std::result::Result<Vec<u8>, png::EncodingError> {
         let mut buf = Vec::new();
         let mut enc = png::Encoder::new(&mut buf, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         enc.set_compression(png::Compression::Fast);
-        enc.set_animated(frames.len().max(1) as u32, 0)?;
-        // Frame delay in milliseconds (APNG stores a fraction of a second).
-        enc.set_frame_delay((1000.0 / fps).round().clamp(1.0, 65535.0) as u16, 1000)?;
+        if let Some(fps) = fps {
+            enc.set_animated(frames.len().max(1) as u32, 0)?;
+            // Frame delay in milliseconds (APNG stores a fraction of a second).
+            enc.set_frame_delay((1000.0 / fps).round().clamp(1.0, 65535.0) as u16, 1000)?;
+        }
         let mut w = enc.write_header()?;
         for f in frames {
             w.write_image_data(f)?;
@@ -153,7 +146,7 @@ pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps:
         w.finish()?;
         Ok(buf)
     };
-    let bytes = encode().map_err(|e| anyhow::anyhow!("{}: cannot encode APNG: {e}", path.display()))?;
+    let bytes = encode().map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
     pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
         .with_context(|| format!("{}: cannot write", path.display()))
 }
