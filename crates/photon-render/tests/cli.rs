@@ -203,3 +203,54 @@ fn a_cache_file_and_regions_reproduce_the_whole_render() {
     assert!(!ok && err.contains("--k = 0 is out of range"), "{err}");
     assert!(!Path::new(&p("x.exr")).exists());
 }
+
+/// Stage 4 trusts the kd-tree order of the maps it reads: a map whose header says
+/// kd-tree but whose records are not in heap order is refused, naming the file.
+#[test]
+fn a_map_that_is_not_a_kd_tree_is_refused() {
+    use pm_format::{CompactIrrPhoton, Header, Layout, MapKind, Order, Photon, PhotonMap, PhotonRecord, flags};
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_boxes.gltf");
+    let scene_ = pm_scene::load(&s).unwrap();
+    // Records on a line, in reverse order, every one flagged a leaf: not a tree.
+    let records: Vec<CompactIrrPhoton> = (0..50)
+        .map(|i| {
+            CompactIrrPhoton::encode(&Photon {
+                position: glam::Vec3::new(0.9 - 0.03 * i as f32, 0.01, 0.0),
+                power: glam::Vec3::splat(1e-3),
+                wi: glam::Vec3::Y,
+                flags: flags::AXIS_LEAF | flags::HAS_IRRADIANCE,
+                normal: glam::Vec3::Y,
+                irradiance: glam::Vec3::splat(0.1),
+            })
+        })
+        .collect();
+    let mut header = Header::new(
+        MapKind::Global,
+        Order::KdTree,
+        Layout::CompactIrradiance,
+        50,
+        scene_.content_hash,
+        scene_.bounds.diagonal(),
+        "{}".into(),
+    );
+    header.has_irradiance = true;
+    let g = dir.path().join("bad.irr.pmap");
+    PhotonMap::new(header, records).write(&g).unwrap();
+    let out = dir.path().join("x.exr");
+    let o = render(&[
+        "--scene",
+        s.to_str().unwrap(),
+        "--global",
+        g.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("bad.irr.pmap: not a valid kd-tree"), "{err}");
+    assert!(!out.exists());
+}
