@@ -674,6 +674,11 @@ impl Scene {
     #[inline]
     fn bvh_ray(&self, o: Vec3, d: Vec3, t_max: f32) -> (obvhs::ray::Ray, f32) {
         let o_n = (o - self.bvh_center) * self.bvh_inv_scale;
+        // -0.0 components become +0.0: obvhs inverts a zero component by its sign
+        // (-0.0 gives a negative inverse) but orders children by `d < 0` (false for
+        // -0.0), and the two disagreeing made axis-aligned rays such as -Y from
+        // outside the scene miss everything (tests.rs: rays straight down onto a roof).
+        let d = d + Vec3::ZERO;
         (obvhs::ray::Ray::new(o_n.into(), d.into(), 0.0, t_max * self.bvh_inv_scale), 1.0 / self.bvh_inv_scale)
     }
 

@@ -229,12 +229,36 @@ fn animated_meshes_move_and_are_hit_where_they_are() {
             }
         }
         // A ray nearly straight down onto the moved tall box's top (1.4 m high at rest,
-        // centre (1.0, -0.8)) hits it at 1.4 m + the offset's height. (Not exactly
-        // axis-aligned: such rays starting outside the scene's bounds miss in obvhs's
-        // traversal, a problem noted for the hard-case tests.)
+        // centre (1.0, -0.8)) hits it at 1.4 m + the offset's height.
         let top = Vec3::new(1.0, 1.4, -0.8) + offset;
         let d = Vec3::new(0.01, -1.0, 0.02).normalize();
         let hit = s.intersect(top - d * 0.5, d, f32::INFINITY).expect("the moved box is hit");
         assert!((hit.p.y - top.y).abs() < 1e-4, "t {t}: hit at {}", hit.p);
+    }
+}
+
+/// Regression: axis-aligned rays whose direction has -0.0 components (-Y is
+/// (-0.0, -1, -0.0)) missed everything when they started outside the scene's bounds,
+/// because obvhs inverted -0.0 to a negative number but ordered children as if it
+/// were positive. Every axis direction, from outside and from inside the room.
+#[test]
+fn axis_aligned_rays_hit_from_outside_and_inside_the_scene() {
+    let s = load_scene("jozwowski_room_16.gltf");
+    // The room is [-2, 2] x [0, 2.5] x [-2, 2].
+    let cases = [
+        (Vec3::new(0.3, 3.0, 0.2), -Vec3::Y, 2.5),
+        (Vec3::new(0.3, -1.0, 0.2), Vec3::Y, 0.0),
+        (Vec3::new(3.0, 1.1, 0.2), -Vec3::X, 2.0),
+        (Vec3::new(-3.0, 1.1, 0.2), Vec3::X, -2.0),
+        (Vec3::new(0.3, 1.1, 3.0), -Vec3::Z, 2.0),
+        (Vec3::new(0.3, 1.1, -3.0), Vec3::Z, -2.0),
+        (Vec3::new(0.3, 1.0, 0.2), Vec3::Y, 2.5),
+        (Vec3::new(0.3, 2.2, 0.2), -Vec3::Y, 0.0),
+    ];
+    for (o, d, want) in cases {
+        let hit = s.intersect(o, d, f32::INFINITY).unwrap_or_else(|| panic!("ray from {o} along {d} misses"));
+        let got = hit.p.dot(d.abs());
+        assert!((got - want).abs() < 1e-4, "ray from {o} along {d}: hit at {}", hit.p);
+        assert!(s.occluded(o, d, f32::INFINITY), "shadow ray from {o} along {d}");
     }
 }
