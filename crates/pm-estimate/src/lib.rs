@@ -17,7 +17,7 @@ pub use precompute::{PrecomputeStats, precompute, selected};
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_format::{PhotonRecord, flags};
-use pm_kdtree::{KdTree, KnnScratch, Nearest};
+use pm_kdtree::{KdTree, KnnScratch, Nearest, Neighbours};
 use std::f32::consts::PI;
 
 /// A photon with a stored normal counts for a query when the normals' cosine exceeds
@@ -152,7 +152,7 @@ pub fn on_query_side<R: PhotonRecord>(r: &R, n: Vec3) -> bool {
 /// directly lit plane). Returns zero when no photon is found or all lie exactly at
 /// `x` (r = 0).
 pub fn irradiance<R: PhotonRecord>(
-    tree: &KdTree<R>,
+    tree: &impl Neighbours<R>,
     x: Vec3,
     n: Vec3,
     p: &KnnParams,
@@ -165,7 +165,7 @@ pub fn irradiance<R: PhotonRecord>(
 /// sum_p weight(wi_p) w_p Phi_p / (pi r^2) over the k nearest photons on the query's
 /// side, leaving out the one that marks the radius; returns (sum, r^2, photons found).
 fn gather<R: PhotonRecord>(
-    tree: &KdTree<R>,
+    tree: &impl Neighbours<R>,
     x: Vec3,
     n: Vec3,
     p: &KnnParams,
@@ -177,12 +177,11 @@ fn gather<R: PhotonRecord>(
         return (Rgb::ZERO, res.max_dist2, res.count);
     }
     let r2 = res.max_dist2;
-    let nodes = tree.nodes();
     let boundary = boundary_photon(tree, scratch);
     let mut sum = Rgb::ZERO;
     for (i, d2) in tree.found(scratch) {
         if Some(i) != boundary {
-            let r = &nodes[i as usize];
+            let r = tree.record(i);
             sum += weight(r.wi()) * r.power() * p.filter.weight(d2, r2);
         }
     }
@@ -191,7 +190,7 @@ fn gather<R: PhotonRecord>(
 
 /// The photon that defines the radius of the last k-nearest query (the farthest;
 /// the lowest heap index among equals, so the choice is deterministic).
-fn boundary_photon<R: PhotonRecord>(tree: &KdTree<R>, scratch: &KnnScratch) -> Option<u32> {
+fn boundary_photon<R: PhotonRecord>(tree: &impl Neighbours<R>, scratch: &KnnScratch) -> Option<u32> {
     tree.found(scratch).max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))).map(|(i, _)| i)
 }
 
@@ -200,7 +199,7 @@ fn boundary_photon<R: PhotonRecord>(tree: &KdTree<R>, scratch: &KnnScratch) -> O
 /// boundary photon not counted as in [`irradiance`]. `f_r` maps a photon's incident
 /// direction to the BRDF value [sr^-1 per channel].
 pub fn radiance<R: PhotonRecord>(
-    tree: &KdTree<R>,
+    tree: &impl Neighbours<R>,
     x: Vec3,
     n: Vec3,
     p: &KnnParams,

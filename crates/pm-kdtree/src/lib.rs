@@ -19,6 +19,28 @@ use pm_format::{PhotonRecord, flags};
 use rayon::prelude::*;
 use std::collections::BinaryHeap;
 
+mod grid;
+pub use grid::PhotonGrid;
+
+/// A structure that answers k-nearest photon queries: the kd-tree, or the
+/// incrementally updated [`PhotonGrid`]. Density estimates (pm-estimate) work on either.
+pub trait Neighbours<R: PhotonRecord> {
+    /// The `k` nearest photons to `x` within squared radius `max_d2` that pass
+    /// `filter(id, record)`, left in `scratch`.
+    fn knn(
+        &self,
+        x: Vec3,
+        k: usize,
+        max_d2: f32,
+        filter: impl Fn(u32, &R) -> bool,
+        scratch: &mut KnnScratch,
+    ) -> KnnResult;
+    /// The photons of the last [`Neighbours::knn`] as (id, squared distance).
+    fn found<'s>(&'s self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's;
+    /// The photon with id `i`.
+    fn record(&self, i: u32) -> &R;
+}
+
 /// Subtrees smaller than this are balanced on one thread.
 const PARALLEL_CUTOFF: usize = 1 << 12;
 /// Deepest possible tree: a left-balanced tree of n < 2^63 nodes has depth < 64.
@@ -181,6 +203,25 @@ fn dist2(a: Vec3, b: Vec3) -> f32 {
 #[derive(Clone, Copy, Debug)]
 pub struct KdTree<'a, R> {
     nodes: &'a [R],
+}
+
+impl<R: PhotonRecord> Neighbours<R> for KdTree<'_, R> {
+    fn knn(
+        &self,
+        x: Vec3,
+        k: usize,
+        max_d2: f32,
+        filter: impl Fn(u32, &R) -> bool,
+        scratch: &mut KnnScratch,
+    ) -> KnnResult {
+        KdTree::knn(self, x, k, max_d2, filter, scratch)
+    }
+    fn found<'s>(&'s self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's {
+        KdTree::found(self, scratch)
+    }
+    fn record(&self, i: u32) -> &R {
+        &self.nodes[i as usize]
+    }
 }
 
 impl<'a, R: PhotonRecord> KdTree<'a, R> {

@@ -8,7 +8,7 @@ use glam::Vec3;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::FullIrrPhoton;
-use pm_kdtree::{KdTree, KnnScratch};
+use pm_kdtree::{KnnScratch, Neighbours};
 use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -112,9 +112,15 @@ impl Corners {
     }
 
     /// Irradiance E [W m^-2 per channel] at every active corner from the k nearest
-    /// photons of `tree` on the corner's side within `max_radius` [m]
+    /// photons of `tree` (the kd-tree or the photon grid) on the corner's side within `max_radius` [m]
     /// (`pm_estimate::irradiance`, the batch pipeline's estimate); zero elsewhere.
-    pub fn irradiance(&self, tree: &KdTree<FullIrrPhoton>, active: &[bool], k: usize, max_radius: f32) -> Vec<Rgb> {
+    pub fn irradiance(
+        &self,
+        tree: &(impl Neighbours<FullIrrPhoton> + Sync),
+        active: &[bool],
+        k: usize,
+        max_radius: f32,
+    ) -> Vec<Rgb> {
         let p = KnnParams { k, max_d2: max_radius * max_radius, filter: Filter::None };
         (0..self.len())
             .into_par_iter()

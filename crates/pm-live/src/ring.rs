@@ -39,6 +39,8 @@ pub struct RingBuffer {
     next: usize,
     /// Paths shot since the start.
     shot: u64,
+    /// The paths the last [`RingBuffer::shoot`] re-shot.
+    last: Vec<usize>,
 }
 
 /// What one call to [`RingBuffer::shoot`] did.
@@ -63,6 +65,7 @@ impl RingBuffer {
             filled: 0,
             next: 0,
             shot: 0,
+            last: Vec::new(),
         }
     }
 
@@ -84,6 +87,11 @@ impl RingBuffer {
     /// The emission index path `i` was traced with, if it has been shot.
     pub fn index_of(&self, i: usize) -> Option<u64> {
         self.index_of[i]
+    }
+
+    /// The paths the last [`RingBuffer::shoot`] re-shot (their slots changed).
+    pub fn last_paths(&self) -> &[usize] {
+        &self.last
     }
 
     /// Slot `i + level x total`: hit `level` of path `i`, if used.
@@ -129,6 +137,8 @@ impl RingBuffer {
             })
             .collect();
         let mut stats = ShootStats { paths: per_frame as u64, ..Default::default() };
+        self.last.clear();
+        self.last.extend(jobs.iter().map(|j| j.0));
         for ((path, index), out) in jobs.into_iter().zip(traced) {
             stats.rays += out.rays;
             for level in 0..self.max_level {

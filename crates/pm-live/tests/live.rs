@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 use pm_format::{FullIrrPhoton, Photon, PhotonRecord, flags};
-use pm_live::{DirectMode, Distribution, Live, LiveParams, RingBuffer};
+use pm_live::{DirectMode, Distribution, Live, LiveParams, PhotonSearch, RingBuffer};
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
 use pm_scene::{LightKind, LightSelector, Scene};
 use std::path::PathBuf;
@@ -315,4 +315,41 @@ fn moved_lights_keep_one_offset_on_top_of_the_animation() {
     let at = rest + Vec3::new(0.1, 0.0, -0.2);
     assert!(!direct.is_empty());
     assert!(direct.iter().all(|p| p.wi.dot((at - p.position).normalize()) > 0.99999));
+}
+
+/// The incrementally updated photon grid (the thesis's future work) gives the
+/// corner estimates the per-frame kd-tree rebuild gives, frame after frame through
+/// warm-up and wrap-around, with a moving light: both are the same k-nearest
+/// estimate over the same photons.
+#[test]
+fn the_photon_grid_gives_the_rebuilds_estimates() {
+    let s = scene("jozwowski_room_64.gltf");
+    let frames = |search: PhotonSearch| {
+        let params = LiveParams {
+            per_frame: 700,
+            total: 2_000,
+            width: 48,
+            height: 48,
+            photon_search: search,
+            ..Default::default()
+        };
+        let mut live = Live::new(s.clone(), None, params, 6).unwrap();
+        (0..6)
+            .map(|f| {
+                live.set_time(f as f32 * 0.25);
+                live.step().unwrap();
+                live.frame_layers().layer("indirect").unwrap().to_vec()
+            })
+            .collect::<Vec<_>>()
+    };
+    let (rebuild, grid) = (frames(PhotonSearch::Rebuild), frames(PhotonSearch::Grid));
+    for (f, (a, b)) in rebuild.iter().zip(&grid).enumerate() {
+        let worst = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (*x - *y).abs().max_element() / x.max_element().max(1e-6))
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "frame {f}: worst relative difference {worst}");
+        assert!(a.iter().any(|v| v.max_element() > 0.0));
+    }
 }
