@@ -188,6 +188,13 @@ pub struct FrameStats {
     pub samples: u64,
 }
 
+/// True for the photons the corner estimates read: all of them when direct light
+/// comes from photons, else all but the direct ones (direct light is then computed
+/// per pixel).
+fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
+    direct == DirectMode::Photons || p.flags & flags::DIRECT == 0
+}
+
 /// Flicker of `now` against `before` (same corners): mean |now - before| over
 /// mean(before), over channels; 0 when `before` is dark.
 pub fn flicker_of(now: &[pm_color::Rgb], before: &[pm_color::Rgb]) -> f64 {
@@ -321,13 +328,8 @@ impl Live {
     /// The photons the estimates read this frame: the used slots (power scaled by
     /// the paths held), without the direct photons when direct light comes from rays.
     pub fn tree_photons(&self) -> Vec<FullIrrPhoton> {
-        let no_direct = self.params.direct != DirectMode::Photons;
-        self.ring
-            .photons()
-            .iter()
-            .filter(|p| !(no_direct && p.flags & flags::DIRECT != 0))
-            .map(FullIrrPhoton::encode)
-            .collect()
+        let direct = self.params.direct;
+        self.ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()
     }
 
     /// Move every point and spot light by `delta` [m] from the next [`Self::set_time`]
@@ -352,42 +354,34 @@ impl Live {
         let t = Instant::now();
         let aspect = p.width as f32 / p.height as f32;
         let max_radius = p.max_radius_rel_diag * self.scene.bounds.diagonal();
-        let (records, balance, estimate, active, mut e);
-        match p.photon_search {
-            PhotonSearch::Rebuild => {
-                records = pm_kdtree::balance(&self.tree_photons());
-                let tree = pm_kdtree::KdTree::new(&records);
-                balance = t.elapsed().as_secs_f64();
-                let t = Instant::now();
-                active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
-                e = self.corners.irradiance(&tree, &active, p.k, max_radius);
-                estimate = t.elapsed().as_secs_f64();
-            }
+        // The search structure: a kd-tree rebuilt over the used slots, or the grid
+        // updated for the re-shot paths' slots only.
+        let records = match p.photon_search {
+            PhotonSearch::Rebuild => pm_kdtree::balance(&self.tree_photons()),
             PhotonSearch::Grid => {
                 let (total, levels) = (self.ring.total(), self.ring.max_level());
                 let grid = self.grid.get_or_insert_with(|| pm_kdtree::PhotonGrid::new(max_radius, total * levels));
-                let no_direct = p.direct != DirectMode::Photons;
                 for &path in self.ring.last_paths() {
                     for level in 0..levels {
-                        let photon =
-                            self.ring.slot(path, level).filter(|q| !(no_direct && q.flags & flags::DIRECT != 0));
+                        let photon = self.ring.slot(path, level).filter(|q| estimates_read(p.direct, q));
                         grid.set((path + level * total) as u32, photon.map(FullIrrPhoton::encode));
                     }
                 }
-                records = Vec::new();
-                balance = t.elapsed().as_secs_f64();
-                let t = Instant::now();
-                active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
+                Vec::new()
+            }
+        };
+        let balance = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
+        let mut e = match &self.grid {
+            Some(grid) if p.photon_search == PhotonSearch::Grid => {
                 // The grid holds each path's unscaled power: scale the (linear) estimate.
                 let held = self.ring.filled() as u64;
-                e = self.corners.irradiance(&*grid, &active, p.k, max_radius);
-                for v in &mut e {
-                    *v = pm_photon::scale_power(*v, held);
-                }
-                estimate = t.elapsed().as_secs_f64();
+                let e = self.corners.irradiance(grid, &active, p.k, max_radius);
+                e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect()
             }
-        }
-        let t = Instant::now();
+            _ => self.corners.irradiance(&pm_kdtree::KdTree::new(&records), &active, p.k, max_radius),
+        };
         let mut flicker = 0.0;
         if let Some((prev, was)) = &self.previous {
             let both: Vec<usize> = (0..e.len()).filter(|&c| active[c] && was[c]).collect();
@@ -401,7 +395,7 @@ impl Live {
             let before: Vec<Rgb> = both.iter().map(|&c| prev[c]).collect();
             flicker = flicker_of(&now, &before);
         }
-        let estimate = estimate + t.elapsed().as_secs_f64();
+        let estimate = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let maps: Vec<Option<pm_render::raster::CubeDepth>> = if p.direct == DirectMode::ShadowMap {
             self.scene

@@ -24,6 +24,8 @@ pub struct LiveShading<'a> {
     max_depth: u32,
     /// A cube shadow map per light (point and spot lights; none for the others).
     shadow_maps: &'a [Option<CubeDepth>],
+    /// True when every light has a shadow map (else shadow rays serve all lights).
+    all_mapped: bool,
     counters: Counters,
 }
 
@@ -44,6 +46,7 @@ impl<'a> LiveShading<'a> {
             light_samples: p.light_samples,
             max_depth: p.max_depth,
             shadow_maps,
+            all_mapped: shadow_maps.len() == scene.lights.len() && shadow_maps.iter().all(Option::is_some),
             counters: Counters::default(),
         })
     }
@@ -64,7 +67,7 @@ impl LiveShading<'_> {
     /// directional) keeps shadow rays for all of them.
     fn mapped_direct(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
-        if self.shadow_maps.len() != scene.lights.len() || self.shadow_maps.iter().any(Option::is_none) {
+        if !self.all_mapped {
             return self.light.direct(hit, bsdf, wo, s, self.light_samples);
         }
         let mut sum = Rgb::ZERO;
