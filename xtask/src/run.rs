@@ -184,7 +184,7 @@ fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool
     let s = |p: &Path| p.display().to_string();
     let scene_files = scene_inputs(scene)?;
     let seed = ["--seed".to_string(), cfg.seed.to_string()];
-    let mut trace = TraceParams { ..cfg.trace.clone() };
+    let mut trace = cfg.trace.clone();
     if !indirect {
         trace.global_photons = 0;
     }

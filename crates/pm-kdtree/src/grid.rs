@@ -111,7 +111,7 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
     }
 
     fn found<'s>(&'s self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's {
-        scratch.heap.iter().map(|&(d, i)| (i, f32::from_bits(d)))
+        scratch.found()
     }
 
     fn record(&self, i: u32) -> &R {

@@ -160,6 +160,11 @@ pub struct KnnScratch {
 }
 
 impl KnnScratch {
+    /// The photons the last k-nearest query left here, as (id, squared distance).
+    fn found(&self) -> impl Iterator<Item = (u32, f32)> + '_ {
+        self.heap.iter().map(|&(d, i)| (i, f32::from_bits(d)))
+    }
+
     /// Scratch for queries of up to `k` photons (grows if needed).
     pub fn with_capacity(k: usize) -> KnnScratch {
         KnnScratch { heap: BinaryHeap::with_capacity(k + 1) }
@@ -332,7 +337,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
 
     /// The photons of the last [`KdTree::knn`] call as (heap index, squared distance).
     pub fn found<'s>(&self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's {
-        scratch.heap.iter().map(|&(d, i)| (i, f32::from_bits(d)))
+        scratch.found()
     }
 
     /// The nearest photon within `max_d2` that satisfies `accept`, searched in order
