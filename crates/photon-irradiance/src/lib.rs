@@ -83,8 +83,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             h.layout.name()
         );
     }
-    with_map!(&map, m => pm_kdtree::KdTree::new(&m.records).verify())
-        .map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", cli.input.display()))?;
+    with_map!(&map, m => pm_stage::verify_kd_tree(&cli.input, &m.records))?;
     // Relative radii are fractions of the scene diagonal the header records, the same
     // length stage 4 uses.
     let diag = h.scene_diagonal;

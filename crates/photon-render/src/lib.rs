@@ -118,7 +118,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
                 ..Default::default()
             };
             let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
-            verify_tree(path, &map.records)?;
+            pm_stage::verify_kd_tree(path, &map.records)?;
             Some(map)
         }
         _ => None,
@@ -140,7 +140,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
                     map.header().layout.name()
                 );
             }
-            with_map!(&map, m => verify_tree(path, &m.records))?;
+            with_map!(&map, m => pm_stage::verify_kd_tree(path, &m.records))?;
             if map.is_empty() {
                 notes.push("the global photon map holds no photons: indirect light is zero".to_string());
             }
@@ -182,12 +182,6 @@ pub fn run(cli: &Cli) -> Result<Report> {
         pm_stage::write_json(path, &serde_json::to_value(&report)?)?;
     }
     Ok(report)
-}
-
-/// Stages 3 and 4 trust the kd-tree order of the maps they read: check it (a
-/// linear pass, cheap next to reading the file).
-fn verify_tree<R: PhotonRecord>(path: &std::path::Path, records: &[R]) -> Result<()> {
-    KdTree::new(records).verify().map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", path.display()))
 }
 
 /// What the irradiance cache did in this run.

@@ -1,6 +1,7 @@
 //! What every stage binary shares, written once: the single exit path (one-line
 //! error, non-zero exit code), the thread pool, progress reporting, scene loading
-//! with its warnings printed once, and atomic JSON output.
+//! with its warnings printed once, the kd-tree check of maps read, and atomic JSON
+//! output.
 //!
 //! Stage crates are `lib.rs` with `pub fn run(args) -> Result<Report>` and a
 //! `main.rs` of a few lines that calls [`main_with`]. This crate knows nothing about
@@ -48,6 +49,14 @@ pub fn load_scene(stage: &str, path: &Path) -> Result<pm_scene::Scene> {
         eprintln!("{stage}: warning: {}: {w}", path.display());
     }
     Ok(scene)
+}
+
+/// Stages 3 and 4 trust the kd-tree order of the maps they read: check it (a linear
+/// pass, cheap next to reading the file), naming the file when it is not a tree.
+pub fn verify_kd_tree<R: pm_format::PhotonRecord>(path: &Path, records: &[R]) -> Result<()> {
+    pm_kdtree::KdTree::new(records)
+        .verify()
+        .map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", path.display()))
 }
 
 /// Write a JSON value atomically (temporary file, then rename).
