@@ -99,13 +99,7 @@ pub fn read_exr(path: &Path) -> Result<Layers> {
 
 /// Write an 8-bit sRGB PNG of `pixels` scaled by 2^exposure and clamped.
 pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    let bytes = srgb8(pixels, exposure);
-    let img = image::RgbImage::from_raw(width, height, bytes).context("image size mismatch")?;
-    let mut buf = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut buf, image::ImageFormat::Png)
-        .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?;
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, buf.get_ref()))
-        .with_context(|| format!("{}: cannot write", path.display()))
+    write_frames(path, width, height, &[srgb8(pixels, exposure)], None, png::Compression::Balanced)
 }
 
 /// 8-bit sRGB bytes (R, G, B per pixel) of linear radiance times 2^exposure.
@@ -117,23 +111,31 @@ pub fn srgb8(pixels: &[Vec3], exposure: f32) -> Vec<u8> {
 /// [`write_png`] with fast compression (fdeflate), for frames written many per
 /// second: larger files, several times less encoding time.
 pub fn write_png_fast(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    write_fast(path, width, height, &[srgb8(pixels, exposure)], None)
+    write_frames(path, width, height, &[srgb8(pixels, exposure)], None, png::Compression::Fast)
 }
 
 /// Write an animated PNG of `frames` (each [`srgb8`] bytes of `width` x `height`),
 /// shown at `fps` frames per second and looping, atomically.
 pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: f32) -> Result<()> {
-    write_fast(path, width, height, frames, Some(fps))
+    write_frames(path, width, height, frames, Some(fps), png::Compression::Fast)
 }
 
-/// A PNG of one frame, or with `fps` an animated PNG of all, fast compression.
-fn write_fast(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps: Option<f32>) -> Result<()> {
+/// The one PNG encoder: a PNG of one frame, or with `fps` an animated PNG of all,
+/// written atomically.
+fn write_frames(
+    path: &Path,
+    width: u32,
+    height: u32,
+    frames: &[Vec<u8>],
+    fps: Option<f32>,
+    compression: png::Compression,
+) -> Result<()> {
     let encode = || -> std::result::Result<Vec<u8>, png::EncodingError> {
         let mut buf = Vec::new();
         let mut enc = png::Encoder::new(&mut buf, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        enc.set_compression(png::Compression::Fast);
+        enc.set_compression(compression);
         if let Some(fps) = fps {
             enc.set_animated(frames.len().max(1) as u32, 0)?;
             // Frame delay in milliseconds (APNG stores a fraction of a second).
