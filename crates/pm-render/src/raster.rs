@@ -70,90 +70,84 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
     };
     let screen = |v: Vec3| Vec2::new(0.5 * (v.x / (v.z * tan_x) + 1.0) * w, 0.5 * (1.0 - v.y / (v.z * tan_y)) * h);
     // Project every triangle (clipped to the near plane) once.
-    let mut tris: Vec<ScreenTri> = scene
-        .triangles
-        .par_iter()
-        .enumerate()
-        .flat_map_iter(|(t, tri)| {
-            let v = tri.p.map(view);
-            let bary = [Vec3::X, Vec3::Y, Vec3::Z];
-            let mut out = Vec::new();
-            for (poly_v, poly_b) in clip_near(v, bary, near) {
-                let s = poly_v.map(screen);
-                let (ymin, ymax) = (
-                    s.iter().map(|p| p.y).fold(f32::INFINITY, f32::min),
-                    s.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max),
-                );
-                let (xmin, xmax) = (
-                    s.iter().map(|p| p.x).fold(f32::INFINITY, f32::min),
-                    s.iter().map(|p| p.x).fold(f32::NEG_INFINITY, f32::max),
-                );
-                if !(ymax > rect.y0 as f32 - 1.0
-                    && ymin < rect.y1 as f32 + 1.0
-                    && xmax > rect.x0 as f32 - 1.0
-                    && xmin < rect.x1 as f32 + 1.0)
-                {
-                    continue;
-                }
-                // Pixel rows whose centres (y + 0.5) may lie inside.
-                let y0 = (ymin - 0.5).ceil().max(rect.y0 as f32) as u32;
-                let y1 = ((ymax - 0.5).floor() + 1.0).min(rect.y1 as f32).max(y0 as f32) as u32;
-                if y0 < y1 {
-                    out.push(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, y0, y1 });
-                }
+    let project = |(t, tri): (usize, &pm_scene::Triangle)| {
+        let v = tri.p.map(view);
+        let mut kept = [None; 2];
+        for (slot, (poly_v, poly_b)) in kept.iter_mut().zip(clip_near(v, near).into_iter().flatten()) {
+            let s = poly_v.map(screen);
+            let (lo, hi) = (s[0].min(s[1]).min(s[2]), s[0].max(s[1]).max(s[2]));
+            if !(hi.y > rect.y0 as f32 - 1.0
+                && lo.y < rect.y1 as f32 + 1.0
+                && hi.x > rect.x0 as f32 - 1.0
+                && lo.x < rect.x1 as f32 + 1.0)
+            {
+                continue;
             }
-            out.into_iter()
-        })
-        .collect();
+            // Pixel rows whose centres (y + 0.5) may lie inside.
+            let y0 = (lo.y - 0.5).ceil().max(rect.y0 as f32) as u32;
+            let y1 = ((hi.y - 0.5).floor() + 1.0).min(rect.y1 as f32).max(y0 as f32) as u32;
+            if y0 < y1 {
+                *slot = Some(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, y0, y1 });
+            }
+        }
+        kept.into_iter().flatten()
+    };
+    let mut tris: Vec<ScreenTri> = scene.triangles.par_iter().enumerate().flat_map_iter(project).collect();
     tris.sort_by_key(|t| (t.y0, t.tri));
     let rw = rect.width() as usize;
     let rays = camera.rays(aspect);
     out.clear();
     out.resize(rect.area(), None);
-    let scratch = || (Vec::<f32>::new(), Vec::<Option<(u32, Vec3)>>::new());
-    out.par_chunks_mut(rw * BAND as usize).enumerate().for_each_init(scratch, |(depth, best), (band, chunk)| {
+    out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
         let by0 = rect.y0 + band as u32 * BAND;
         let by1 = (by0 + BAND).min(rect.y1);
-        depth.clear();
-        depth.resize(chunk.len(), f32::INFINITY);
-        best.clear();
-        best.resize(chunk.len(), None);
+        // While drawing, a fragment's `t` holds the view depth of the surface.
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
-            raster_tri(st, rect, by0, by1, depth, best);
+            raster_tri(st, rect, by0, by1, chunk);
         }
-        for (j, (slot, b)) in chunk.iter_mut().zip(best.iter()).enumerate() {
-            *slot = b.map(|(tri, bc)| {
+        for (j, slot) in chunk.iter_mut().enumerate() {
+            if let Some(f) = slot {
                 let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
                 let d = rays.direction(x / w, y / h);
-                let p = scene.triangles[tri as usize].p;
-                let hp = p[0] * bc.x + p[1] * bc.y + p[2] * bc.z;
-                Fragment { tri, b: bc.to_array(), t: (hp - camera.position).dot(d) }
-            });
+                let p = scene.triangles[f.tri as usize].p;
+                let hp = p[0] * f.b[0] + p[1] * f.b[1] + p[2] * f.b[2];
+                f.t = (hp - camera.position).dot(d);
+            }
         }
     });
 }
 
-/// Rasterise one screen triangle into the band [by0, by1): keep, per pixel centre,
-/// the nearest surface (smallest view depth; ties to the lower triangle id).
-fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, depth: &mut [f32], best: &mut [Option<(u32, Vec3)>]) {
+/// Rasterise one screen triangle into the band [by0, by1) of rows: keep, per pixel
+/// centre, the nearest surface (smallest view depth, held in the fragment's `t`;
+/// ties to the lower triangle id).
+fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option<Fragment>]) {
     let [a, b, c] = st.s;
     let area = (b - a).perp_dot(c - a);
     if !(area.abs() > 0.0) || !area.is_finite() {
         return;
     }
-    let xs = [a.x, b.x, c.x];
-    let x0 = (xs.iter().cloned().fold(f32::INFINITY, f32::min) - 0.5).ceil().max(rect.x0 as f32) as u32;
-    let x1 = ((xs.iter().cloned().fold(f32::NEG_INFINITY, f32::max) - 0.5).floor() + 1.0)
-        .min(rect.x1 as f32)
-        .max(x0 as f32) as u32;
+    // Edge functions as planes over the screen, l_k(q) = gx q.x + gy q.y + g0,
+    // evaluated afresh at every pixel (so a tile draws exactly what the whole image
+    // draws there).
+    let inv = 1.0 / area;
+    let edge = |p: Vec2, r: Vec2| {
+        // (p - q) x (r - q) = p x r + q.x (p.y - r.y) + q.y (r.x - p.x)  (2-D cross products)
+        Vec3::new((p.y - r.y) * inv, (r.x - p.x) * inv, p.perp_dot(r) * inv)
+    };
+    let (e0, e1) = (edge(b, c), edge(c, a));
+    let x0 = (a.x.min(b.x).min(c.x) - 0.5).ceil().max(rect.x0 as f32) as u32;
+    let x1 = ((a.x.max(b.x).max(c.x) - 0.5).floor() + 1.0).min(rect.x1 as f32).max(x0 as f32) as u32;
     let rw = rect.width() as usize;
     for y in st.y0.max(by0)..st.y1.min(by1) {
+        let qy = y as f32 + 0.5;
+        let (r0, r1) = (e0.y * qy + e0.z, e1.y * qy + e1.z);
+        let row = (y - by0) as usize * rw;
         for x in x0..x1 {
-            let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let qx = x as f32 + 0.5;
             // Screen-space barycentrics; a centre on an edge belongs to the triangle
             // (both neighbours may claim it: the nearer one, then the lower id, wins).
-            let l0 = (b - q).perp_dot(c - q) / area;
-            let l1 = (c - q).perp_dot(a - q) / area;
+            let l0 = e0.x * qx + r0;
+            let l1 = e1.x * qx + r1;
             let l2 = 1.0 - l0 - l1;
             if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
                 continue;
@@ -164,41 +158,43 @@ fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, depth: &mut [f32],
                 continue;
             }
             let z = 1.0 / iz;
-            let j = (y - by0) as usize * rw + (x - rect.x0) as usize;
-            let closer = z < depth[j] || (z == depth[j] && best[j].is_some_and(|(t, _)| st.tri < t));
+            let slot = &mut band[row + (x - rect.x0) as usize];
+            let closer = match slot {
+                None => true,
+                Some(f) => z < f.t || (z == f.t && st.tri < f.tri),
+            };
             if closer {
-                depth[j] = z;
                 let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) * z;
                 let bc = st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z;
-                best[j] = Some((st.tri, bc));
+                *slot = Some(Fragment { tri: st.tri, b: bc.to_array(), t: z });
             }
         }
     }
 }
 
-/// Clip a view-space triangle (with the barycentrics of its vertices) against the
-/// near plane z = near: none, one or two triangles.
-fn clip_near(v: [Vec3; 3], b: [Vec3; 3], near: f32) -> Vec<([Vec3; 3], [Vec3; 3])> {
+/// Clip a view-space triangle against the near plane z = near: none, one or two
+/// triangles, each with the barycentrics of its vertices in the original.
+fn clip_near(v: [Vec3; 3], near: f32) -> [Option<([Vec3; 3], [Vec3; 3])>; 2] {
+    let b = [Vec3::X, Vec3::Y, Vec3::Z];
     let inside = v.map(|p| p.z >= near);
     match inside.iter().filter(|&&i| i).count() {
-        3 => vec![(v, b)],
-        0 => vec![],
+        3 => [Some((v, b)), None],
+        0 => [None, None],
         _ => {
-            let mut pv = Vec::with_capacity(4);
-            let mut pb = Vec::with_capacity(4);
+            let (mut pv, mut pb, mut n) = ([Vec3::ZERO; 4], [Vec3::ZERO; 4], 0);
             for i in 0..3 {
                 let j = (i + 1) % 3;
                 if inside[i] {
-                    pv.push(v[i]);
-                    pb.push(b[i]);
+                    (pv[n], pb[n], n) = (v[i], b[i], n + 1);
                 }
                 if inside[i] != inside[j] {
                     let t = (near - v[i].z) / (v[j].z - v[i].z);
-                    pv.push(v[i].lerp(v[j], t));
-                    pb.push(b[i].lerp(b[j], t));
+                    (pv[n], pb[n], n) = (v[i].lerp(v[j], t), b[i].lerp(b[j], t), n + 1);
                 }
             }
-            (1..pv.len() - 1).map(|k| ([pv[0], pv[k], pv[k + 1]], [pb[0], pb[k], pb[k + 1]])).collect()
+            // One vertex inside: a triangle; two inside: a quadrilateral, two triangles.
+            let tri = |k: usize| ([pv[0], pv[k], pv[k + 1]], [pb[0], pb[k], pb[k + 1]]);
+            [Some(tri(1)), (n == 4).then(|| tri(2))]
         }
     }
 }

@@ -391,28 +391,53 @@ pub fn render_into<I: Integrator>(
     // The region's pixels of pass 1 (which may include the apron), in row order.
     let in_region = &mut bufs.in_region;
     in_region.clear();
-    in_region.extend((0..pixels.len()).filter(|&j| pass1 == rect || in_rect(pixel_of(j).0, pixel_of(j).1)));
-    let pixels = &bufs.pixels;
-    let samples: u64 = in_region.iter().map(|&j| pixels[j].1 as u64).sum();
-    // One layer per parallel pass; no NaN or Inf leaves the renderer.
-    let value = |k: usize, j: usize| -> Rgb {
-        let (c, n) = &pixels[j];
-        let v = [c.total(), c.direct, c.caustic, c.indirect, c.specular][k];
-        if v.is_finite() { (v * (1.0 / *n as f32)).max(Rgb::ZERO) } else { Rgb::ZERO }
-    };
-    for (k, layer) in bufs.layers.iter_mut().enumerate() {
-        layer.clear();
-        layer.par_extend(in_region.par_iter().with_min_len(4096).map(|&j| value(k, j)));
+    if pass1 != rect {
+        in_region.extend((0..pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)));
     }
-    let nonfinite: u64 = in_region
-        .par_iter()
-        .with_min_len(4096)
-        .map(|&j| {
-            let c = &pixels[j].0;
-            [c.total(), c.direct, c.caustic, c.indirect, c.specular].iter().filter(|v| !v.is_finite()).count() as u64
+    let in_region = &bufs.in_region;
+    let pixels = &bufs.pixels;
+    let pass1_of = |r: usize| if pass1 == rect { r } else { in_region[r] };
+    let n = rect.area();
+    let samples: u64 = (0..n).map(|r| pixels[pass1_of(r)].1 as u64).sum();
+    // All layers in one parallel pass (every value is overwritten, so a layer of the
+    // right length is not cleared first); no NaN or Inf leaves the renderer.
+    for layer in &mut bufs.layers {
+        if layer.len() != n {
+            layer.clear();
+            layer.resize(n, Rgb::ZERO);
+        }
+    }
+    const CHUNK: usize = 4096;
+    let [l0, l1, l2, l3, l4] = &mut bufs.layers;
+    let nonfinite: u64 = (
+        l0.par_chunks_mut(CHUNK),
+        l1.par_chunks_mut(CHUNK),
+        l2.par_chunks_mut(CHUNK),
+        l3.par_chunks_mut(CHUNK),
+        l4.par_chunks_mut(CHUNK),
+    )
+        .into_par_iter()
+        .enumerate()
+        .map(|(c, (total, direct, caustic, indirect, specular))| {
+            let mut bad = 0;
+            for (r, out) in (c * CHUNK..).zip(total.iter_mut()) {
+                let (px, n) = &pixels[pass1_of(r)];
+                let values = [px.total(), px.direct, px.caustic, px.indirect, px.specular];
+                let i = r - c * CHUNK;
+                let slots = [out, &mut direct[i], &mut caustic[i], &mut indirect[i], &mut specular[i]];
+                for (v, slot) in values.into_iter().zip(slots) {
+                    *slot = if v.is_finite() {
+                        (v * (1.0 / *n as f32)).max(Rgb::ZERO)
+                    } else {
+                        bad += 1;
+                        Rgb::ZERO
+                    };
+                }
+            }
+            bad
         })
         .sum();
-    let gb = gbuffer.then(|| in_region.iter().map(|&j| std::mem::take(&mut gbuffer_of_pass1[j])).collect());
+    let gb = gbuffer.then(|| (0..n).map(|r| std::mem::take(&mut gbuffer_of_pass1[pass1_of(r)])).collect());
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         nonfinite_pixels: nonfinite,
