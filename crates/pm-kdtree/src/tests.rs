@@ -206,3 +206,56 @@ proptest! {
         check_all_queries::<FullPhoton>(&pts, &queries, &[k], &[r * r, f32::INFINITY])?;
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    /// The grid's nearest-first, pruned search finds what brute force finds, after
+    /// photons were set, replaced and removed, for radii below, at and beyond the
+    /// radius it was built for.
+    #[test]
+    fn grid_queries_match_brute_force(
+        pts in arb_points(),
+        qs in proptest::collection::vec((-1.5f32..3.5, -1f32..1.5, -1f32..2.0), 1..4),
+        k in 1usize..60,
+        cell_radius in 0.05f32..1.0,
+        r in 0f32..2.0,
+    ) {
+        let recs = records::<FullPhoton>(&pts);
+        let mut grid = PhotonGrid::new(cell_radius, recs.len() + 1);
+        // Set everything, then move every third photon away and remove every fifth.
+        for (i, r) in recs.iter().enumerate() {
+            grid.set(i as u32, Some(*r));
+        }
+        let mut live: Vec<Option<FullPhoton>> = recs.iter().copied().map(Some).collect();
+        for i in (0..recs.len()).step_by(3) {
+            let moved = FullPhoton::encode(&photon(recs[i].position() * 0.5 + Vec3::splat(0.25), 0));
+            grid.set(i as u32, Some(moved));
+            live[i] = Some(moved);
+        }
+        for i in (0..recs.len()).step_by(5) {
+            grid.set(i as u32, None);
+            live[i] = None;
+        }
+        let held: Vec<FullPhoton> = live.iter().flatten().copied().collect();
+        prop_assert_eq!(grid.len(), held.len());
+        let direct = |r: &FullPhoton| r.flags() & flags::DIRECT != 0;
+        let mut scratch = KnnScratch::default();
+        for (x, y, z) in qs {
+            let x = Vec3::new(x, y, z);
+            for r2 in [r * r, cell_radius * cell_radius, f32::INFINITY] {
+                for use_filter in [false, true] {
+                    let f = |r: &FullPhoton| !use_filter || direct(r);
+                    let res = grid.knn(x, k, r2, |_, r| f(r), &mut scratch);
+                    let mut got: Vec<f32> = grid.found(&scratch).map(|(_, d)| d).collect();
+                    got.sort_by(f32::total_cmp);
+                    let want = brute_knn(&held, x, k, r2, f);
+                    prop_assert_eq!(&got, &want, "k={} r2={} filter={} at {}", k, r2, use_filter, x);
+                    prop_assert_eq!(res.max_dist2, want.last().copied().unwrap_or(0.0));
+                    for (i, d) in grid.found(&scratch) {
+                        prop_assert_eq!((grid.record(i).position() - x).length_squared(), d);
+                    }
+                }
+            }
+        }
+    }
+}
