@@ -140,7 +140,7 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
         let bound = |heap: &std::collections::BinaryHeap<(u32, u32)>| {
             if heap.len() < k { max_d2 } else { heap.peek().map_or(max_d2, |t| f32::from_bits(t.0)) }
         };
-        let mut visit = |o: IVec3, heap: &mut std::collections::BinaryHeap<(u32, u32)>| {
+        let visit = |o: IVec3, heap: &mut std::collections::BinaryHeap<(u32, u32)>| {
             let kc = c + o;
             let corner = kc.as_vec3() * self.cell;
             let gap = (corner - x).max(x - (corner + Vec3::splat(self.cell))).max(Vec3::ZERO);

@@ -95,31 +95,33 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
     let mut tris: Vec<ScreenTri> = scene.triangles.par_iter().enumerate().flat_map_iter(project).collect();
     tris.sort_by_key(|t| (t.y0, t.tri));
     let rw = rect.width() as usize;
-    let rays = camera.rays(aspect);
+    // The eye ray through a pixel centre has length sqrt(1 + u^2 + v^2) per unit of
+    // view depth (u, v: the centre on the image plane at depth 1), split by column and row.
+    let plane = |i: u32, n: f32, tan: f32| ((2.0 * (i as f32 + 0.5) / n - 1.0) * tan).powi(2);
+    let col2: Vec<f32> = (rect.x0..rect.x1).map(|x| plane(x, w, tan_x)).collect();
     out.clear();
     out.resize(rect.area(), None);
     out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
         let by0 = rect.y0 + band as u32 * BAND;
         let by1 = (by0 + BAND).min(rect.y1);
-        // While drawing, a fragment's `t` holds the view depth of the surface.
+        // While drawing, a fragment's `t` holds 1 / view depth of the surface.
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
             raster_tri(st, rect, by0, by1, chunk);
         }
-        for (j, slot) in chunk.iter_mut().enumerate() {
-            if let Some(f) = slot {
-                let (x, y) = (rect.x0 as f32 + (j % rw) as f32 + 0.5, by0 as f32 + (j / rw) as f32 + 0.5);
-                let d = rays.direction(x / w, y / h);
-                let p = scene.triangles[f.tri as usize].p;
-                let hp = p[0] * f.b[0] + p[1] * f.b[1] + p[2] * f.b[2];
-                f.t = (hp - camera.position).dot(d);
+        for (row, y) in chunk.chunks_mut(rw).zip(by0..by1) {
+            let row2 = plane(y, h, tan_y);
+            for (slot, c2) in row.iter_mut().zip(&col2) {
+                if let Some(f) = slot {
+                    f.t = (1.0 + c2 + row2).sqrt() / f.t;
+                }
             }
         }
     });
 }
 
 /// Rasterise one screen triangle into the band [by0, by1) of rows: keep, per pixel
-/// centre, the nearest surface (smallest view depth, held in the fragment's `t`;
-/// ties to the lower triangle id).
+/// centre, the nearest surface (largest 1 / view depth, held in the fragment's `t`
+/// while drawing; ties to the lower triangle id).
 fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option<Fragment>]) {
     let [a, b, c] = st.s;
     let area = (b - a).perp_dot(c - a);
@@ -135,14 +137,31 @@ fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option
         Vec3::new((p.y - r.y) * inv, (r.x - p.x) * inv, p.perp_dot(r) * inv)
     };
     let (e0, e1) = (edge(b, c), edge(c, a));
-    let x0 = (a.x.min(b.x).min(c.x) - 0.5).ceil().max(rect.x0 as f32) as u32;
-    let x1 = ((a.x.max(b.x).max(c.x) - 0.5).floor() + 1.0).min(rect.x1 as f32).max(x0 as f32) as u32;
+    // The third barycentric, 1 - l0 - l1, as a plane too.
+    let e2 = Vec3::new(-e0.x - e1.x, -e0.y - e1.y, 1.0 - e0.z - e1.z);
+    let bx0 = (a.x.min(b.x).min(c.x) - 0.5).ceil().max(rect.x0 as f32);
+    let bx1 = ((a.x.max(b.x).max(c.x) - 0.5).floor() + 1.0).min(rect.x1 as f32).max(bx0);
     let rw = rect.width() as usize;
     for y in st.y0.max(by0)..st.y1.min(by1) {
         let qy = y as f32 + 0.5;
         let (r0, r1) = (e0.y * qy + e0.z, e1.y * qy + e1.z);
+        // The row's span inside all three edges, widened by a pixel against
+        // rounding (every pixel is still tested below).
+        let (mut lo, mut hi) = (bx0, bx1);
+        for (gx, r) in [(e0.x, r0), (e1.x, r1), (e2.x, e2.y * qy + e2.z)] {
+            if gx > 0.0 {
+                lo = lo.max((-r / gx - 0.5).floor() - 1.0);
+            } else if gx < 0.0 {
+                hi = hi.min((-r / gx - 0.5).ceil() + 2.0);
+            } else if r < 0.0 {
+                hi = lo;
+            }
+        }
+        if !(lo < hi) {
+            continue;
+        }
         let row = (y - by0) as usize * rw;
-        for x in x0..x1 {
+        for x in lo as u32..hi as u32 {
             let qx = x as f32 + 0.5;
             // Screen-space barycentrics; a centre on an edge belongs to the triangle
             // (both neighbours may claim it: the nearer one, then the lower id, wins).
@@ -152,21 +171,21 @@ fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option
             if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
                 continue;
             }
-            // Perspective-correct: interpolate 1/z linearly in screen space.
+            // Perspective-correct: interpolate 1/z linearly in screen space (while
+            // drawing, a fragment's `t` holds 1/z: larger is nearer).
             let iz = l0 * st.inv_z[0] + l1 * st.inv_z[1] + l2 * st.inv_z[2];
             if !(iz > 0.0) {
                 continue;
             }
-            let z = 1.0 / iz;
             let slot = &mut band[row + (x - rect.x0) as usize];
             let closer = match slot {
                 None => true,
-                Some(f) => z < f.t || (z == f.t && st.tri < f.tri),
+                Some(f) => iz > f.t || (iz == f.t && st.tri < f.tri),
             };
             if closer {
-                let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) * z;
+                let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) / iz;
                 let bc = st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z;
-                *slot = Some(Fragment { tri: st.tri, b: bc.to_array(), t: z });
+                *slot = Some(Fragment { tri: st.tri, b: bc.to_array(), t: iz });
             }
         }
     }

@@ -180,7 +180,12 @@ const LAYERS: [&str; 5] = ["total", "direct", "caustic", "indirect", "specular"]
 /// The seed of pixel `i` (row-major index in the whole image): every sample's
 /// random numbers are keyed by (seed, pixel, sample index), never by thread or tile.
 pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
-    mix64(seed ^ mix64(0x7069_7865_6c00 ^ i as u64))
+    mix64(seed ^ mix64(pixel_salt(i)))
+}
+
+/// The salt of pixel `i` (see [`pixel_seed`]).
+fn pixel_salt(i: usize) -> u64 {
+    0x7069_7865_6c00 ^ i as u64
 }
 
 /// How the image loop finds the surfaces seen at pixel centres.
@@ -292,14 +297,15 @@ pub fn render_into<I: Integrator>(
     };
     let centre_first = first.is_some() && adaptive;
     let rays = camera.rays(aspect);
-    let sample = |i: usize, k: u32, scratch: &mut I::Scratch, vs: Option<&mut VisibleSurface>| -> Components {
-        let mut s = Sampler::new(pixel_seed(film.seed, i), k as u64);
+    // Pixels are addressed by column and row: integer division per pixel cost a
+    // live frame more than its shading.
+    let sample = |x: usize, y: usize, k: u32, scratch: &mut I::Scratch, vs: Option<&mut VisibleSurface>| {
+        let mut s = Sampler::salted(film.seed, pixel_salt(y * w + x), k as u64);
         let j = if k == 0 && adaptive { Vec2::splat(0.5) } else { s.next_2d() };
-        let (x, y) = ((i % w) as f32 + j.x, (i / w) as f32 + j.y);
-        let d = rays.direction(x / w as f32, y / h as f32);
+        let d = rays.direction((x as f32 + j.x) / w as f32, (y as f32 + j.y) / h as f32);
         match &first {
             Some((scene, hits)) if k == 0 && centre_first => {
-                let (px, py) = (i % w - pass1.x0 as usize, i / w - pass1.y0 as usize);
+                let (px, py) = (x - pass1.x0 as usize, y - pass1.y0 as usize);
                 let hit = hits[py * p1w + px].map(|f| f.hit(scene));
                 integ.li_hit(camera.position, d, hit, &mut s, scratch, vs)
             }
@@ -311,94 +317,104 @@ pub fn render_into<I: Integrator>(
     let first_spp = if adaptive { 1 } else { film.spp.max(1) };
     // Pass 1: every pixel of the region (and the apron, when supersampling).
     let pixel_of = |j: usize| (pass1.x0 as usize + j % p1w, pass1.y0 as usize + j / p1w);
-    let pixel = |j: usize, scratch: &mut I::Scratch, mut vs: Option<&mut VisibleSurface>| -> (Components, u32) {
-        let (x, y) = pixel_of(j);
-        let i = y * w + x;
-        let mut acc = Components::default();
-        for k in 0..first_spp {
-            let v = if k == 0 { vs.take() } else { None };
-            acc.add(&sample(i, k, scratch, v));
-        }
+    let count = |j: usize| {
         if (j + 1) % 256 == 0 {
             let n = done.fetch_add(256, Relaxed) + 256;
             progress(n, total);
         }
+    };
+    let pixel = |x: usize, y: usize, scratch: &mut I::Scratch, mut vs: Option<&mut VisibleSurface>| {
+        let mut acc = Components::default();
+        for k in 0..first_spp {
+            let v = if k == 0 { vs.take() } else { None };
+            acc.add(&sample(x, y, k, scratch, v));
+        }
         (acc, first_spp)
     };
-    // The G-buffer is kept apart from the pixels: it is large and usually not asked for.
-    let pixels = &mut bufs.pixels;
-    pixels.clear();
+    // Without supersampling, G-buffer or apron, pass 1 writes the layers directly
+    // (a live frame: no per-pixel buffer to fill and read back).
+    let single_pass = !gbuffer && pass1 == rect && !(adaptive && film.spp > 1);
     let mut gbuffer_of_pass1: Vec<VisibleSurface> = Vec::new();
-    if gbuffer {
-        let (p, g): (Vec<(Components, u32)>, Vec<VisibleSurface>) = (0..pass1.area())
-            .into_par_iter()
-            .with_min_len(64)
-            .map_init(I::Scratch::default, |scratch, j| {
-                let mut vs = VisibleSurface::default();
-                let (x, y) = pixel_of(j);
-                let p = pixel(j, scratch, in_rect(x, y).then_some(&mut vs));
-                (p, vs)
-            })
-            .unzip();
-        *pixels = p;
-        gbuffer_of_pass1 = g;
-    } else {
-        pixels.par_extend(
-            (0..pass1.area())
+    let mut supersampled = 0;
+    bufs.pixels.clear();
+    if !single_pass {
+        // The G-buffer is kept apart from the pixels: it is large and usually not asked for.
+        let pixels = &mut bufs.pixels;
+        pixels.clear();
+        if gbuffer {
+            let (p, g): (Vec<(Components, u32)>, Vec<VisibleSurface>) = (0..pass1.area())
                 .into_par_iter()
                 .with_min_len(64)
-                .map_init(I::Scratch::default, |scratch, j| pixel(j, scratch, None)),
-        );
-    }
-    progress(total, total);
-    // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
-    // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
-    // The neighbours of a region pixel are in pass 1's apron.
-    let mut supersampled = 0;
-    if adaptive && film.spp > 1 {
-        let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
-        let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
-        let mark: Vec<usize> = (0..pass1.area())
-            .filter(|&j| {
-                let (x, y) = pixel_of(j);
-                if !in_rect(x, y) {
-                    return false;
-                }
-                let l = lum[j];
-                (x > 0 && contrast(l, lum[j - 1]) > film.contrast)
-                    || (x + 1 < w && contrast(l, lum[j + 1]) > film.contrast)
-                    || (y > 0 && contrast(l, lum[j - p1w]) > film.contrast)
-                    || (y + 1 < h && contrast(l, lum[j + p1w]) > film.contrast)
-            })
-            .collect();
-        supersampled = mark.len() as u64;
-        let extra: Vec<(usize, Components)> = mark
-            .par_iter()
-            .map_init(I::Scratch::default, |scratch, &j| {
-                let (x, y) = pixel_of(j);
-                let mut acc = Components::default();
-                for k in 1..film.spp {
-                    acc.add(&sample(y * w + x, k, scratch, None));
-                }
-                (j, acc)
-            })
-            .collect();
-        for (j, acc) in extra {
-            pixels[j].0.add(&acc);
-            pixels[j].1 = film.spp;
+                .map_init(I::Scratch::default, |scratch, j| {
+                    let mut vs = VisibleSurface::default();
+                    let (x, y) = pixel_of(j);
+                    let p = pixel(x, y, scratch, in_rect(x, y).then_some(&mut vs));
+                    count(j);
+                    (p, vs)
+                })
+                .unzip();
+            *pixels = p;
+            gbuffer_of_pass1 = g;
+        } else {
+            pixels.par_extend((0..pass1.area()).into_par_iter().with_min_len(64).map_init(
+                I::Scratch::default,
+                |scratch, j| {
+                    let (x, y) = pixel_of(j);
+                    count(j);
+                    pixel(x, y, scratch, None)
+                },
+            ));
+        }
+        progress(total, total);
+        // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
+        // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
+        // The neighbours of a region pixel are in pass 1's apron.
+        if adaptive && film.spp > 1 {
+            let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
+            let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
+            let mark: Vec<usize> = (0..pass1.area())
+                .filter(|&j| {
+                    let (x, y) = pixel_of(j);
+                    if !in_rect(x, y) {
+                        return false;
+                    }
+                    let l = lum[j];
+                    (x > 0 && contrast(l, lum[j - 1]) > film.contrast)
+                        || (x + 1 < w && contrast(l, lum[j + 1]) > film.contrast)
+                        || (y > 0 && contrast(l, lum[j - p1w]) > film.contrast)
+                        || (y + 1 < h && contrast(l, lum[j + p1w]) > film.contrast)
+                })
+                .collect();
+            supersampled = mark.len() as u64;
+            let extra: Vec<(usize, Components)> = mark
+                .par_iter()
+                .map_init(I::Scratch::default, |scratch, &j| {
+                    let (x, y) = pixel_of(j);
+                    let mut acc = Components::default();
+                    for k in 1..film.spp {
+                        acc.add(&sample(x, y, k, scratch, None));
+                    }
+                    (j, acc)
+                })
+                .collect();
+            for (j, acc) in extra {
+                pixels[j].0.add(&acc);
+                pixels[j].1 = film.spp;
+            }
         }
     }
     // The region's pixels of pass 1 (which may include the apron), in row order.
     let in_region = &mut bufs.in_region;
     in_region.clear();
     if pass1 != rect {
-        in_region.extend((0..pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)));
+        in_region.extend((0..bufs.pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)));
     }
     let in_region = &bufs.in_region;
     let pixels = &bufs.pixels;
     let pass1_of = |r: usize| if pass1 == rect { r } else { in_region[r] };
     let n = rect.area();
-    let samples: u64 = (0..n).map(|r| pixels[pass1_of(r)].1 as u64).sum();
+    let samples: u64 =
+        if single_pass { n as u64 * first_spp as u64 } else { (0..n).map(|r| pixels[pass1_of(r)].1 as u64).sum() };
     // All layers in one parallel pass (every value is overwritten, so a layer of the
     // right length is not cleared first); no NaN or Inf leaves the renderer.
     for layer in &mut bufs.layers {
@@ -407,23 +423,33 @@ pub fn render_into<I: Integrator>(
             layer.resize(n, Rgb::ZERO);
         }
     }
-    const CHUNK: usize = 4096;
+    // One row of the region per chunk.
+    let rw = rect.width() as usize;
     let [l0, l1, l2, l3, l4] = &mut bufs.layers;
     let nonfinite: u64 = (
-        l0.par_chunks_mut(CHUNK),
-        l1.par_chunks_mut(CHUNK),
-        l2.par_chunks_mut(CHUNK),
-        l3.par_chunks_mut(CHUNK),
-        l4.par_chunks_mut(CHUNK),
+        l0.par_chunks_mut(rw),
+        l1.par_chunks_mut(rw),
+        l2.par_chunks_mut(rw),
+        l3.par_chunks_mut(rw),
+        l4.par_chunks_mut(rw),
     )
         .into_par_iter()
         .enumerate()
-        .map(|(c, (total, direct, caustic, indirect, specular))| {
+        .map_init(I::Scratch::default, |scratch, (c, (total, direct, caustic, indirect, specular))| {
             let mut bad = 0;
-            for (r, out) in (c * CHUNK..).zip(total.iter_mut()) {
-                let (px, n) = &pixels[pass1_of(r)];
+            for (i, out) in total.iter_mut().enumerate() {
+                let r = c * rw + i;
+                let computed;
+                let (px, n) = if single_pass {
+                    let (x, y) = (rect.x0 as usize + i, rect.y0 as usize + c);
+                    count(r);
+                    computed = pixel(x, y, scratch, None);
+                    (&computed.0, &computed.1)
+                } else {
+                    let p = &pixels[pass1_of(r)];
+                    (&p.0, &p.1)
+                };
                 let values = [px.total(), px.direct, px.caustic, px.indirect, px.specular];
-                let i = r - c * CHUNK;
                 let slots = [out, &mut direct[i], &mut caustic[i], &mut indirect[i], &mut specular[i]];
                 for (v, slot) in values.into_iter().zip(slots) {
                     *slot = if v.is_finite() {
@@ -437,6 +463,9 @@ pub fn render_into<I: Integrator>(
             bad
         })
         .sum();
+    if single_pass {
+        progress(total, total);
+    }
     let gb = gbuffer.then(|| (0..n).map(|r| std::mem::take(&mut gbuffer_of_pass1[pass1_of(r)])).collect());
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),

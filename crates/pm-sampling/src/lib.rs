@@ -23,12 +23,16 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// A stream of samples in [0,1) for one index (photon, pixel sample, ...). Each call
 /// advances one dimension. Equal (seed, index) give equal streams on every thread.
+/// The stream's keys are derived on the first draw: a pixel whose shading needs no
+/// random numbers (a diffuse surface of a live frame) pays nothing for its sampler.
 #[derive(Clone, Debug)]
 pub struct Sampler {
     seed: u32,
     index: u32,
     noise_key: u64,
     dim: u32,
+    /// (seed, salt, index) not derived yet.
+    pending: Option<(u64, Option<u64>, u64)>,
 }
 
 impl Sampler {
@@ -37,19 +41,32 @@ impl Sampler {
 
     /// The stream for `index` within the sequence named by `seed`.
     pub fn new(seed: u64, index: u64) -> Sampler {
+        Sampler { seed: 0, index: 0, noise_key: 0, dim: 0, pending: Some((seed, None, index)) }
+    }
+
+    /// The stream for `index` within the sequence named by `mix64(seed ^
+    /// mix64(salt))` (a pixel's own sequence, for example): the same as
+    /// `Sampler::new(mix64(seed ^ mix64(salt)), index)`, with the hashing deferred.
+    pub fn salted(seed: u64, salt: u64, index: u64) -> Sampler {
+        Sampler { seed: 0, index: 0, noise_key: 0, dim: 0, pending: Some((seed, Some(salt), index)) }
+    }
+
+    #[cold]
+    fn derive(&mut self, seed: u64, salt: Option<u64>, index: u64) {
+        let seed = salt.map_or(seed, |salt| mix64(seed ^ mix64(salt)));
         let block = index >> 16;
         let block_seed = mix64(seed ^ mix64(block.wrapping_add(0x9e37_79b9_7f4a_7c15)));
-        Sampler {
-            seed: block_seed as u32,
-            index: (index & 0xffff) as u32,
-            noise_key: mix64(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ index),
-            dim: 0,
-        }
+        self.seed = block_seed as u32;
+        self.index = (index & 0xffff) as u32;
+        self.noise_key = mix64(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ index);
     }
 
     /// The next sample in [0, 1).
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
+        if let Some((seed, salt, index)) = self.pending.take() {
+            self.derive(seed, salt, index);
+        }
         let d = self.dim;
         self.dim += 1;
         if d < Self::SOBOL_DIMS {

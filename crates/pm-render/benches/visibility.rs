@@ -1,0 +1,129 @@
+//! First hits at 512 x 512 pixel centres by the rasteriser against eye rays, the
+//! image loop's own cost over rasterised hits (an integrator that returns the hit
+//! distance), and shadow rays to the first light, on the live room and cornell_spheres (1 and 2
+//! threads, best of 10 frames each).
+//!
+//! Run: `cargo bench -p pm-render --bench visibility`
+
+use pm_render::{Film, Rect, raster};
+use rayon::prelude::*;
+use std::time::Instant;
+
+fn best_of(n: usize, mut f: impl FnMut()) -> f64 {
+    (0..n)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn main() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    println!(
+        "| scene | triangles | threads | raster [ms] | image loop over raster [ms] | eye rays [ms] | shadow rays [ms] | raster / eye rays |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for name in ["jozwowski_room_1024", "cornell_spheres"] {
+        let scene = pm_scene::load(&dir.join(format!("{name}.gltf"))).unwrap();
+        let camera = scene.camera.clone().unwrap();
+        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
+        let rect = Rect::full(&film);
+        let light = match scene.lights[0].kind {
+            pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => position,
+            _ => scene.bounds.center(),
+        };
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut frags = Vec::new();
+                let t_raster = best_of(10, || raster::first_hits_into(&scene, &camera, &film, rect, &mut frags));
+                let rays = camera.rays(1.0);
+                let mut hits = Vec::new();
+                let t_rays = best_of(10, || {
+                    hits.clear();
+                    hits.par_extend((0..512 * 512).into_par_iter().with_min_len(256).map(|i| {
+                        let d = rays
+                            .direction((i % 512) as f32 / 512.0 + 0.5 / 512.0, (i / 512) as f32 / 512.0 + 0.5 / 512.0);
+                        scene.intersect(camera.position, d, f32::INFINITY).map(|h| h.p)
+                    }));
+                });
+                let t_shadow = best_of(10, || {
+                    let n: usize = hits
+                        .par_iter()
+                        .with_min_len(256)
+                        .filter(|h| {
+                            h.is_some_and(|p| {
+                                let d = light - p;
+                                let len = d.length();
+                                scene.occluded(p + d * 1e-4, d / len, len * 0.999)
+                            })
+                        })
+                        .count();
+                    std::hint::black_box(n);
+                });
+                let t_loop = image_loop(&scene, &camera, &film);
+                println!(
+                    "| {name} | {} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                    scene.triangles.len(),
+                    t_raster * 1e3,
+                    t_loop * 1e3,
+                    t_rays * 1e3,
+                    t_shadow * 1e3,
+                    t_raster / t_rays
+                );
+            });
+        }
+    }
+}
+
+/// An integrator that returns the hit distance: the image loop's own cost.
+struct Flat(pm_render::Counters);
+
+impl pm_render::Integrator for Flat {
+    type Scratch = ();
+    fn li(
+        &self,
+        _: glam::Vec3,
+        _: glam::Vec3,
+        _: &mut pm_sampling::Sampler,
+        _: &mut (),
+        _: Option<&mut pm_render::VisibleSurface>,
+    ) -> pm_render::Components {
+        pm_render::Components::default()
+    }
+    fn li_hit(
+        &self,
+        _: glam::Vec3,
+        _: glam::Vec3,
+        hit: Option<pm_scene::Hit>,
+        _: &mut pm_sampling::Sampler,
+        _: &mut (),
+        _: Option<&mut pm_render::VisibleSurface>,
+    ) -> pm_render::Components {
+        pm_render::Components { direct: pm_color::Rgb::splat(hit.map_or(0.0, |h| h.t)), ..Default::default() }
+    }
+    fn counters(&self) -> &pm_render::Counters {
+        &self.0
+    }
+}
+
+/// The image loop over rasterised first hits with an integrator that does nothing.
+fn image_loop(scene: &pm_scene::Scene, camera: &pm_scene::Camera, film: &Film) -> f64 {
+    let mut bufs = pm_render::FrameBuffers::default();
+    let flat = Flat(Default::default());
+    best_of(10, || {
+        pm_render::render_into(
+            camera,
+            film,
+            Rect::full(film),
+            &flat,
+            false,
+            pm_render::Visibility::Raster(scene),
+            &mut bufs,
+            &|_, _| {},
+        )
+        .unwrap();
+    })
+}
