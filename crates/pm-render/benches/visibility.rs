@@ -22,9 +22,9 @@ fn best_of(n: usize, mut f: impl FnMut()) -> f64 {
 fn main() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
     println!(
-        "| scene | triangles | threads | raster [ms] | image loop over raster [ms] | eye rays [ms] | shadow rays [ms] | raster / eye rays |"
+        "| scene | triangles | threads | raster [ms] | image loop over raster [ms] | eye rays [ms] | shadow rays [ms] | raster / eye rays | cube shadow map 6 x 256^2 [ms] |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for name in ["jozwowski_room_1024", "cornell_spheres"] {
         let scene = pm_scene::load(&dir.join(format!("{name}.gltf"))).unwrap();
         let camera = scene.camera.clone().unwrap();
@@ -64,14 +64,18 @@ fn main() {
                     std::hint::black_box(n);
                 });
                 let t_loop = image_loop(&scene, &camera, &film);
+                let t_cube = best_of(10, || {
+                    std::hint::black_box(raster::CubeDepth::new(&scene, light, 256));
+                });
                 println!(
-                    "| {name} | {} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                    "| {name} | {} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
                     scene.triangles.len(),
                     t_raster * 1e3,
                     t_loop * 1e3,
                     t_rays * 1e3,
                     t_shadow * 1e3,
-                    t_raster / t_rays
+                    t_raster / t_rays,
+                    t_cube * 1e3
                 );
             });
         }

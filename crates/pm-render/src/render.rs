@@ -324,6 +324,9 @@ pub fn render_into<I: Integrator>(
         }
     };
     let pixel = |x: usize, y: usize, scratch: &mut I::Scratch, mut vs: Option<&mut VisibleSurface>| {
+        if first_spp == 1 {
+            return (sample(x, y, 0, scratch, vs), 1);
+        }
         let mut acc = Components::default();
         for k in 0..first_spp {
             let v = if k == 0 { vs.take() } else { None };
@@ -450,10 +453,11 @@ pub fn render_into<I: Integrator>(
                     (&p.0, &p.1)
                 };
                 let values = [px.total(), px.direct, px.caustic, px.indirect, px.specular];
+                let inv = 1.0 / *n as f32;
                 let slots = [out, &mut direct[i], &mut caustic[i], &mut indirect[i], &mut specular[i]];
                 for (v, slot) in values.into_iter().zip(slots) {
                     *slot = if v.is_finite() {
-                        (v * (1.0 / *n as f32)).max(Rgb::ZERO)
+                        (v * inv).max(Rgb::ZERO)
                     } else {
                         bad += 1;
                         Rgb::ZERO
