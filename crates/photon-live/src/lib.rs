@@ -150,7 +150,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             t.balance,
             t.estimate,
             t.draw,
-            t.shoot + t.balance + t.estimate + t.draw,
+            t.wall,
             s.paths_shot,
             s.photon_rays,
             s.paths_held,
@@ -165,7 +165,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         .with_context(|| format!("{}: cannot write", cli.out.join("frames.csv").display()))?;
     let full = (cli.params.total / cli.params.per_frame) as usize;
     let warm: Vec<&FrameStats> = stats.iter().skip(full).collect();
-    let secs = |s: &FrameStats| s.times.shoot + s.times.balance + s.times.estimate + s.times.draw;
+    let secs = |s: &FrameStats| s.times.wall;
     let mean = if warm.is_empty() { 0.0 } else { warm.iter().map(|s| secs(s)).sum::<f64>() / warm.len() as f64 };
     eprintln!(
         "photon-live: {} frames of {w}x{h}; mean frame time after warm-up {:.2} ms ({:.1} fps)",

@@ -158,8 +158,11 @@ pub struct FrameTimes {
     pub balance: f64,
     /// Corner culling and irradiance estimates.
     pub estimate: f64,
-    /// Drawing the frame (eye rays, interpolation, direct light).
+    /// Drawing the frame (rasterising or eye rays, interpolation, direct light).
     pub draw: f64,
+    /// The whole frame. The rasteriser runs beside the photon update (the grid's
+    /// update is serial and leaves a core free), so this is less than the sum.
+    pub wall: f64,
 }
 
 /// What one frame did.
@@ -195,6 +198,11 @@ fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
     direct == DirectMode::Photons || p.flags & flags::DIRECT == 0
 }
 
+/// The photons of `ring` the estimates read (see [`Live::tree_photons`]).
+fn tree_photons(ring: &RingBuffer, direct: DirectMode) -> Vec<FullIrrPhoton> {
+    ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()
+}
+
 /// Flicker of `now` against `before` (same corners): mean |now - before| over
 /// mean(before), over channels; 0 when `before` is dark.
 pub fn flicker_of(now: &[pm_color::Rgb], before: &[pm_color::Rgb]) -> f64 {
@@ -228,6 +236,8 @@ pub struct Live {
     /// The incrementally updated photon grid (photon_search = grid), keyed by slot,
     /// with the paths' unscaled power.
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
+    /// The frame's rasterised first hits.
+    fragments: Vec<Option<pm_render::raster::Fragment>>,
 }
 
 impl Live {
@@ -265,6 +275,7 @@ impl Live {
             light_offset: glam::Vec3::ZERO,
             rest_lights,
             grid: None,
+            fragments: Vec::new(),
         })
     }
 
@@ -328,8 +339,7 @@ impl Live {
     /// The photons the estimates read this frame: the used slots (power scaled by
     /// the paths held), without the direct photons when direct light comes from rays.
     pub fn tree_photons(&self) -> Vec<FullIrrPhoton> {
-        let direct = self.params.direct;
-        self.ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()
+        tree_photons(&self.ring, self.params.direct)
     }
 
     /// Move every point and spot light by `delta` [m] from the next [`Self::set_time`]
@@ -347,30 +357,45 @@ impl Live {
     /// Shoot, balance, estimate and draw one frame (its image: [`Self::frame_layers`]).
     pub fn step(&mut self) -> Result<FrameStats, String> {
         let p = &self.params;
+        let start = Instant::now();
         let t = Instant::now();
         let photons_in = self.photon_scene.as_ref().unwrap_or(&self.scene);
         let shot = self.ring.shoot(photons_in, &self.trace, &self.targets, p.per_frame as usize, p.distribution);
         let shoot = t.elapsed().as_secs_f64();
-        let t = Instant::now();
         let aspect = p.width as f32 / p.height as f32;
         let max_radius = p.max_radius_rel_diag * self.scene.bounds.diagonal();
-        // The search structure: a kd-tree rebuilt over the used slots, or the grid
-        // updated for the re-shot paths' slots only.
-        let records = match p.photon_search {
-            PhotonSearch::Rebuild => pm_kdtree::balance(&self.tree_photons()),
-            PhotonSearch::Grid => {
-                let (total, levels) = (self.ring.total(), self.ring.max_level());
-                let grid = self.grid.get_or_insert_with(|| pm_kdtree::PhotonGrid::new(max_radius, total * levels));
-                for &path in self.ring.last_paths() {
-                    for level in 0..levels {
-                        let photon = self.ring.slot(path, level).filter(|q| estimates_read(p.direct, q));
-                        grid.set((path + level * total) as u32, photon.map(FullIrrPhoton::encode));
+        let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
+        // The search structure (a kd-tree rebuilt over the used slots, or the grid
+        // updated for the re-shot paths' slots only; the update is serial) and the
+        // rasterised first hits of the frame, side by side.
+        let (ring, grid, direct) = (&self.ring, &mut self.grid, p.direct);
+        let update = || {
+            let t = Instant::now();
+            let records = match p.photon_search {
+                PhotonSearch::Rebuild => pm_kdtree::balance(&tree_photons(ring, direct)),
+                PhotonSearch::Grid => {
+                    let (total, levels) = (ring.total(), ring.max_level());
+                    let grid = grid.get_or_insert_with(|| pm_kdtree::PhotonGrid::new(max_radius, total * levels));
+                    for &path in ring.last_paths() {
+                        for level in 0..levels {
+                            let photon = ring.slot(path, level).filter(|q| estimates_read(direct, q));
+                            grid.set((path + level * total) as u32, photon.map(FullIrrPhoton::encode));
+                        }
                     }
+                    Vec::new()
                 }
-                Vec::new()
-            }
+            };
+            (records, t.elapsed().as_secs_f64())
         };
-        let balance = t.elapsed().as_secs_f64();
+        let (scene, camera, fragments) = (&self.scene, &self.camera, &mut self.fragments);
+        let raster = || {
+            let t = Instant::now();
+            if p.draw == DrawMode::Raster {
+                pm_render::raster::first_hits_into(scene, camera, &film, Rect::full(&film), fragments);
+            }
+            t.elapsed().as_secs_f64()
+        };
+        let ((records, balance), raster) = rayon::join(update, raster);
         let t = Instant::now();
         let active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
         let mut e = match &self.grid {
@@ -412,9 +437,8 @@ impl Live {
             Vec::new()
         };
         let shading = LiveShading::new(&self.scene, &self.corners, &e, p, &maps).map_err(|e| e.to_string())?;
-        let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed: self.seed ^ self.frame };
         let visibility = match p.draw {
-            DrawMode::Raster => Visibility::Raster(&self.scene),
+            DrawMode::Raster => Visibility::Fragments(&self.scene, &self.fragments),
             DrawMode::Rays => Visibility::Rays,
         };
         let (_, rs): (_, RenderStats) = pm_render::render_into(
@@ -427,10 +451,11 @@ impl Live {
             &mut self.buffers,
             &|_, _| {},
         )?;
-        let draw = t.elapsed().as_secs_f64();
+        // The rasteriser ran beside the photon update: its time counts as drawing.
+        let draw = raster + t.elapsed().as_secs_f64();
         let stats = FrameStats {
             frame: self.frame,
-            times: FrameTimes { shoot, balance, estimate, draw },
+            times: FrameTimes { shoot, balance, estimate, draw, wall: start.elapsed().as_secs_f64() },
             paths_shot: shot.paths,
             photon_rays: shot.rays,
             paths_held: self.ring.filled(),

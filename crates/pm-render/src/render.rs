@@ -197,6 +197,9 @@ pub enum Visibility<'s> {
     /// pixel (the centre), which the integrator gets through
     /// [`Integrator::li_hit`]; supersamples still cast rays.
     Raster(&'s pm_scene::Scene),
+    /// First hits the caller already rasterised ([`crate::raster::first_hits_into`])
+    /// for this film and region: a live frame draws them while it updates its photons.
+    Fragments(&'s pm_scene::Scene, &'s [Option<crate::raster::Fragment>]),
 }
 
 /// Render the pixels of `rect` of `film` seen by `camera`. Deterministic, and a
@@ -292,6 +295,12 @@ pub fn render_into<I: Integrator>(
         Visibility::Raster(scene) => {
             crate::raster::first_hits_into(scene, camera, film, pass1, &mut bufs.fragments);
             Some((scene, &bufs.fragments))
+        }
+        Visibility::Fragments(scene, frags) => {
+            if frags.len() != pass1.area() {
+                return Err(format!("{} rasterised fragments for a region of {} pixels", frags.len(), pass1.area()));
+            }
+            Some((scene, frags))
         }
         Visibility::Rays => None,
     };
