@@ -72,6 +72,20 @@ pub struct BsdfSample {
     pub specular: bool,
     /// True when `wi` is on the other side of the surface from `wo`.
     pub transmitted: bool,
+    /// The kind of lobe that was sampled.
+    pub lobe: Lobe,
+}
+
+/// The kind of lobe a direction was sampled from (image-space photon mapping sizes
+/// its kernels by it: McGuire and Luebke 2009, section 4.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lobe {
+    /// Lambertian (cosine-weighted).
+    Diffuse,
+    /// A rough microfacet lobe.
+    Glossy,
+    /// A Dirac delta: mirror reflection or refraction.
+    Specular,
 }
 
 impl Bsdf {
@@ -157,11 +171,19 @@ impl Bsdf {
                     pdf: cosine_hemisphere_pdf(li.z),
                     specular: false,
                     transmitted: false,
+                    lobe: Lobe::Diffuse,
                 }
             }
             Bsdf::Mirror { r } => {
                 let li = Vec3::new(-lo.x, -lo.y, lo.z);
-                BsdfSample { wi: world(li), weight: r, pdf: 1.0, specular: true, transmitted: false }
+                BsdfSample {
+                    wi: world(li),
+                    weight: r,
+                    pdf: 1.0,
+                    specular: true,
+                    transmitted: false,
+                    lobe: Lobe::Specular,
+                }
             }
             Bsdf::Glass { eta, tint, thin } => sample_glass(lo_raw, eta, tint, thin, uc, |l| to_world(l, t, b, n))?,
             Bsdf::Conductor { f0, alpha } => {
@@ -179,6 +201,7 @@ impl Bsdf {
                     pdf,
                     specular: false,
                     transmitted: false,
+                    lobe: Lobe::Glossy,
                 }
             }
             Bsdf::Plastic { rho, alpha } => {
@@ -192,7 +215,8 @@ impl Bsdf {
                     return None;
                 }
                 let f = plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0));
-                BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false }
+                let lobe = if uc < ps { Lobe::Glossy } else { Lobe::Diffuse };
+                BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false, lobe }
             }
         };
         (s.wi.is_finite() && s.weight.is_finite()).then_some(s)
@@ -249,7 +273,14 @@ fn sample_glass(
     }
     if uc < r {
         let li = Vec3::new(-lo.x, -lo.y, lo.z);
-        return Some(BsdfSample { wi: world(li), weight: Rgb::ONE, pdf: r, specular: true, transmitted: false });
+        return Some(BsdfSample {
+            wi: world(li),
+            weight: Rgb::ONE,
+            pdf: r,
+            specular: true,
+            transmitted: false,
+            lobe: Lobe::Specular,
+        });
     }
     let li = if thin {
         -lo
@@ -268,7 +299,14 @@ fn sample_glass(
     // and importance are not; this crate returns the power (adjoint) weight, which is
     // also what the renderer needs for radiance when it traces from the eye with
     // symmetric throughput (both ends of a closed glass object cancel).
-    Some(BsdfSample { wi: world(li), weight: tint, pdf: 1.0 - r, specular: true, transmitted: true })
+    Some(BsdfSample {
+        wi: world(li),
+        weight: tint,
+        pdf: 1.0 - r,
+        specular: true,
+        transmitted: true,
+        lobe: Lobe::Specular,
+    })
 }
 
 /// GGX normal distribution D(h) [sr^-1] (Walter et al. 2007, eq. 33).

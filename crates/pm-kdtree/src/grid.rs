@@ -101,6 +101,31 @@ impl<R: PhotonRecord> PhotonGrid<R> {
         }
     }
 
+    /// Call `f(id, squared distance)` for every photon within squared radius `r2` of
+    /// `x`, in no particular order.
+    pub fn for_each_within(&self, x: Vec3, r2: f32, mut f: impl FnMut(u32, f32)) {
+        if !(r2 >= 0.0) {
+            return;
+        }
+        let Some((lo, hi)) = self.extent else { return };
+        let c = self.key_of(x);
+        let reach = ((r2.sqrt() / self.cell).ceil().min(i32::MAX as f32 / 4.0) as i32)
+            .min((c - lo).abs().max((hi - c).abs()).max_element());
+        for dz in -reach..=reach {
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let Some(list) = self.cells.get(&(c + IVec3::new(dx, dy, dz))) else { continue };
+                    for &(p, i) in list {
+                        let d2 = p.distance_squared(x);
+                        if d2 <= r2 {
+                            f(i, d2);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Photons held.
     pub fn len(&self) -> usize {
         self.place.iter().filter(|p| p.is_some()).count()

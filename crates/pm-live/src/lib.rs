@@ -14,9 +14,11 @@
 //!
 //! This crate does no I/O: a frame is an in-memory image and its statistics.
 
+pub mod ispm;
 mod mesh;
 mod ring;
 mod shade;
+pub mod splat;
 
 pub use mesh::Corners;
 pub use ring::{Distribution, RingBuffer, ShootStats};
@@ -24,7 +26,7 @@ pub use shade::LiveShading;
 
 use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
-use pm_params::{Any, above, at_least, between};
+use pm_params::{Any, above, above_up_to, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
 use pm_render::{Film, FrameBuffers, Rect, RenderStats, Visibility};
 use pm_scene::{Camera, LightSelector, Scene, Target};
@@ -40,6 +42,17 @@ pm_params::value_enum! {
         ShadowMap,
         /// The photons' estimate at the corners, like indirect light (the thesis).
         Photons,
+    }
+}
+
+pm_params::value_enum! {
+    /// Which real-time method draws the frames.
+    pub enum Method {
+        /// Jozwowski 2002: a ring buffer of photon paths, estimates at mesh vertices.
+        Vertex,
+        /// McGuire and Luebke 2009: bounce maps and photon volumes splatted over the
+        /// eye's G-buffer.
+        Ispm,
     }
 }
 
@@ -78,6 +91,9 @@ pm_params::params! {
     /// The real-time mode's parameters, defined once: `photon-live`'s options and the
     /// `[live]` section of pipeline.toml (Jozwowski 2002 sections 4.1 and 4.4).
     pub struct LiveParams {
+        /// The method: vertex estimates (Jozwowski 2002) or image-space photon
+        /// mapping (McGuire and Luebke 2009).
+        method: Method = Method::Vertex => Any;
         /// Photon paths re-shot every frame (the thesis: 100-2,000).
         per_frame: u32 = 2_000 => between(1, 1 << 24);
         /// Photon paths the ring buffer holds (the thesis: 2,000; at least per_frame).
@@ -121,6 +137,24 @@ pm_params::params! {
         draw: DrawMode = DrawMode::Raster => Any;
         /// Depth limit of mirror and glass recursion when drawing.
         max_depth: u32 = 8 => between(0, 1000);
+        /// Image-space method: texels per side of each face of a light's bounce map
+        /// (6 x res^2 directions for a point light; directional and area lights shoot
+        /// as many samples; lights share texels by power).
+        bounce_res: u32 = 48 => between(1, 4096);
+        /// Image-space method: photons stored per path after the bounce map (1: one
+        /// indirect bounce).
+        bounces: u32 = 2 => between(1, 64);
+        /// Image-space method: kernel radius of a path of density 1, as a fraction of
+        /// the scene diagonal; a path of density ρ gets radius r / sqrt(ρ) (one
+        /// Lambertian bounce: ρ ≈ albedo / 1000).
+        kernel_radius_rel_diag: f32 = 0.001 => above(0.0);
+        /// Image-space method: smallest kernel radius, fraction of the diagonal.
+        kernel_min_rel_diag: f32 = 0.004 => above(0.0);
+        /// Image-space method: largest kernel radius, fraction of the diagonal.
+        kernel_max_rel_diag: f32 = 0.06 => above(0.0);
+        /// Image-space method: kernel thickness along the photon's surface normal
+        /// over its radius in the surface plane (r_z / r_xy, section 5.1).
+        kernel_minor: f32 = 0.25 => above_up_to(0.0, 1.0);
         /// Frame width [pixels].
         width: u32 = 512 => between(1, 16384);
         /// Frame height [pixels].
@@ -189,6 +223,9 @@ pub struct FrameStats {
     pub flicker: f64,
     /// Eye samples drawn.
     pub samples: u64,
+    /// The image-space method's own split and counts (its frames have no ring
+    /// buffer, kd-tree or corners).
+    pub ispm: Option<ispm::IspmStats>,
 }
 
 /// True for the photons the corner estimates read: all of them when direct light
@@ -196,6 +233,24 @@ pub struct FrameStats {
 /// per pixel).
 fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
     direct == DirectMode::Photons || p.flags & flags::DIRECT == 0
+}
+
+/// The cube shadow maps of `scene`'s point and spot lights when direct light comes
+/// from shadow maps (none otherwise, and none for other lights).
+fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<pm_render::raster::CubeDepth>> {
+    if p.direct != DirectMode::ShadowMap {
+        return Vec::new();
+    }
+    scene
+        .lights
+        .iter()
+        .map(|l| match l.kind {
+            pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => {
+                Some(pm_render::raster::CubeDepth::new(scene, position, p.shadow_map_res))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// The photons of `ring` the estimates read (see [`Live::tree_photons`]).
@@ -238,6 +293,9 @@ pub struct Live {
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
     /// The frame's rasterised first hits.
     fragments: Vec<Option<pm_render::raster::Fragment>>,
+    /// Whether caustic paths are traced (the image-space method asks the scene
+    /// analysis once: "simulate only the effects a scene calls for").
+    caustics: bool,
 }
 
 impl Live {
@@ -258,6 +316,7 @@ impl Live {
         };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(&scene, params.cornering);
+        let caustics = params.method == Method::Ispm && pm_scene::analyze(&scene).caustics.yes;
         let rest_lights = (scene.lights.clone(), photon_scene.as_ref().map(|p| p.lights.clone()));
         Ok(Live {
             scene,
@@ -276,6 +335,7 @@ impl Live {
             rest_lights,
             grid: None,
             fragments: Vec::new(),
+            caustics,
         })
     }
 
@@ -357,6 +417,30 @@ impl Live {
     /// Shoot, balance, estimate and draw one frame (its image: [`Self::frame_layers`]).
     pub fn step(&mut self) -> Result<FrameStats, String> {
         let p = &self.params;
+        if p.method == Method::Ispm {
+            // The same seed every frame: a static light gives the same bounce map and
+            // photons frame after frame (the paper's seeding by light and texel).
+            let st = ispm::frame(
+                &self.scene,
+                &self.camera,
+                p,
+                self.seed,
+                self.caustics,
+                &mut self.buffers,
+                &mut self.fragments,
+            )?;
+            let times = FrameTimes { draw: st.times.wall, wall: st.times.wall, ..Default::default() };
+            let stats = FrameStats {
+                frame: self.frame,
+                times,
+                photons_in_tree: st.photons,
+                samples: (p.width * p.height) as u64,
+                ispm: Some(ispm::IspmStats { frame: self.frame, ..st }),
+                ..Default::default()
+            };
+            self.frame += 1;
+            return Ok(stats);
+        }
         let start = Instant::now();
         let t = Instant::now();
         let photons_in = self.photon_scene.as_ref().unwrap_or(&self.scene);
@@ -422,20 +506,7 @@ impl Live {
         }
         let estimate = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let maps: Vec<Option<pm_render::raster::CubeDepth>> = if p.direct == DirectMode::ShadowMap {
-            self.scene
-                .lights
-                .iter()
-                .map(|l| match l.kind {
-                    pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => {
-                        Some(pm_render::raster::CubeDepth::new(&self.scene, position, p.shadow_map_res))
-                    }
-                    _ => None,
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let maps = shadow_maps(&self.scene, p);
         let shading = LiveShading::new(&self.scene, &self.corners, &e, p, &maps).map_err(|e| e.to_string())?;
         let visibility = match p.draw {
             DrawMode::Raster => Visibility::Fragments(&self.scene, &self.fragments),
@@ -467,6 +538,7 @@ impl Live {
             corners: self.corners.len(),
             samples: rs.samples,
             flicker,
+            ispm: None,
         };
         self.previous = Some((e, active));
         self.frame += 1;

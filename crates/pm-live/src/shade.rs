@@ -1,9 +1,13 @@
 //! Drawing a frame: the mesh with corner radiance interpolated across each
 //! triangle (Gouraud shading, Jozwowski 2002 section 4.1.3) times the reflectance at
-//! the pixel, direct light by shadow rays or from the photons, and mirrors and glass
-//! by ray tracing. An [`Integrator`] over `pm-render`'s region loop, so frames get
-//! its deterministic per-pixel streams and G-buffer.
+//! the pixel, direct light by shadow rays, shadow maps or from the photons, and
+//! mirrors and glass by ray tracing. The image-space method (McGuire and Luebke
+//! 2009) draws with the same integrator: its indirect light at the eye's surfaces is
+//! splatted afterwards, and what mirrors and glass show gathers the same photons. An
+//! [`Integrator`] over `pm-render`'s region loop, so frames get its deterministic
+//! per-pixel streams and G-buffer.
 
+use crate::splat::{PhotonIndex, Surface, VolumePhoton};
 use crate::{Corners, DirectMode, LiveParams};
 use glam::Vec3;
 use pm_color::Rgb;
@@ -13,12 +17,19 @@ use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 
+/// Where a frame's indirect light comes from.
+enum Indirect<'a> {
+    /// Irradiance at each corner [W m^-2 per channel], interpolated (the thesis).
+    Corners { corners: &'a Corners, e: &'a [Rgb] },
+    /// Photon volumes: splatted over the eye's surfaces after drawing, gathered
+    /// where mirrors and glass lead (image-space photon mapping).
+    Photons { photons: &'a [VolumePhoton], index: &'a PhotonIndex },
+}
+
 /// The per-pixel work of a live frame.
 pub struct LiveShading<'a> {
     light: DirectLighting<'a>,
-    corners: &'a Corners,
-    /// Irradiance at each corner [W m^-2 per channel].
-    e: &'a [Rgb],
+    indirect: Indirect<'a>,
     direct: DirectMode,
     light_samples: u32,
     max_depth: u32,
@@ -40,9 +51,29 @@ impl<'a> LiveShading<'a> {
     ) -> Result<Self, pm_scene::LightSelectError> {
         Ok(LiveShading {
             light: DirectLighting::new(scene)?,
-            corners,
-            e,
+            indirect: Indirect::Corners { corners, e },
             direct: p.direct,
+            light_samples: p.light_samples,
+            max_depth: p.max_depth,
+            shadow_maps,
+            all_mapped: shadow_maps.len() == scene.lights.len() && shadow_maps.iter().all(Option::is_some),
+            counters: Counters::default(),
+        })
+    }
+
+    /// Shading of `scene` for image-space photon mapping: indirect light from
+    /// `photons` (with their `index`), splatted at the eye's surfaces by the caller.
+    pub fn splatted(
+        scene: &'a Scene,
+        photons: &'a [VolumePhoton],
+        index: &'a PhotonIndex,
+        p: &LiveParams,
+        shadow_maps: &'a [Option<CubeDepth>],
+    ) -> Result<Self, pm_scene::LightSelectError> {
+        Ok(LiveShading {
+            light: DirectLighting::new(scene)?,
+            indirect: Indirect::Photons { photons, index },
+            direct: if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct },
             light_samples: p.light_samples,
             max_depth: p.max_depth,
             shadow_maps,
@@ -53,10 +84,15 @@ impl<'a> LiveShading<'a> {
 
     /// Irradiance at barycentrics `b` of triangle `tri`: the corners' values
     /// interpolated linearly (Gouraud; perspective-correct, since eye rays give
-    /// true barycentrics).
+    /// true barycentrics). Zero for the image-space method.
     pub fn irradiance_at(&self, tri: u32, b: [f32; 3]) -> Rgb {
-        let c = self.corners.tri[tri as usize];
-        self.e[c[0] as usize] * b[0] + self.e[c[1] as usize] * b[1] + self.e[c[2] as usize] * b[2]
+        match self.indirect {
+            Indirect::Corners { corners, e } => {
+                let c = corners.tri[tri as usize];
+                e[c[0] as usize] * b[0] + e[c[1] as usize] * b[1] + e[c[2] as usize] * b[2]
+            }
+            Indirect::Photons { .. } => Rgb::ZERO,
+        }
     }
 }
 
@@ -87,7 +123,14 @@ impl LiveShading<'_> {
     }
 
     /// The components seen along direction `d` whose first hit is `first`.
-    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
+    fn shade(
+        &self,
+        first: Option<Hit>,
+        d: Vec3,
+        s: &mut Sampler,
+        ids: &mut Vec<u32>,
+        mut vs: Option<&mut VisibleSurface>,
+    ) -> Components {
         let scene = self.light.scene;
         let mut d = d;
         let mut beta = Rgb::ONE;
@@ -115,7 +158,17 @@ impl LiveShading<'_> {
                 DirectMode::ShadowMap => self.mapped_direct(&hit, &bsdf, wo, s),
                 DirectMode::Photons => Rgb::ZERO,
             };
-            let indirect = bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI;
+            let indirect = match self.indirect {
+                Indirect::Corners { .. } => bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI,
+                // Splatted later where the eye sees the surface directly.
+                Indirect::Photons { .. } if depth == 0 => Rgb::ZERO,
+                Indirect::Photons { photons, index } => {
+                    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+                    let surface = Surface { p: hit.p, n, wo, bsdf };
+                    let (ind, caus) = crate::splat::gather(photons, index, &surface, ids);
+                    ind + caus
+                }
+            };
             if depth == 0 {
                 if let Some(v) = vs {
                     v.direct = direct;
@@ -129,10 +182,10 @@ impl LiveShading<'_> {
 }
 
 impl Integrator for LiveShading<'_> {
-    type Scratch = ();
+    type Scratch = Vec<u32>;
 
-    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
-        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, vs)
+    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, ids: &mut Vec<u32>, vs: Option<&mut VisibleSurface>) -> Components {
+        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, ids, vs)
     }
 
     fn li_hit(
@@ -141,10 +194,10 @@ impl Integrator for LiveShading<'_> {
         d: Vec3,
         hit: Option<Hit>,
         s: &mut Sampler,
-        _: &mut (),
+        ids: &mut Vec<u32>,
         vs: Option<&mut VisibleSurface>,
     ) -> Components {
-        self.shade(hit, d, s, vs)
+        self.shade(hit, d, s, ids, vs)
     }
 
     fn counters(&self) -> &Counters {

@@ -13,6 +13,8 @@
 //! This crate returns photons in memory and does no I/O, so the real-time mode can
 //! call it per frame.
 
+use glam::Vec3;
+use pm_bsdf::BsdfSample;
 use pm_color::Rgb;
 use pm_format::{Photon, flags};
 use pm_sampling::{Sampler, mix64};
@@ -222,22 +224,8 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
                 return; // the caustic map only needs the first non-specular hit
             }
         }
-        let u = s.next_2d();
-        let uc = s.next_1d();
-        let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return };
-        // Reject directions that the shading normal allows but the geometry does not
-        // (they would leak through the surface).
-        let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
-        if same_side == bs.transmitted {
-            return;
-        }
-        // Russian roulette on the scattering albedo, keeping spectral balance:
-        // survive with q = mean(weight), scale power by weight / q (ISPM App. A, 2(d)).
-        let q = pm_color::mean(bs.weight).min(1.0);
-        if !(q > 0.0) || s.next_1d() >= q {
-            return;
-        }
-        phi *= bs.weight / q;
+        let Some((bs, factor)) = scatter(&bsdf, &hit, wo, &mut s) else { return };
+        phi *= factor;
         specular_chain &= bs.specular;
         if cfg.pass == MapPass::Caustic && !specular_chain {
             return;
@@ -246,6 +234,28 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         d = bs.wi;
     }
     out.truncated = true;
+}
+
+/// One scattering event of a photon that arrived at `hit` from direction `wo`:
+/// sample the BSDF, refuse directions the shading normal allows but the geometry
+/// does not (they would leak through the surface), then Russian roulette on the
+/// scattering albedo keeping spectral balance: survive with q = mean(weight) and
+/// scale the power by weight / q (McGuire and Luebke 2009, appendix A, step 2(d)).
+/// Returns the sample and the factor to multiply the photon's power by, or none
+/// when the photon is absorbed. Draws three numbers from `s`, four if it survives.
+pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Sampler) -> Option<(BsdfSample, Rgb)> {
+    let u = s.next_2d();
+    let uc = s.next_1d();
+    let bs = bsdf.sample(wo, hit.ns, u, uc)?;
+    let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
+    if same_side == bs.transmitted {
+        return None;
+    }
+    let q = pm_color::mean(bs.weight).min(1.0);
+    if !(q > 0.0) || s.next_1d() >= q {
+        return None;
+    }
+    Some((bs, bs.weight / q))
 }
 
 /// Trace a map. `progress` is called after each batch with the photons stored so far.

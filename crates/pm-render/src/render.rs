@@ -234,6 +234,22 @@ impl FrameBuffers {
         LAYERS.iter().position(|&n| n == name).map(|k| self.layers[k].as_slice())
     }
 
+    /// Add `values` (one per pixel of the last region) to the layer called `name`
+    /// and to "total" (image-space photon mapping splats its indirect layers after
+    /// drawing). Values that are not finite or negative add nothing.
+    pub fn add_to_layer(&mut self, name: &str, values: &[Rgb]) {
+        let Some(k) = LAYERS.iter().position(|&n| n == name) else { return };
+        let [total, rest @ ..] = &mut self.layers;
+        let mut layer = if k == 0 { None } else { Some(&mut rest[k - 1]) };
+        for (j, v) in values.iter().enumerate().take(total.len()) {
+            let v = if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO };
+            total[j] += v;
+            if let Some(l) = layer.as_deref_mut() {
+                l[j] += v;
+            }
+        }
+    }
+
     /// All layers, named, of the last region rendered.
     pub fn layers(&self) -> impl Iterator<Item = (&'static str, &[Rgb])> {
         LAYERS.iter().copied().zip(self.layers.iter().map(Vec::as_slice))
