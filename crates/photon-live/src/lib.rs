@@ -137,10 +137,57 @@ pub fn run(cli: &Cli) -> Result<Report> {
     }
     progress.finish();
     pm_image::write_apng(&cli.out.join("live.apng"), w, h, &apng, cli.params.fps)?;
-    let mut csv = String::from(
-        "frame,shoot_s,balance_s,estimate_s,draw_s,total_s,paths_shot,photon_rays,paths_held,photons_in_tree,estimates,corners,samples,flicker\n",
+    let csv = frames_csv(&stats)?;
+    pm_format::write_atomically(&cli.out.join("frames.csv"), |f| std::io::Write::write_all(f, csv.as_bytes()))
+        .with_context(|| format!("{}: cannot write", cli.out.join("frames.csv").display()))?;
+    // The vertex method's buffer fills over total / per_frame frames; the
+    // image-space method has no warm-up beyond its first frame.
+    let full = match cli.params.method {
+        pm_live::Method::Vertex => (cli.params.total / cli.params.per_frame) as usize,
+        pm_live::Method::Ispm => 1,
+    };
+    let warm: Vec<&FrameStats> = stats.iter().skip(full).collect();
+    let secs = |s: &FrameStats| s.times.wall;
+    let mean = if warm.is_empty() { 0.0 } else { warm.iter().map(|s| secs(s)).sum::<f64>() / warm.len() as f64 };
+    eprintln!(
+        "photon-live: {} frames of {w}x{h}; mean frame time after warm-up {:.2} ms ({:.1} fps)",
+        cli.frames,
+        1e3 * mean,
+        if mean > 0.0 { 1.0 / mean } else { 0.0 }
     );
-    for s in &stats {
+    Ok(Report { frames: stats, mean_frame_seconds: mean })
+}
+
+/// frames.csv: per frame the times of its steps [s] and its counts; the columns
+/// follow the method (the image-space method's are the paper's Table 2 split).
+fn frames_csv(stats: &[FrameStats]) -> Result<String> {
+    let ispm = stats.first().is_some_and(|s| s.ispm.is_some());
+    let mut csv = String::from(if ispm {
+        "frame,gbuffer_s,direct_s,bounce_s,trace_s,splat_s,upsample_s,total_s,texels,texel_hits,survived,photons\n"
+    } else {
+        "frame,shoot_s,balance_s,estimate_s,draw_s,total_s,paths_shot,photon_rays,paths_held,photons_in_tree,estimates,corners,samples,flicker\n"
+    });
+    for s in stats {
+        if let Some(i) = &s.ispm {
+            let t = &i.times;
+            writeln!(
+                csv,
+                "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{}",
+                s.frame,
+                t.gbuffer,
+                t.direct,
+                t.bounce,
+                t.trace,
+                t.splat,
+                t.upsample,
+                t.wall,
+                i.bounce.texels,
+                i.bounce.hits,
+                i.bounce.survived,
+                i.photons
+            )?;
+            continue;
+        }
         let t = &s.times;
         writeln!(
             csv,
@@ -161,19 +208,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             s.flicker
         )?;
     }
-    pm_format::write_atomically(&cli.out.join("frames.csv"), |f| std::io::Write::write_all(f, csv.as_bytes()))
-        .with_context(|| format!("{}: cannot write", cli.out.join("frames.csv").display()))?;
-    let full = (cli.params.total / cli.params.per_frame) as usize;
-    let warm: Vec<&FrameStats> = stats.iter().skip(full).collect();
-    let secs = |s: &FrameStats| s.times.wall;
-    let mean = if warm.is_empty() { 0.0 } else { warm.iter().map(|s| secs(s)).sum::<f64>() / warm.len() as f64 };
-    eprintln!(
-        "photon-live: {} frames of {w}x{h}; mean frame time after warm-up {:.2} ms ({:.1} fps)",
-        cli.frames,
-        1e3 * mean,
-        if mean > 0.0 { 1.0 / mean } else { 0.0 }
-    );
-    Ok(Report { frames: stats, mean_frame_seconds: mean })
+    Ok(csv)
 }
 
 /// The ring buffer's used slots as a global photon map (full records, unsorted).

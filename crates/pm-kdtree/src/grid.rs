@@ -78,6 +78,12 @@ impl<R: PhotonRecord> PhotonGrid<R> {
         }
     }
 
+    /// An empty grid for ids 0..`ids` with cells of side `cell` [m]: for radius
+    /// queries ([`Self::for_each_within`]) of radius `cell`, which read 27 cells.
+    pub fn with_cell(cell: f32, ids: usize) -> PhotonGrid<R> {
+        PhotonGrid { cell: cell.max(f32::MIN_POSITIVE), ..PhotonGrid::new(cell, ids) }
+    }
+
     fn key_of(&self, p: Vec3) -> IVec3 {
         (p / self.cell).floor().as_ivec3()
     }

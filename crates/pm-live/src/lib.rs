@@ -149,12 +149,16 @@ pm_params::params! {
         /// Lambertian bounce: ρ ≈ albedo / 1000).
         kernel_radius_rel_diag: f32 = 0.001 => above(0.0);
         /// Image-space method: smallest kernel radius, fraction of the diagonal.
-        kernel_min_rel_diag: f32 = 0.004 => above(0.0);
+        kernel_min_rel_diag: f32 = 0.01 => above(0.0);
         /// Image-space method: largest kernel radius, fraction of the diagonal.
-        kernel_max_rel_diag: f32 = 0.06 => above(0.0);
+        kernel_max_rel_diag: f32 = 0.03 => above(0.0);
         /// Image-space method: kernel thickness along the photon's surface normal
         /// over its radius in the surface plane (r_z / r_xy, section 5.1).
         kernel_minor: f32 = 0.25 => above_up_to(0.0, 1.0);
+        /// Image-space method: splat at 1 / subsample of the resolution in each
+        /// direction and upsample with the joint bilateral filter (section 5.2; 1: off,
+        /// the consistent estimate; the paper uses 2 to 16).
+        subsample: u32 = 1 => between(1, 16);
         /// Frame width [pixels].
         width: u32 = 512 => between(1, 16384);
         /// Frame height [pixels].

@@ -123,14 +123,7 @@ impl LiveShading<'_> {
     }
 
     /// The components seen along direction `d` whose first hit is `first`.
-    fn shade(
-        &self,
-        first: Option<Hit>,
-        d: Vec3,
-        s: &mut Sampler,
-        ids: &mut Vec<u32>,
-        mut vs: Option<&mut VisibleSurface>,
-    ) -> Components {
+    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
         let scene = self.light.scene;
         let mut d = d;
         let mut beta = Rgb::ONE;
@@ -164,8 +157,8 @@ impl LiveShading<'_> {
                 Indirect::Photons { .. } if depth == 0 => Rgb::ZERO,
                 Indirect::Photons { photons, index } => {
                     let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-                    let surface = Surface { p: hit.p, n, wo, bsdf };
-                    let (ind, caus) = crate::splat::gather(photons, index, &surface, ids);
+                    let surface = Surface::new(hit.p, n, wo, bsdf);
+                    let (ind, caus) = crate::splat::gather(photons, index, &surface);
                     ind + caus
                 }
             };
@@ -182,10 +175,10 @@ impl LiveShading<'_> {
 }
 
 impl Integrator for LiveShading<'_> {
-    type Scratch = Vec<u32>;
+    type Scratch = ();
 
-    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, ids: &mut Vec<u32>, vs: Option<&mut VisibleSurface>) -> Components {
-        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, ids, vs)
+    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
+        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, vs)
     }
 
     fn li_hit(
@@ -194,10 +187,10 @@ impl Integrator for LiveShading<'_> {
         d: Vec3,
         hit: Option<Hit>,
         s: &mut Sampler,
-        ids: &mut Vec<u32>,
+        _: &mut (),
         vs: Option<&mut VisibleSurface>,
     ) -> Components {
-        self.shade(hit, d, s, ids, vs)
+        self.shade(hit, d, s, vs)
     }
 
     fn counters(&self) -> &Counters {

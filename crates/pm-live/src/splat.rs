@@ -3,7 +3,7 @@
 //! of the surface it hit, compressed to r_z along that surface's normal (section 5.1,
 //! equation 2) — is projected to a screen rectangle, and every pixel of that
 //! rectangle whose G-buffer point lies inside gets the photon's contribution
-//! (equation 1). The same contribution summed over a radius query is the gather
+//! (equation 1, whose cosine factor is dropped: see [`VolumePhoton::irradiance_at`]). The same contribution summed over a radius query is the gather
 //! ([`gather`]) that mirrors and glass need and that the tests compare against.
 //!
 //! Deterministic without atomics: photons are binned into screen tiles in photon
@@ -54,6 +54,20 @@ pub struct Surface {
     pub wo: Vec3,
     /// The BSDF there (non-specular).
     pub bsdf: Bsdf,
+    /// f / π-free shortcut: Some(ρ / π) when the BSDF is Lambertian (f is constant,
+    /// so the splat sums irradiance and multiplies once).
+    lambert: Option<Rgb>,
+}
+
+impl Surface {
+    /// The surface at `p` with normal `n` seen from direction `wo`.
+    pub fn new(p: Vec3, n: Vec3, wo: Vec3, bsdf: Bsdf) -> Surface {
+        let lambert = match bsdf {
+            Bsdf::Lambert { rho } => Some(rho / PI),
+            _ => None,
+        };
+        Surface { p, n, wo, bsdf, lambert }
+    }
 }
 
 impl VolumePhoton {
@@ -80,26 +94,38 @@ impl VolumePhoton {
         if t < 1.0 { 3.0 * (1.0 - t) / (PI * self.r_xy * self.r_xy) } else { 0.0 }
     }
 
-    /// Irradiance this photon adds at `s` [W m^-2 per channel]: Φ max(0, ω_i·n) κ.
+    /// Irradiance this photon adds at a point `p` with normal `n` [W m^-2 per
+    /// channel]: Φ κ, from the front only.
+    ///
+    /// The paper's equation 1 (and its appendix A, step 3(a)) multiplies by
+    /// max(0, ω_i·n). A photon's power is already the flux through the surface (the
+    /// density of photons carries the cosine; Jensen 2001, equation 7.6, has none),
+    /// so only the sign is used here: with the cosine, a diffusely lit wall gets 2/3
+    /// of its light (the furnace test measured 57% with it).
     #[inline]
     pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Rgb {
-        let cos = self.wi.dot(n);
-        if cos <= 0.0 {
+        if self.wi.dot(n) <= 0.0 || (p - self.p).dot(self.n).abs() >= self.r_z {
             return Rgb::ZERO;
         }
         let k = self.kernel(p);
-        if k > 0.0 { self.power * (cos * k) } else { Rgb::ZERO }
+        if k > 0.0 { self.power * k } else { Rgb::ZERO }
     }
 
-    /// Radiance this photon adds at `s` toward the viewer (equation 1) [W sr^-1 m^-2].
+    /// Radiance this photon adds at `s` toward the viewer (equation 1, without the
+    /// cosine: see [`Self::irradiance_at`]) [W sr^-1 m^-2].
     #[inline]
     pub fn radiance_at(&self, s: &Surface) -> Rgb {
-        let cos = self.wi.dot(s.n);
-        if cos <= 0.0 {
+        // Outside the slab |d.n_p| <= r_z the kernel is zero: a dot product decides
+        // for most of a volume's pixels.
+        if self.wi.dot(s.n) <= 0.0 || (s.p - self.p).dot(self.n).abs() >= self.r_z {
             return Rgb::ZERO;
         }
         let k = self.kernel(s.p);
-        if k > 0.0 { s.bsdf.f(s.wo, self.wi, s.n) * self.power * (cos * k) } else { Rgb::ZERO }
+        if !(k > 0.0) {
+            return Rgb::ZERO;
+        }
+        let f = s.lambert.unwrap_or_else(|| s.bsdf.f(s.wo, self.wi, s.n));
+        f * self.power * k
     }
 
     /// The pixel rectangle [x0, x1) x [y0, y1) of a `w` x `h` image seen by `camera`
@@ -137,31 +163,127 @@ impl VolumePhoton {
     }
 }
 
+/// The G-buffer sampled every `factor` pixels: the entry at the centre pixel of
+/// each `factor` x `factor` block (clamped to the image), row by row (section 5.2).
+pub fn subsample(gbuffer: &[Option<Surface>], w: u32, h: u32, factor: u32) -> Vec<Option<Surface>> {
+    let f = factor.max(1);
+    let (lw, lh) = (w.div_ceil(f), h.div_ceil(f));
+    (0..lw * lh)
+        .map(|j| {
+            let x = ((j % lw) * f + f / 2).min(w - 1);
+            let y = ((j / lw) * f + f / 2).min(h - 1);
+            gbuffer[(y * w + x) as usize]
+        })
+        .collect()
+}
+
+/// Joint bilateral upsampling of a subsampled splat (section 5.2, Figure 12): each
+/// full-resolution surface takes the values of the (up to) four surrounding samples
+/// weighted by bilinear distance, normal agreement (max(0, n·n')^8) and depth
+/// agreement (1 / (1 + (Δd / 0.05 d)^2)), normalised; with no usable sample around
+/// it takes none (zero). Upsamples several layers of the same samples at once and
+/// returns them at full resolution.
+pub fn upsample<const N: usize>(
+    low: [&[Rgb]; N],
+    low_gbuffer: &[Option<Surface>],
+    gbuffer: &[Option<Surface>],
+    camera_position: Vec3,
+    (w, h, factor): (u32, u32, u32),
+) -> [Vec<Rgb>; N] {
+    let f = factor.max(1);
+    let (lw, lh) = (w.div_ceil(f), h.div_ceil(f));
+    let low_depth: Vec<f32> = low_gbuffer.iter().map(|q| q.map_or(0.0, |q| (q.p - camera_position).length())).collect();
+    let mut out: [Vec<Rgb>; N] = std::array::from_fn(|_| vec![Rgb::ZERO; (w * h) as usize]);
+    let mut rows: Vec<[&mut [Rgb]; N]> = Vec::with_capacity(h as usize);
+    {
+        let mut iters: Vec<_> = out.iter_mut().map(|o| o.chunks_mut(w as usize)).collect();
+        for _ in 0..h {
+            let row: Vec<&mut [Rgb]> = iters.iter_mut().map(|it| it.next().expect("h rows")).collect();
+            rows.push(row.try_into().unwrap_or_else(|_| unreachable!("N layers")));
+        }
+    }
+    rows.into_par_iter().enumerate().for_each(|(y, mut row)| {
+        let fy = (y as f32 - (f / 2) as f32) / f as f32;
+        let iy = fy.floor();
+        let ay = fy - iy;
+        for x in 0..w as usize {
+            let Some(s) = &gbuffer[y * w as usize + x] else { continue };
+            let fx = (x as f32 - (f / 2) as f32) / f as f32;
+            let ix = fx.floor();
+            let ax = fx - ix;
+            let depth = (s.p - camera_position).length();
+            let inv_sigma = 1.0 / (0.05 * depth).max(1e-6);
+            let mut sum = [Rgb::ZERO; N];
+            let mut wsum = 0.0f32;
+            for (dx, dy, wb) in
+                [(0, 0, (1.0 - ax) * (1.0 - ay)), (1, 0, ax * (1.0 - ay)), (0, 1, (1.0 - ax) * ay), (1, 1, ax * ay)]
+            {
+                let (sx, sy) = (ix as i64 + dx, iy as i64 + dy);
+                if sx < 0 || sy < 0 || sx >= lw as i64 || sy >= lh as i64 {
+                    continue;
+                }
+                let k = (sy as u32 * lw + sx as u32) as usize;
+                let Some(q) = &low_gbuffer[k] else { continue };
+                let c = s.n.dot(q.n).max(0.0);
+                let (c2, r) = (c * c, (low_depth[k] - depth) * inv_sigma);
+                let wgt = wb.max(1e-4) * (c2 * c2) * (c2 * c2) / (1.0 + r * r);
+                for (acc, layer) in sum.iter_mut().zip(&low) {
+                    *acc += layer[k] * wgt;
+                }
+                wsum += wgt;
+            }
+            if wsum > 1e-8 {
+                for (o, acc) in row.iter_mut().zip(sum) {
+                    o[x] = acc / wsum;
+                }
+            }
+        }
+    });
+    out
+}
+
 /// What the splat adds up per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SplatOutput {
     /// Reflected radiance with the full BSDF at the pixel (equation 1).
     Radiance,
-    /// Irradiance (Φ cos κ), for subsampled splats that the renderer multiplies by
+    /// Irradiance (Φ κ), for subsampled splats that the renderer multiplies by
     /// the full-resolution albedo after upsampling (section 5.2).
     Irradiance,
 }
 
-/// Splat `photons` over the surfaces of a `w` x `h` G-buffer (row 0 at the top;
-/// `None` where nothing non-specular is seen) seen by `camera`: returns the indirect
-/// and caustic layers. Photons are binned into [`TILE`]-pixel tiles in photon order
-/// and every tile sums its photons in that order, so the result does not depend on
-/// the thread count.
+/// Splat `photons` over the surfaces of a G-buffer (row 0 at the top; `None` where
+/// nothing non-specular is seen) that samples a `full_w` x `full_h` image seen by
+/// `camera` every `factor` pixels (1: every pixel; else the pixel at the centre of
+/// each `factor` x `factor` block, the layout [`subsample`] makes): returns the
+/// indirect and caustic layers at the G-buffer's resolution. Photons are binned into
+/// [`TILE`]-pixel tiles in photon order and every tile sums its photons in that
+/// order, so the result does not depend on the thread count.
 pub fn splat(
     photons: &[VolumePhoton],
     gbuffer: &[Option<Surface>],
     camera: &Camera,
-    w: u32,
-    h: u32,
+    (full_w, full_h, factor): (u32, u32, u32),
     output: SplatOutput,
 ) -> (Vec<Rgb>, Vec<Rgb>) {
+    let f = factor.max(1);
+    let (w, h) = (full_w.div_ceil(f), full_h.div_ceil(f));
     let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    let rects: Vec<Option<[u32; 4]>> = photons.par_iter().map(|p| p.screen_rect(camera, w, h)).collect();
+    // Full-resolution rectangles in G-buffer pixels, a pixel wider when subsampled.
+    let grow = |[x0, y0, x1, y1]: [u32; 4]| {
+        if f == 1 {
+            [x0, y0, x1, y1]
+        } else {
+            [
+                (x0 / f).saturating_sub(1),
+                (y0 / f).saturating_sub(1),
+                (x1.div_ceil(f) + 1).min(w),
+                (y1.div_ceil(f) + 1).min(h),
+            ]
+        }
+    };
+    let rects: Vec<Option<[u32; 4]>> =
+        photons.par_iter().map(|p| p.screen_rect(camera, full_w, full_h).map(grow)).collect();
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tw * th) as usize];
     for (i, r) in rects.iter().enumerate() {
         if let Some([x0, y0, x1, y1]) = *r {
@@ -215,14 +337,12 @@ pub fn splat(
 
 /// The gather form of the same estimate: the indirect and caustic radiance at `s`
 /// from the photons within their kernels, found by a radius query of `index` (the
-/// largest kernel radius) and summed in photon order. What mirrors and glass see, and
-/// the reference the splat is tested against.
-pub fn gather(photons: &[VolumePhoton], index: &PhotonIndex, s: &Surface, ids: &mut Vec<u32>) -> (Rgb, Rgb) {
-    ids.clear();
-    index.grid.for_each_within(s.p, index.radius * index.radius, |i, _| ids.push(i));
-    ids.sort_unstable();
+/// largest kernel radius; the grid's cells are visited in a fixed order and keep
+/// photon order, so the sum is deterministic). What mirrors and glass see, and the
+/// reference the splat is tested against.
+pub fn gather(photons: &[VolumePhoton], index: &PhotonIndex, s: &Surface) -> (Rgb, Rgb) {
     let (mut indirect, mut caustic) = (Rgb::ZERO, Rgb::ZERO);
-    for &i in ids.iter() {
+    index.grid.for_each_within(s.p, index.radius * index.radius, |i, _| {
         let ph = &photons[i as usize];
         let v = ph.radiance_at(s);
         if ph.caustic {
@@ -230,7 +350,7 @@ pub fn gather(photons: &[VolumePhoton], index: &PhotonIndex, s: &Surface, ids: &
         } else {
             indirect += v;
         }
-    }
+    });
     (indirect, caustic)
 }
 
@@ -244,7 +364,7 @@ impl PhotonIndex {
     /// The index of `photons`.
     pub fn new(photons: &[VolumePhoton]) -> PhotonIndex {
         let radius = photons.iter().map(|p| p.r_xy).fold(0.0, f32::max).max(f32::MIN_POSITIVE);
-        let mut grid = pm_kdtree::PhotonGrid::new(radius, photons.len());
+        let mut grid = pm_kdtree::PhotonGrid::with_cell(radius, photons.len());
         for (i, p) in photons.iter().enumerate() {
             let record = pm_format::Photon {
                 position: p.p,
