@@ -328,6 +328,63 @@ fn plane_point() -> Doc {
     doc
 }
 
+/// An open cylinder of radius r from y0 to y1 around the vertical axis through
+/// (cx, cz), `seg` quads round, normals outward.
+fn cylinder(cx: f32, cz: f32, r: f32, y0: f32, y1: f32, seg: u32) -> Mesh {
+    let mut m = Mesh { p: vec![], n: vec![], idx: vec![] };
+    for i in 0..=seg {
+        let phi = 2.0 * PI * i as f32 / seg as f32;
+        let (s, c) = phi.sin_cos();
+        m.p.extend([[cx + r * c, y0, cz - r * s], [cx + r * c, y1, cz - r * s]]);
+        m.n.extend([[c, 0.0, -s], [c, 0.0, -s]]);
+    }
+    for i in 0..seg {
+        let (a, b, c, d) = (2 * i, 2 * i + 2, 2 * i + 3, 2 * i + 1);
+        m.idx.extend([a, b, c, a, c, d]);
+    }
+    m
+}
+
+/// The paper's caustic ring (McGuire and Luebke 2009, Figure 5): a polished metal
+/// ring (an open cylinder, mirror on both sides) standing on a 3 m x 3 m floor
+/// (albedo 0.75) under a point light low on the camera's side, so the far half of
+/// the ring's inside focuses the light into a cardioid on the floor; seen from above
+/// and in front.
+fn caustic_ring() -> Doc {
+    let mut doc = Doc::default();
+    let floor = doc.material(diffuse("floor", [0.75, 0.75, 0.75]));
+    let metal = doc.material(json!({
+        "name": "ring_metal",
+        "doubleSided": true,
+        "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.9, 0.8, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}
+    }));
+    doc.mesh_node("floor", &quad([-1.5, 0.0, 1.5], [1.5, 0.0, 1.5], [1.5, 0.0, -1.5], [-1.5, 0.0, -1.5]), floor);
+    doc.mesh_node("ring", &cylinder(0.0, 0.0, 0.5, 0.0, 0.2, 200), metal);
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 3.0, "color": [1.0, 1.0, 1.0]}));
+    doc.nodes.push(
+        json!({"name": "bulb", "translation": [0.0, 0.5, 1.2], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+    );
+    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 0.8, "aspectRatio": 1.0, "znear": 0.01}}));
+    // 1.5 m up and 1.3 m in front, looking down 50 degrees at the ring.
+    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 1.5, 1.3], "rotation": [-0.4226183, 0.0, 0.0, 0.9063078]}));
+    doc
+}
+
+/// A scene of over 100,000 triangles for the image-space method's timings: the
+/// Cornell box shell with twelve finely tessellated diffuse spheres in three rows.
+fn cornell_dense() -> Doc {
+    let mut doc = Doc::default();
+    cornell_shell(&mut doc);
+    let colours = [[0.8, 0.75, 0.7], [0.3, 0.6, 0.3], [0.7, 0.6, 0.2]];
+    for (row, z) in [-0.55f32, 0.0, 0.55].into_iter().enumerate() {
+        let m = doc.material(diffuse(&format!("spheres_{row}"), colours[row]));
+        let balls: Vec<Mesh> =
+            [-0.6f32, -0.2, 0.2, 0.6].iter().map(|&x| sphere([x, 0.18, z], 0.18, 96, 48, false)).collect();
+        doc.mesh_node(&format!("spheres_{row}"), &merge(&balls), m);
+    }
+    doc
+}
+
 /// An axis-aligned quad split into n x n quads (for scenes of a given surface count).
 fn grid_quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], n: usize) -> Mesh {
     let at = |u: f32, v: f32| {
@@ -417,6 +474,8 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("cornell_boxes", cornell_boxes()),
         ("furnace", furnace()),
         ("plane_point", plane_point()),
+        ("caustic_ring", caustic_ring()),
+        ("cornell_dense", cornell_dense()),
         ("jozwowski_room_16", jozwowski_room(1)),
         ("jozwowski_room_64", jozwowski_room(2)),
         ("jozwowski_room_256", jozwowski_room(4)),

@@ -162,3 +162,64 @@ fn frames_are_identical_for_one_and_two_threads() {
     };
     assert_eq!(frame(1), frame(2));
 }
+
+/// The image-space frame against the path tracer (1024 paths per pixel), layer by
+/// layer (the path tracer classifies its paths the same way: direct, caustic, soft
+/// indirect, specular), means over the image, on cornell_boxes and cornell_spheres
+/// at full resolution (no subsampling), photons traced through 8 bounces. The
+/// tolerances are the photon-map renderer's component test's (direct 3%, caustic
+/// 15%, indirect 8%, specular 8%, total 3%): both estimate the same integrals with
+/// density estimation, and their kernel sizes are alike. Pixels that see the light
+/// (radiance 12) and their neighbours are left out: one centre sample against 1024
+/// jittered ones makes the light's edge a coverage difference, not lighting.
+#[test]
+fn layers_agree_with_the_path_tracer() {
+    for (name, layers) in [
+        ("cornell_boxes.gltf", &[("direct", 0.03), ("indirect", 0.08), ("total", 0.03)][..]),
+        (
+            "cornell_spheres.gltf",
+            &[("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)][..],
+        ),
+    ] {
+        let s = scene(name);
+        let (w, h) = (40, 40);
+        let p = LiveParams {
+            method: Method::Ispm,
+            width: w,
+            height: h,
+            bounces: 8,
+            bounce_res: 96,
+            light_samples: 16,
+            ..LiveParams::default()
+        };
+        let mut live = Live::new(s.clone(), None, p, 7).unwrap();
+        live.step().unwrap();
+        let ispm = live.frame_layers();
+        let camera = s.camera.clone().unwrap();
+        let film = Film { width: w, height: h, spp: 1024, contrast: 0.0, seed: 7 };
+        let pt = pm_render::PathTracer::new(&s).unwrap();
+        let (path, _) = pm_render::render_region(&camera, &film, Rect::full(&film), &pt, false, &|_, _| {}).unwrap();
+        let (it, pt_total) = (ispm.layer("total").unwrap(), path.layer("total").unwrap());
+        let bright = |j: usize| it[j].max_element() > 4.0 || pt_total[j].max_element() > 4.0;
+        let keep: Vec<bool> = (0..(w * h) as usize)
+            .map(|j| {
+                let (x, y) = ((j % w as usize) as i64, (j / w as usize) as i64);
+                !(-1..=1).any(|dy| {
+                    (-1..=1).any(|dx| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64 && bright((ny * w as i64 + nx) as usize)
+                    })
+                })
+            })
+            .collect();
+        let mean = |px: &[Rgb]| {
+            let kept = px.iter().zip(&keep).filter(|(_, k)| **k);
+            kept.clone().map(|(p, _)| p.element_sum() as f64).sum::<f64>() / (3 * kept.count()) as f64
+        };
+        for &(layer, tol) in layers {
+            let (a, b) = (mean(ispm.layer(layer).unwrap()), mean(path.layer(layer).unwrap()));
+            eprintln!("{name} {layer}: ispm {a:.5}, path {b:.5} ({:+.2}%)", 100.0 * (a / b - 1.0));
+            assert!((a / b - 1.0).abs() < tol, "{name} {layer}: ispm {a} vs path {b}");
+        }
+    }
+}
