@@ -1,0 +1,188 @@
+//! Image-space photon mapping (McGuire and Luebke 2009) on 2 threads: the frame
+//! time split like the paper's Table 2 on cornell_spheres, the caustic ring and
+//! cornell_dense (109k triangles) at 512 x 512 and 1920 x 1080; the splat against a
+//! gather over the same photons at equal output (the paper's central claim); what
+//! subsampling costs in error against its time (section 5.2); photon attrition
+//! (Figure 10).
+//!
+//! Run: `cargo bench -p pm-live --bench ispm`
+
+use pm_color::Rgb;
+use pm_live::ispm::{self, KernelShape};
+use pm_live::splat::{self, PhotonIndex, SplatOutput, Surface};
+use pm_live::{DirectMode, Live, LiveParams, Method};
+use pm_render::{Film, Rect, raster};
+use pm_scene::Scene;
+use std::time::Instant;
+
+fn scene(name: &str) -> Scene {
+    pm_scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../scenes/{name}.gltf"))).unwrap()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Frames of `p` (the first is a warm-up); the median split and the last frame's stats.
+fn frames(s: &Scene, p: &LiveParams, n: usize) -> ([f64; 7], ispm::IspmStats, Vec<Rgb>) {
+    let mut live = Live::new(s.clone(), None, p.clone(), 1).unwrap();
+    let mut rows = Vec::new();
+    let mut last = None;
+    for _ in 0..n {
+        let st = live.step().unwrap().ispm.unwrap();
+        rows.push(st.times);
+        last = Some(st);
+    }
+    let rows = &rows[1..];
+    let m = |f: fn(&ispm::IspmTimes) -> f64| median(rows.iter().map(f).collect()) * 1e3;
+    let split = [
+        m(|t| t.gbuffer),
+        m(|t| t.direct),
+        m(|t| t.bounce),
+        m(|t| t.trace),
+        m(|t| t.splat),
+        m(|t| t.upsample),
+        m(|t| t.wall),
+    ];
+    let indirect: Vec<Rgb> = {
+        let l = live.frame_layers();
+        l.layer("indirect").unwrap().iter().zip(l.layer("caustic").unwrap()).map(|(a, b)| *a + *b).collect()
+    };
+    (split, last.unwrap(), indirect)
+}
+
+fn main() {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    pool.install(run);
+}
+
+fn run() {
+    println!("Frame time split like Table 2 (2 threads, medians of 4 frames after one warm-up) [ms]");
+    println!(
+        "| scene | size | direct | bounces | subsample | G-buffer | direct | bounce map | trace | splat | upsample | frame | fps | texels | stored photons |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let rows: [(&str, DirectMode, u32, u32); 6] = [
+        ("cornell_spheres", DirectMode::Rays, 1, 1),
+        ("cornell_spheres", DirectMode::Rays, 1, 4),
+        ("cornell_spheres", DirectMode::Rays, 3, 4),
+        ("caustic_ring", DirectMode::ShadowMap, 1, 1),
+        ("caustic_ring", DirectMode::Rays, 1, 1),
+        ("cornell_dense", DirectMode::Rays, 1, 4),
+    ];
+    let scenes: Vec<(&str, Scene)> =
+        ["cornell_spheres", "caustic_ring", "cornell_dense"].into_iter().map(|n| (n, scene(n))).collect();
+    let find = |n: &str| &scenes.iter().find(|s| s.0 == n).unwrap().1;
+    for (w, h) in [(512u32, 512u32), (1920, 1080)] {
+        for &(name, direct, bounces, subsample) in &rows {
+            let s = find(name);
+            let bounce_res = if name == "caustic_ring" { 128 } else { 48 };
+            let p = LiveParams {
+                method: Method::Ispm,
+                width: w,
+                height: h,
+                direct,
+                bounces,
+                subsample,
+                bounce_res,
+                ..LiveParams::default()
+            };
+            let (t, st, _) = frames(s, &p, 5);
+            println!(
+                "| {name} | {w}x{h} | {direct:?} | {bounces} | {subsample} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
+                t[0],
+                t[1],
+                t[2],
+                t[3],
+                t[4],
+                t[5],
+                t[6],
+                1e3 / t[6],
+                st.bounce.texels,
+                st.photons
+            );
+        }
+    }
+
+    // Photon attrition (Figure 10): of the texels shot, how many hit, survive the
+    // first bounce, and how many photons each further bounce stores.
+    println!("\nPhoton attrition (Figure 10), bounce_res 48 (128 for the ring), 3 bounces");
+    println!("| scene | texels | hit a surface | survived bounce 1 | photons stored | stored per surviving path |");
+    println!("|---|---|---|---|---|---|");
+    for (name, s) in &scenes {
+        let res = if *name == "caustic_ring" { 128 } else { 48 };
+        let (b, st) = ispm::bounce_maps(s, res, 1, true);
+        let p = LiveParams { bounces: 3, ..LiveParams::default() };
+        let photons = ispm::trace(s, &b, 3, &KernelShape::new(&p, s.bounds.diagonal()), 1);
+        println!(
+            "| {name} | {} | {} ({:.0}%) | {} ({:.0}%) | {} | {:.2} |",
+            st.texels,
+            st.hits,
+            100.0 * st.hits as f64 / st.texels as f64,
+            st.survived,
+            100.0 * st.survived as f64 / st.texels as f64,
+            photons.len(),
+            photons.len() as f64 / st.survived.max(1) as f64
+        );
+    }
+
+    // Scatter against gather at equal output.
+    println!("\nSplat against a gather over the same photons (cornell_spheres, 512 x 512, 1 bounce) [ms]");
+    println!("| photons | splat | gather (grid radius query per pixel) | gather / splat | largest difference |");
+    println!("|---|---|---|---|---|");
+    let s = find("cornell_spheres");
+    for res in [32u32, 48, 96] {
+        let p = LiveParams { bounces: 1, bounce_res: res, ..LiveParams::default() };
+        let (b, _) = ispm::bounce_maps(s, res, 1, true);
+        let photons = ispm::trace(s, &b, 1, &KernelShape::new(&p, s.bounds.diagonal()), 1);
+        let camera = s.camera.clone().unwrap();
+        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
+        let gb: Vec<Option<Surface>> = raster::first_hits(s, &camera, &film, Rect::full(&film))
+            .into_iter()
+            .map(|f| {
+                let hit = f?.hit(s);
+                let bsdf = s.bsdf(&hit);
+                let wo = (camera.position - hit.p).normalize();
+                let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+                (!bsdf.is_specular()).then(|| Surface::new(hit.p, n, wo, bsdf))
+            })
+            .collect();
+        let t = Instant::now();
+        let (si, _) = splat::splat(&photons, &gb, &camera, (512, 512, 1), SplatOutput::Radiance);
+        let t_splat = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let index = PhotonIndex::new(&photons);
+        use rayon::prelude::*;
+        let gi: Vec<Rgb> = gb
+            .par_iter()
+            .map(|g| g.as_ref().map_or(Rgb::ZERO, |surface| splat::gather(&photons, &index, surface).0))
+            .collect();
+        let t_gather = t.elapsed().as_secs_f64();
+        let diff = si
+            .iter()
+            .zip(&gi)
+            .map(|(a, b)| (*a - *b).abs().max_element() / b.max_element().max(1e-3))
+            .fold(0.0f32, f32::max);
+        println!(
+            "| {} | {:.1} | {:.1} | {:.2} | {diff:.1e} |",
+            photons.len(),
+            t_splat * 1e3,
+            t_gather * 1e3,
+            t_gather / t_splat
+        );
+    }
+
+    // What subsampling costs: indirect error against the full-resolution splat,
+    // against frame time.
+    println!("\nSubsampling (cornell_spheres, 512 x 512, 1 bounce): indirect + caustic against full resolution");
+    println!("| subsample | frame [ms] | splat + upsample [ms] | relative RMSE | mean bias |");
+    println!("|---|---|---|---|---|");
+    let base = LiveParams { method: Method::Ispm, bounces: 1, ..LiveParams::default() };
+    let (_, _, full) = frames(s, &base, 3);
+    for f in [1u32, 2, 4, 8, 16] {
+        let (t, _, ind) = frames(s, &LiveParams { subsample: f, ..base.clone() }, 4);
+        let e = pm_image::compare(&ind, &full, 1.0);
+        println!("| {f} | {:.1} | {:.1} | {:.4} | {:+.4} |", t[6], t[4] + t[5], e.rel_rmse, e.rel_bias);
+    }
+}
