@@ -111,6 +111,11 @@ impl Bsdf {
 
     /// BSDF value f(wo, wi) [sr^-1]; zero for delta lobes.
     pub fn f(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+        // Lambert needs no local frame: only the sides of wo and wi (the same dot
+        // products the frame would give as z).
+        if let Bsdf::Lambert { rho } = *self {
+            return if wo.dot(n) * wi.dot(n) <= 0.0 { Rgb::ZERO } else { rho * FRAC_1_PI };
+        }
         let (t, b) = basis(n);
         let lo = to_local(wo, t, b, n);
         let li = to_local(wi, t, b, n);

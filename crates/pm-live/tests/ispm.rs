@@ -223,3 +223,30 @@ fn layers_agree_with_the_path_tracer() {
         }
     }
 }
+
+/// "Simulate only the effects a scene calls for": the scene analysis finds no
+/// caustic paths in cornell_boxes (nothing specular), so its frames trace none and
+/// their caustic layer is black; in cornell_spheres it finds them, and the caustic
+/// layer is lit. Told that a scene has no caustics, the bounce maps drop the paths
+/// that start specular, and no caustic photon is stored.
+#[test]
+fn caustic_paths_are_traced_only_where_the_analysis_finds_them() {
+    for (name, caustics) in [("cornell_boxes.gltf", false), ("cornell_spheres.gltf", true)] {
+        let s = scene(name);
+        assert_eq!(pm_scene::analyze(&s).caustics.yes, caustics, "{name}");
+        let p = LiveParams { method: Method::Ispm, width: 32, height: 32, bounce_res: 24, ..LiveParams::default() };
+        let mut live = Live::new(s, None, p, 2).unwrap();
+        live.step().unwrap();
+        let lit = live.frame_layers().layer("caustic").unwrap().iter().any(|v| v.max_element() > 0.0);
+        assert_eq!(lit, caustics, "{name}");
+    }
+    let s = scene("cornell_spheres.gltf");
+    let p = LiveParams::default();
+    let shape = KernelShape::new(&p, s.bounds.diagonal());
+    for traced in [true, false] {
+        let (b, _) = ispm::bounce_maps(&s, 24, 1, traced);
+        let caustic = ispm::trace(&s, &b, 2, &shape, 1).iter().filter(|q| q.caustic).count();
+        assert_eq!(b.iter().any(|q| q.specular), traced);
+        assert_eq!(caustic > 0, traced, "{caustic} caustic photons");
+    }
+}
