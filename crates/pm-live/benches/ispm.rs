@@ -9,7 +9,7 @@
 
 use pm_color::Rgb;
 use pm_live::ispm::{self, KernelShape};
-use pm_live::splat::{self, PhotonIndex, SplatOutput, Surface};
+use pm_live::splat::{self, PhotonIndex, SplatOutput};
 use pm_live::{DirectMode, Live, LiveParams, Method};
 use pm_render::{Film, Rect, raster};
 use pm_scene::Scene;
@@ -138,16 +138,7 @@ fn run() {
         let photons = ispm::trace(s, &b, 1, &KernelShape::new(&p, s.bounds.diagonal()), 1);
         let camera = s.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
-        let gb: Vec<Option<Surface>> = raster::first_hits(s, &camera, &film, Rect::full(&film))
-            .into_iter()
-            .map(|f| {
-                let hit = f?.hit(s);
-                let bsdf = s.bsdf(&hit);
-                let wo = (camera.position - hit.p).normalize();
-                let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-                (!bsdf.is_specular()).then(|| Surface::new(hit.p, n, wo, bsdf))
-            })
-            .collect();
+        let gb = ispm::surfaces(s, &raster::first_hits(s, &camera, &film, Rect::full(&film)), &camera);
         let t = Instant::now();
         let (si, _) = splat::splat(&photons, &gb, &camera, (512, 512, 1), SplatOutput::Radiance);
         let t_splat = t.elapsed().as_secs_f64();

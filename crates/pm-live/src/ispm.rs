@@ -79,16 +79,6 @@ fn rect_solid_angle(u0: f32, u1: f32, v0: f32, v1: f32) -> f32 {
     f(u1, v1) - f(u0, v1) - f(u1, v0) + f(u0, v0)
 }
 
-/// The six 90-degree faces of a cube map (forward, right, up), as the shadow maps use.
-const FACES: [(Vec3, Vec3, Vec3); 6] = [
-    (Vec3::X, Vec3::NEG_Z, Vec3::Y),
-    (Vec3::NEG_X, Vec3::Z, Vec3::Y),
-    (Vec3::Y, Vec3::X, Vec3::NEG_Z),
-    (Vec3::NEG_Y, Vec3::X, Vec3::Z),
-    (Vec3::Z, Vec3::X, Vec3::Y),
-    (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
-];
-
 /// One texel's photon arriving at the first surface: direction, power and the hit.
 struct Arrival {
     dir: Vec3,
@@ -144,7 +134,7 @@ fn cube_arrivals(scene: &Scene, position: Vec3, res: u32, intensity: impl Fn(Vec
     let mut frags: Vec<Option<Fragment>> = Vec::new();
     let mut out = Vec::with_capacity(6 * (res * res) as usize);
     let step = 2.0 / res as f32;
-    for &(forward, right, up) in &FACES {
+    for &(forward, right, up) in &raster::CUBE_FACES {
         let cam = Camera { position, forward, up, right, yfov: std::f32::consts::FRAC_PI_2, aspect: Some(1.0) };
         raster::first_hits_into(scene, &cam, &film, Rect::full(&film), &mut frags);
         out.par_extend(frags.par_iter().enumerate().with_min_len(256).map(|(j, f)| {
@@ -330,7 +320,7 @@ pub struct IspmStats {
 /// The splat's G-buffer: the surface at each pixel of the rasterised first hits,
 /// none where nothing is seen or a mirror or glass is (photons cannot be splatted
 /// there; the paper's section 2.1).
-fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
+pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
     fragments
         .par_iter()
         .with_min_len(1024)

@@ -17,16 +17,7 @@ fn scene(name: &str) -> Scene {
 fn gbuffer(s: &Scene, w: u32, h: u32) -> Vec<Option<Surface>> {
     let camera = s.camera.clone().unwrap();
     let film = Film { width: w, height: h, spp: 1, contrast: 0.0, seed: 0 };
-    raster::first_hits(s, &camera, &film, Rect::full(&film))
-        .into_iter()
-        .map(|f| {
-            let hit = f?.hit(s);
-            let bsdf = s.bsdf(&hit);
-            let wo = (camera.position - hit.p).normalize();
-            let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-            (!bsdf.is_specular()).then(|| Surface::new(hit.p, n, wo, bsdf))
-        })
-        .collect()
+    ispm::surfaces(s, &raster::first_hits(s, &camera, &film, Rect::full(&film)), &camera)
 }
 
 /// Scatter equals gather (section 5: "mathematically identical"): splatting the

@@ -198,6 +198,17 @@ fn clip_near(v: [Vec3; 3], near: f32) -> [Option<([Vec3; 3], [Vec3; 3])>; 2] {
     }
 }
 
+/// The six 90-degree faces of a cube map around a point, as (forward, right, up):
+/// +x, -x, +y, -y, +z, -z. Shadow maps and image-space bounce maps both use them.
+pub const CUBE_FACES: [(Vec3, Vec3, Vec3); 6] = [
+    (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+    (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+    (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+    (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+    (Vec3::Z, Vec3::X, Vec3::Y),
+    (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+];
+
 /// A cube shadow map: the distance [m] from `position` to the nearest surface
 /// through the centre of each texel of six 90-degree faces (+x, -x, +y, -y, +z, -z),
 /// drawn by the rasteriser. Direct light from a point or spot light then needs one
@@ -213,14 +224,7 @@ pub struct CubeDepth {
 impl CubeDepth {
     /// The shadow map of `scene` seen from `position`, `res` x `res` texels a face.
     pub fn new(scene: &Scene, position: Vec3, res: u32) -> CubeDepth {
-        let faces = [
-            (Vec3::X, Vec3::NEG_Z, Vec3::Y),
-            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
-            (Vec3::Y, Vec3::X, Vec3::NEG_Z),
-            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
-            (Vec3::Z, Vec3::X, Vec3::Y),
-            (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
-        ];
+        let faces = CUBE_FACES;
         let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
         let mut depth = Vec::with_capacity(6 * (res * res) as usize);
         let mut frags = Vec::new();
