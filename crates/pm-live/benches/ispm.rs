@@ -2,8 +2,8 @@
 //! time split like the paper's Table 2 on cornell_spheres, the caustic ring and
 //! cornell_dense (109k triangles) at 512 x 512 and 1920 x 1080; the splat against a
 //! gather over the same photons at equal output (the paper's central claim); what
-//! subsampling costs in error against its time (section 5.2); photon attrition
-//! (Figure 10).
+//! subsampling and the bounce count cost in error against the path tracer and
+//! against their time (section 5.2); photon attrition (Figure 10).
 //!
 //! Run: `cargo bench -p pm-live --bench ispm`
 
@@ -175,5 +175,80 @@ fn run() {
         let (t, _, ind) = frames(s, &LiveParams { subsample: f, ..base.clone() }, 4);
         let e = pm_image::compare(&ind, &full, 1.0);
         println!("| {f} | {:.1} | {:.1} | {:.4} | {:+.4} |", t[6], t[4] + t[5], e.rel_rmse, e.rel_bias);
+    }
+
+    // Against the path tracer: 512 x 512 at 64 paths per pixel, both images compared
+    // as means of 4 x 4 blocks (the reference's noise there is that of 1024 paths),
+    // blocks touching the light's pixels left out.
+    let (w, h) = (512u32, 512u32);
+    let camera = s.camera.clone().unwrap();
+    let film = Film { width: w, height: h, spp: 64, contrast: 0.0, seed: 11 };
+    let t = Instant::now();
+    let pt = pm_render::PathTracer::new(s).unwrap();
+    let (path, _) = pm_render::render_region(&camera, &film, Rect::full(&film), &pt, false, &|_, _| {}).unwrap();
+    let t_path = t.elapsed().as_secs_f64();
+    let blocks = |px: &[Rgb]| -> Vec<Rgb> {
+        (0..(w / 4) * (h / 4))
+            .map(|b| {
+                let (bx, by) = (b % (w / 4), b / (w / 4));
+                let mut sum = Rgb::ZERO;
+                for y in by * 4..by * 4 + 4 {
+                    for x in bx * 4..bx * 4 + 4 {
+                        sum += px[(y * w + x) as usize];
+                    }
+                }
+                sum / 16.0
+            })
+            .collect()
+    };
+    let reference = blocks(path.layer("total").unwrap());
+    // Error measures over the blocks that do not see the light: relative RMSE and
+    // bias of the image, and the median and 90th percentile of the blocks'
+    // relative errors (the RMSE is ruled by a few caustic blocks).
+    let measure = |img: &[Rgb]| {
+        let e = pm_image::compare(img, &reference, 4.0);
+        let mut rel: Vec<f32> = img
+            .iter()
+            .zip(&reference)
+            .filter(|(_, r)| r.max_element() <= 4.0 && r.max_element() > 0.01)
+            .map(|(a, r)| (*a - *r).abs().element_sum() / r.element_sum())
+            .collect();
+        rel.sort_by(f32::total_cmp);
+        (e.rel_rmse, e.rel_bias, rel[rel.len() / 2], rel[rel.len() * 9 / 10])
+    };
+    // The reference's own noise: a second path-traced image with another seed.
+    let film2 = Film { seed: 12, ..film };
+    let (path2, _) = pm_render::render_region(&camera, &film2, Rect::full(&film2), &pt, false, &|_, _| {}).unwrap();
+    let (rr, rb, rm, r9) = measure(&blocks(path2.layer("total").unwrap()));
+    println!(
+        "\nAgainst the path tracer (cornell_spheres, 512 x 512, 64 spp in {t_path:.0} s; 4 x 4 block means, the light's blocks left out)"
+    );
+    println!(
+        "| bounce_res | bounces | subsample | frame [ms] | relative RMSE | mean bias | median block error | 90th percentile |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    println!("| (a second 64-spp path-traced image) | | | | {rr:.4} | {rb:+.4} | {rm:.4} | {r9:.4} |");
+    for (bounce_res, bounces, subsample) in
+        [(48u32, 1u32, 1u32), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)]
+    {
+        let p = LiveParams {
+            method: Method::Ispm,
+            bounce_res,
+            bounces,
+            subsample,
+            light_samples: 4,
+            ..LiveParams::default()
+        };
+        let mut live = Live::new(s.clone(), None, p.clone(), 1).unwrap();
+        live.step().unwrap();
+        let (er, eb, em, e9) = measure(&blocks(live.frame_layers().layer("total").unwrap()));
+        // Frame time at the default light_samples = 1 (the error uses 4 to keep the
+        // direct light's noise out of the comparison).
+        let mut timed = Live::new(s.clone(), None, LiveParams { light_samples: 1, ..p }, 1).unwrap();
+        let wall = (0..3).map(|_| timed.step().unwrap().times.wall).fold(f64::INFINITY, f64::min);
+        println!(
+            "| {bounce_res} | {bounces} | {subsample} | {:.1} | {er:.4} | {eb:+.4} | {em:.4} | {e9:.4} |",
+            wall * 1e3
+        );
     }
 }
