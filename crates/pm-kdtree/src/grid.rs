@@ -120,7 +120,15 @@ impl<R: PhotonRecord> PhotonGrid<R> {
         for dz in -reach..=reach {
             for dy in -reach..=reach {
                 for dx in -reach..=reach {
-                    let Some(list) = self.cells.get(&(c + IVec3::new(dx, dy, dz))) else { continue };
+                    let kc = c + IVec3::new(dx, dy, dz);
+                    // Skip cells the query sphere does not reach (slightly widened
+                    // against rounding: a photon's cell comes from a division).
+                    let corner = kc.as_vec3() * self.cell;
+                    let gap = (corner - x).max(x - (corner + Vec3::splat(self.cell))).max(Vec3::ZERO);
+                    if gap.length_squared() * (1.0 - 1e-4) > r2 {
+                        continue;
+                    }
+                    let Some(list) = self.cells.get(&kc) else { continue };
                     for &(p, i) in list {
                         let d2 = p.distance_squared(x);
                         if d2 <= r2 {
