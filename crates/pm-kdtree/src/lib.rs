@@ -19,7 +19,9 @@ use pm_format::{PhotonRecord, flags};
 use rayon::prelude::*;
 use std::collections::BinaryHeap;
 
+mod cells;
 mod grid;
+pub use cells::RadiusGrid;
 pub use grid::PhotonGrid;
 
 /// A structure that answers k-nearest photon queries: the kd-tree, or the

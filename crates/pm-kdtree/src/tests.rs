@@ -264,3 +264,35 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    /// The static radius grid finds exactly the points brute force finds within the
+    /// radius, for radii up to the built one, including points outside any cell
+    /// (NaN) and all points in one spot.
+    #[test]
+    fn radius_grid_matches_brute_force(
+        pts in arb_points(),
+        qs in proptest::collection::vec((-1.5f32..3.5, -1f32..1.5, -1f32..2.0), 1..4),
+        radius in 0.01f32..2.0,
+        frac in 0f32..1.0,
+    ) {
+        let mut pts = pts;
+        pts.push(Vec3::NAN);
+        let grid = RadiusGrid::new(&pts, radius);
+        for (x, y, z) in qs {
+            let x = Vec3::new(x, y, z);
+            let r2 = (radius * frac) * (radius * frac);
+            let mut got: Vec<(u32, f32)> = Vec::new();
+            grid.for_each_within(x, r2, |i, d| got.push((i, d)));
+            got.sort_by_key(|g| g.0);
+            let want: Vec<(u32, f32)> = pts
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.is_finite() && p.distance_squared(x) <= r2)
+                .map(|(i, p)| (i as u32, p.distance_squared(x)))
+                .collect();
+            prop_assert_eq!(got, want);
+        }
+    }
+}

@@ -321,25 +321,30 @@ pub struct IspmStats {
 /// none where nothing is seen or a mirror or glass is (photons cannot be splatted
 /// there; the paper's section 2.1).
 pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
-    fragments
-        .par_iter()
-        .with_min_len(1024)
-        .map(|f| {
-            let hit = f.as_ref()?.hit(scene);
-            let bsdf = scene.bsdf(&hit);
-            if bsdf.is_specular() {
-                return None;
-            }
-            let wo = (camera.position - hit.p).normalize_or(hit.ns);
-            let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-            Some(Surface::new(hit.p, n, wo, bsdf))
-        })
-        .collect()
+    let mut out = Vec::new();
+    surfaces_into(scene, fragments, camera, &mut out);
+    out
+}
+
+/// [`surfaces`] into `out`, reusing its memory (a frame's G-buffer is tens of
+/// megabytes; faulting it back in every frame showed in the profile).
+pub fn surfaces_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut Vec<Option<Surface>>) {
+    out.clear();
+    out.par_extend(fragments.par_iter().with_min_len(1024).map(|f| {
+        let hit = f.as_ref()?.hit(scene);
+        let bsdf = scene.bsdf(&hit);
+        if bsdf.is_specular() {
+            return None;
+        }
+        let wo = (camera.position - hit.p).normalize_or(hit.ns);
+        let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+        Some(Surface::new(hit.p, n, wo, bsdf))
+    }));
 }
 
 /// Draw one image-space frame of `scene` seen by `camera` into `buffers` (layers
-/// "total", "direct", "caustic", "indirect", "specular"). `fragments` keeps the
-/// rasteriser's memory between frames.
+/// "total", "direct", "caustic", "indirect", "specular"). `fragments` and
+/// `surfaces` keep the rasteriser's and the G-buffer's memory between frames.
 pub fn frame(
     scene: &Scene,
     camera: &Camera,
@@ -348,6 +353,7 @@ pub fn frame(
     caustics: bool,
     buffers: &mut FrameBuffers,
     fragments: &mut Vec<Option<Fragment>>,
+    surfaces: &mut Vec<Option<Surface>>,
 ) -> Result<IspmStats, String> {
     let start = Instant::now();
     let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed };
@@ -377,10 +383,11 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let surfaces = surfaces(scene, fragments, camera);
+    surfaces_into(scene, fragments, camera, surfaces);
+    let surfaces = &*surfaces;
     let (w, h, f) = (p.width, p.height, p.subsample);
     let (indirect, caustic, t_splat, t_upsample) = if f <= 1 {
-        let (i, c) = splat::splat(&photons, &surfaces, camera, (w, h, 1), SplatOutput::Radiance);
+        let (i, c) = splat::splat(&photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance);
         (i, c, t.elapsed().as_secs_f64(), 0.0)
     } else {
         // Section 5.2: the soft indirect light's irradiance splatted at 1/f
@@ -390,15 +397,15 @@ pub fn frame(
         // are a few pixels wide, are splatted at full resolution: upsampled they
         // were 130% off at f = 2 (`cargo bench -p pm-live --bench ispm`).
         let (caustic_photons, soft): (Vec<VolumePhoton>, Vec<VolumePhoton>) = photons.iter().partition(|q| q.caustic);
-        let (_, c) = splat::splat(&caustic_photons, &surfaces, camera, (w, h, 1), SplatOutput::Radiance);
-        let low_gb = splat::subsample(&surfaces, w, h, f);
+        let (_, c) = splat::splat(&caustic_photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance);
+        let low_gb = splat::subsample(surfaces, w, h, f);
         let (li, _) = splat::splat(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let [e] = splat::upsample([&li], &low_gb, &surfaces, camera.position, (w, h, f));
+        let [e] = splat::upsample([&li], &low_gb, surfaces, camera.position, (w, h, f));
         let i = e
             .into_iter()
-            .zip(&surfaces)
+            .zip(surfaces)
             .map(|(e, s)| s.as_ref().map_or(Rgb::ZERO, |s| s.bsdf.diffuse_albedo() * e / std::f32::consts::PI))
             .collect();
         (i, c, t_splat, t.elapsed().as_secs_f64())

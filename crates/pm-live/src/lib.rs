@@ -297,6 +297,8 @@ pub struct Live {
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
     /// The frame's rasterised first hits.
     fragments: Vec<Option<pm_render::raster::Fragment>>,
+    /// The image-space method's G-buffer.
+    surfaces: Vec<Option<splat::Surface>>,
     /// Whether caustic paths are traced (the image-space method asks the scene
     /// analysis once: "simulate only the effects a scene calls for").
     caustics: bool,
@@ -339,6 +341,7 @@ impl Live {
             rest_lights,
             grid: None,
             fragments: Vec::new(),
+            surfaces: Vec::new(),
             caustics,
         })
     }
@@ -432,6 +435,7 @@ impl Live {
                 self.caustics,
                 &mut self.buffers,
                 &mut self.fragments,
+                &mut self.surfaces,
             )?;
             let times = FrameTimes { draw: st.times.wall, wall: st.times.wall, ..Default::default() };
             let stats = FrameStats {

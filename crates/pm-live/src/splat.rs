@@ -16,7 +16,6 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_format::{FullPhoton, PhotonRecord};
 use pm_scene::Camera;
 use rayon::prelude::*;
 use std::f32::consts::PI;
@@ -354,9 +353,10 @@ pub fn gather(photons: &[VolumePhoton], index: &PhotonIndex, s: &Surface) -> (Rg
     (indirect, caustic)
 }
 
-/// The photons' positions in pm-kdtree's grid, searched to the largest kernel radius.
+/// The photons' positions in pm-kdtree's static radius grid, searched to the
+/// largest kernel radius.
 pub struct PhotonIndex {
-    grid: pm_kdtree::PhotonGrid<FullPhoton>,
+    grid: pm_kdtree::RadiusGrid,
     radius: f32,
 }
 
@@ -364,18 +364,7 @@ impl PhotonIndex {
     /// The index of `photons`.
     pub fn new(photons: &[VolumePhoton]) -> PhotonIndex {
         let radius = photons.iter().map(|p| p.r_xy).fold(0.0, f32::max).max(f32::MIN_POSITIVE);
-        let mut grid = pm_kdtree::PhotonGrid::with_cell(radius, photons.len());
-        for (i, p) in photons.iter().enumerate() {
-            let record = pm_format::Photon {
-                position: p.p,
-                power: Rgb::ZERO,
-                wi: p.wi,
-                flags: pm_format::flags::AXIS_LEAF,
-                normal: p.n,
-                irradiance: Rgb::ZERO,
-            };
-            grid.set(i as u32, Some(FullPhoton::encode(&record)));
-        }
-        PhotonIndex { grid, radius }
+        let points: Vec<Vec3> = photons.iter().map(|p| p.p).collect();
+        PhotonIndex { grid: pm_kdtree::RadiusGrid::new(&points, radius), radius }
     }
 }
