@@ -90,7 +90,7 @@ fn degenerate_scene(dir: &Path, camera_on_floor: bool) -> PathBuf {
         }
     }
     doc["scenes"][0]["nodes"].as_array_mut().unwrap().extend(new_nodes.iter().map(|&i| json!(i)));
-    doc["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 0.5}]}});
+    doc["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 341.5}]}});
     let used = doc["extensionsUsed"].as_array_mut().unwrap();
     used.push(json!("KHR_lights_punctual"));
     let p = dir.join(if camera_on_floor { "degenerate_floor_camera.gltf" } else { "degenerate.gltf" });

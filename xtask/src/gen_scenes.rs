@@ -318,7 +318,8 @@ fn plane_point() -> Doc {
     let mut doc = Doc::default();
     let m = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
     doc.mesh_node("floor", &quad([-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0], [-2.0, 0.0, -2.0]), m);
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 10.0, "color": [1.0, 1.0, 1.0]}));
+    // 10 W/sr, written in candela as the glTF specification asks (x 683 lm/W).
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 6830.0, "color": [1.0, 1.0, 1.0]}));
     doc.nodes.push(
         json!({"name": "bulb", "translation": [0.0, 1.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
     );
@@ -360,7 +361,8 @@ fn caustic_ring() -> Doc {
     }));
     doc.mesh_node("floor", &quad([-1.5, 0.0, 1.5], [1.5, 0.0, 1.5], [1.5, 0.0, -1.5], [-1.5, 0.0, -1.5]), floor);
     doc.mesh_node("ring", &cylinder(0.0, 0.0, 0.5, 0.0, 0.2, 200), metal);
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 3.0, "color": [1.0, 1.0, 1.0]}));
+    // 3 W/sr, in candela.
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 2049.0, "color": [1.0, 1.0, 1.0]}));
     doc.nodes.push(
         json!({"name": "bulb", "translation": [0.0, 0.5, 1.2], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
     );
@@ -439,7 +441,8 @@ fn jozwowski_room(n: usize) -> Doc {
         &merge(&[split(block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4)), split(block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3))]),
         boxes,
     );
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 6.0, "color": [1.0, 1.0, 1.0]}));
+    // 6 W/sr, in candela.
+    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 4098.0, "color": [1.0, 1.0, 1.0]}));
     doc.nodes.push(
         json!({"name": "bulb", "translation": [1.2, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
     );

@@ -26,6 +26,11 @@ pub struct Pipeline {
     /// Random seed of every stage.
     #[serde(default = "one")]
     pub seed: u64,
+    /// Units of the scene's point, spot and directional light intensities:
+    /// "photometric" (the glTF specification: candela and lux, at 683 lm/W) or
+    /// "radiometric" (W/sr and W/m^2); every stage that reads the scene gets it.
+    #[serde(default)]
+    pub light_units: pm_scene::LightUnits,
     /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
     pub effects: EffectsCfg,
     /// Light name to fraction of the photon budget; the other lights share the rest
@@ -191,7 +196,9 @@ fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool
     if !caustics {
         trace.caustic_photons = 0;
     }
+    let units = ["--light-units".to_string(), cfg.light_units.to_string()];
     let mut trace_args = vec!["--scene".into(), s(scene), "--out".into(), s(out)];
+    trace_args.extend(units.clone());
     trace_args.extend(trace.to_args());
     trace_args.extend(seed.clone());
     for (name, share) in &cfg.light_shares {
@@ -239,6 +246,7 @@ fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool
     });
     let r = &cfg.render;
     let mut base = vec!["--scene".into(), s(scene)];
+    base.extend(units.clone());
     if indirect {
         base.extend(["--global".into(), s(&o("global.irr.pmap"))]);
     } else {
@@ -305,6 +313,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     let analysis: pm_scene::Effects = {
         let o = std::process::Command::new(bins.path("photon-trace"))
             .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
+            .args(["--light-units".to_string(), cfg.light_units.to_string()])
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {
@@ -520,6 +529,7 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
     let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
     a.extend(["--frames".into(), args.frames.to_string(), "--seed".into(), cfg.seed.to_string()]);
+    a.extend(["--light-units".into(), cfg.light_units.to_string()]);
     a.extend(cfg.live.to_args());
     println!("photon-live {}", a.join(" "));
     stages::run(&bins, "photon-live", &a, "photon-live", false)?;

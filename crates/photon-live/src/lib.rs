@@ -63,6 +63,9 @@ pub struct Cli {
     /// The real-time settings (pipeline.toml's [live] section).
     #[command(flatten)]
     pub params: LiveParams,
+    /// How the scene files are read.
+    #[command(flatten)]
+    pub scene_args: pm_stage::SceneArgs,
 }
 
 /// What a run did.
@@ -79,9 +82,9 @@ pub fn run(cli: &Cli) -> Result<Report> {
     cli.params.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     ensure!(cli.frames >= 1, "--frames must be at least 1");
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-live", &cli.scene)?;
+    let scene = pm_stage::load_scene("photon-live", &cli.scene, cli.scene_args)?;
     let photon_scene = match &cli.photon_scene {
-        Some(p) => Some(pm_stage::load_scene("photon-live", p)?),
+        Some(p) => Some(pm_stage::load_scene("photon-live", p, cli.scene_args)?),
         None => None,
     };
     // Photons are traced in the scene as given (or the --photon-scene); only the

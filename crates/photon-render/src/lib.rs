@@ -60,6 +60,9 @@ pub struct Cli {
     /// The render settings (pipeline.toml's [render] section).
     #[command(flatten)]
     pub params: RenderParams,
+    /// How the scene file is read.
+    #[command(flatten)]
+    pub scene_args: pm_stage::SceneArgs,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -88,7 +91,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let p = &cli.params;
     p.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-render", &cli.scene)?;
+    let scene = pm_stage::load_scene("photon-render", &cli.scene, cli.scene_args)?;
     let camera = scene
         .camera
         .clone()

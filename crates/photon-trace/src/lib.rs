@@ -53,6 +53,9 @@ pub struct TraceArgs {
     /// Scene (glTF 2.0: .gltf or .glb).
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// How the scene file is read.
+    #[command(flatten)]
+    pub scene_args: pm_stage::SceneArgs,
     /// Output folder for global.pmap and caustic.pmap (created if missing).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -189,7 +192,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
     let out = &out;
     pm_stage::init_threads(args.threads)?;
     let start = Instant::now();
-    let scene = pm_stage::load_scene("photon-trace", scene_path)?;
+    let scene = pm_stage::load_scene("photon-trace", scene_path, args.scene_args)?;
     if args.analyze {
         println!("{}", serde_json::to_string_pretty(&pm_scene::analyze(&scene))?);
         return Ok(None);

@@ -4,7 +4,7 @@
 
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
-use crate::{Camera, LightKind, Material, Object, Scene, Texture, Triangle};
+use crate::{Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, Triangle};
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use pm_bsdf::Bsdf;
 use pm_color::{Rgb, srgb_decode};
@@ -57,8 +57,16 @@ const SUPPORTED_EXTENSIONS: [&str; 5] = [
     "KHR_materials_volume",
 ];
 
-/// Load a glTF 2.0 scene. Problems that do not stop loading are in `Scene::warnings`.
+/// Load a glTF 2.0 scene with the glTF specification's light units (see
+/// [`LightUnits`]). Problems that do not stop loading are in `Scene::warnings`.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with(path, LightUnits::Photometric)
+}
+
+/// [`load`] reading `KHR_lights_punctual` intensities in `units`. The units are part
+/// of the scene's content hash: photon maps traced with one reading are refused by
+/// a stage that loads the scene with the other.
+pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
     let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
     let content = |message: String| SceneError::Content { path: path.to_owned(), message };
@@ -78,6 +86,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     for b in &buffers {
         hasher.update(&b.0);
     }
+    hasher.update(format!("light units: {units}").as_bytes());
     let content_hash = *hasher.finalize().as_bytes();
 
     let mut warnings = Vec::new();
@@ -239,7 +248,13 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             let position = world.transform_point3(Vec3::ZERO);
             let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
             let c = light.color();
-            let value = Rgb::new(c[0], c[1], c[2]) * light.intensity();
+            // Candela (lm/sr) or lux (lm/m^2) to W/sr or W/m^2 at 683 lm/W, or already
+            // radiometric.
+            let watts = match units {
+                LightUnits::Photometric => light.intensity() / LUMINOUS_EFFICACY,
+                LightUnits::Radiometric => light.intensity(),
+            };
+            let value = Rgb::new(c[0], c[1], c[2]) * watts;
             if !pm_color::is_valid(value) {
                 return Err(content(format!(
                     "light '{node_name}': intensity x colour {value} is not a non-negative finite colour"

@@ -5,8 +5,10 @@
 //! Units (see README): lengths are the glTF file's metres; emission of emissive
 //! triangles is radiance L_e [W sr^-1 m^-2 per channel] = emissiveFactor x
 //! KHR_materials_emissive_strength; KHR_lights_punctual point and spot intensities
-//! are radiant intensity I [W sr^-1 per channel] = intensity x colour; directional
-//! light intensity is irradiance E [W m^-2 per channel] on a surface facing it.
+//! are candela by default ([`LightUnits`]), read as radiant intensity
+//! I [W sr^-1 per channel] = intensity / 683 x colour; directional light intensity is
+//! lux, read as irradiance E [W m^-2 per channel] = intensity / 683 x colour on a
+//! surface facing it. With `LightUnits::Radiometric` the 683 is left out.
 //!
 //! This crate knows nothing about photons, photon maps or files other than glTF. A
 //! `Scene` is immutable after loading and `Send + Sync`, so one instance serves all
@@ -22,13 +24,35 @@ mod select;
 pub use anim::Animation;
 pub use effects::{Decision, Effects, analyze};
 pub use geometry::{intersect_triangle, offset_ray_origin};
-pub use gltf_load::{SceneError, load};
+pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};
 pub use select::{LightSelectError, LightSelector};
 
 use glam::{Vec2, Vec3};
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
+
+/// Luminous efficacy that converts photometric light units to radiometric ones
+/// [lm/W]: the glTF exporters' convention (Blender writes P x 683 / (4 pi) cd for a
+/// P-watt point lamp in its default "Standard" lighting mode).
+pub const LUMINOUS_EFFICACY: f32 = 683.0;
+
+impl Default for LightUnits {
+    fn default() -> Self {
+        LightUnits::Photometric
+    }
+}
+
+pm_params::value_enum! {
+    /// What `KHR_lights_punctual` intensities are in.
+    pub enum LightUnits {
+        /// The glTF specification's: candela (lm/sr) for point and spot lights, lux
+        /// (lm/m^2) for directional lights; divided by 683 lm/W to W/sr and W/m^2.
+        Photometric,
+        /// Already W/sr and W/m^2 (Blender's "Unitless" export writes W / (4 pi)).
+        Radiometric,
+    }
+}
 
 /// A triangle's shading data, in the order the file listed them (the triangle id).
 #[derive(Clone, Debug)]

@@ -2,7 +2,7 @@
 //! one-line error that names the file.
 
 use glam::Vec3;
-use pm_scene::{LightKind, load};
+use pm_scene::{LightKind, LightUnits, load, load_with};
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
@@ -17,9 +17,11 @@ fn close(a: Vec3, b: Vec3) -> bool {
 /// `handmade.gltf` was written by hand to the specification (node matrices,
 /// quaternions, a mirroring scale, non-indexed and u16-indexed primitives, all three
 /// punctual light types, an embedded base64 buffer). Every expected value below is
-/// worked out by hand in the comments.
+/// worked out by hand in the comments. Its light intensities are read as W/sr and
+/// W/m^2 here (radiometric); [`photometric_intensities_are_divided_by_683`] checks
+/// the default reading.
 fn check_handmade(path: &Path) {
-    let s = load(path).unwrap_or_else(|e| panic!("{e}"));
+    let s = load_with(path, LightUnits::Radiometric).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(s.triangles.len(), 3);
     // Ground: the unit quad scaled by 2 (node matrix), facing +y.
     let ground: Vec<_> = s.triangles.iter().filter(|t| close(t.ng, Vec3::Y)).collect();
@@ -174,4 +176,52 @@ fn base_colour_texture_is_sampled_in_linear_rgb() {
     let blue = probe(0.75);
     let want = 0.5 * pm_color::srgb_decode(188.0 / 255.0);
     assert!((blue - Vec3::new(0.0, 0.0, want)).length() < 1e-4, "{blue}");
+}
+
+/// The glTF specification's light units (KHR_lights_punctual): point and spot
+/// intensities in candela, directional in lux. The default reading divides them by
+/// 683 lm/W; emissive materials (radiance) are read the same either way. So every
+/// punctual light of the hand-made file carries 1/683 of its radiometric reading's
+/// power, the glowing triangle the same power, and the two readings hash
+/// differently (a photon map traced with one is refused with the other).
+#[test]
+fn photometric_intensities_are_divided_by_683() {
+    let path = data("handmade.gltf");
+    let photometric = load(&path).unwrap();
+    let radiometric = load_with(&path, LightUnits::Radiometric).unwrap();
+    assert_ne!(photometric.content_hash, radiometric.content_hash);
+    for (p, r) in photometric.lights.iter().zip(&radiometric.lights) {
+        let want = match r.kind {
+            LightKind::Area { .. } => r.power,
+            _ => r.power / 683.0,
+        };
+        assert!(((p.power - want).abs() / want).max_element() < 1e-6, "{}: {} vs {}", p.name, p.power, want);
+    }
+    assert_eq!(photometric.lights.len(), 4);
+}
+
+/// A scene whose lamp is written in candela (plane_point: 6830 cd) and the same scene
+/// written in W/sr (10) and read radiometrically have the same lights exactly: the
+/// analytic direct light of tests/tests/effects.rs (rho/pi x 10 W/sr cos / d^2, through
+/// the whole pipeline) holds for the photometric file.
+#[test]
+fn candela_and_watts_per_steradian_files_agree() {
+    let scenes = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let candela = load(&scenes.join("plane_point.gltf")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scenes.join("plane_point.gltf")).unwrap();
+    assert!(text.contains("\"intensity\": 6830.0"), "the file's lamp is written in candela");
+    std::fs::write(dir.path().join("plane_point.gltf"), text.replace("\"intensity\": 6830.0", "\"intensity\": 10.0"))
+        .unwrap();
+    std::fs::copy(scenes.join("plane_point.bin"), dir.path().join("plane_point.bin")).unwrap();
+    let watts = load_with(&dir.path().join("plane_point.gltf"), LightUnits::Radiometric).unwrap();
+    assert_eq!(candela.lights.len(), 1);
+    match (&candela.lights[0].kind, &watts.lights[0].kind) {
+        (LightKind::Point { intensity: a, position: pa }, LightKind::Point { intensity: b, position: pb }) => {
+            assert_eq!((a, pa), (b, pb));
+            assert_eq!(*a, Vec3::splat(10.0));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(candela.lights[0].power, watts.lights[0].power);
 }

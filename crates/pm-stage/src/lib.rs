@@ -42,9 +42,22 @@ pub fn thread_count() -> usize {
     rayon::current_num_threads()
 }
 
+/// How a stage reads its scene file: `--light-units` on every stage that loads one,
+/// pipeline.toml's top-level `light_units` for the runner.
+#[derive(clap::Args, Debug, Clone, Copy)]
+pub struct SceneArgs {
+    /// Units of the glTF file's point, spot and directional light intensities:
+    /// photometric (the glTF specification: candela and lux, divided by 683 lm/W into
+    /// W/sr and W/m^2; what Blender's exporter writes by default) or radiometric
+    /// (already W/sr and W/m^2; Blender's "Unitless" export). Emissive materials are
+    /// radiance either way.
+    #[arg(long, value_enum, default_value_t = pm_scene::LightUnits::Photometric)]
+    pub light_units: pm_scene::LightUnits,
+}
+
 /// Load a scene, printing each of its warnings once on stderr.
-pub fn load_scene(stage: &str, path: &Path) -> Result<pm_scene::Scene> {
-    let scene = pm_scene::load(path)?;
+pub fn load_scene(stage: &str, path: &Path, how: SceneArgs) -> Result<pm_scene::Scene> {
+    let scene = pm_scene::load_with(path, how.light_units)?;
     for w in &scene.warnings {
         eprintln!("{stage}: warning: {}: {w}", path.display());
     }
