@@ -134,3 +134,69 @@ fn a_diffuse_scene_renders_identically_with_caustics_forced_on() {
     );
     assert_eq!(std::fs::read(auto.join("image.exr")).unwrap(), std::fs::read(forced.join("image.exr")).unwrap());
 }
+
+/// Spot and sun lights written in the glTF specification's units (candela, lux)
+/// light the floor with the analytic direct radiance of I = cd / 683 and E = lux /
+/// 683: rho/pi I t(cos)^2 cos / d^2 under a spot aimed straight down from 1 m (the
+/// glTF smooth cone falloff), rho/pi E cos(theta) under a sun 60 degrees from the
+/// zenith; at 25 floor points each, to 1e-4. Direct light from a single delta light
+/// involves no random choice, so the check is exact.
+#[test]
+fn spot_and_sun_in_candela_and_lux_give_the_analytic_direct_light() {
+    let scenes = pm_tests::scene_path("plane_point.gltf");
+    let text = std::fs::read_to_string(&scenes).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(scenes.with_file_name("plane_point.bin"), dir.path().join("plane_point.bin")).unwrap();
+    let (inner, outer) = (0.3f32, 0.6f32);
+    let sun_tilt = std::f32::consts::FRAC_PI_3;
+    let half = |a: f32| (0.5 * a).sin_cos();
+    let cases = [
+        (
+            serde_json::json!({"name": "spot", "type": "spot", "intensity": 683.0 * 5.0, "color": [1.0, 1.0, 1.0],
+                "spot": {"innerConeAngle": inner, "outerConeAngle": outer}}),
+            // -90 degrees about x: the light's -z points down.
+            [-(0.5f32).sqrt(), 0.0, 0.0, (0.5f32).sqrt()],
+        ),
+        (
+            serde_json::json!({"name": "sun", "type": "directional", "intensity": 683.0 * 2.0, "color": [1.0, 1.0, 1.0]}),
+            // -(90 - 30) degrees about x: 60 degrees from straight down.
+            [-half(std::f32::consts::FRAC_PI_2 - sun_tilt).0, 0.0, 0.0, half(std::f32::consts::FRAC_PI_2 - sun_tilt).1],
+        ),
+    ];
+    for (light, rotation) in cases {
+        doc["extensions"]["KHR_lights_punctual"]["lights"] = serde_json::json!([light]);
+        doc["nodes"][1]["rotation"] = serde_json::json!(rotation);
+        let path = dir.path().join("plane_point.gltf");
+        std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
+        let scene = pm_scene::load(&path).unwrap();
+        let direct = pm_render::DirectLighting::new(&scene).unwrap();
+        let (mut worst, mut lit) = (0f32, 0);
+        for i in 0..25 {
+            let p = Vec3::new((i % 5) as f32 * 0.3 - 0.6, 0.0, (i / 5) as f32 * 0.3 - 0.6);
+            let hit = scene.intersect(p + Vec3::Y * 0.5, Vec3::NEG_Y, f32::INFINITY).unwrap();
+            let bsdf = scene.bsdf(&hit);
+            let mut s = pm_sampling::Sampler::new(1, i);
+            let got = direct.direct(&hit, &bsdf, Vec3::Y, &mut s, 1).x;
+            let rho_pi = 0.5 / std::f32::consts::PI;
+            let want = match light["type"].as_str().unwrap() {
+                "spot" => {
+                    let to = Vec3::new(0.0, 1.0, 0.0) - hit.p;
+                    let cos = to.normalize().y;
+                    let t = ((cos - outer.cos()) / (inner.cos() - outer.cos())).clamp(0.0, 1.0);
+                    rho_pi * 5.0 * t * t * cos / to.length_squared()
+                }
+                _ => rho_pi * 2.0 * sun_tilt.cos(),
+            };
+            if want == 0.0 {
+                assert_eq!(got, 0.0, "outside the cone at {p}");
+                continue;
+            }
+            lit += 1;
+            worst = worst.max((got / want - 1.0).abs());
+        }
+        eprintln!("{}: {lit} of 25 points lit, worst relative error {worst:.2e}", light["type"]);
+        assert!(lit >= 9);
+        assert!(worst < 1e-4, "{}: {worst}", light["type"]);
+    }
+}
