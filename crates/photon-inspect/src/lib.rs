@@ -16,7 +16,8 @@ use std::path::PathBuf;
 #[command(
     name = "photon-inspect",
     about = "Summarise a photon map; export it as a PLY point cloud or draw it from the scene's camera",
-    long_about = "Reads any photon-map file and prints its header (kind, order, record layout, counts, bounds in m, \
+    long_about = "Reads any photon-map file and prints its header (kind, order, record layout, counts, bounds in m \
+(world coordinates: the map's positions plus the origin its header records), \
 total power in W per channel), counts by flag, for a kd-tree its depth and a check that the heap order is a valid \
 kd-tree, and for maps with precomputed irradiance how many photons carry it and its range (W m^-2)."
 )]
@@ -52,6 +53,7 @@ pub struct Cli {
 /// The summary of a map, as JSON.
 pub fn summary(map: &AnyMap) -> serde_json::Value {
     let h = map.header();
+    let world = |p: [f32; 3]| world_of(h.origin, p);
     with_map!(map, m => {
         let recs = &m.records;
         let n = recs.len().max(1) as f64;
@@ -84,8 +86,9 @@ pub fn summary(map: &AnyMap) -> serde_json::Value {
             "record_bytes": h.layout.record_size(),
             "photons": recs.len(),
             "emitted": h.n_emitted,
-            "bounds_min_m": h.bounds_min,
-            "bounds_max_m": h.bounds_max,
+            "bounds_min_m": world(h.bounds_min),
+            "bounds_max_m": world(h.bounds_max),
+            "origin_m": h.origin,
             "total_power_w": h.total_power,
             "mean_power_w": h.total_power.map(|t| t / n),
             "direct": by_flag[0],
@@ -98,6 +101,11 @@ pub fn summary(map: &AnyMap) -> serde_json::Value {
             "params": serde_json::from_str::<serde_json::Value>(&h.params).unwrap_or(json!(h.params)),
         })
     })
+}
+
+/// World coordinates [m] of a position relative to the map's origin.
+fn world_of(origin: [f64; 3], p: [f32; 3]) -> [f64; 3] {
+    [origin[0] + p[0] as f64, origin[1] + p[1] as f64, origin[2] + p[2] as f64]
 }
 
 /// Positions and display colours (linear, normalised so the 99th percentile is 1).
@@ -132,13 +140,16 @@ pub fn run(cli: &Cli) -> Result<()> {
     if let Some(ply) = &cli.ply {
         let pts = points(&map, cli.irradiance);
         let mut bytes = format!(
-            "ply\nformat binary_little_endian 1.0\ncomment photon map {}\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+            "ply\nformat binary_little_endian 1.0\ncomment photon map {}\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
             cli.map.display(),
             pts.len()
         )
         .into_bytes();
+        // World coordinates (the map stores positions relative to the scene's camera),
+        // in f64 so a scene far from the origin keeps its precision.
+        let origin = map.header().origin;
         for (p, c) in &pts {
-            for v in p.to_array() {
+            for v in world_of(origin, p.to_array()) {
                 bytes.extend_from_slice(&v.to_le_bytes());
             }
             bytes.extend((0..3).map(|k| (pm_color::srgb_encode(c[k]) * 255.0 + 0.5) as u8));

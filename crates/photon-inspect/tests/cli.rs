@@ -32,8 +32,12 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
         })
         .collect();
     let nodes = pm_kdtree::balance(&photons);
+    // Positions relative to a camera 1e6 m from the world origin: the summary and the
+    // point cloud give world coordinates.
+    let origin = [1e6, -2.5, 0.125];
     let mut header =
-        Header::new(MapKind::Global, Order::KdTree, Layout::FullIrradiance, 777, [5; 32], 1.0, "{}".into());
+        Header::new(MapKind::Global, Order::KdTree, Layout::FullIrradiance, 777, [5; 32], 1.0, "{}".into())
+            .with_origin(origin);
     header.has_irradiance = true;
     let good = dir.path().join("good.pmap");
     PhotonMap::new(header.clone(), nodes.clone()).write(&good).unwrap();
@@ -50,11 +54,18 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
     assert_eq!(s["kd_tree"]["valid"], true);
     assert_eq!(s["irradiance"]["photons"], 100);
     assert_eq!(s["total_power_w"][0].as_f64(), Some(500.0));
+    assert_eq!(s["origin_m"][0].as_f64(), Some(1e6));
+    assert_eq!(s["bounds_min_m"][0].as_f64(), Some(1e6));
+    assert_eq!(s["bounds_max_m"][1].as_f64(), Some(9.0 - 2.5));
     let bytes = std::fs::read(&ply).unwrap();
     let text = String::from_utf8_lossy(&bytes[..300]);
     assert!(text.contains("element vertex 1000"));
     let header_len = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-    assert_eq!(bytes.len() - header_len, 1000 * 15);
+    assert_eq!(bytes.len() - header_len, 1000 * 27);
+    // Every point's world position is a record position plus the origin, to f64.
+    let xs: Vec<f64> =
+        (0..1000).map(|i| f64::from_le_bytes(bytes[header_len + i * 27..][..8].try_into().unwrap())).collect();
+    assert!(xs.iter().all(|x| (x - 1e6).fract() == 0.0 && (1e6..=1e6 + 9.0).contains(x)), "{:?}", &xs[..5]);
     // Swap two nodes: still a valid file (checksums recomputed), but not a kd-tree.
     let mut broken = nodes;
     broken.swap(1, 2);

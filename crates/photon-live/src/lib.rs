@@ -94,6 +94,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         pm_live::PhotonProxy::None => photon_scene,
     };
     let content_hash = scene.content_hash;
+    let origin = scene.origin.to_array();
     let diagonal = scene.bounds.diagonal();
     let (drawn, photon_scene) = if cli.params.subdivide > 0.0 {
         let sub = scene.subdivided(cli.params.subdivide);
@@ -126,7 +127,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
         }
         if cli.dump_frame == Some(f as u64) {
-            dump(&live, content_hash, diagonal, &cli.out.join(format!("buffer-{f}.pmap")))?;
+            dump(&live, content_hash, diagonal, origin, &cli.out.join(format!("buffer-{f}.pmap")))?;
         }
         apng.push(pm_image::srgb8(total, cli.params.exposure));
         stats.push(s);
@@ -215,7 +216,7 @@ fn frames_csv(stats: &[FrameStats]) -> Result<String> {
 }
 
 /// The ring buffer's used slots as a global photon map (full records, unsorted).
-fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, path: &std::path::Path) -> Result<()> {
+fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, origin: [f64; 3], path: &std::path::Path) -> Result<()> {
     use pm_format::{FullIrrPhoton, Header, Layout, MapKind, Order, PhotonMap, PhotonRecord};
     let photons = live.ring().photons();
     let header = Header::new(
@@ -226,7 +227,8 @@ fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, path: &std::path::Path
         scene_hash,
         diagonal,
         serde_json::json!({"photon-live frame": live.frame() - 1}).to_string(),
-    );
+    )
+    .with_origin(origin);
     PhotonMap::new(header, photons.iter().map(FullIrrPhoton::encode).collect::<Vec<_>>()).write(path)?;
     Ok(())
 }

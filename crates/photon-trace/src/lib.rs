@@ -265,7 +265,8 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
             scene.content_hash,
             scene.bounds.diagonal(),
             params_with_range.to_string(),
-        );
+        )
+        .with_origin(scene.origin.to_array());
         write_map(&path, header, &traced.photons, full, pass)?;
         *map_slot(&mut report, pass) = map_report(&traced, &scene, secs);
     }

@@ -3,7 +3,7 @@
 //! ```text
 //! offset size field
 //!      0    8 magic            b"PHOTMAP\x1a"
-//!      8    4 version          u32, must be 2
+//!      8    4 version          u32, must be 3
 //!     12    4 header_len       u32: bytes before the first record; multiple of 16
 //!     16    1 kind             1 = global, 2 = caustic
 //!     17    1 order            0 = unsorted, 1 = left-balanced kd-tree in heap order
@@ -20,8 +20,11 @@
 //!    120   32 payload_hash     blake3 of the record bytes
 //!    152    4 scene_diagonal   f32 [m]: the scene's bounding-box diagonal, the one
 //!                              reference of every relative radius (stages 3 and 4)
-//!    156    4 params_len       u32
-//!    160    n params           UTF-8 (JSON) of the parameters that produced the map
+//!    156   24 origin           f64 x 3 [m]: world position of the map's coordinate
+//!                              origin (scenes are stored relative to their camera;
+//!                              add this for world coordinates)
+//!    180    4 params_len       u32
+//!    184    n params           UTF-8 (JSON) of the parameters that produced the map
 //!      .    . zero padding
 //! len-8    8 header_check     first 8 bytes of blake3(header bytes before this field)
 //! ```
@@ -34,8 +37,8 @@ use std::path::{Path, PathBuf};
 /// File signature.
 pub const MAGIC: [u8; 8] = *b"PHOTMAP\x1a";
 /// The only version this build reads and writes.
-pub const VERSION: u32 = 2;
-const FIXED_LEN: usize = 160;
+pub const VERSION: u32 = 3;
+const FIXED_LEN: usize = 184;
 const MAX_PARAMS: usize = 1 << 20;
 
 /// Which photon map a file holds.
@@ -122,6 +125,9 @@ pub struct Header {
     /// The scene's bounding-box diagonal [m]: relative radii (`max_radius_rel_diag`)
     /// mean this length times the fraction in every stage.
     pub scene_diagonal: f32,
+    /// World position [m] of the coordinate origin of the positions (the scene's
+    /// camera, `Scene::origin`): world = position + origin.
+    pub origin: [f64; 3],
     /// Parameters that produced the map (JSON text).
     pub params: String,
 }
@@ -150,8 +156,14 @@ impl Header {
             scene_hash,
             payload_hash: [0; 32],
             scene_diagonal,
+            origin: [0.0; 3],
             params,
         }
+    }
+
+    /// The header with positions relative to world position `origin` [m].
+    pub fn with_origin(self, origin: [f64; 3]) -> Header {
+        Header { origin, ..self }
     }
 }
 
@@ -289,6 +301,9 @@ pub fn encode(h: &Header) -> Vec<u8> {
     b.extend_from_slice(&h.scene_hash);
     b.extend_from_slice(&h.payload_hash);
     b.extend_from_slice(&h.scene_diagonal.to_le_bytes());
+    for v in &h.origin {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
     b.extend_from_slice(&(params.len() as u32).to_le_bytes());
     debug_assert_eq!(b.len(), FIXED_LEN);
     seal(&mut b, params, header_len);
@@ -434,6 +449,10 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     if !(scene_diagonal > 0.0) || !scene_diagonal.is_finite() {
         return Err(err(Problem::Field { field: "scene_diagonal (not finite and positive)", value: 0 }));
     }
+    let origin = [c.f64(), c.f64(), c.f64()];
+    if !origin.iter().all(|v| v.is_finite()) {
+        return Err(err(Problem::Field { field: "origin (not finite)", value: 0 }));
+    }
     let params = params_text(bytes, FIXED_LEN, c.u32() as usize, header_len).map_err(err)?;
     let expected = n_photons.checked_mul(record_size as u64).and_then(|p| p.checked_add(header_len as u64));
     if expected != Some(file_len) {
@@ -460,6 +479,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
         scene_hash,
         payload_hash,
         scene_diagonal,
+        origin,
         params,
     };
     Ok((header, header_len))

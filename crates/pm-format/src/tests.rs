@@ -136,7 +136,7 @@ fn every_bad_file_is_rejected_with_a_clear_message() {
         (variant("header_flip.pmap", &{ let mut b = good.clone(); b[70] ^= 0x01; b }), "header is corrupted"),
         (variant("magic.pmap", &{ let mut b = good.clone(); b[0] = b'X'; b }), "not a photon map"),
         (variant("version.pmap", &{ let mut b = good.clone(); b[8] = 9; b }), "version 9"),
-        (variant("text.pmap", b"this is not a photon map at all, just some text that is long enough to fill a header. ........................................................................................."), "magic"),
+        (variant("text.pmap", b"this is not a photon map at all, just some text that is long enough to fill a header. ........................................................ ........................................................................................."), "magic"),
     ];
     for (p, what) in &cases {
         let e = err_of(p, &ReadExpect::default());

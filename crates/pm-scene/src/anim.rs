@@ -64,6 +64,9 @@ pub struct Animation {
     pub(crate) meshes: Vec<AnimatedMesh>,
     /// Length of the animation [s] (its last key time).
     pub duration: f32,
+    /// World position of the scene's coordinate origin [m] (the camera's rest
+    /// position: see `Scene::origin`); world transforms are moved by minus this.
+    pub(crate) origin: glam::DVec3,
 }
 
 impl Channel {
@@ -114,8 +117,8 @@ impl Animation {
         self.channels.is_empty()
     }
 
-    /// The local transform of `node` at time `t` [s].
-    fn local(&self, node: usize, t: f32) -> Mat4 {
+    /// The local transform of `node` at time `t` [s], in f64.
+    fn local(&self, node: usize, t: f32) -> glam::DMat4 {
         let rest = &self.nodes[node];
         let (mut tr, mut r, mut s) = (rest.t, rest.r, rest.s);
         for c in self.channels.iter().filter(|c| c.node == node) {
@@ -126,10 +129,11 @@ impl Animation {
                 Path::Scale => s = v.truncate(),
             }
         }
-        Mat4::from_scale_rotation_translation(s, r, tr)
+        glam::DMat4::from_scale_rotation_translation(s.as_dvec3(), r.as_dquat(), tr.as_dvec3())
     }
 
-    /// The world transform of `node` at time `t` [s]; animations loop.
+    /// The world transform of `node` at time `t` [s], in the scene's camera-relative
+    /// space (composed in f64, moved by `-origin`, then cast); animations loop.
     pub(crate) fn world(&self, node: usize, t: f32) -> Mat4 {
         let t = if self.duration > 0.0 { t.rem_euclid(self.duration) } else { 0.0 };
         let mut m = self.local(node, t);
@@ -143,7 +147,7 @@ impl Animation {
                 break;
             }
         }
-        m
+        (glam::DMat4::from_translation(-self.origin) * m).as_mat4()
     }
 
     /// True when `node` or one of its ancestors has a channel.

@@ -296,6 +296,12 @@ pub struct Scene {
     pub light_of_triangle: Vec<u32>,
     /// The first camera found in the scene, if any.
     pub camera: Option<Camera>,
+    /// World position [m] of this scene's coordinate origin: positions are stored
+    /// relative to the first perspective camera's rest position snapped to a 1,024 m
+    /// grid (pbrt-v4's "camera-world" space; transforms composed in f64 before the
+    /// cast to f32), so a scene far from the file's origin keeps its precision and a
+    /// scene near it keeps its coordinates. Zero without a camera.
+    pub origin: glam::DVec3,
     /// Bounds of all triangles.
     pub bounds: Bounds,
     /// blake3 of the glTF file and every buffer it references: the identity that
@@ -387,6 +393,7 @@ impl Scene {
             lights,
             objects,
             camera,
+            origin: glam::DVec3::ZERO,
             bounds,
             content_hash,
             warnings,
@@ -654,6 +661,7 @@ impl Scene {
         // the animation carries over.
         scene.bounds = self.bounds;
         scene.animation = self.animation.clone();
+        scene.origin = self.origin;
         scene
     }
 
