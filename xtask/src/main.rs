@@ -1,7 +1,7 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; `cargo xtask <task> --help` explains each.
 
-use xtask::{gen_scenes, run};
+use xtask::{assemble, gen_scenes, run};
 
 mod figure1;
 mod live_study;
@@ -34,6 +34,8 @@ enum Task {
     LiveStudy(live_study::Args),
     /// Relative RMSE, bias and SSIM of an image against a reference.
     Compare(CompareArgs),
+    /// Join region EXRs (photon-render --region) into the whole image and a PNG.
+    Assemble(assemble::Args),
     /// What accuracy costs in time: a path-traced reference, then one setting at a
     /// time; CSV, markdown, plot.svg and plot.png.
     Tradeoff(tradeoff::Args),
@@ -72,6 +74,7 @@ fn main() -> std::process::ExitCode {
         Task::Live(a) => run::live(&a, &root),
         Task::LiveStudy(a) => live_study::run(&a, &root),
         Task::Compare(a) => compare(&a),
+        Task::Assemble(a) => assemble::run(&a),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),

@@ -34,7 +34,9 @@ pub struct Cli {
     /// Sorted caustic map (caustic.kd.pmap).
     #[arg(long)]
     pub caustic: Option<PathBuf>,
-    /// Output OpenEXR image (of the --region when given). Not needed with --icache-out.
+    /// Output OpenEXR image (of the --region when given: its data window says where
+    /// the region sits, and `cargo xtask assemble` joins regions). Not needed with
+    /// --icache-out.
     #[arg(long, required_unless_present = "icache_out")]
     pub out: Option<PathBuf>,
     /// Render only this rectangle of the image, X0,Y0,X1,Y1 in pixels (columns
@@ -169,7 +171,14 @@ pub fn run(cli: &Cli) -> Result<Report> {
             layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
         };
         let out = cli.out.as_ref().context("--out is required")?;
-        pm_image::write_exr(out, &layers)?;
+        match cli.region {
+            // A region's EXR says where it sits, for `cargo xtask assemble`.
+            Some([x0, y0, _, _]) => {
+                let at = pm_image::Placement { x: x0, y: y0, full_width: p.width, full_height: p.height };
+                pm_image::write_exr_region(out, &layers, at)?
+            }
+            None => pm_image::write_exr(out, &layers)?,
+        }
         if let Some(png) = &cli.png {
             pm_image::write_png(
                 png,

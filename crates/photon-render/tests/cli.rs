@@ -194,6 +194,30 @@ fn a_cache_file_and_regions_reproduce_the_whole_render() {
             }
         }
     }
+    // Tiles assembled equal the whole render byte for byte: one-pixel-row tiles,
+    // 8 x 8 tiles and 13 x 7 tiles (neither divides 37 x 29).
+    let tilings: [Vec<[u32; 4]>; 3] =
+        [vec![[0, 0, 37, 1], [0, 1, 37, 2], [0, 2, 37, 3], [0, 3, 37, 29]], grid(37, 29, 8, 8), grid(37, 29, 13, 7)];
+    for (t, tiles) in tilings.iter().enumerate() {
+        let mut parts = Vec::new();
+        for (k, [x0, y0, x1, y1]) in tiles.iter().enumerate() {
+            let out = p(&format!("t{t}_{k}.exr"));
+            let region = format!("{x0},{y0},{x1},{y1}");
+            let a = [&caustic[..], &strs(&["--icache", &p("icache.bin"), "--region", &region, "--out", &out])].concat();
+            let (ok, err) = go(&a);
+            assert!(ok, "{err}");
+            parts.push(pm_image::read_exr_placed(Path::new(&out)).unwrap());
+        }
+        let whole = pm_image::assemble(&parts).unwrap();
+        let joined = p(&format!("joined{t}.exr"));
+        pm_image::write_exr(Path::new(&joined), &whole).unwrap();
+        assert!(std::fs::read(&joined).unwrap() == std::fs::read(p("whole.exr")).unwrap(), "tiling {t}: bytes differ");
+        // Leaving a tile out, or giving one twice, is an error naming the pixel.
+        let gap = pm_image::assemble(&parts[1..]).unwrap_err();
+        assert!(gap.starts_with("no region covers pixel"), "{gap}");
+        let twice = [parts.clone(), vec![parts[0].clone()]].concat();
+        assert!(pm_image::assemble(&twice).unwrap_err().contains("both cover pixel"));
+    }
     let other = [&caustic[..], &strs(&["--icache", &p("icache.bin"), "--light-samples", "5", "--out", &p("x.exr")])];
     let (ok, err) = go(&other.concat());
     assert!(!ok && err.contains("icache.bin: made with light_samples=4, this render has light_samples=5"), "{err}");
@@ -253,4 +277,12 @@ fn a_map_that_is_not_a_kd_tree_is_refused() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("bad.irr.pmap: not a valid kd-tree"), "{err}");
     assert!(!out.exists());
+}
+
+/// Tiles of `tw` x `th` pixels over a `w` x `h` image, row by row (the last ones
+/// cut short).
+fn grid(w: u32, h: u32, tw: u32, th: u32) -> Vec<[u32; 4]> {
+    (0..h.div_ceil(th))
+        .flat_map(|j| (0..w.div_ceil(tw)).map(move |i| [i * tw, j * th, ((i + 1) * tw).min(w), ((j + 1) * th).min(h)]))
+        .collect()
 }

@@ -29,14 +29,37 @@ impl Layers {
 /// Write OpenEXR, 32-bit float: the "total" layer as R, G, B and every other layer
 /// as `<layer>.R`, `.G`, `.B` in the same part.
 pub fn write_exr(path: &Path, img: &Layers) -> Result<()> {
-    let bytes = encode_exr(img, true).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let bytes = encode_exr(img, true, None).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Where a region of an image sits: the column and row of its top-left pixel in
+/// an image of `full_width` x `full_height` pixels (the EXR's data window inside its
+/// display window).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Placement {
+    /// First column.
+    pub x: u32,
+    /// First row (row 0 at the top).
+    pub y: u32,
+    /// Width of the whole image [pixels].
+    pub full_width: u32,
+    /// Height of the whole image [pixels].
+    pub full_height: u32,
+}
+
+/// [`write_exr`] for a region of a larger image: `img` is the region, `at` where it
+/// sits (the file's data window is the region, its display window the image).
+pub fn write_exr_region(path: &Path, img: &Layers, at: Placement) -> Result<()> {
+    let bytes = encode_exr(img, true, Some(at)).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
         .with_context(|| format!("{}: cannot write", path.display()))
 }
 
 /// The bytes of the EXR file [`write_exr`] writes; `parallel` compresses chunks on
 /// several threads (the bytes are the same either way: tested).
-fn encode_exr(img: &Layers, parallel: bool) -> std::result::Result<Vec<u8>, String> {
+fn encode_exr(img: &Layers, parallel: bool, at: Option<Placement>) -> std::result::Result<Vec<u8>, String> {
     use exr::prelude::*;
     let (w, h) = (img.width as usize, img.height as usize);
     let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
@@ -54,8 +77,18 @@ fn encode_exr(img: &Layers, parallel: bool) -> std::result::Result<Vec<u8>, Stri
     // order the offset table depended on the thread schedule, so renders with 1 and
     // 2 threads had equal pixels but different bytes.
     let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
-    let layer = Layer::new((w, h), LayerAttributes::default(), encoding, AnyChannels::sort(channels));
-    let image = exr::image::Image::from_layer(layer);
+    let attributes = match at {
+        Some(a) => LayerAttributes::default().with_position(Vec2(a.x as i32, a.y as i32)),
+        None => LayerAttributes::default(),
+    };
+    let layer = Layer::new((w, h), attributes, encoding, AnyChannels::sort(channels));
+    let image = match at {
+        Some(a) => exr::image::Image::new(
+            ImageAttributes::new(IntegerBounds::from_dimensions((a.full_width as usize, a.full_height as usize))),
+            layer,
+        ),
+        None => exr::image::Image::from_layer(layer),
+    };
     let mut buf = std::io::Cursor::new(Vec::new());
     let written =
         if parallel { image.write().to_buffered(&mut buf) } else { image.write().non_parallel().to_buffered(&mut buf) };
@@ -63,8 +96,62 @@ fn encode_exr(img: &Layers, parallel: bool) -> std::result::Result<Vec<u8>, Stri
     Ok(buf.into_inner())
 }
 
+/// Join regions of one image into the whole (tiles rendered separately): every
+/// region must belong to the same image size and carry the same layers, and
+/// together they must cover every pixel exactly once. Errors say which region
+/// overlaps another or which pixel no region covers.
+pub fn assemble(parts: &[(Layers, Placement)]) -> std::result::Result<Layers, String> {
+    let Some((first, at0)) = parts.first() else { return Err("no regions to assemble".into()) };
+    let (w, h) = (at0.full_width, at0.full_height);
+    let names: Vec<&str> = first.layers.iter().map(|l| l.0.as_str()).collect();
+    let mut out = Layers {
+        width: w,
+        height: h,
+        layers: names.iter().map(|n| (n.to_string(), vec![Vec3::ZERO; (w * h) as usize])).collect(),
+    };
+    let mut owner = vec![u32::MAX; (w * h) as usize];
+    for (k, (img, at)) in parts.iter().enumerate() {
+        if (at.full_width, at.full_height) != (w, h) {
+            return Err(format!(
+                "region {k} belongs to a {}x{} image, region 0 to a {w}x{h} one",
+                at.full_width, at.full_height
+            ));
+        }
+        if at.x + img.width > w || at.y + img.height > h {
+            return Err(format!(
+                "region {k} ({}x{} at {},{}) reaches outside the {w}x{h} image",
+                img.width, img.height, at.x, at.y
+            ));
+        }
+        if img.layers.iter().map(|l| l.0.as_str()).ne(names.iter().copied()) {
+            return Err(format!("region {k} has other layers than region 0"));
+        }
+        for j in 0..(img.width * img.height) as usize {
+            let (x, y) = (at.x + j as u32 % img.width, at.y + j as u32 / img.width);
+            let i = (y * w + x) as usize;
+            if owner[i] != u32::MAX {
+                return Err(format!("regions {} and {k} both cover pixel {x},{y}", owner[i]));
+            }
+            owner[i] = k as u32;
+            for (dst, src) in out.layers.iter_mut().zip(&img.layers) {
+                dst.1[i] = src.1[j];
+            }
+        }
+    }
+    if let Some(i) = owner.iter().position(|&o| o == u32::MAX) {
+        return Err(format!("no region covers pixel {},{}", i as u32 % w, i as u32 / w));
+    }
+    Ok(out)
+}
+
 /// Read an OpenEXR file written by [`write_exr`] (or any single-part RGB EXR).
 pub fn read_exr(path: &Path) -> Result<Layers> {
+    read_exr_placed(path).map(|(layers, _)| layers)
+}
+
+/// [`read_exr`] with where the file's pixels sit in its image (a region written by
+/// [`write_exr_region`]; a whole image sits at 0, 0 in itself).
+pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {
     use exr::prelude::read_first_flat_layer_from_file;
     let image = read_first_flat_layer_from_file(path)
         .map_err(|e| anyhow::anyhow!("{}: cannot read EXR: {e}", path.display()))?;
@@ -94,7 +181,14 @@ pub fn read_exr(path: &Path) -> Result<Layers> {
     if layers.first().is_none_or(|l| l.0 != "total") {
         bail!("{}: no R, G, B channels", path.display());
     }
-    Ok(Layers { width: size.0 as u32, height: size.1 as u32, layers })
+    let (pos, display) = (image.layer_data.attributes.layer_position, image.attributes.display_window);
+    let at = Placement {
+        x: (pos.0 - display.position.0).max(0) as u32,
+        y: (pos.1 - display.position.1).max(0) as u32,
+        full_width: display.size.0 as u32,
+        full_height: display.size.1 as u32,
+    };
+    Ok((Layers { width: size.0 as u32, height: size.1 as u32, layers }, at))
 }
 
 /// Write an 8-bit sRGB PNG of `pixels` scaled by 2^exposure and clamped.
@@ -257,9 +351,12 @@ mod tests {
             let px: Vec<Vec3> =
                 (0..w * h).map(|i| Vec3::new((i % 97) as f32 * 0.37, (i % 13) as f32, 1.0 / (1 + i) as f32)).collect();
             let img = Layers { width: w, height: h, layers: vec![("total".into(), px.clone()), ("direct".into(), px)] };
-            let serial = encode_exr(&img, false).unwrap();
+            let serial = encode_exr(&img, false, None).unwrap();
             for _ in 0..3 {
-                assert!(encode_exr(&img, true).unwrap() == serial, "{w}x{h}: parallel EXR bytes differ from serial");
+                assert!(
+                    encode_exr(&img, true, None).unwrap() == serial,
+                    "{w}x{h}: parallel EXR bytes differ from serial"
+                );
             }
         }
     }
