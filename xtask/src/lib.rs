@@ -4,6 +4,7 @@
 
 pub mod assemble;
 pub mod gen_scenes;
+pub mod plan;
 pub mod plot;
 pub mod run;
 pub mod stages;

@@ -1,7 +1,7 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; `cargo xtask <task> --help` explains each.
 
-use xtask::{assemble, gen_scenes, run};
+use xtask::{assemble, gen_scenes, plan, run};
 
 mod figure1;
 mod live_study;
@@ -36,6 +36,10 @@ enum Task {
     Compare(CompareArgs),
     /// Join region EXRs (photon-render --region) into the whole image and a PNG.
     Assemble(assemble::Args),
+    /// The pipeline as a job graph (plan.json) with the render cut into tiles, and
+    /// with --emit the job files for Slurm (sbatch scripts, submit.sh) or an Open Job
+    /// Description template.
+    Plan(plan::Args),
     /// What accuracy costs in time: a path-traced reference, then one setting at a
     /// time; CSV, markdown, plot.svg and plot.png.
     Tradeoff(tradeoff::Args),
@@ -75,6 +79,7 @@ fn main() -> std::process::ExitCode {
         Task::LiveStudy(a) => live_study::run(&a, &root),
         Task::Compare(a) => compare(&a),
         Task::Assemble(a) => assemble::run(&a),
+        Task::Plan(a) => plan::run(&a, &root),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),

@@ -128,6 +128,10 @@ pub struct RunArgs {
     /// Run every step, even those whose inputs and parameters are unchanged.
     #[arg(long)]
     pub force: bool,
+    /// Render the image as this many tiles (bands of rows) and assemble them, as
+    /// the job plan does (`cargo xtask plan`); every step then runs. 1: one render.
+    #[arg(long, default_value_t = 1)]
+    pub tiles: u32,
 }
 
 /// What happened to one step of a run.
@@ -162,19 +166,26 @@ impl Kind {
 
 /// One step of the pipeline.
 #[derive(Clone, Debug)]
-struct Step {
-    name: String,
+pub(crate) struct Step {
+    pub(crate) name: String,
     kind: Kind,
-    args: Vec<String>,
+    pub(crate) args: Vec<String>,
     /// Files whose contents the step's key hashes (a missing one hashes as absent).
-    inputs: Vec<PathBuf>,
+    pub(crate) inputs: Vec<PathBuf>,
     /// Files it writes (all must exist for it to be skipped as unchanged).
-    outputs: Vec<PathBuf>,
+    pub(crate) outputs: Vec<PathBuf>,
     /// Skip the step when this input is absent (the scene did not need it).
-    needs: Option<PathBuf>,
+    pub(crate) needs: Option<PathBuf>,
     /// Pass `--flag file` only when the file exists when the step runs.
-    optional: Vec<(&'static str, PathBuf)>,
+    pub(crate) optional: Vec<(&'static str, PathBuf)>,
     stats: PathBuf,
+}
+
+impl Step {
+    /// The stage binary the step runs.
+    pub(crate) fn program(&self) -> &'static str {
+        self.kind.program()
+    }
 }
 
 /// Run the pipeline with the repository's release binaries, building them first.
@@ -184,7 +195,7 @@ pub fn run(args: &RunArgs, root: &Path) -> Result<Vec<Outcome>> {
 }
 
 /// The steps of the pipeline for `cfg`, writing into `out`.
-fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
+pub(crate) fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
     let o = |f: &str| out.join(f);
     let s = |p: &Path| p.display().to_string();
     let scene_files = scene_inputs(scene)?;
@@ -213,7 +224,11 @@ fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool
         kind: Kind::Trace,
         args: with_stats(trace_args, &o("trace.stats.json")),
         inputs: scene_files.clone(),
-        outputs: vec![o("global.pmap"), o("trace.stats.json")],
+        // The maps the scene calls for (a skipped effect's map is not written).
+        outputs: [indirect.then(|| o("global.pmap")), caustics.then(|| o("caustic.pmap")), Some(o("trace.stats.json"))]
+            .into_iter()
+            .flatten()
+            .collect(),
         needs: None,
         optional: vec![],
         stats: o("trace.stats.json"),
@@ -295,8 +310,20 @@ fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool
     Ok(steps)
 }
 
-/// Run the pipeline with the stage binaries in `bins`.
-pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
+/// What a run works on: the pipeline file's settings with the command line's
+/// overrides, the scene, the output folder and what the scene analysis decided.
+pub(crate) struct Setup {
+    pub(crate) cfg: Pipeline,
+    pub(crate) scene: PathBuf,
+    pub(crate) out: PathBuf,
+    pub(crate) analysis: pm_scene::Effects,
+    pub(crate) caustics: bool,
+    pub(crate) indirect: bool,
+}
+
+/// Load the pipeline, apply `args`, create the output folder and ask the scene
+/// analysis (through photon-trace) which effects to simulate.
+pub(crate) fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
     let mut cfg = Pipeline::load(&pipeline)?;
     cfg.render.width = args.width.unwrap_or(cfg.render.width);
@@ -325,6 +352,20 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
         EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes),
         EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
     };
+    Ok(Setup { cfg, scene, out, analysis, caustics, indirect })
+}
+
+/// Run the pipeline with the stage binaries in `bins`.
+pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
+    let set = setup(args, root, bins)?;
+    if args.tiles > 1 {
+        // The job plan, executed here.
+        let plan = crate::plan::job_plan(&set, bins, args.tiles)?;
+        println!("plan ({} -> {}, {} tiles):", set.scene.display(), set.out.display(), args.tiles);
+        crate::plan::execute(&plan)?;
+        return Ok(plan.steps.iter().map(|s| Outcome { step: s.name.clone(), ran: true }).collect());
+    }
+    let Setup { cfg, scene, out, analysis, caustics, indirect } = set;
     let steps = plan(&cfg, &scene, &out, caustics, indirect)?;
 
     let keys_path = out.join(".stage-keys.json");

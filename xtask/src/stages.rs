@@ -70,12 +70,17 @@ impl Bins {
 /// (unless `quiet`) and kept: when the stage fails, the error names the step and
 /// ends with the stage's own last message.
 pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool) -> Result<()> {
-    let mut child = Command::new(bins.path(program))
+    run_program(&bins.path(program), args, step, quiet)
+}
+
+/// [`run`] for a program given by its path.
+pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<()> {
+    let mut child = Command::new(program)
         .args(args)
         .stdout(if quiet { Stdio::null() } else { Stdio::inherit() })
         .stderr(Stdio::piped())
         .spawn()
-        .with_context(|| format!("cannot start {}", bins.path(program).display()))?;
+        .with_context(|| format!("cannot start {}", program.display()))?;
     let mut last = String::new();
     if let Some(err) = child.stderr.take() {
         for line in BufReader::new(err).lines() {
@@ -88,7 +93,7 @@ pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool)
             }
         }
     }
-    let status = child.wait().with_context(|| format!("{program} did not finish"))?;
+    let status = child.wait().with_context(|| format!("{} did not finish", program.display()))?;
     if !status.success() {
         bail!("stage {step} failed ({status}): {}", last.trim());
     }

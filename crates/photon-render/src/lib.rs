@@ -44,9 +44,13 @@ pub struct Cli {
     /// same render with a shared --icache equal the whole image's pixels exactly.
     #[arg(long, value_parser = parse_region)]
     pub region: Option<[u32; 4]>,
+    /// Render only tile K of N, K/N: the image cut into N bands of whole rows (what
+    /// a job plan's tasks use; the same as the matching --region).
+    #[arg(long, value_parser = parse_tile, conflicts_with = "region")]
+    pub tile: Option<(u32, u32)>,
     /// Run only the irradiance-cache prepass (the final gathers at cache records over
     /// the whole image) and write its records to this file; no image is rendered.
-    #[arg(long, conflicts_with_all = ["icache", "out", "png", "region"])]
+    #[arg(long, conflicts_with_all = ["icache", "out", "png", "region", "tile"])]
     pub icache_out: Option<PathBuf>,
     /// Read the irradiance cache from this file (made by --icache-out with the same
     /// scene, maps, size and settings) instead of running the prepass.
@@ -76,6 +80,35 @@ pub struct Cli {
     pub threads: usize,
 }
 
+fn parse_tile(s: &str) -> Result<(u32, u32), String> {
+    let (k, n) = s.split_once('/').ok_or_else(|| format!("expected K/N (tile K of N), got '{s}'"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("expected K/N with whole numbers, got '{s}'"));
+    Ok((parse(k)?, parse(n)?))
+}
+
+/// The rectangle --region or --tile asks for, checked against the image.
+fn requested_region(cli: &Cli, film: &pm_render::Film) -> Result<Option<[u32; 4]>> {
+    Ok(match (cli.region, cli.tile) {
+        (Some([x0, y0, x1, y1]), _) => {
+            let r = Rect { x0, y0, x1, y1 };
+            ensure!(
+                r.is_valid_in(film),
+                "--region {x0},{y0},{x1},{y1} is outside the {}x{} image",
+                film.width,
+                film.height
+            );
+            Some([x0, y0, x1, y1])
+        }
+        (None, Some((k, n))) => {
+            let r = Rect::band(film, k, n).with_context(|| {
+                format!("--tile {k}/{n}: needs K below N and N at most the image's {} rows", film.height)
+            })?;
+            Some([r.x0, r.y0, r.x1, r.y1])
+        }
+        (None, None) => None,
+    })
+}
+
 fn parse_region(s: &str) -> Result<[u32; 4], String> {
     let v: Vec<u32> = s
         .split(',')
@@ -99,12 +132,9 @@ pub fn run(cli: &Cli) -> Result<Report> {
         .clone()
         .with_context(|| format!("{}: the scene has no perspective camera", cli.scene.display()))?;
     let film = p.film(cli.seed);
-    let rect = match cli.region {
-        Some([x0, y0, x1, y1]) => {
-            let r = Rect { x0, y0, x1, y1 };
-            ensure!(r.is_valid_in(&film), "--region {x0},{y0},{x1},{y1} is outside the {}x{} image", p.width, p.height);
-            r
-        }
+    let region = requested_region(cli, &film)?;
+    let rect = match region {
+        Some([x0, y0, x1, y1]) => Rect { x0, y0, x1, y1 },
         None => Rect::full(&film),
     };
     // The cache prepass is the indirect view's work without the image.
@@ -171,7 +201,13 @@ pub fn run(cli: &Cli) -> Result<Report> {
             layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
         };
         let out = cli.out.as_ref().context("--out is required")?;
-        match cli.region {
+        // Tiles of a job plan write into a folder of their own.
+        for file in [Some(out), cli.png.as_ref(), cli.stats_json.as_ref()].into_iter().flatten() {
+            if let Some(dir) = file.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+            }
+        }
+        match region {
             // A region's EXR says where it sits, for `cargo xtask assemble`.
             Some([x0, y0, _, _]) => {
                 let at = pm_image::Placement { x: x0, y: y0, full_width: p.width, full_height: p.height };
@@ -189,7 +225,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             )?;
         }
     }
-    let report = report(cli, &scene, &stats, &cache, &notes);
+    let report = report(cli, region, &scene, &stats, &cache, &notes);
     if let Some(path) = &cli.stats_json {
         pm_stage::write_json(path, &serde_json::to_value(&report)?)?;
     }
@@ -352,9 +388,16 @@ pub struct Report {
     pub notes: Vec<String>,
 }
 
-fn report(cli: &Cli, scene: &pm_scene::Scene, s: &RenderStats, cache: &CacheReport, notes: &[String]) -> Report {
+fn report(
+    cli: &Cli,
+    region: Option<[u32; 4]>,
+    scene: &pm_scene::Scene,
+    s: &RenderStats,
+    cache: &CacheReport,
+    notes: &[String],
+) -> Report {
     let p = &cli.params;
-    let pixels = match cli.region {
+    let pixels = match region {
         Some([x0, y0, x1, y1]) => (x1 - x0) as f64 * (y1 - y0) as f64,
         None => p.width as f64 * p.height as f64,
     };
@@ -362,7 +405,7 @@ fn report(cli: &Cli, scene: &pm_scene::Scene, s: &RenderStats, cache: &CacheRepo
         mode: if cli.icache_out.is_some() { "icache".to_string() } else { p.mode.to_string() },
         indirect: !cli.no_indirect,
         params: p.clone(),
-        region: cli.region,
+        region,
         seconds: s.seconds + cache.prepass_seconds,
         prepass_seconds: cache.prepass_seconds,
         thread_seconds: s.thread_seconds.iter().cloned().collect(),

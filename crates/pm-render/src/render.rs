@@ -68,6 +68,17 @@ impl Rect {
     pub fn full(film: &Film) -> Rect {
         Rect { x0: 0, y0: 0, x1: film.width, y1: film.height }
     }
+
+    /// Tile `k` of `n` of `film`: the image cut into `n` bands of whole rows, as
+    /// equal as rows allow, top first (the job plan's tiles). None when `k >= n` or
+    /// there are more tiles than rows.
+    pub fn band(film: &Film, k: u32, n: u32) -> Option<Rect> {
+        if k >= n || n > film.height {
+            return None;
+        }
+        let row = |i: u32| (i as u64 * film.height as u64 / n as u64) as u32;
+        Some(Rect { x0: 0, y0: row(k), x1: film.width, y1: row(k + 1) })
+    }
     /// Width [pixels].
     pub fn width(&self) -> u32 {
         self.x1 - self.x0

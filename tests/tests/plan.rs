@@ -1,0 +1,134 @@
+//! The job plan (`cargo xtask plan`): the render cut into tiles gives the same image
+//! file as one render, the emitted Slurm scripts are valid bash chained in
+//! dependency order, the OpenJD template carries the same graph, and the local
+//! executor stops at a failing step with one line naming it.
+
+use std::path::{Path, PathBuf};
+use xtask::plan::{JobPlan, JobStep, execute, openjd, plan_for, slurm};
+use xtask::run::{RunArgs, run_with};
+use xtask::stages::Bins;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn bins() -> Bins {
+    Bins { dir: pm_tests::bin_dir() }
+}
+
+fn args(dir: &Path, out: &str, tiles: u32) -> RunArgs {
+    let p = pm_tests::small_pipeline(dir, "cornell_spheres.gltf", "\"auto\"", 4, "pipeline");
+    RunArgs { pipeline: Some(p), out: Some(dir.join(out)), tiles, ..Default::default() }
+}
+
+/// Five tiles of the 24-row image (not dividing it evenly), rendered as array tasks
+/// and assembled, give image.exr byte for byte as the single render does.
+#[test]
+fn a_tiled_run_writes_the_same_image_as_one_render() {
+    let dir = tempfile::tempdir().unwrap();
+    run_with(&args(dir.path(), "whole", 1), &root(), &bins()).unwrap();
+    let outcomes = run_with(&args(dir.path(), "tiled", 5), &root(), &bins()).unwrap();
+    assert!(outcomes.iter().any(|o| o.step == "photon-render tiles") && outcomes.iter().any(|o| o.step == "assemble"));
+    let read = |d: &str| std::fs::read(dir.path().join(d).join("image.exr")).unwrap();
+    assert!(read("whole") == read("tiled"), "tiled image.exr differs from the whole render's");
+    assert!(dir.path().join("tiled/tiles/tile-4.exr").exists());
+}
+
+/// The graph: each step after the steps that write its inputs; the tiles an array.
+/// Slurm: every script passes `bash -n`; submit.sh submits in order, each job with
+/// afterok on the jobs it waits for; the tile script is an array of 3 that reads
+/// its index. OpenJD: the same steps and dependencies, the tiles a parameter space.
+#[test]
+fn emitted_slurm_scripts_and_openjd_template_carry_the_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = plan_for(&args(dir.path(), "out", 3), &root(), &bins()).unwrap();
+    let names: Vec<&str> = plan.steps.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "photon-trace",
+            "photon-sort global",
+            "photon-sort caustic",
+            "photon-irradiance",
+            "photon-render icache",
+            "photon-render tiles",
+            "assemble"
+        ]
+    );
+    let step = |n: &str| plan.steps.iter().find(|s| s.name == n).unwrap();
+    assert_eq!(step("photon-irradiance").after, ["photon-sort global"]);
+    assert_eq!(step("photon-render tiles").after, ["photon-sort caustic", "photon-irradiance", "photon-render icache"]);
+    assert_eq!(step("photon-render tiles").tasks, 3);
+    assert_eq!(step("assemble").after, ["photon-render tiles"]);
+
+    let files = slurm(&plan);
+    for (name, text) in &files {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let o = std::process::Command::new("bash").arg("-n").arg(&p).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    let text = |n: &str| &files.iter().find(|f| f.0 == n).unwrap().1;
+    let tiles = text("05-photon-render-tiles.sbatch");
+    assert!(tiles.contains("#SBATCH --array=0-2") && tiles.contains("SLURM_ARRAY_TASK_ID"), "{tiles}");
+    assert!(tiles.contains("'--tile' ''\"${TASK}\"'/3'"), "{tiles}");
+    let submit = text("submit.sh");
+    let lines: Vec<&str> = submit.lines().filter(|l| l.contains("sbatch")).collect();
+    assert_eq!(lines.len(), 7);
+    assert_eq!(lines[0], "job_0=$(sbatch --parsable 00-photon-trace.sbatch)");
+    assert_eq!(
+        lines[5],
+        "job_5=$(sbatch --parsable --dependency=afterok:${job_2}:${job_3}:${job_4} 05-photon-render-tiles.sbatch)"
+    );
+    assert_eq!(lines[6], "job_6=$(sbatch --parsable --dependency=afterok:${job_5} 06-assemble.sbatch)");
+
+    let t = openjd(&plan);
+    assert_eq!(t["specificationVersion"], "jobtemplate-2023-09");
+    let steps = t["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 7);
+    assert_eq!(steps[5]["parameterSpace"]["taskParameterDefinitions"][0]["range"], "0-2");
+    assert_eq!(steps[5]["dependencies"].as_array().unwrap().len(), 3);
+    let args: Vec<&str> = steps[5]["script"]["actions"]["onRun"]["args"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect();
+    assert!(args.contains(&"{{Task.Param.Index}}/3"), "{args:?}");
+    for s in steps {
+        for d in s["dependencies"].as_array().into_iter().flatten() {
+            assert!(steps.iter().any(|o| o["name"] == d["dependsOn"]), "{d}");
+        }
+    }
+}
+
+/// A failing task stops the local executor with one line naming the step and the
+/// task; what earlier steps wrote stays.
+#[test]
+fn the_local_executor_names_the_failing_task() {
+    let dir = tempfile::tempdir().unwrap();
+    let kept = dir.path().join("kept.txt");
+    let sh = |script: String| JobStep {
+        name: "writes".into(),
+        program: "/bin/sh".into(),
+        args: vec!["-c".into(), script],
+        tasks: 1,
+        inputs: vec![],
+        outputs: vec![],
+        after: vec![],
+    };
+    let plan = JobPlan {
+        out: dir.path().display().to_string(),
+        steps: vec![
+            sh(format!("echo ok > {}", kept.display())),
+            JobStep {
+                name: "breaks".into(),
+                tasks: 3,
+                ..sh("if [ {TASK} = 1 ]; then echo 'stage: error: bad tile' >&2; exit 3; fi".into())
+            },
+        ],
+    };
+    let e = execute(&plan).unwrap_err().to_string();
+    assert!(e.contains("breaks (task 1 of 3) failed") && e.contains("bad tile") && !e.contains('\n'), "{e}");
+    assert_eq!(std::fs::read_to_string(&kept).unwrap(), "ok\n");
+}

@@ -1,0 +1,301 @@
+//! `cargo xtask plan`: the pipeline as a job graph for machines other than this one.
+//! The steps `cargo xtask run` executes, with the final render cut into `--tiles N`
+//! array tasks (`photon-render --tile K/N`, each writing its own region EXR) and an
+//! assemble step, every step with its command line, inputs, outputs and the steps
+//! it waits for (those that write its inputs). Written as `plan.json`, and with
+//! `--emit slurm` as sbatch scripts (one job array per parallel step, chained by
+//! `--dependency=afterok` in `submit.sh`) or with `--emit openjd` as one Open Job
+//! Description template. Assumed: every task sees the same output folder (a shared
+//! file system) and the same binaries.
+
+use crate::run::{RunArgs, Setup, plan, setup};
+use crate::stages::Bins;
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Stands for the array task's index in a step's arguments; each executor writes it
+/// its own way (a number, `${SLURM_ARRAY_TASK_ID}`, `{{Task.Param.Index}}`).
+pub const TASK: &str = "{TASK}";
+
+/// Options of `cargo xtask plan`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
+    /// Which pipeline, scene, output folder and image size (as `cargo xtask run`).
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Where to write plan.json and the emitted job files.
+    #[arg(long)]
+    pub plan_out: PathBuf,
+    /// Also write job files for this system: slurm (sbatch scripts and submit.sh)
+    /// or openjd (job.template.json).
+    #[arg(long)]
+    pub emit: Option<Emit>,
+}
+
+/// Job systems the plan can be written for.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Emit {
+    /// Slurm: one sbatch script per step, job arrays, afterok dependencies.
+    Slurm,
+    /// Open Job Description (AWS Deadline Cloud's format): one job template.
+    Openjd,
+}
+
+/// A step of the job graph.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct JobStep {
+    /// Name, unique in the plan.
+    pub name: String,
+    /// The program (absolute path).
+    pub program: String,
+    /// Its arguments; in an array step [`TASK`] stands for the task's index.
+    pub args: Vec<String>,
+    /// Array tasks (1: a single task).
+    pub tasks: u32,
+    /// Files it reads.
+    pub inputs: Vec<String>,
+    /// Files it writes.
+    pub outputs: Vec<String>,
+    /// Steps that must have finished (they write its inputs).
+    pub after: Vec<String>,
+}
+
+/// The job graph.
+#[derive(Serialize, Clone, Debug)]
+pub struct JobPlan {
+    /// The output folder every task writes into (shared).
+    pub out: String,
+    /// Steps in an order that respects `after`.
+    pub steps: Vec<JobStep>,
+}
+
+/// The job graph of a run with `tiles` tiles.
+pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32) -> Result<JobPlan> {
+    let Setup { cfg, scene, out, caustics, indirect, .. } = setup;
+    if tiles == 0 || tiles > cfg.render.height {
+        bail!("--tiles {tiles}: needs 1 to the image's {} rows", cfg.render.height);
+    }
+    let s = |p: &Path| p.display().to_string();
+    let mut steps: Vec<JobStep> = Vec::new();
+    for step in plan(cfg, scene, out, *caustics, *indirect)? {
+        // A step whose input the scene does not need (no caustic photons, no global
+        // map) is not planned; optional inputs are passed when planned to exist.
+        let planned = |p: &PathBuf| steps.iter().any(|j| j.outputs.contains(&s(p))) || !p.starts_with(out);
+        if let Some(n) = &step.needs
+            && !planned(n)
+        {
+            continue;
+        }
+        let mut args = step.args.clone();
+        let mut inputs: Vec<String> = step.inputs.iter().filter(|p| planned(p)).map(|p| s(p)).collect();
+        for (flag, file) in &step.optional {
+            if planned(file) {
+                args.extend([flag.to_string(), s(file)]);
+                inputs.push(s(file));
+            }
+        }
+        let program = s(&bins.path(step.program()));
+        if step.name == "photon-render" && tiles > 1 {
+            // The render as tiles: its --out/--png/--stats-json replaced per task.
+            let mut base = Vec::new();
+            let mut it = args.iter();
+            while let Some(a) = it.next() {
+                if matches!(a.as_str(), "--out" | "--png" | "--stats-json") {
+                    it.next();
+                } else {
+                    base.push(a.clone());
+                }
+            }
+            let tile = |k: &str, ext: &str| s(&out.join("tiles").join(format!("tile-{k}.{ext}")));
+            base.extend([
+                "--tile".into(),
+                format!("{TASK}/{tiles}"),
+                "--out".into(),
+                tile(TASK, "exr"),
+                "--stats-json".into(),
+                tile(TASK, "stats.json"),
+            ]);
+            let tile_outputs: Vec<String> = (0..tiles).map(|k| tile(&k.to_string(), "exr")).collect();
+            steps.push(JobStep {
+                name: "photon-render tiles".into(),
+                program,
+                args: base,
+                tasks: tiles,
+                inputs: inputs.clone(),
+                outputs: tile_outputs.clone(),
+                after: vec![],
+            });
+            let mut a = vec!["assemble".to_string()];
+            a.extend(tile_outputs.iter().cloned());
+            a.extend(["--out".into(), s(&out.join("image.exr")), "--png".into(), s(&out.join("image.png"))]);
+            a.extend(["--exposure".into(), cfg.render.exposure.to_string()]);
+            steps.push(JobStep {
+                name: "assemble".into(),
+                program: s(&bins.path("xtask")),
+                args: a,
+                tasks: 1,
+                inputs: tile_outputs,
+                outputs: vec![s(&out.join("image.exr")), s(&out.join("image.png"))],
+                after: vec![],
+            });
+        } else {
+            steps.push(JobStep {
+                name: step.name.clone(),
+                program,
+                args,
+                tasks: 1,
+                inputs,
+                outputs: step.outputs.iter().map(|p| s(p)).collect(),
+                after: vec![],
+            });
+        }
+    }
+    // Each step waits for the steps that write its inputs.
+    for i in 0..steps.len() {
+        let after: Vec<String> = steps[..i]
+            .iter()
+            .filter(|j| j.outputs.iter().any(|o| steps[i].inputs.contains(o)))
+            .map(|j| j.name.clone())
+            .collect();
+        steps[i].after = after;
+    }
+    Ok(JobPlan { out: s(out), steps })
+}
+
+/// Run the plan on this machine, step after step and task after task, each task
+/// with its index for [`TASK`]; a failing task stops the run with one line naming
+/// the step and task, and every earlier output stays.
+pub fn execute(plan: &JobPlan) -> Result<()> {
+    for step in &plan.steps {
+        for k in 0..step.tasks {
+            let args: Vec<String> = step.args.iter().map(|a| a.replace(TASK, &k.to_string())).collect();
+            let name =
+                if step.tasks > 1 { format!("{} (task {k} of {})", step.name, step.tasks) } else { step.name.clone() };
+            let t = std::time::Instant::now();
+            crate::stages::run_program(Path::new(&step.program), &args, &name, true)
+                .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", plan.out))?;
+            println!("  {name}: done in {:.2} s", t.elapsed().as_secs_f64());
+        }
+    }
+    Ok(())
+}
+
+/// Quote a word for bash (single quotes; a quote inside becomes '\'').
+fn sh(word: &str) -> String {
+    format!("'{}'", word.replace('\'', r"'\''"))
+}
+
+/// A file name for a step: its position and name, e.g. `03-photon-irradiance`.
+fn file_stem(i: usize, step: &JobStep) -> String {
+    format!("{i:02}-{}", step.name.replace(' ', "-"))
+}
+
+/// The sbatch scripts (one per step) and `submit.sh`, as (file name, text).
+pub fn slurm(plan: &JobPlan) -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    let mut submit = String::from(
+        "#!/bin/bash\n# Submit the photon-mapping job graph to Slurm, each step after the steps it waits for.\nset -euo pipefail\ncd \"$(dirname \"$0\")\"\nmkdir -p logs\n",
+    );
+    for (i, step) in plan.steps.iter().enumerate() {
+        let stem = file_stem(i, step);
+        let mut t = String::from("#!/bin/bash\n");
+        let _ = writeln!(t, "#SBATCH --job-name=pm-{}", step.name.replace(' ', "-"));
+        let _ = writeln!(t, "#SBATCH --output=logs/{stem}-%A_%a.log");
+        if step.tasks > 1 {
+            let _ = writeln!(t, "#SBATCH --array=0-{}", step.tasks - 1);
+        }
+        let _ = writeln!(
+            t,
+            "# {}: waits for {}",
+            step.name,
+            if step.after.is_empty() { "nothing".into() } else { step.after.join(", ") }
+        );
+        t.push_str("set -euo pipefail\nTASK=\"${SLURM_ARRAY_TASK_ID:-0}\"\n");
+        let args: Vec<String> = step.args.iter().map(|a| sh(a).replace(TASK, "'\"${TASK}\"'")).collect();
+        let _ = writeln!(t, "exec {} {}", sh(&step.program), args.join(" "));
+        files.push((format!("{stem}.sbatch"), t));
+        let deps: Vec<String> = step
+            .after
+            .iter()
+            .map(|a| format!("${{job_{}}}", plan.steps.iter().position(|s| &s.name == a).expect("after names a step")))
+            .collect();
+        let dep = if deps.is_empty() { String::new() } else { format!(" --dependency=afterok:{}", deps.join(":")) };
+        let _ = writeln!(submit, "job_{i}=$(sbatch --parsable{dep} {stem}.sbatch)");
+        let _ = writeln!(submit, "echo \"{}: job ${{job_{i}}}\"", step.name);
+    }
+    files.push(("submit.sh".into(), submit));
+    files
+}
+
+/// One Open Job Description template (JSON is YAML's subset; `openjd check` reads it).
+pub fn openjd(plan: &JobPlan) -> serde_json::Value {
+    let steps: Vec<serde_json::Value> = plan
+        .steps
+        .iter()
+        .map(|step| {
+            let args: Vec<String> = step.args.iter().map(|a| a.replace(TASK, "{{Task.Param.Index}}")).collect();
+            let mut v = serde_json::json!({
+                "name": step.name,
+                "script": {"actions": {"onRun": {"command": step.program, "args": args}}},
+            });
+            if step.tasks > 1 {
+                v["parameterSpace"] = serde_json::json!({
+                    "taskParameterDefinitions": [{"name": "Index", "type": "INT", "range": format!("0-{}", step.tasks - 1)}]
+                });
+            }
+            if !step.after.is_empty() {
+                v["dependencies"] = serde_json::Value::Array(
+                    step.after.iter().map(|a| serde_json::json!({"dependsOn": a})).collect(),
+                );
+            }
+            v
+        })
+        .collect();
+    serde_json::json!({
+        "specificationVersion": "jobtemplate-2023-09",
+        "name": format!("photon map {}", plan.out),
+        "steps": steps,
+    })
+}
+
+/// The job graph of `args` (its pipeline, scene, output and `tiles`), with the
+/// stage binaries in `bins`.
+pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
+    let setup = setup(args, root, bins)?;
+    job_plan(&setup, bins, args.tiles.max(1))
+}
+
+/// Write `plan.json` (and the job files) for `args`.
+pub fn run(args: &Args, root: &Path) -> Result<()> {
+    let bins = Bins::build(root)?;
+    let plan = plan_for(&args.run, root, &bins)?;
+    let dir = &args.plan_out;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let write = |name: &str, text: &str| -> Result<()> {
+        let p = dir.join(name);
+        pm_format::write_atomically(&p, |f| std::io::Write::write_all(f, text.as_bytes()))
+            .with_context(|| format!("{}: cannot write", p.display()))
+    };
+    write("plan.json", &(serde_json::to_string_pretty(&plan)? + "\n"))?;
+    match args.emit {
+        Some(Emit::Slurm) => {
+            for (name, text) in slurm(&plan) {
+                write(&name, &text)?;
+            }
+        }
+        Some(Emit::Openjd) => write("job.template.json", &(serde_json::to_string_pretty(&openjd(&plan))? + "\n"))?,
+        None => {}
+    }
+    println!("plan ({} steps) in {}", plan.steps.len(), dir.display());
+    for step in &plan.steps {
+        println!(
+            "  {}{}{}",
+            step.name,
+            if step.tasks > 1 { format!(" x {}", step.tasks) } else { String::new() },
+            if step.after.is_empty() { String::new() } else { format!(" (after {})", step.after.join(", ")) }
+        );
+    }
+    Ok(())
+}
