@@ -7,4 +7,5 @@ pub mod gen_scenes;
 pub mod plan;
 pub mod plot;
 pub mod run;
+pub mod slurm_selftest;
 pub mod stages;

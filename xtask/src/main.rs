@@ -1,7 +1,7 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; `cargo xtask <task> --help` explains each.
 
-use xtask::{assemble, gen_scenes, plan, run};
+use xtask::{assemble, gen_scenes, plan, run, slurm_selftest};
 
 mod figure1;
 mod live_study;
@@ -40,6 +40,10 @@ enum Task {
     /// with --emit the job files for Slurm (sbatch scripts, submit.sh) or an Open Job
     /// Description template.
     Plan(plan::Args),
+    /// Run the emitted Slurm job on a one-node Slurm installed and started here
+    /// (needs root on Debian or Ubuntu; not part of CI) and compare its image with
+    /// `cargo xtask run`'s.
+    SlurmSelftest(slurm_selftest::Args),
     /// What accuracy costs in time: a path-traced reference, then one setting at a
     /// time; CSV, markdown, plot.svg and plot.png.
     Tradeoff(tradeoff::Args),
@@ -80,6 +84,7 @@ fn main() -> std::process::ExitCode {
         Task::Compare(a) => compare(&a),
         Task::Assemble(a) => assemble::run(&a),
         Task::Plan(a) => plan::run(&a, &root),
+        Task::SlurmSelftest(a) => slurm_selftest::run(&a, &root),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),
