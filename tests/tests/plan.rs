@@ -128,7 +128,7 @@ fn the_local_executor_names_the_failing_task() {
             },
         ],
     };
-    let e = execute(&plan).unwrap_err().to_string();
+    let e = execute(&plan, 2).unwrap_err().to_string();
     assert!(e.contains("breaks (task 1 of 3) failed") && e.contains("bad tile") && !e.contains('\n'), "{e}");
     assert_eq!(std::fs::read_to_string(&kept).unwrap(), "ok\n");
 }

@@ -32,6 +32,10 @@ pub struct Args {
     /// or openjd (job.template.json).
     #[arg(long)]
     pub emit: Option<Emit>,
+    /// Print the predicted wall time on 1, 2, 4 ... NODES machines from the task
+    /// times a `cargo xtask run --tiles N` wrote (OUT/plan-times.json).
+    #[arg(long, value_name = "NODES")]
+    pub estimate: Option<u32>,
 }
 
 /// Job systems the plan can be written for.
@@ -164,22 +168,71 @@ pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32) -> Result<JobPlan
     Ok(JobPlan { out: s(out), steps })
 }
 
-/// Run the plan on this machine, step after step and task after task, each task
-/// with its index for [`TASK`]; a failing task stops the run with one line naming
-/// the step and task, and every earlier output stays.
-pub fn execute(plan: &JobPlan) -> Result<()> {
+/// Wall time of one task of a run [s].
+#[derive(Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+pub struct TaskTime {
+    /// The step.
+    pub step: String,
+    /// Array tasks of the step (1: a single task).
+    pub tasks: u32,
+    /// This task's index.
+    pub task: u32,
+    /// Its wall time [s].
+    pub seconds: f64,
+}
+
+/// Run the plan on this machine, step after step; an array step's tasks `workers`
+/// at a time, each with its index for [`TASK`]. A failing task stops the run with
+/// one line naming the step and task, and every earlier output stays. Returns each
+/// task's wall time and the whole run's [s].
+pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
+    let start = std::time::Instant::now();
+    let mut times = Vec::new();
     for step in &plan.steps {
-        for k in 0..step.tasks {
+        let run_task = |k: u32| -> Result<TaskTime> {
             let args: Vec<String> = step.args.iter().map(|a| a.replace(TASK, &k.to_string())).collect();
             let name =
                 if step.tasks > 1 { format!("{} (task {k} of {})", step.name, step.tasks) } else { step.name.clone() };
             let t = std::time::Instant::now();
             crate::stages::run_program(Path::new(&step.program), &args, &name, true)
                 .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", plan.out))?;
-            println!("  {name}: done in {:.2} s", t.elapsed().as_secs_f64());
+            let seconds = t.elapsed().as_secs_f64();
+            println!("  {name}: done in {seconds:.2} s");
+            Ok(TaskTime { step: step.name.clone(), tasks: step.tasks, task: k, seconds })
+        };
+        // Tasks in waves of `workers`, each wave's processes side by side.
+        let ks: Vec<u32> = (0..step.tasks).collect();
+        for wave in ks.chunks(workers.max(1) as usize) {
+            let results: Vec<Result<TaskTime>> = std::thread::scope(|sc| {
+                let handles: Vec<_> = wave.iter().map(|&k| sc.spawn(move || run_task(k))).collect();
+                handles.into_iter().map(|h| h.join().expect("a task thread panicked")).collect()
+            });
+            for r in results {
+                times.push(r?);
+            }
         }
     }
-    Ok(())
+    Ok((times, start.elapsed().as_secs_f64()))
+}
+
+/// Predicted wall time [s] of the plan's measured `times` on `nodes` machines: the
+/// single-task steps one after another, each array step in ceil(tasks / nodes)
+/// waves of its mean task time (the model behind `cargo xtask plan --estimate`).
+pub fn estimate(times: &[TaskTime], nodes: u32) -> f64 {
+    let mut steps: Vec<(&str, u32)> = Vec::new();
+    for t in times {
+        if !steps.iter().any(|s| s.0 == t.step) {
+            steps.push((&t.step, t.tasks));
+        }
+    }
+    steps
+        .iter()
+        .map(|&(name, tasks)| {
+            let own: Vec<f64> = times.iter().filter(|t| t.step == name).map(|t| t.seconds).collect();
+            let mean = own.iter().sum::<f64>() / own.len().max(1) as f64;
+            mean * tasks.div_ceil(nodes.max(1)) as f64
+        })
+        .sum()
 }
 
 /// Quote a word for bash (single quotes; a quote inside becomes '\'').
@@ -287,6 +340,21 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         }
         Some(Emit::Openjd) => write("job.template.json", &(serde_json::to_string_pretty(&openjd(&plan))? + "\n"))?,
         None => {}
+    }
+    if let Some(nodes) = args.estimate {
+        let path = Path::new(&plan.out).join("plan-times.json");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("{}: cannot read (run `cargo xtask run --tiles N` first)", path.display()))?;
+        let times: Vec<TaskTime> =
+            serde_json::from_str(&text).with_context(|| format!("{}: not a list of task times", path.display()))?;
+        println!("| nodes | predicted wall time [s] | speed-up |\n|---|---|---|");
+        let one = estimate(&times, 1);
+        let mut n = 1;
+        while n <= nodes.max(1) {
+            let t = estimate(&times, n);
+            println!("| {n} | {t:.2} | {:.2} |", one / t);
+            n *= 2;
+        }
     }
     println!("plan ({} steps) in {}", plan.steps.len(), dir.display());
     for step in &plan.steps {

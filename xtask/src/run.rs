@@ -132,6 +132,9 @@ pub struct RunArgs {
     /// the job plan does (`cargo xtask plan`); every step then runs. 1: one render.
     #[arg(long, default_value_t = 1)]
     pub tiles: u32,
+    /// With --tiles: run this many tiles at a time (each its own process).
+    #[arg(long, default_value_t = 1)]
+    pub workers: u32,
 }
 
 /// What happened to one step of a run.
@@ -362,7 +365,16 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
         // The job plan, executed here.
         let plan = crate::plan::job_plan(&set, bins, args.tiles)?;
         println!("plan ({} -> {}, {} tiles):", set.scene.display(), set.out.display(), args.tiles);
-        crate::plan::execute(&plan)?;
+        let (times, wall) = crate::plan::execute(&plan, args.workers)?;
+        let path = set.out.join("plan-times.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&times)? + "\n")
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        println!(
+            "  whole run {wall:.2} s with {} worker(s); the model predicts {:.2} s on {} node(s)",
+            args.workers,
+            crate::plan::estimate(&times, args.workers),
+            args.workers
+        );
         return Ok(plan.steps.iter().map(|s| Outcome { step: s.name.clone(), ran: true }).collect());
     }
     let Setup { cfg, scene, out, analysis, caustics, indirect } = set;
