@@ -4,6 +4,7 @@
 use xtask::{assemble, gen_scenes, plan, run, slurm_selftest};
 
 mod figure1;
+mod ispm_plot;
 mod live_study;
 mod tradeoff;
 
@@ -50,6 +51,9 @@ enum Task {
     /// Christensen's Figure 1 (a)-(g), a contact sheet and the section 3 table beside
     /// the paper's numbers.
     Figure1(figure1::Args),
+    /// Image-space photon mapping's error against its frame time, drawn from the
+    /// output of `cargo bench -p pm-live --bench ispm`.
+    IspmPlot(ispm_plot::Args),
     /// Write scenes/*.gltf + .bin from code.
     GenScenes {
         /// Fail if the committed files differ from what the code generates.
@@ -87,6 +91,7 @@ fn main() -> std::process::ExitCode {
         Task::SlurmSelftest(a) => slurm_selftest::run(&a, &root),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
+        Task::IspmPlot(a) => ispm_plot::run(&a),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),
     };
     match result {
