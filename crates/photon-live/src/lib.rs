@@ -16,13 +16,17 @@ use std::path::PathBuf;
 #[derive(Parser, Debug)]
 #[command(
     name = "photon-live",
-    about = "Real-time photon mapping: frames from a ring buffer of photon paths (PNG, EXR, APNG, CSV)",
-    long_about = "Real-time photon mapping (Jozwowski 2002, sections 4 and 5). Each frame shoots --per-frame photon \
-paths into a ring buffer of --total paths of up to --max-level hits, rebuilds the kd-tree over the used slots, \
-estimates irradiance E [W m^-2] at the mesh's corners from the k nearest photons, and draws the mesh with the corner \
-radiance (reflectance / pi x E) interpolated across each triangle, direct light by shadow rays (or from the photons), \
-and mirrors and glass by ray tracing. Radiance in the EXR frames is W sr^-1 m^-2 per RGB channel. Writes \
-OUT/frames/NNNN.png, OUT/live.apng and OUT/frames.csv (seconds per step)."
+    about = "Real-time photon mapping: frames by vertex estimates from a ring buffer of photon paths, or by \
+image-space photon mapping (PNG, EXR, APNG, CSV)",
+    long_about = "Real-time photon mapping. --method vertex (Jozwowski 2002, sections 4 and 5): each frame shoots \
+--per-frame photon paths into a ring buffer of --total paths of up to --max-level hits, updates the photon search \
+over the used slots, estimates irradiance E [W m^-2] at the mesh's corners from the k nearest photons, and draws the \
+mesh with the corner radiance (reflectance / pi x E) interpolated across each triangle, direct light by shadow rays, \
+shadow maps or from the photons, and mirrors and glass by ray tracing. --method ispm (McGuire and Luebke 2009): per \
+light a bounce map of --bounce-res texels a side, --bounces further photons per path with kernels sized by path \
+density (--kernel-*), and indirect light by splatting photon volumes over the eye's G-buffer (--subsample F splats \
+at 1/F resolution and upsamples). Radiance in the EXR frames is W sr^-1 m^-2 per RGB channel. Writes \
+OUT/frames/NNNN.png, OUT/live.apng and OUT/frames.csv (seconds per step; for ispm the paper's Table 2 split)."
 )]
 pub struct Cli {
     /// Scene (glTF 2.0) drawn from its first camera.
