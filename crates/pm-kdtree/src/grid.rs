@@ -78,12 +78,6 @@ impl<R: PhotonRecord> PhotonGrid<R> {
         }
     }
 
-    /// An empty grid for ids 0..`ids` with cells of side `cell` [m]: for radius
-    /// queries ([`Self::for_each_within`]) of radius `cell`, which read 27 cells.
-    pub fn with_cell(cell: f32, ids: usize) -> PhotonGrid<R> {
-        PhotonGrid { cell: cell.max(f32::MIN_POSITIVE), ..PhotonGrid::new(cell, ids) }
-    }
-
     fn key_of(&self, p: Vec3) -> IVec3 {
         (p / self.cell).floor().as_ivec3()
     }
@@ -104,39 +98,6 @@ impl<R: PhotonRecord> PhotonGrid<R> {
             let list = self.cells.entry(k).or_default();
             self.place[id as usize] = Some((k, list.len() as u32));
             list.push((r.position(), id));
-        }
-    }
-
-    /// Call `f(id, squared distance)` for every photon within squared radius `r2` of
-    /// `x`, in no particular order.
-    pub fn for_each_within(&self, x: Vec3, r2: f32, mut f: impl FnMut(u32, f32)) {
-        if !(r2 >= 0.0) {
-            return;
-        }
-        let Some((lo, hi)) = self.extent else { return };
-        let c = self.key_of(x);
-        let reach = ((r2.sqrt() / self.cell).ceil().min(i32::MAX as f32 / 4.0) as i32)
-            .min((c - lo).abs().max((hi - c).abs()).max_element());
-        for dz in -reach..=reach {
-            for dy in -reach..=reach {
-                for dx in -reach..=reach {
-                    let kc = c + IVec3::new(dx, dy, dz);
-                    // Skip cells the query sphere does not reach (slightly widened
-                    // against rounding: a photon's cell comes from a division).
-                    let corner = kc.as_vec3() * self.cell;
-                    let gap = (corner - x).max(x - (corner + Vec3::splat(self.cell))).max(Vec3::ZERO);
-                    if gap.length_squared() * (1.0 - 1e-4) > r2 {
-                        continue;
-                    }
-                    let Some(list) = self.cells.get(&kc) else { continue };
-                    for &(p, i) in list {
-                        let d2 = p.distance_squared(x);
-                        if d2 <= r2 {
-                            f(i, d2);
-                        }
-                    }
-                }
-            }
         }
     }
 

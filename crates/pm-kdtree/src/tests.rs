@@ -209,9 +209,9 @@ proptest! {
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
-    /// The grid's nearest-first, pruned search and its radius query find what brute
-    /// force finds, after photons were set, replaced and removed, for radii below, at
-    /// and beyond the radius it was built for.
+    /// The grid's nearest-first, pruned search finds what brute force finds, after
+    /// photons were set, replaced and removed, for radii below, at and beyond the
+    /// radius it was built for.
     #[test]
     fn grid_queries_match_brute_force(
         pts in arb_points(),
@@ -255,11 +255,6 @@ proptest! {
                         prop_assert_eq!((grid.record(i).position() - x).length_squared(), d);
                     }
                 }
-                // All within the radius.
-                let mut within = Vec::new();
-                grid.for_each_within(x, r2, |_, d| within.push(d));
-                within.sort_by(f32::total_cmp);
-                prop_assert_eq!(within, brute_knn(&held, x, usize::MAX, r2, |_| true));
             }
         }
     }
