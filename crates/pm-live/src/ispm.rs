@@ -307,8 +307,6 @@ pub struct IspmTimes {
 /// What one image-space frame did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct IspmStats {
-    /// Frame number (0 first).
-    pub frame: u64,
     /// Times per step [s].
     pub times: IspmTimes,
     /// The bounce maps' attrition and power.
@@ -413,7 +411,6 @@ pub fn frame(
     buffers.add_to_layer("indirect", &indirect);
     buffers.add_to_layer("caustic", &caustic);
     Ok(IspmStats {
-        frame: seed,
         times: IspmTimes {
             gbuffer: t_gbuffer,
             direct: t_direct,

@@ -443,7 +443,7 @@ impl Live {
                 times,
                 photons_in_tree: st.photons,
                 samples: (p.width * p.height) as u64,
-                ispm: Some(ispm::IspmStats { frame: self.frame, ..st }),
+                ispm: Some(st),
                 ..Default::default()
             };
             self.frame += 1;

@@ -49,20 +49,12 @@ impl<'a> LiveShading<'a> {
         p: &LiveParams,
         shadow_maps: &'a [Option<CubeDepth>],
     ) -> Result<Self, pm_scene::LightSelectError> {
-        Ok(LiveShading {
-            light: DirectLighting::new(scene)?,
-            indirect: Indirect::Corners { corners, e },
-            direct: p.direct,
-            light_samples: p.light_samples,
-            max_depth: p.max_depth,
-            shadow_maps,
-            all_mapped: shadow_maps.len() == scene.lights.len() && shadow_maps.iter().all(Option::is_some),
-            counters: Counters::default(),
-        })
+        Self::with(scene, Indirect::Corners { corners, e }, p.direct, p, shadow_maps)
     }
 
     /// Shading of `scene` for image-space photon mapping: indirect light from
     /// `photons` (with their `index`), splatted at the eye's surfaces by the caller.
+    /// Direct light from photons is not a choice there: it is taken by shadow rays.
     pub fn splatted(
         scene: &'a Scene,
         photons: &'a [VolumePhoton],
@@ -70,10 +62,21 @@ impl<'a> LiveShading<'a> {
         p: &LiveParams,
         shadow_maps: &'a [Option<CubeDepth>],
     ) -> Result<Self, pm_scene::LightSelectError> {
+        let direct = if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct };
+        Self::with(scene, Indirect::Photons { photons, index }, direct, p, shadow_maps)
+    }
+
+    fn with(
+        scene: &'a Scene,
+        indirect: Indirect<'a>,
+        direct: DirectMode,
+        p: &LiveParams,
+        shadow_maps: &'a [Option<CubeDepth>],
+    ) -> Result<Self, pm_scene::LightSelectError> {
         Ok(LiveShading {
             light: DirectLighting::new(scene)?,
-            indirect: Indirect::Photons { photons, index },
-            direct: if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct },
+            indirect,
+            direct,
             light_samples: p.light_samples,
             max_depth: p.max_depth,
             shadow_maps,
