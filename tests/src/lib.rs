@@ -54,7 +54,6 @@ pub fn global_tree(scene: &Scene, stored: u64, seed: u64) -> Vec<CompactIrrPhoto
         budget: Budget::Stored { target: stored, cap: stored * 1000 },
         seed,
         selector: LightSelector::new(scene, &[]).unwrap(),
-        range: None,
     };
     let photons = pm_photon::trace(scene, &cfg, &|_| {}).unwrap().photons;
     let records: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();
@@ -82,7 +81,6 @@ pub fn photon_maps(
         budget: Budget::Stored { target: caustic, cap: caustic * 1000 },
         seed: 2,
         selector: LightSelector::new(scene, &[]).unwrap(),
-        range: None,
     };
     let c: Vec<FullPhoton> =
         pm_photon::trace(scene, &cfg, &|_| {}).unwrap().photons.iter().map(FullPhoton::encode).collect();

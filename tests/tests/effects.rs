@@ -75,7 +75,6 @@ fn a_mirror_hidden_from_every_light_produces_no_caustics() {
         budget: pm_photon::Budget::Emitted(20_000),
         seed: 1,
         selector: pm_photon::LightSelector::new(&scene, &[]).unwrap(),
-        range: None,
     };
     assert!(pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons.is_empty());
 }

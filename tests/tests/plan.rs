@@ -1,5 +1,5 @@
-//! The job plan (`cargo xtask plan`): the render cut into tiles gives the same image
-//! file as one render, the emitted Slurm scripts are valid bash chained in
+//! The job plan (`cargo xtask plan`): the trace cut into slices and the render cut
+//! into tiles give the same photon maps and image file as one trace and one render, the emitted Slurm scripts are valid bash chained in
 //! dependency order, the OpenJD template carries the same graph, and the local
 //! executor stops at a failing step with one line naming it.
 
@@ -16,22 +16,28 @@ fn bins() -> Bins {
     Bins { dir: pm_tests::bin_dir() }
 }
 
-fn args(dir: &Path, out: &str, tiles: u32) -> RunArgs {
+fn args(dir: &Path, out: &str, tiles: u32, trace_slices: u32) -> RunArgs {
     let p = pm_tests::small_pipeline(dir, "cornell_spheres.gltf", "\"auto\"", 4, "pipeline");
-    RunArgs { pipeline: Some(p), out: Some(dir.join(out)), tiles, ..Default::default() }
+    RunArgs { pipeline: Some(p), out: Some(dir.join(out)), tiles, trace_slices, workers: 2, ..Default::default() }
 }
 
-/// Five tiles of the 24-row image (not dividing it evenly), rendered as array tasks
-/// and assembled, give image.exr byte for byte as the single render does.
+/// Three trace slices merged, and five tiles of the 24-row image (not dividing it
+/// evenly) rendered as array tasks and assembled, give the photon maps and
+/// image.exr byte for byte as one trace and one render do.
 #[test]
-fn a_tiled_run_writes_the_same_image_as_one_render() {
+fn a_sliced_and_tiled_run_writes_the_same_maps_and_image_as_one_run() {
     let dir = tempfile::tempdir().unwrap();
-    run_with(&args(dir.path(), "whole", 1), &root(), &bins()).unwrap();
-    let outcomes = run_with(&args(dir.path(), "tiled", 5), &root(), &bins()).unwrap();
-    assert!(outcomes.iter().any(|o| o.step == "photon-render tiles") && outcomes.iter().any(|o| o.step == "assemble"));
-    let read = |d: &str| std::fs::read(dir.path().join(d).join("image.exr")).unwrap();
-    assert!(read("whole") == read("tiled"), "tiled image.exr differs from the whole render's");
+    run_with(&args(dir.path(), "whole", 1, 1), &root(), &bins()).unwrap();
+    let outcomes = run_with(&args(dir.path(), "tiled", 5, 3), &root(), &bins()).unwrap();
+    for step in ["photon-trace slices", "photon-trace merge", "photon-render tiles", "assemble"] {
+        assert!(outcomes.iter().any(|o| o.step == step), "{step} not run: {outcomes:?}");
+    }
+    let read = |d: &str, f: &str| std::fs::read(dir.path().join(d).join(f)).unwrap();
+    for f in ["global.pmap", "caustic.pmap", "image.exr"] {
+        assert!(read("whole", f) == read("tiled", f), "{f} of the sliced, tiled run differs from one run's");
+    }
     assert!(dir.path().join("tiled/tiles/tile-4.exr").exists());
+    assert!(dir.path().join("tiled/slices/slice-2/global.pmap").exists());
 }
 
 /// The graph: each step after the steps that write its inputs; the tiles an array.
@@ -41,12 +47,13 @@ fn a_tiled_run_writes_the_same_image_as_one_render() {
 #[test]
 fn emitted_slurm_scripts_and_openjd_template_carry_the_graph() {
     let dir = tempfile::tempdir().unwrap();
-    let plan = plan_for(&args(dir.path(), "out", 3), &root(), &bins()).unwrap();
+    let plan = plan_for(&args(dir.path(), "out", 3, 4), &root(), &bins()).unwrap();
     let names: Vec<&str> = plan.steps.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(
         names,
         [
-            "photon-trace",
+            "photon-trace slices",
+            "photon-trace merge",
             "photon-sort global",
             "photon-sort caustic",
             "photon-irradiance",
@@ -56,6 +63,10 @@ fn emitted_slurm_scripts_and_openjd_template_carry_the_graph() {
         ]
     );
     let step = |n: &str| plan.steps.iter().find(|s| s.name == n).unwrap();
+    assert_eq!(step("photon-trace slices").tasks, 4);
+    assert!(step("photon-trace slices").args.contains(&"{TASK}/4".to_string()));
+    assert_eq!(step("photon-trace merge").after, ["photon-trace slices"]);
+    assert_eq!(step("photon-sort global").after, ["photon-trace merge"]);
     assert_eq!(step("photon-irradiance").after, ["photon-sort global"]);
     assert_eq!(step("photon-render tiles").after, ["photon-sort caustic", "photon-irradiance", "photon-render icache"]);
     assert_eq!(step("photon-render tiles").tasks, 3);
@@ -69,26 +80,30 @@ fn emitted_slurm_scripts_and_openjd_template_carry_the_graph() {
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
     }
     let text = |n: &str| &files.iter().find(|f| f.0 == n).unwrap().1;
-    let tiles = text("05-photon-render-tiles.sbatch");
+    let slices = text("00-photon-trace-slices.sbatch");
+    assert!(slices.contains("#SBATCH --array=0-3") && slices.contains("'--slice' ''\"${TASK}\"'/4'"), "{slices}");
+    let tiles = text("06-photon-render-tiles.sbatch");
     assert!(tiles.contains("#SBATCH --array=0-2") && tiles.contains("SLURM_ARRAY_TASK_ID"), "{tiles}");
     assert!(tiles.contains("'--tile' ''\"${TASK}\"'/3'"), "{tiles}");
     let submit = text("submit.sh");
     let lines: Vec<&str> = submit.lines().filter(|l| l.contains("sbatch")).collect();
-    assert_eq!(lines.len(), 7);
-    assert_eq!(lines[0], "job_0=$(sbatch --parsable 00-photon-trace.sbatch)");
+    assert_eq!(lines.len(), 8);
+    assert_eq!(lines[0], "job_0=$(sbatch --parsable 00-photon-trace-slices.sbatch)");
+    assert_eq!(lines[1], "job_1=$(sbatch --parsable --dependency=afterok:${job_0} 01-photon-trace-merge.sbatch)");
     assert_eq!(
-        lines[5],
-        "job_5=$(sbatch --parsable --dependency=afterok:${job_2}:${job_3}:${job_4} 05-photon-render-tiles.sbatch)"
+        lines[6],
+        "job_6=$(sbatch --parsable --dependency=afterok:${job_3}:${job_4}:${job_5} 06-photon-render-tiles.sbatch)"
     );
-    assert_eq!(lines[6], "job_6=$(sbatch --parsable --dependency=afterok:${job_5} 06-assemble.sbatch)");
+    assert_eq!(lines[7], "job_7=$(sbatch --parsable --dependency=afterok:${job_6} 07-assemble.sbatch)");
 
     let t = openjd(&plan);
     assert_eq!(t["specificationVersion"], "jobtemplate-2023-09");
     let steps = t["steps"].as_array().unwrap();
-    assert_eq!(steps.len(), 7);
-    assert_eq!(steps[5]["parameterSpace"]["taskParameterDefinitions"][0]["range"], "0-2");
-    assert_eq!(steps[5]["dependencies"].as_array().unwrap().len(), 3);
-    let args: Vec<&str> = steps[5]["script"]["actions"]["onRun"]["args"]
+    assert_eq!(steps.len(), 8);
+    assert_eq!(steps[0]["parameterSpace"]["taskParameterDefinitions"][0]["range"], "0-3");
+    assert_eq!(steps[6]["parameterSpace"]["taskParameterDefinitions"][0]["range"], "0-2");
+    assert_eq!(steps[6]["dependencies"].as_array().unwrap().len(), 3);
+    let args: Vec<&str> = steps[6]["script"]["actions"]["onRun"]["args"]
         .as_array()
         .unwrap()
         .iter()

@@ -1,7 +1,8 @@
 //! `cargo xtask plan`: the pipeline as a job graph for machines other than this one.
-//! The steps `cargo xtask run` executes, with the final render cut into `--tiles N`
-//! array tasks (`photon-render --tile K/N`, each writing its own region EXR) and an
-//! assemble step, every step with its command line, inputs, outputs and the steps
+//! The steps `cargo xtask run` executes, with the photon trace cut into
+//! `--trace-slices M` array tasks (`photon-trace --slice J/M`) and a merge step, and
+//! the final render cut into `--tiles N` array tasks (`photon-render --tile K/N`,
+//! each writing its own region EXR) and an assemble step, every step with its command line, inputs, outputs and the steps
 //! it waits for (those that write its inputs). Written as `plan.json`, and with
 //! `--emit slurm` as sbatch scripts (one job array per parallel step, chained by
 //! `--dependency=afterok` in `submit.sh`) or with `--emit openjd` as one Open Job
@@ -75,11 +76,14 @@ pub struct JobPlan {
     pub steps: Vec<JobStep>,
 }
 
-/// The job graph of a run with `tiles` tiles.
-pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32) -> Result<JobPlan> {
+/// The job graph of a run with `tiles` tiles and `slices` trace slices.
+pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32, slices: u32) -> Result<JobPlan> {
     let Setup { cfg, scene, out, caustics, indirect, .. } = setup;
     if tiles == 0 || tiles > cfg.render.height {
         bail!("--tiles {tiles}: needs 1 to the image's {} rows", cfg.render.height);
+    }
+    if slices == 0 {
+        bail!("--trace-slices 0: needs at least 1");
     }
     let s = |p: &Path| p.display().to_string();
     let mut steps: Vec<JobStep> = Vec::new();
@@ -101,7 +105,47 @@ pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32) -> Result<JobPlan
             }
         }
         let program = s(&bins.path(step.program()));
-        if step.name == "photon-render" && tiles > 1 {
+        if step.name == "photon-trace" && slices > 1 {
+            // The trace as interleaved slices of the emission index space, each into
+            // its own folder, then merged into the maps one trace writes.
+            let dir = |k: &str| out.join("slices").join(format!("slice-{k}"));
+            let mut base = Vec::new();
+            let mut it = args.iter();
+            while let Some(a) = it.next() {
+                if matches!(a.as_str(), "--out" | "--stats-json") {
+                    it.next();
+                } else {
+                    base.push(a.clone());
+                }
+            }
+            base.extend(["--slice".into(), format!("{TASK}/{slices}"), "--out".into(), s(&dir(TASK))]);
+            base.extend(["--stats-json".into(), s(&dir(TASK).join("trace.stats.json"))]);
+            let maps: Vec<&str> =
+                step.outputs.iter().filter_map(|p| p.file_name()?.to_str()).filter(|n| n.ends_with(".pmap")).collect();
+            let slice_outputs: Vec<String> =
+                (0..slices).flat_map(|k| maps.iter().map(move |m| s(&dir(&k.to_string()).join(m)))).collect();
+            steps.push(JobStep {
+                name: "photon-trace slices".into(),
+                program: program.clone(),
+                args: base,
+                tasks: slices,
+                inputs: inputs.clone(),
+                outputs: slice_outputs.clone(),
+                after: vec![],
+            });
+            let mut a = vec!["merge".to_string()];
+            a.extend((0..slices).map(|k| s(&dir(&k.to_string()))));
+            a.extend(["--out".into(), s(out), "--stats-json".into(), s(&out.join("trace.stats.json"))]);
+            steps.push(JobStep {
+                name: "photon-trace merge".into(),
+                program,
+                args: a,
+                tasks: 1,
+                inputs: slice_outputs,
+                outputs: step.outputs.iter().map(|p| s(p)).collect(),
+                after: vec![],
+            });
+        } else if step.name == "photon-render" && tiles > 1 {
             // The render as tiles: its --out/--png/--stats-json replaced per task.
             let mut base = Vec::new();
             let mut it = args.iter();
@@ -313,11 +357,11 @@ pub fn openjd(plan: &JobPlan) -> serde_json::Value {
     })
 }
 
-/// The job graph of `args` (its pipeline, scene, output and `tiles`), with the
-/// stage binaries in `bins`.
+/// The job graph of `args` (its pipeline, scene, output, `tiles` and
+/// `trace_slices`), with the stage binaries in `bins`.
 pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
     let setup = setup(args, root, bins)?;
-    job_plan(&setup, bins, args.tiles.max(1))
+    job_plan(&setup, bins, args.tiles.max(1), args.trace_slices.max(1))
 }
 
 /// Write `plan.json` (and the job files) for `args`.

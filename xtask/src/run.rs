@@ -132,7 +132,13 @@ pub struct RunArgs {
     /// the job plan does (`cargo xtask plan`); every step then runs. 1: one render.
     #[arg(long, default_value_t = 1)]
     pub tiles: u32,
-    /// With --tiles: run this many tiles at a time (each its own process).
+    /// Trace the photons as this many slices of the emission index space and merge
+    /// them, as the job plan does; the maps (and so the image) are byte-identical
+    /// to one trace's. 1: one trace.
+    #[arg(long, default_value_t = 1)]
+    pub trace_slices: u32,
+    /// With --tiles or --trace-slices: run this many tasks of a step at a time
+    /// (each its own process).
     #[arg(long, default_value_t = 1)]
     pub workers: u32,
 }
@@ -361,10 +367,16 @@ pub(crate) fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
 /// Run the pipeline with the stage binaries in `bins`.
 pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
     let set = setup(args, root, bins)?;
-    if args.tiles > 1 {
+    if args.tiles > 1 || args.trace_slices > 1 {
         // The job plan, executed here.
-        let plan = crate::plan::job_plan(&set, bins, args.tiles)?;
-        println!("plan ({} -> {}, {} tiles):", set.scene.display(), set.out.display(), args.tiles);
+        let plan = crate::plan::job_plan(&set, bins, args.tiles.max(1), args.trace_slices.max(1))?;
+        println!(
+            "plan ({} -> {}, {} trace slices, {} tiles):",
+            set.scene.display(),
+            set.out.display(),
+            args.trace_slices,
+            args.tiles
+        );
         let (times, wall) = crate::plan::execute(&plan, args.workers)?;
         let path = set.out.join("plan-times.json");
         std::fs::write(&path, serde_json::to_string_pretty(&times)? + "\n")

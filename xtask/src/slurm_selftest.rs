@@ -2,8 +2,9 @@
 //! root on Debian or Ubuntu; not part of CI. Installs slurmctld, slurmd,
 //! slurm-client and munge from the distribution, starts a one-node cluster (munged,
 //! slurmctld, slurmd, with a minimal slurm.conf written here) unless one answers
-//! already, submits the job plan of the default pipeline with 4 tiles, waits for it,
-//! and compares its image with `cargo xtask run`'s byte for byte.
+//! already, submits the job plan of the default pipeline with 4 trace slices and 4
+//! tiles, waits for it, and compares its photon maps and image with
+//! `cargo xtask run`'s (one trace, one render) byte for byte.
 
 use crate::plan::{plan_for, slurm};
 use crate::run::{RunArgs, run_with};
@@ -19,6 +20,9 @@ pub struct Args {
     /// Tiles of the render (array tasks).
     #[arg(long, default_value_t = 4)]
     pub tiles: u32,
+    /// Slices of the photon trace (array tasks).
+    #[arg(long, default_value_t = 4)]
+    pub trace_slices: u32,
     /// Give up waiting for the job after this long [s].
     #[arg(long, default_value_t = 1800)]
     pub timeout: u64,
@@ -82,7 +86,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let _ = std::fs::remove_dir_all(&base);
     let (jobs, out, reference) = (base.join("jobs"), base.join("out"), base.join("reference"));
     std::fs::create_dir_all(&jobs)?;
-    let plan_args = RunArgs { out: Some(out.clone()), tiles: args.tiles, ..Default::default() };
+    let plan_args =
+        RunArgs { out: Some(out.clone()), tiles: args.tiles, trace_slices: args.trace_slices, ..Default::default() };
     let plan = plan_for(&plan_args, root, &bins)?;
     for (name, text) in slurm(&plan) {
         std::fs::write(jobs.join(name), text)?;
@@ -98,14 +103,15 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let t = Instant::now();
     run_with(&RunArgs { out: Some(reference.clone()), ..Default::default() }, root, &bins)?;
     let local_secs = t.elapsed().as_secs_f64();
-    for f in ["image.exr", "image.png"] {
+    for f in ["global.pmap", "caustic.pmap", "image.exr", "image.png"] {
         let (a, b) = (std::fs::read(out.join(f))?, std::fs::read(reference.join(f))?);
         ensure!(a == b, "{f}: the Slurm job's differs from cargo xtask run's");
     }
     println!(
-        "slurm-selftest passed: {} steps ({} tiles) through Slurm in {slurm_secs:.1} s (submission to last job), \
-         cargo xtask run {local_secs:.1} s; image.exr and image.png byte-identical. {versions}",
+        "slurm-selftest passed: {} steps ({} trace slices, {} tiles) through Slurm in {slurm_secs:.1} s (submission \
+         to last job), cargo xtask run {local_secs:.1} s; photon maps, image.exr and image.png byte-identical. {versions}",
         plan.steps.len(),
+        args.trace_slices,
         args.tiles
     );
     Ok(())

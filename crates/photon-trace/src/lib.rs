@@ -5,12 +5,14 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use pm_format::{
-    CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Header, MapKind, Order, Photon, PhotonMap,
+    CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Header, Layout, MapKind, Order, Photon, PhotonMap,
+    PhotonRecord,
 };
-use pm_photon::{Budget, LightSelector, MapPass, RecordLayout, TraceConfig, TraceParams, TracedMap};
+use pm_photon::{
+    Budget, LightSelector, MapPass, RecordLayout, Slice, TraceConfig, TraceParams, TracedMap, TracedSlice,
+};
 use pm_stage::Progress;
 use serde_json::json;
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -35,15 +37,18 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Concatenate photon-map slices traced with --photon-range into one map,
-    /// byte-identical to tracing the whole range in one run.
+    /// Merge the output folders of every `--slice J/M` of one trace into
+    /// global.pmap and caustic.pmap, byte-identical to tracing in one run.
     Merge {
-        /// Slices of one map (any order), covering 0..N without gaps.
+        /// The slices' output folders (any order), one per slice.
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
-        /// Merged map.
+        /// Output folder for the merged maps (created if missing).
         #[arg(long)]
         out: PathBuf,
+        /// Write the merged maps' statistics (as photon-trace's) as JSON.
+        #[arg(long)]
+        stats_json: Option<PathBuf>,
     },
 }
 
@@ -62,8 +67,8 @@ pub struct TraceArgs {
     /// Photon counts and record layout (pipeline.toml's [trace] section).
     #[command(flatten)]
     pub params: TraceParams,
-    /// Emit exactly N global photons instead of a stored target (needed with
-    /// --photon-range; overrides --global-photons).
+    /// Emit exactly N global photons instead of a stored target (overrides
+    /// --global-photons).
     #[arg(long)]
     pub emit_global: Option<u64>,
     /// Emit exactly M caustic photons instead of a stored target (overrides --caustic-photons).
@@ -76,10 +81,12 @@ pub struct TraceArgs {
     /// Random seed; equal seeds give byte-identical maps for any thread count.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Trace only photons FIRST..END of the emission index space (with --emit-*); merge the
-    /// slices with `photon-trace merge`.
-    #[arg(long, value_parser = parse_range)]
-    pub photon_range: Option<Range<u64>>,
+    /// Trace only slice J of M of the emission index space (paths in chunks of 256;
+    /// chunk c belongs to slice c mod M) into slice files, for tracing on M machines;
+    /// `photon-trace merge` joins the M output folders into the maps one run writes.
+    /// With a stored target each slice stops at its share plus 10%.
+    #[arg(long, value_name = "J/M", value_parser = parse_slice)]
+    pub slice: Option<Slice>,
     /// Give light NAME this fraction of the photon budget (repeatable); other lights share
     /// the rest in proportion to their power.
     #[arg(long = "light-share", value_parser = parse_share)]
@@ -96,14 +103,14 @@ pub struct TraceArgs {
     pub analyze: bool,
 }
 
-fn parse_range(s: &str) -> Result<Range<u64>, String> {
-    let (a, b) = s.split_once("..").ok_or("expected FIRST..END")?;
-    let a: u64 = a.trim().parse().map_err(|e| format!("FIRST: {e}"))?;
-    let b: u64 = b.trim().parse().map_err(|e| format!("END: {e}"))?;
-    if a >= b {
-        return Err(format!("empty range {a}..{b}"));
+fn parse_slice(s: &str) -> Result<Slice, String> {
+    let (j, m) = s.split_once('/').ok_or("expected J/M (slice J of M, J from 0)")?;
+    let index: u32 = j.trim().parse().map_err(|e| format!("J: {e}"))?;
+    let count: u32 = m.trim().parse().map_err(|e| format!("M: {e}"))?;
+    if count == 0 || index >= count {
+        return Err(format!("slice {index} of {count}: needs 0 <= J < M"));
     }
-    Ok(a..b)
+    Ok(Slice { index, count })
 }
 
 fn parse_share(s: &str) -> Result<(String, f64), String> {
@@ -174,7 +181,13 @@ pub struct MapReport {
 /// Run the stage.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Some(Command::Merge { inputs, out }) => merge(&inputs, &out).map(|_| ()),
+        Some(Command::Merge { inputs, out, stats_json }) => {
+            let report = merge(&inputs, &out)?;
+            if let Some(p) = &stats_json {
+                pm_stage::write_json(p, &serde_json::to_value(&report)?)?;
+            }
+            Ok(())
+        }
         None => trace(&cli.trace).map(|_| ()),
     }
 }
@@ -233,41 +246,41 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
             eprintln!("photon-trace: no {name} map: {why}");
             continue;
         }
-        let cfg =
-            TraceConfig { pass, budget, seed: args.seed, selector: selector.clone(), range: args.photon_range.clone() };
+        let cfg = TraceConfig { pass, budget, seed: args.seed, selector: selector.clone() };
         let total = match budget {
             Budget::Stored { target, .. } => target,
             Budget::Emitted(_) => 0,
         };
         let progress = Progress::new(&format!("trace {name}"), total);
-        let traced =
-            pm_photon::trace(&scene, &cfg, &|n| progress.set(n)).with_context(|| scene_path.display().to_string())?;
+        let slice = args.slice.unwrap_or(Slice::WHOLE);
+        let traced = pm_photon::trace_slice(&scene, &cfg, slice, &|n| progress.set(n))
+            .with_context(|| scene_path.display().to_string())?;
         let secs = progress.finish();
+        let params =
+            MapParams { seed: args.seed, budget, layout: args.params.layout, light_shares: &args.light_shares };
+        let header = |order, layout, n_emitted, params: String| {
+            Header::new(kind, order, layout, n_emitted, scene.content_hash, scene.bounds.diagonal(), params)
+                .with_origin(scene.origin.to_array())
+        };
+        if args.slice.is_some() {
+            // A slice keeps full precision and unscaled power: the merge scales and
+            // encodes, as the single run does.
+            let layout = if pass == MapPass::Global { Layout::FullIrradiance } else { Layout::Full };
+            let meta =
+                serde_json::to_string(&SliceParams { map: params.json(), chunks: &traced.chunks, slice, budget })?;
+            write_map(&path, header(Order::Slice, layout, 0, meta), &traced.photons, true, pass)?;
+            *map_slot(&mut report, pass) = slice_report(&traced, &scene, secs);
+            continue;
+        }
+        let traced = pm_photon::merge_slices(vec![traced]).map_err(|e| anyhow::anyhow!("internal error: {e}"))?;
         if traced.stats.hit_cap {
             eprintln!(
                 "photon-trace: warning: {name} map: emission cap reached after {} photons with {} stored",
                 traced.stats.emitted, traced.stats.stored
             );
         }
-        let params = json!({
-            "seed": args.seed,
-            "budget": format!("{budget:?}"),
-            "layout": args.params.layout,
-            "light_shares": args.light_shares,
-        });
-        let mut params_with_range = params.clone();
-        params_with_range["photon_range"] = json!(args.photon_range.as_ref().map(|r| [r.start, r.end]));
-        let header = Header::new(
-            kind,
-            Order::Unsorted,
-            pm_format::Layout::Compact,
-            traced.stats.emitted,
-            scene.content_hash,
-            scene.bounds.diagonal(),
-            params_with_range.to_string(),
-        )
-        .with_origin(scene.origin.to_array());
-        write_map(&path, header, &traced.photons, full, pass)?;
+        let h = header(Order::Unsorted, Layout::Compact, traced.stats.emitted, params.json().to_string());
+        write_map(&path, h, &traced.photons, full, pass)?;
         *map_slot(&mut report, pass) = map_report(&traced, &scene, secs);
     }
     report.seconds = start.elapsed().as_secs_f64();
@@ -326,69 +339,160 @@ fn remove_stale(path: &Path) -> Result<()> {
     }
 }
 
-/// Merge slices traced with `--photon-range` into one map.
-pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<serde_json::Value> {
-    let mut maps = Vec::new();
-    for p in inputs {
-        let m = pm_format::read(p, &pm_format::ReadExpect { order: Some(Order::Unsorted), ..Default::default() })?;
-        let params: serde_json::Value = serde_json::from_str(&m.header().params)
-            .with_context(|| format!("{}: header parameters are not JSON", p.display()))?;
-        let range = params["photon_range"]
-            .as_array()
-            .and_then(|a| Some(a.first()?.as_u64()?..a.get(1)?.as_u64()?))
-            .with_context(|| format!("{}: not a --photon-range slice", p.display()))?;
-        let mut base = params.clone();
-        base["photon_range"] = serde_json::Value::Null;
-        maps.push((range, base, p.clone(), m));
+/// What produced a map, as its header's parameters (JSON).
+struct MapParams<'a> {
+    seed: u64,
+    budget: Budget,
+    layout: RecordLayout,
+    light_shares: &'a [(String, f64)],
+}
+
+impl MapParams<'_> {
+    fn json(&self) -> serde_json::Value {
+        json!({
+            "seed": self.seed,
+            "budget": format!("{:?}", self.budget),
+            "layout": self.layout,
+            "light_shares": self.light_shares,
+        })
     }
-    maps.sort_by_key(|m| m.0.start);
-    let (_, base, first_path, first) = &maps[0];
-    let h0 = first.header().clone();
-    let mut expected_start = 0;
-    for (range, params, path, m) in &maps {
-        let h = m.header();
-        if (h.kind, h.layout, h.scene_hash, h.n_emitted) != (h0.kind, h0.layout, h0.scene_hash, h0.n_emitted)
-            || params != base
-        {
-            bail!(
-                "{}: not a slice of the same map as {} (kind, layout, scene, emitted count or parameters differ)",
-                path.display(),
-                first_path.display()
-            );
+}
+
+/// A slice file's header parameters: the map's (which the merged map gets), the
+/// slice, its budget and what each of its chunks stored.
+#[derive(serde::Serialize)]
+struct SliceParams<'a> {
+    map: serde_json::Value,
+    slice: Slice,
+    budget: Budget,
+    chunks: &'a [pm_photon::ChunkStats],
+}
+
+/// [`SliceParams`] as read back.
+#[derive(serde::Deserialize)]
+struct SliceParamsOwned {
+    map: serde_json::Value,
+    slice: Slice,
+    budget: Budget,
+    chunks: Vec<pm_photon::ChunkStats>,
+}
+
+fn slice_report(traced: &TracedSlice, scene: &pm_scene::Scene, secs: f64) -> MapReport {
+    let sum = |f: fn(&pm_photon::ChunkStats) -> u64| traced.chunks.iter().map(f).sum::<u64>();
+    let emitted = sum(|c| c.per_light.iter().sum());
+    let rays = sum(|c| c.rays);
+    MapReport {
+        skipped: None,
+        emitted,
+        stored: traced.photons.len() as u64,
+        stored_per_bounce: Vec::new(),
+        emitted_per_light: scene
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                (l.name.clone(), traced.chunks.iter().map(|c| c.per_light.get(i).copied().unwrap_or(0)).sum())
+            })
+            .collect(),
+        rays,
+        truncated_paths: sum(|c| c.truncated),
+        hit_emission_cap: false,
+        total_power_w: [0.0; 3],
+        seconds: secs,
+        paths_per_second: emitted as f64 / secs.max(1e-9),
+        rays_per_second: rays as f64 / secs.max(1e-9),
+    }
+}
+
+/// Merge the output folders of every slice of one trace (`--slice J/M`) into
+/// `out`/global.pmap and `out`/caustic.pmap, byte-identical to one run's maps.
+pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
+    let start = Instant::now();
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
+    let mut report = Report { scene: format!("{} slices", inputs.len()), threads: 1, ..Default::default() };
+    for (pass, kind, name) in
+        [(MapPass::Global, MapKind::Global, "global"), (MapPass::Caustic, MapKind::Caustic, "caustic")]
+    {
+        let file = format!("{name}.pmap");
+        let present: Vec<&PathBuf> = inputs.iter().filter(|d| d.join(&file).exists()).collect();
+        let target = out.join(&file);
+        if present.is_empty() {
+            remove_stale(&target)?;
+            *map_slot(&mut report, pass) =
+                MapReport { skipped: Some("no slice holds this map".into()), ..Default::default() };
+            continue;
         }
-        // Ranges are clipped to the emitted count (a slice past the end is empty).
-        let start = range.start.min(h0.n_emitted);
-        if start != expected_start {
-            bail!(
-                "{}: slice starts at {start} but the slices before it end at {expected_start} (gap or overlap)",
-                path.display()
-            );
+        if present.len() != inputs.len() {
+            let missing = inputs.iter().find(|d| !d.join(&file).exists()).expect("some slice lacks it");
+            bail!("{}: no {file}, which the other slices have", missing.display());
         }
-        expected_start = range.end.min(h0.n_emitted);
-    }
-    if expected_start != h0.n_emitted {
-        bail!("slices cover 0..{expected_start} but the map emitted {} photons", h0.n_emitted);
-    }
-    let mut header = h0.clone();
-    header.params = base.to_string();
-    macro_rules! cat {
-        ($variant:ident) => {{
-            let mut records = Vec::new();
-            for (_, _, _, m) in &maps {
-                if let pm_format::AnyMap::$variant(m) = m {
-                    records.extend_from_slice(&m.records);
+        let expect = pm_format::ReadExpect { kind: Some(kind), order: Some(Order::Slice), ..Default::default() };
+        let mut slices = Vec::new();
+        let mut first: Option<(Header, serde_json::Value, PathBuf)> = None;
+        for dir in inputs {
+            let path = dir.join(&file);
+            let m = pm_format::read(&path, &expect)?;
+            let h = m.header().clone();
+            let meta: SliceParamsOwned = serde_json::from_str(&h.params)
+                .with_context(|| format!("{}: header parameters are not a slice's", path.display()))?;
+            if let Some((h0, map0, p0)) = &first {
+                let same = (h.scene_hash, h.scene_diagonal, h.origin) == (h0.scene_hash, h0.scene_diagonal, h0.origin);
+                if !same || &meta.map != map0 {
+                    bail!(
+                        "{}: not a slice of the same trace as {} (scene or parameters differ)",
+                        path.display(),
+                        p0.display()
+                    );
                 }
+            } else {
+                first = Some((h.clone(), meta.map.clone(), path.clone()));
             }
-            let mut merged = PhotonMap::new(header, records);
-            merged.write(out)?;
-            merged.records.len()
-        }};
+            if !matches!(h.layout, Layout::Full | Layout::FullIrradiance) {
+                bail!("{}: a slice must hold full-precision records, not {:?}", path.display(), h.layout);
+            }
+            let photons: Vec<pm_format::Photon> =
+                pm_format::with_map!(&m, mm => mm.records.iter().map(|r| r.decode()).collect());
+            slices.push(TracedSlice {
+                slice: meta.slice,
+                budget: meta.budget,
+                chunks: meta.chunks,
+                photons,
+                bounces: Vec::new(),
+            });
+        }
+        let (h0, map0, _) = first.expect("at least one slice");
+        let traced = pm_photon::merge_slices(slices).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+        let layout: RecordLayout = serde_json::from_value(map0["layout"].clone())
+            .with_context(|| format!("{}: record layout unreadable", target.display()))?;
+        let header = Header::new(
+            kind,
+            Order::Unsorted,
+            Layout::Compact,
+            traced.stats.emitted,
+            h0.scene_hash,
+            h0.scene_diagonal,
+            map0.to_string(),
+        )
+        .with_origin(h0.origin);
+        write_map(&target, header, &traced.photons, layout == RecordLayout::Full, pass)?;
+        let s = &traced.stats;
+        *map_slot(&mut report, pass) = MapReport {
+            skipped: None,
+            emitted: s.emitted,
+            stored: s.stored,
+            emitted_per_light: s
+                .emitted_per_light
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (format!("light {i}"), *n))
+                .collect(),
+            rays: s.rays,
+            truncated_paths: s.truncated_paths,
+            hit_emission_cap: s.hit_cap,
+            total_power_w: pm_photon::total_power(&traced.photons).to_array(),
+            ..Default::default()
+        };
     }
-    let n = match first {
-        pm_format::AnyMap::Compact(_) => cat!(Compact),
-        pm_format::AnyMap::CompactIrr(_) => cat!(CompactIrr),
-        pm_format::AnyMap::Full(_) => cat!(Full),
-        pm_format::AnyMap::FullIrr(_) => cat!(FullIrr),
-    };
-    Ok(json!({"stage": "photon-trace merge", "slices": maps.len(), "photons": n, "out": out.display().to_string()}))
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
 }

@@ -50,34 +50,64 @@ fn merged_slices_equal_a_single_run() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene("cornell_spheres.gltf");
     let d = |n: &str| dir.path().join(n);
-    let common =
-        ["--scene", s.to_str().unwrap(), "--emit-global", "30000", "--emit-caustic", "20000", "--layout", "full"];
-    let whole = d("whole");
-    ok(&[&common[..], &["--out", whole.to_str().unwrap()]].concat());
-    for (name, range) in [("a", "0..7000"), ("b", "7000..25000"), ("c", "25000..30000")] {
-        ok(&[&common[..], &["--out", d(name).to_str().unwrap(), "--photon-range", range]].concat());
-    }
-    for m in ["global.pmap", "caustic.pmap"] {
-        let merged = d(&format!("merged-{m}"));
+    // A stored target (the pipeline's budget) in the compact layout, and a fixed
+    // emission count in the full layout.
+    let budgets: [&[&str]; 2] = [
+        &["--global-photons", "20000", "--caustic-photons", "3000"],
+        &["--emit-global", "30000", "--emit-caustic", "20000", "--layout", "full"],
+    ];
+    for (b, budget) in budgets.iter().enumerate() {
+        let common = [&["--scene", s.to_str().unwrap()][..], budget].concat();
+        let whole = d(&format!("whole-{b}"));
+        ok(&[&common[..], &["--out", whole.to_str().unwrap()]].concat());
+        let slices: Vec<PathBuf> = (0..3).map(|j| d(&format!("slice-{b}-{j}"))).collect();
+        for (j, out) in slices.iter().enumerate() {
+            ok(&[&common[..], &["--out", out.to_str().unwrap(), "--slice", &format!("{j}/3")]].concat());
+        }
+        // A slice is no map: the other stages refuse it.
+        let e = pm_format::read(&slices[0].join("global.pmap"), &Default::default()).unwrap_err().to_string();
+        assert!(e.contains("trace slice"), "{e}");
         // Slices in any order on the command line.
-        let inputs: Vec<PathBuf> = ["c", "a", "b"].iter().map(|n| d(n).join(m)).collect();
+        let merged = d(&format!("merged-{b}"));
+        let stats = d(&format!("merged-{b}.json"));
         let mut args = vec!["merge".to_string()];
-        args.extend(inputs.iter().map(|p| p.display().to_string()));
-        args.extend(["--out".into(), merged.display().to_string()]);
+        args.extend([2, 0, 1].iter().map(|&j| slices[j].display().to_string()));
+        args.extend(["--out".into(), merged.display().to_string(), "--stats-json".into(), stats.display().to_string()]);
         ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
-        assert_eq!(read(&merged), read(&whole.join(m)), "{m}");
+        for m in ["global.pmap", "caustic.pmap"] {
+            assert_eq!(read(&merged.join(m)), read(&whole.join(m)), "{budget:?} {m}");
+        }
+        let v: serde_json::Value = serde_json::from_slice(&read(&stats)).unwrap();
+        let h = pm_format::read(&whole.join("global.pmap"), &Default::default()).unwrap().header().clone();
+        assert_eq!(v["global"]["emitted"].as_u64(), Some(h.n_emitted));
     }
-    // A gap is refused.
+    // A missing slice is refused, naming it, and nothing is written.
     let o = trace(&[
         "merge",
-        d("a").join("global.pmap").to_str().unwrap(),
-        d("c").join("global.pmap").to_str().unwrap(),
+        d("slice-0-0").to_str().unwrap(),
+        d("slice-0-2").to_str().unwrap(),
         "--out",
-        d("x.pmap").to_str().unwrap(),
+        d("x").to_str().unwrap(),
     ]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("gap or overlap"));
-    assert!(!d("x.pmap").exists());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("slice 1 of 3 is missing"), "{e}");
+    assert!(!d("x").join("global.pmap").exists());
+    // Slices of different traces are refused.
+    let o = trace(&[
+        "merge",
+        d("slice-0-0").to_str().unwrap(),
+        d("slice-1-1").to_str().unwrap(),
+        d("slice-0-2").to_str().unwrap(),
+        "--out",
+        d("x").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("not a slice of the same trace"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 #[test]

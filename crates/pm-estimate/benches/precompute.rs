@@ -16,7 +16,6 @@ fn main() {
         budget: Budget::Stored { target: 400_000, cap: u64::MAX },
         seed: 1,
         selector: LightSelector::new(&scene, &[]).unwrap(),
-        range: None,
     };
     let photons = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
     let recs: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();

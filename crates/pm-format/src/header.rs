@@ -6,7 +6,10 @@
 //!      8    4 version          u32, must be 3
 //!     12    4 header_len       u32: bytes before the first record; multiple of 16
 //!     16    1 kind             1 = global, 2 = caustic
-//!     17    1 order            0 = unsorted, 1 = left-balanced kd-tree in heap order
+//!     17    1 order            0 = unsorted, 1 = left-balanced kd-tree in heap order,
+//!                              2 = one slice of a trace (power not yet divided by
+//!                              the emitted count, n_emitted 0; only
+//!                              `photon-trace merge` reads it)
 //!     18    1 layout           1 = compact 18 B, 2 = compact+irradiance 23 B,
 //!                              3 = full 40 B, 4 = full+irradiance 64 B
 //!     19    1 flags            bit 0: irradiance has been precomputed; other bits 0
@@ -57,6 +60,11 @@ pub enum Order {
     Unsorted = 0,
     /// Left-balanced kd-tree in heap order (Christensen 1999 section 1.2).
     KdTree = 1,
+    /// One slice of a trace, as traced: record power is Phi-hat / p_select [W per
+    /// channel], not yet divided by the emitted count (which only the merge of all
+    /// slices knows; `n_emitted` is 0). Read only when asked for by
+    /// `ReadExpect::order`, so no stage mistakes it for a map.
+    Slice = 2,
 }
 
 /// The record layout.
@@ -420,6 +428,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     let order = match order {
         0 => Order::Unsorted,
         1 => Order::KdTree,
+        2 => Order::Slice,
         v => return Err(err(Problem::Field { field: "order", value: v as u64 })),
     };
     let layout = match layout {
@@ -492,11 +501,18 @@ fn check_expectations(path: &Path, h: &Header, expect: &ReadExpect) -> Result<()
     {
         return wrong(format!("a {k:?} photon map"), format!("a {:?} photon map", h.kind));
     }
+    let name = |o: Order| match o {
+        Order::KdTree => "a kd-tree (run photon-sort first)",
+        Order::Unsorted => "an unsorted map",
+        Order::Slice => "a trace slice (run photon-trace merge first)",
+    };
     if let Some(o) = expect.order
         && o != h.order
     {
-        let name = |o: Order| if o == Order::KdTree { "a kd-tree (run photon-sort first)" } else { "an unsorted map" };
         return wrong(name(o).into(), name(h.order).trim_end_matches(" (run photon-sort first)").into());
+    }
+    if h.order == Order::Slice && expect.order.is_none() {
+        return wrong("a photon map".into(), name(h.order).into());
     }
     if let Some(i) = expect.irradiance
         && i != h.has_irradiance

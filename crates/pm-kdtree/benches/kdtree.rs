@@ -24,7 +24,6 @@ fn real_photons(n: u64, seed: u64) -> Vec<CompactIrrPhoton> {
         budget: Budget::Stored { target: n, cap: u64::MAX },
         seed,
         selector: LightSelector::new(&scene, &[]).unwrap(),
-        range: None,
     };
     let mut ps = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
     ps.truncate(n as usize);

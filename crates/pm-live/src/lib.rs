@@ -313,13 +313,7 @@ impl Live {
         params.check(pm_params::Naming::Cli)?;
         let camera = scene.camera.clone().ok_or("the scene has no perspective camera")?;
         let selector = LightSelector::new(photon_scene.as_ref().unwrap_or(&scene), &[]).map_err(|e| e.to_string())?;
-        let trace = TraceConfig {
-            pass: MapPass::Global,
-            budget: Budget::Emitted(params.total as u64),
-            seed,
-            selector,
-            range: None,
-        };
+        let trace = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(params.total as u64), seed, selector };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(&scene, params.cornering);
         let caustics = params.method == Method::Ispm && pm_scene::analyze(&scene).caustics.yes;

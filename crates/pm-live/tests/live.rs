@@ -17,7 +17,6 @@ fn global_pass(scene: &Scene, seed: u64) -> TraceConfig {
         budget: Budget::Emitted(0),
         seed,
         selector: LightSelector::new(scene, &[]).unwrap(),
-        range: None,
     }
 }
 

@@ -10,7 +10,7 @@ fn main() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell_spheres.gltf");
     let scene = pm_scene::load(&path).unwrap();
     let selector = LightSelector::new(&scene, &[]).unwrap();
-    let cfg = |pass, budget| TraceConfig { pass, budget, seed: 1, selector: selector.clone(), range: None };
+    let cfg = |pass, budget| TraceConfig { pass, budget, seed: 1, selector: selector.clone() };
     println!(
         "| threads | global 400k [s] | caustic 35k [s] | total [s] | global paths/s | global rays/s | speed-up vs 1 thread |"
     );

@@ -21,15 +21,15 @@ use pm_sampling::{Sampler, mix64};
 pub use pm_scene::{LightSelectError, LightSelector};
 use pm_scene::{Scene, Target};
 use rayon::prelude::*;
-use std::ops::Range;
 
 /// Path length limit. Russian roulette ends paths long before this in physical
 /// scenes; paths cut here are counted in [`MapStats::truncated_paths`].
 pub const MAX_BOUNCES: u32 = 1000;
 /// Photon paths traced per batch between checks of the stored count.
 const BATCH: u64 = 1 << 14;
-/// Paths per parallel work item.
-const CHUNK: u64 = 256;
+/// Paths per chunk: the parallel work item, the unit a stored budget stops at, and
+/// the unit of slicing ([`Slice`]).
+pub const CHUNK: u64 = 256;
 
 pm_params::value_enum! {
     /// Precision of the stored photon records.
@@ -60,10 +60,11 @@ pm_params::params! {
 }
 
 /// How many photons to emit for a map.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Budget {
-    /// Emit until this many photons are stored (whole paths are kept, so the map
-    /// may hold a few more), or until `cap` photons have been emitted.
+    /// Emit until this many photons are stored (whole chunks of [`CHUNK`] paths
+    /// are kept, so the map may hold a few more), or until `cap` photons have been
+    /// emitted.
     Stored {
         /// Target number of stored photons.
         target: u64,
@@ -95,8 +96,6 @@ pub struct TraceConfig {
     /// Probability of emitting from each light (same order as `scene.lights`); see
     /// [`LightSelector`].
     pub selector: LightSelector,
-    /// Trace only this slice of the photon index space (requires `Budget::Emitted`).
-    pub range: Option<Range<u64>>,
 }
 
 /// Statistics of a pass.
@@ -137,9 +136,9 @@ pub enum TraceError {
     /// Nothing to hit.
     #[error("the scene has no surfaces: photons would never be stored")]
     NoSurfaces,
-    /// Slicing needs a fixed emission count.
-    #[error("--photon-range needs a fixed emission count (--emit-global/--emit-caustic), not a stored-photon target")]
-    RangeNeedsFixedCount,
+    /// A slice outside 0..count.
+    #[error("slice {} of {}: needs 0 <= index < count", .0.index, .0.count)]
+    BadSlice(Slice),
 }
 
 /// The bounding spheres of every specular object (aim points for caustic photons).
@@ -258,74 +257,274 @@ pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Samp
     Some((bs, bs.weight / q))
 }
 
-/// Trace a map. `progress` is called after each batch with the photons stored so far.
+/// One of `count` interleaved slices of the emission index space: paths are
+/// traced in chunks of [`CHUNK`] consecutive indices, and chunk c belongs to slice
+/// c mod `count`. Slices trace independently (on other machines); merging their
+/// chunks in index order gives the map one run traces ([`merge_slices`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Slice {
+    /// This slice, in 0..count.
+    pub index: u32,
+    /// Number of slices.
+    pub count: u32,
+}
+
+impl Slice {
+    /// The whole index space as one slice.
+    pub const WHOLE: Slice = Slice { index: 0, count: 1 };
+
+    /// Stored photons after which a slice stops, for a stored target: its share of
+    /// the target with 10% and 4,096 photons to spare, so that the slices together
+    /// (almost surely) cover every chunk up to where one run would stop. Alone, the
+    /// target itself.
+    fn quota(self, target: u64) -> u64 {
+        if self.count <= 1 { target } else { target.div_ceil(self.count as u64).saturating_mul(11) / 10 + 4096 }
+    }
+}
+
+/// What one chunk of [`CHUNK`] paths stored and cost.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ChunkStats {
+    /// Chunk index (paths index x CHUNK .. (index + 1) x CHUNK).
+    pub index: u64,
+    /// Photons stored.
+    pub stored: u64,
+    /// Rays traced.
+    pub rays: u64,
+    /// Paths cut at [`MAX_BOUNCES`].
+    pub truncated: u64,
+    /// Paths emitted from each light.
+    pub per_light: Vec<u64>,
+}
+
+/// A traced slice: its chunks in index order, each with its photons, whose power
+/// is Phi-hat / p_select [W per channel], not yet divided by the number emitted
+/// (which only the merge knows).
+#[derive(Clone, Debug, Default)]
+pub struct TracedSlice {
+    /// Which slice.
+    pub slice: Slice,
+    /// The budget it was traced for.
+    pub budget: Budget,
+    /// Per chunk, its statistics.
+    pub chunks: Vec<ChunkStats>,
+    /// The chunks' photons, concatenated in chunk order, with the surfaces hit
+    /// before each (empty when read back from a slice file, which does not keep it).
+    pub photons: Vec<Photon>,
+    /// Bounces before each photon (as [`PathOut::photons`]); empty or one per photon.
+    pub bounces: Vec<u32>,
+}
+
+impl Default for Slice {
+    fn default() -> Slice {
+        Slice::WHOLE
+    }
+}
+
+impl Default for Budget {
+    fn default() -> Budget {
+        Budget::Emitted(0)
+    }
+}
+
+/// Why slices cannot be merged into a map.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MergeError {
+    /// Slices of different traces, or a slice missing or given twice.
+    #[error("{0}")]
+    Mismatch(String),
+    /// A slice stopped before the chunk where one run would have stopped.
+    #[error(
+        "chunk {chunk} (slice {slice} of {count}) was not traced: that slice stopped at its quota before the map reached {target} photons; trace with fewer slices"
+    )]
+    Gap {
+        /// The missing chunk.
+        chunk: u64,
+        /// Its slice.
+        slice: u64,
+        /// Number of slices.
+        count: u32,
+        /// The stored target.
+        target: u64,
+    },
+}
+
+/// Trace a map in one run (every slice of the index space). `progress` is called
+/// after each batch with the photons stored so far. Identical to merging the
+/// slices of any [`Slice::count`] traced with [`trace_slice`].
 pub fn trace(scene: &Scene, cfg: &TraceConfig, progress: &(dyn Fn(u64) + Sync)) -> Result<TracedMap, TraceError> {
+    let whole = trace_slice(scene, cfg, Slice::WHOLE, progress)?;
+    if cfg.pass == MapPass::Caustic && whole.chunks.is_empty() {
+        // No mirror or glass to aim at: an empty map, nothing emitted.
+        return Ok(TracedMap {
+            photons: Vec::new(),
+            stats: MapStats { emitted_per_light: vec![0; scene.lights.len()], ..Default::default() },
+        });
+    }
+    Ok(merge_slices(vec![whole]).expect("one whole slice always merges"))
+}
+
+/// Trace one slice of a map: its chunks in index order, stopping at the emission
+/// budget's end or (for a stored target) when it holds its share of the target.
+pub fn trace_slice(
+    scene: &Scene,
+    cfg: &TraceConfig,
+    slice: Slice,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<TracedSlice, TraceError> {
     if scene.triangles.is_empty() {
         return Err(TraceError::NoSurfaces);
     }
-    if cfg.range.is_some() && !matches!(cfg.budget, Budget::Emitted(_)) {
-        return Err(TraceError::RangeNeedsFixedCount);
+    if slice.count == 0 || slice.index >= slice.count {
+        return Err(TraceError::BadSlice(slice));
     }
     let targets = if cfg.pass == MapPass::Caustic { specular_targets(scene) } else { Vec::new() };
-    let mut stats = MapStats { emitted_per_light: vec![0; scene.lights.len()], ..Default::default() };
+    let mut out = TracedSlice { slice, budget: cfg.budget, ..Default::default() };
     if cfg.pass == MapPass::Caustic && targets.is_empty() {
-        return Ok(TracedMap { photons: Vec::new(), stats });
+        return Ok(out);
     }
-    let (mut next, end, target) = match (cfg.budget, &cfg.range) {
-        (Budget::Emitted(n), Some(r)) => (r.start.min(n), r.end.min(n), u64::MAX),
-        (Budget::Emitted(n), None) => (0, n, u64::MAX),
-        (Budget::Stored { target, cap }, _) => (0, cap, target),
+    let (end, quota) = match cfg.budget {
+        Budget::Emitted(n) => (n, u64::MAX),
+        Budget::Stored { target, cap } => (cap, slice.quota(target)),
     };
-    let mut photons: Vec<(Photon, u32)> = Vec::new();
-    let mut emitted_until = next;
-    while next < end && (photons.len() as u64) < target {
-        let batch_end = (next + BATCH).min(end);
-        let chunks: Vec<(u64, u64)> =
-            (next..batch_end).step_by(CHUNK as usize).map(|a| (a, (a + CHUNK).min(batch_end))).collect();
-        let results: Vec<Vec<PathOut>> = chunks
+    let n_chunks = end.div_ceil(CHUNK);
+    // This slice's chunks, BATCH paths' worth at a time in parallel.
+    let mut mine = (slice.index as u64..n_chunks).step_by(slice.count as usize).peekable();
+    let per_batch = (BATCH / CHUNK) as usize;
+    let lights = scene.lights.len();
+    while mine.peek().is_some() && (out.photons.len() as u64) < quota {
+        let batch: Vec<u64> = mine.by_ref().take(per_batch).collect();
+        let results: Vec<(ChunkStats, Vec<(Photon, u32)>)> = batch
             .par_iter()
-            .map(|&(a, b)| {
-                (a..b)
-                    .map(|i| {
-                        let mut out = PathOut::default();
-                        trace_path(scene, cfg, &targets, i, &mut out);
-                        out
-                    })
-                    .collect()
+            .map(|&c| {
+                let mut stats = ChunkStats { index: c, per_light: vec![0; lights], ..Default::default() };
+                let mut photons = Vec::new();
+                let mut path = PathOut::default();
+                for i in c * CHUNK..((c + 1) * CHUNK).min(end) {
+                    trace_path(scene, cfg, &targets, i, &mut path);
+                    stats.per_light[path.light] += 1;
+                    stats.rays += path.rays;
+                    stats.truncated += path.truncated as u64;
+                    photons.extend_from_slice(&path.photons);
+                }
+                stats.stored = photons.len() as u64;
+                (stats, photons)
             })
             .collect();
-        for path in results.into_iter().flatten() {
-            if (photons.len() as u64) >= target {
-                break; // the map was full before this path was emitted
+        for (stats, photons) in results {
+            if (out.photons.len() as u64) >= quota {
+                break; // the slice was full before this chunk
             }
-            emitted_until += 1;
-            stats.emitted_per_light[path.light] += 1;
-            stats.rays += path.rays;
-            stats.truncated_paths += path.truncated as u64;
-            photons.extend(path.photons);
+            out.chunks.push(stats);
+            for (p, b) in photons {
+                out.photons.push(p);
+                out.bounces.push(b);
+            }
         }
-        next = batch_end;
-        progress(photons.len() as u64);
+        progress(out.photons.len() as u64);
     }
-    let range_start = cfg.range.as_ref().map_or(0, |r| r.start);
-    let n_emitted = match cfg.budget {
-        Budget::Emitted(n) => n,
-        Budget::Stored { .. } => emitted_until - range_start,
+    Ok(out)
+}
+
+/// Merge traced slices into the map one run gives (Jensen's power scaling by the
+/// number emitted, section 1.1 of Christensen 1999): chunks in index order, up to
+/// and including the chunk at which the stored target is reached (a stored budget
+/// keeps whole chunks, so the map may hold a few more photons than the target), or
+/// every chunk of a fixed emission count. `slices` must be all slices of one trace
+/// (any order).
+pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeError> {
+    let Some(first) = slices.first() else { return Err(MergeError::Mismatch("no slices to merge".into())) };
+    let (count, budget, first_index) = (first.slice.count, first.budget, first.slice.index);
+    slices.sort_by_key(|s| s.slice.index);
+    for (k, s) in slices.iter().enumerate() {
+        if s.slice.count != count || s.budget != budget {
+            return Err(MergeError::Mismatch(format!(
+                "slice {} of {} ({:?}) is not from the same trace as slice {} of {count} ({budget:?})",
+                s.slice.index, s.slice.count, s.budget, first_index
+            )));
+        }
+        if s.slice.index != k as u32 {
+            return Err(MergeError::Mismatch(format!(
+                "slice {k} of {count} is missing or another slice is given twice"
+            )));
+        }
+    }
+    if slices.len() != count as usize {
+        return Err(MergeError::Mismatch(format!("{} slices given for a trace in {count}", slices.len())));
+    }
+    let (end, target) = match budget {
+        Budget::Emitted(n) => (n, u64::MAX),
+        Budget::Stored { target, cap } => (cap, target),
     };
-    stats.emitted = n_emitted;
-    stats.hit_cap = matches!(cfg.budget, Budget::Stored { target, .. } if (photons.len() as u64) < target);
-    let photons: Vec<Photon> = photons
-        .into_iter()
-        .map(|(mut p, bounce)| {
-            let b = bounce as usize;
-            if stats.stored_per_bounce.len() <= b {
-                stats.stored_per_bounce.resize(b + 1, 0);
-            }
-            stats.stored_per_bounce[b] += 1;
-            p.power = scale_power(p.power, n_emitted);
-            p
+    let n_chunks = end.div_ceil(CHUNK);
+    // Where each slice's photons of each of its chunks start.
+    let offsets: Vec<Vec<usize>> = slices
+        .iter()
+        .map(|s| {
+            let mut acc = 0;
+            s.chunks
+                .iter()
+                .map(|c| {
+                    let o = acc;
+                    acc += c.stored as usize;
+                    o
+                })
+                .collect()
         })
         .collect();
+    let mut stats = MapStats { emitted_per_light: Vec::new(), ..Default::default() };
+    let mut photons: Vec<Photon> = Vec::new();
+    let mut bounces: Vec<u32> = Vec::new();
+    let keep_bounces = slices.iter().all(|s| s.bounces.len() == s.photons.len());
+    let mut emitted = 0;
+    for c in 0..n_chunks {
+        if (photons.len() as u64) >= target {
+            break;
+        }
+        let k = (c % count as u64) as usize;
+        let j = (c / count as u64) as usize;
+        let s = &slices[k];
+        let Some(chunk) = s.chunks.get(j) else {
+            return Err(MergeError::Gap { chunk: c, slice: k as u64, count, target });
+        };
+        if chunk.index != c {
+            return Err(MergeError::Mismatch(format!("slice {k} holds chunk {} where chunk {c} belongs", chunk.index)));
+        }
+        let from = offsets[k][j];
+        let to = from + chunk.stored as usize;
+        if to > s.photons.len() {
+            return Err(MergeError::Mismatch(format!("slice {k} holds fewer photons than its chunks record")));
+        }
+        photons.extend_from_slice(&s.photons[from..to]);
+        if keep_bounces {
+            bounces.extend_from_slice(&s.bounces[from..to]);
+        }
+        if stats.emitted_per_light.len() < chunk.per_light.len() {
+            stats.emitted_per_light.resize(chunk.per_light.len(), 0);
+        }
+        for (a, b) in stats.emitted_per_light.iter_mut().zip(&chunk.per_light) {
+            *a += b;
+        }
+        stats.rays += chunk.rays;
+        stats.truncated_paths += chunk.truncated;
+        emitted = ((c + 1) * CHUNK).min(end);
+    }
+    let n_emitted = match budget {
+        Budget::Emitted(n) => n,
+        Budget::Stored { .. } => emitted,
+    };
+    stats.emitted = n_emitted;
+    stats.hit_cap = (photons.len() as u64) < target && matches!(budget, Budget::Stored { .. });
+    for &b in &bounces {
+        let b = b as usize;
+        if stats.stored_per_bounce.len() <= b {
+            stats.stored_per_bounce.resize(b + 1, 0);
+        }
+        stats.stored_per_bounce[b] += 1;
+    }
+    for p in &mut photons {
+        p.power = scale_power(p.power, n_emitted);
+    }
     stats.stored = photons.len() as u64;
     Ok(TracedMap { photons, stats })
 }

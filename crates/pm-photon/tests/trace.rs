@@ -5,7 +5,7 @@ use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_format::{Photon, flags};
-use pm_photon::{Budget, LightSelector, MapPass, TraceConfig, TraceError, trace};
+use pm_photon::{Budget, LightSelector, MapPass, Slice, TraceConfig, TraceError, merge_slices, trace, trace_slice};
 use pm_scene::{Material, Scene, Triangle};
 use std::path::PathBuf;
 
@@ -14,7 +14,7 @@ fn scene_file(name: &str) -> Scene {
 }
 
 fn cfg(scene: &Scene, pass: MapPass, budget: Budget) -> TraceConfig {
-    TraceConfig { pass, budget, seed: 5, selector: LightSelector::new(scene, &[]).unwrap(), range: None }
+    TraceConfig { pass, budget, seed: 5, selector: LightSelector::new(scene, &[]).unwrap() }
 }
 
 fn sum_power(ps: impl Iterator<Item = Photon>) -> Vec3 {
@@ -172,27 +172,46 @@ fn bits(ps: &[Photon]) -> Vec<[u32; 16]> {
 #[test]
 fn identical_for_any_thread_count_and_for_slices_of_the_index_space() {
     let scene = scene_file("cornell_spheres.gltf");
-    let run = |threads: usize, pass: MapPass, budget: Budget, range: Option<std::ops::Range<u64>>| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let mut c = cfg(&scene, pass, budget);
-        c.range = range;
-        pool.install(|| trace(&scene, &c, &|_| {}).unwrap())
-    };
+    let pool = |threads: usize| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     for pass in [MapPass::Global, MapPass::Caustic] {
-        let budget = Budget::Stored { target: 40_000, cap: 10_000_000 };
-        let one = run(1, pass, budget, None);
-        let two = run(2, pass, budget, None);
-        assert_eq!(bits(&one.photons), bits(&two.photons), "{pass:?}");
-        // The same map from a fixed emission count equal to what the target needed,
-        // traced as three slices and concatenated.
-        let n = one.stats.emitted;
-        let cuts = [0, n / 3, 2 * n / 3 + 17, n];
-        let mut joined = Vec::new();
-        for w in cuts.windows(2) {
-            joined.extend(run(2, pass, Budget::Emitted(n), Some(w[0]..w[1])).photons);
+        for budget in [Budget::Stored { target: 40_000, cap: 10_000_000 }, Budget::Emitted(30_001)] {
+            let c = cfg(&scene, pass, budget);
+            let one = pool(1).install(|| trace(&scene, &c, &|_| {}).unwrap());
+            let two = pool(2).install(|| trace(&scene, &c, &|_| {}).unwrap());
+            assert_eq!(bits(&one.photons), bits(&two.photons), "{pass:?}");
+            if let Budget::Stored { target, .. } = budget {
+                assert!(one.stats.stored >= target && one.stats.emitted % pm_photon::CHUNK == 0, "{pass:?}");
+            }
+            // Three interleaved slices, traced apart and merged in any order, give the
+            // same map, the same emitted count and the same statistics.
+            let mut slices: Vec<_> = (0..3)
+                .map(|index| pool(2).install(|| trace_slice(&scene, &c, Slice { index, count: 3 }, &|_| {}).unwrap()))
+                .collect();
+            slices.reverse();
+            let merged = merge_slices(slices.clone()).unwrap();
+            assert_eq!(bits(&merged.photons), bits(&one.photons), "{pass:?} {budget:?} slices");
+            assert_eq!(merged.stats.emitted, one.stats.emitted);
+            assert_eq!(merged.stats.emitted_per_light, one.stats.emitted_per_light);
+            assert_eq!(merged.stats.stored_per_bounce, one.stats.stored_per_bounce);
+            assert_eq!(merged.stats.rays, one.stats.rays);
+            // A missing slice, a duplicate, or slices of another budget are refused.
+            assert!(merge_slices(slices[..2].to_vec()).is_err());
+            let mut dup = slices.clone();
+            dup[0] = slices[1].clone();
+            assert!(merge_slices(dup).is_err());
+            let mut other = slices.clone();
+            other[0].budget = Budget::Emitted(7);
+            assert!(merge_slices(other).is_err());
         }
-        assert_eq!(bits(&joined), bits(&one.photons), "{pass:?} slices");
     }
+    // A slice that stopped early leaves a gap the merge names instead of a map
+    // short of its target.
+    let c = cfg(&scene, MapPass::Global, Budget::Stored { target: 40_000, cap: 10_000_000 });
+    let mut slices: Vec<_> =
+        (0..2).map(|index| trace_slice(&scene, &c, Slice { index, count: 2 }, &|_| {}).unwrap()).collect();
+    slices[1].chunks.truncate(3);
+    let e = merge_slices(slices).unwrap_err();
+    assert!(matches!(e, pm_photon::MergeError::Gap { chunk: 7, slice: 1, .. }), "{e}");
 }
 
 #[test]
@@ -226,7 +245,7 @@ fn scenes_that_cannot_be_traced_are_refused() {
         None,
     );
     let sel = LightSelector::new(&empty, &[]).unwrap();
-    let c = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(10), seed: 1, selector: sel, range: None };
+    let c = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(10), seed: 1, selector: sel };
     assert!(matches!(trace(&empty, &c, &|_| {}), Err(TraceError::NoSurfaces)));
     let box_scene = closed_box_two_lights();
     assert!(matches!(
