@@ -147,3 +147,57 @@ fn the_local_executor_names_the_failing_task() {
     assert!(e.contains("breaks (task 1 of 3) failed") && e.contains("bad tile") && !e.contains('\n'), "{e}");
     assert_eq!(std::fs::read_to_string(&kept).unwrap(), "ok\n");
 }
+
+/// The frames dimension: `cargo xtask live --frame-tasks 3` runs the live plan
+/// (three runs of frames as array tasks, then assembly) and writes the preview one
+/// run writes; the plan's Slurm scripts pass `bash -n` and the frame step is an
+/// array of 3 that the assembly waits for.
+#[test]
+fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = root();
+    let text = std::fs::read_to_string(root.join("pipeline.toml"))
+        .unwrap()
+        .replace(
+            "live_scene = \"scenes/jozwowski_room_1024.gltf\"",
+            &format!("live_scene = {:?}", root.join("scenes/jozwowski_room_16.gltf").display().to_string()),
+        )
+        .replace("scene = \"scenes/", &format!("scene = \"{}/scenes/", root.display()))
+        .replace("per_frame = 2_000", "per_frame = 300")
+        .replace("total = 20_000", "total = 900")
+        .replace("width = 512", "width = 24")
+        .replace("height = 512", "height = 16");
+    let pipeline = dir.path().join("live.toml");
+    std::fs::write(&pipeline, text).unwrap();
+    let args = |out: &str, frame_tasks: u32| xtask::run::LiveArgs {
+        pipeline: Some(pipeline.clone()),
+        out: Some(dir.path().join(out)),
+        frames: 5,
+        frame_tasks,
+        workers: 2,
+        ..Default::default()
+    };
+    let plan = xtask::plan::live_plan(&args("split", 3), &root, &bins()).unwrap();
+    assert_eq!(plan.steps.len(), 2);
+    assert_eq!((plan.steps[0].tasks, plan.steps[1].after.as_slice()), (3, &["photon-live frames".to_string()][..]));
+    for (name, text) in slurm(&plan) {
+        let p = dir.path().join(&name);
+        std::fs::write(&p, &text).unwrap();
+        let o = std::process::Command::new("bash").arg("-n").arg(&p).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    execute(&plan, 2).unwrap();
+    let one = args("one", 1);
+    let set_args = {
+        // One run, as `cargo xtask live` makes it.
+        let plan = xtask::plan::live_plan(&one, &root, &bins()).unwrap();
+        let a = &plan.steps[0].args;
+        assert_eq!(a[a.len() - 2..], ["--frame-task".to_string(), "{TASK}/1".to_string()]);
+        a[..a.len() - 2].to_vec()
+    };
+    let o = std::process::Command::new(bins().path("photon-live")).args(&set_args).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = |d: &str, f: &str| std::fs::read(dir.path().join(d).join(f)).unwrap();
+    assert!(read("one", "live.apng") == read("split", "live.apng"), "the assembled preview differs from one run's");
+    assert!(read("one", "frames/0004.png") == read("split", "frames/0004.png"));
+}

@@ -9,7 +9,7 @@
 //! Description template. Assumed: every task sees the same output folder (a shared
 //! file system) and the same binaries.
 
-use crate::run::{RunArgs, Setup, plan, setup};
+use crate::run::{LiveArgs, RunArgs, Setup, live_setup, plan, setup};
 use crate::stages::Bins;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -29,6 +29,17 @@ pub struct Args {
     /// Where to write plan.json and the emitted job files.
     #[arg(long)]
     pub plan_out: PathBuf,
+    /// Plan the real-time animation (`cargo xtask live`: photon-live with
+    /// pipeline.toml's [live] section on its live_scene) instead of the batch
+    /// pipeline: --frame-tasks runs of frames and an assemble step.
+    #[arg(long)]
+    pub live: bool,
+    /// With --live: frames of the animation.
+    #[arg(long, default_value_t = 120)]
+    pub frames: u32,
+    /// With --live: runs of consecutive frames, one array task each.
+    #[arg(long, default_value_t = 1)]
+    pub frame_tasks: u32,
     /// Also write job files for this system: slurm (sbatch scripts and submit.sh)
     /// or openjd (job.template.json).
     #[arg(long)]
@@ -364,10 +375,75 @@ pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
     job_plan(&setup, bins, args.tiles.max(1), args.trace_slices.max(1))
 }
 
+/// The job graph of the real-time animation `args` describes: `frame_tasks` runs
+/// of frames (array tasks, `photon-live --frame-task K/N`; each simulates the
+/// frames before its own without drawing, so it draws what one run draws) and
+/// `photon-live assemble` (live.apng, frames.csv).
+pub fn live_plan(args: &LiveArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
+    let n = args.frame_tasks;
+    if n == 0 || n > args.frames {
+        bail!("--frame-tasks {n}: needs 1 to the animation's {} frames", args.frames);
+    }
+    let set = live_setup(args, root)?;
+    let out = &set.out;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let s = |p: &Path| p.display().to_string();
+    let program = s(&bins.path("photon-live"));
+    let frames = |k: u32| pm_live::task_frames(k, n, args.frames);
+    let part = |k: u32| out.join("frames").join(format!("part-{:04}-{:04}.csv", frames(k).start, frames(k).end));
+    let pngs: Vec<String> = (0..args.frames).map(|f| s(&out.join("frames").join(format!("{f:04}.png")))).collect();
+    let mut task_outputs = pngs.clone();
+    task_outputs.extend((0..n).map(|k| s(&part(k))));
+    let mut task_args = set.args.clone();
+    task_args.extend(["--frame-task".into(), format!("{TASK}/{n}")]);
+    let assemble = vec![
+        "assemble".to_string(),
+        "--out".into(),
+        s(out),
+        "--frames".into(),
+        args.frames.to_string(),
+        "--fps".into(),
+        set.fps.to_string(),
+    ];
+    let steps = vec![
+        JobStep {
+            name: "photon-live frames".into(),
+            program: program.clone(),
+            args: task_args,
+            tasks: n,
+            inputs: vec![],
+            outputs: task_outputs.clone(),
+            after: vec![],
+        },
+        JobStep {
+            name: "photon-live assemble".into(),
+            program,
+            args: assemble,
+            tasks: 1,
+            inputs: task_outputs,
+            outputs: vec![s(&out.join("live.apng")), s(&out.join("frames.csv"))],
+            after: vec!["photon-live frames".into()],
+        },
+    ];
+    Ok(JobPlan { out: s(out), steps })
+}
+
 /// Write `plan.json` (and the job files) for `args`.
 pub fn run(args: &Args, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
-    let plan = plan_for(&args.run, root, &bins)?;
+    let plan = if args.live {
+        let live = LiveArgs {
+            pipeline: args.run.pipeline.clone(),
+            scene: args.run.scene.clone(),
+            out: args.run.out.clone(),
+            frames: args.frames,
+            frame_tasks: args.frame_tasks,
+            workers: 1,
+        };
+        live_plan(&live, root, &bins)?
+    } else {
+        plan_for(&args.run, root, &bins)?
+    };
     let dir = &args.plan_out;
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let write = |name: &str, text: &str| -> Result<()> {

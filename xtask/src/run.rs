@@ -580,24 +580,56 @@ pub struct LiveArgs {
     /// Frames to render.
     #[arg(long, default_value_t = 120)]
     pub frames: u32,
+    /// Draw the animation as this many runs of consecutive frames (array tasks of
+    /// the job plan, `photon-live --frame-task K/N`) and assemble them; each task
+    /// simulates the frames before its own without drawing. 1: one run.
+    #[arg(long, default_value_t = 1)]
+    pub frame_tasks: u32,
+    /// With --frame-tasks: run this many tasks at a time (each its own process).
+    #[arg(long, default_value_t = 1)]
+    pub workers: u32,
 }
 
-/// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline
-/// file's `[live]` settings.
-pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
+/// What `cargo xtask live` runs: the scene, the output folder and photon-live's
+/// arguments (but for --frame-task) from the pipeline file's `[live]` section.
+pub(crate) struct LiveSetup {
+    pub(crate) out: PathBuf,
+    pub(crate) args: Vec<String>,
+    pub(crate) fps: f32,
+}
+
+pub(crate) fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
     let cfg = Pipeline::load(&pipeline)?;
     let base = pipeline.parent().unwrap_or(Path::new("."));
     let scene = args.scene.clone().unwrap_or_else(|| base.join(cfg.live_scene.as_ref().unwrap_or(&cfg.scene)));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out/live").join(&name));
-    let bins = Bins::build(root)?;
     let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
     a.extend(["--frames".into(), args.frames.to_string(), "--seed".into(), cfg.seed.to_string()]);
     a.extend(["--light-units".into(), cfg.light_units.to_string()]);
     a.extend(cfg.live.to_args());
-    println!("photon-live {}", a.join(" "));
-    stages::run(&bins, "photon-live", &a, "photon-live", false)?;
-    println!("wrote {}/frames, live.apng and frames.csv", out.display());
+    Ok(LiveSetup { out, args: a, fps: cfg.live.fps })
+}
+
+/// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline
+/// file's `[live]` settings (with `--frame-tasks N`, as the job plan's frame tasks
+/// and assembly).
+pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
+    let bins = Bins::build(root)?;
+    if args.frame_tasks > 1 {
+        let plan = crate::plan::live_plan(args, root, &bins)?;
+        let (times, wall) = crate::plan::execute(&plan, args.workers)?;
+        let path = Path::new(&plan.out).join("plan-times.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&times)? + "\n")
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        println!("{} frames as {} tasks in {wall:.2} s with {} worker(s)", args.frames, args.frame_tasks, args.workers);
+        println!("wrote {}/frames, live.apng and frames.csv", plan.out);
+        return Ok(());
+    }
+    let set = live_setup(args, root)?;
+    println!("photon-live {}", set.args.join(" "));
+    stages::run(&bins, "photon-live", &set.args, "photon-live", false)?;
+    println!("wrote {}/frames, live.apng and frames.csv", set.out.display());
     Ok(())
 }

@@ -62,9 +62,16 @@ fn cluster() -> Result<()> {
          MpiDefault=none\nJobCompType=jobcomp/none\nAccountingStorageType=accounting_storage/none\n\
          NodeName={host} CPUs={cpus} State=UNKNOWN\nPartitionName=main Nodes=ALL Default=YES MaxTime=INFINITE State=UP\n"
     );
-    sh("mkdir -p /etc/slurm /tmp/slurm/d /tmp/slurm/ctld")?;
+    // A fresh cluster: state from an earlier one (another cluster name) stops slurmctld.
+    sh("rm -rf /tmp/slurm/d /tmp/slurm/ctld && mkdir -p /etc/slurm /tmp/slurm/d /tmp/slurm/ctld")?;
     std::fs::write("/etc/slurm/slurm.conf", conf).context("/etc/slurm/slurm.conf: cannot write")?;
-    sh("/usr/sbin/slurmctld")?;
+    sh("/usr/sbin/slurmctld").map_err(|e| {
+        let log = std::fs::read_to_string("/tmp/slurm/slurmctld.log").unwrap_or_default();
+        anyhow::anyhow!(
+            "{e} {}",
+            log.lines().filter(|l| l.contains("fatal") || l.contains("error")).next_back().unwrap_or("")
+        )
+    })?;
     std::thread::sleep(Duration::from_secs(2));
     sh("/usr/sbin/slurmd")?;
     for _ in 0..30 {

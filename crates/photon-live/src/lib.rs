@@ -26,22 +26,34 @@ shadow maps or from the photons, and mirrors and glass by ray tracing. --method 
 light a bounce map of --bounce-res texels a side, --bounces further photons per path with kernels sized by path \
 density (--kernel-*), and indirect light by splatting photon volumes over the eye's G-buffer (--subsample F splats \
 at 1/F resolution and upsamples). Radiance in the EXR frames is W sr^-1 m^-2 per RGB channel. Writes \
-OUT/frames/NNNN.png, OUT/live.apng and OUT/frames.csv (seconds per step; for ispm the paper's Table 2 split)."
+OUT/frames/NNNN.png, OUT/live.apng and OUT/frames.csv (seconds per step; for ispm the paper's Table 2 split). \
+With --frame-task K/N it renders the K-th of N runs of frames (for an animation split across machines) and \
+`photon-live assemble` joins them.",
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
 )]
 pub struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
     /// Scene (glTF 2.0) drawn from its first camera.
-    #[arg(long)]
-    pub scene: PathBuf,
+    #[arg(long, required = true)]
+    pub scene: Option<PathBuf>,
     /// A simpler scene to trace photons in (section 4.4.1, scene simplification);
     /// default: the scene itself.
     #[arg(long)]
     pub photon_scene: Option<PathBuf>,
     /// Output folder (created if missing).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
     /// Frames to render.
     #[arg(long, default_value_t = 60)]
     pub frames: u32,
+    /// Render only the K-th of N runs of consecutive frames (frames K x F / N up to
+    /// (K + 1) x F / N of --frames F) into frames/NNNN.png and a part of frames.csv;
+    /// earlier frames are simulated without drawing, so each frame equals one run's.
+    /// `photon-live assemble` then writes live.apng and frames.csv.
+    #[arg(long, value_name = "K/N", value_parser = parse_task)]
+    pub frame_task: Option<(u32, u32)>,
     /// Also write each frame as linear OpenEXR (frames/NNNN.exr).
     #[arg(long)]
     pub exr: bool,
@@ -72,6 +84,34 @@ pub struct Cli {
     pub scene_args: pm_stage::SceneArgs,
 }
 
+/// Subcommands.
+#[derive(clap::Subcommand, Debug)]
+enum Command {
+    /// Join the frames of `--frame-task K/N` runs (all N, into one output folder)
+    /// into live.apng and frames.csv, as one run writes them.
+    Assemble {
+        /// The output folder the tasks wrote into.
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames of the animation (the tasks' --frames).
+        #[arg(long)]
+        frames: u32,
+        /// Frames per second of the preview (the tasks' --fps).
+        #[arg(long, default_value_t = 60.0)]
+        fps: f32,
+    },
+}
+
+fn parse_task(s: &str) -> Result<(u32, u32), String> {
+    let (k, n) = s.split_once('/').ok_or("expected K/N (run K of N, K from 0)")?;
+    let k: u32 = k.trim().parse().map_err(|e| format!("K: {e}"))?;
+    let n: u32 = n.trim().parse().map_err(|e| format!("N: {e}"))?;
+    if n == 0 || k >= n {
+        return Err(format!("run {k} of {n}: needs 0 <= K < N"));
+    }
+    Ok((k, n))
+}
+
 /// What a run did.
 #[derive(Debug, serde::Serialize)]
 pub struct Report {
@@ -81,12 +121,28 @@ pub struct Report {
     pub mean_frame_seconds: f64,
 }
 
-/// Run it.
+/// Run it (or its subcommand).
+pub fn main(cli: &Cli) -> Result<()> {
+    match &cli.command {
+        Some(Command::Assemble { out, frames, fps }) => assemble(out, *frames, *fps),
+        None => run(cli).map(|_| ()),
+    }
+}
+
+/// Render the frames.
 pub fn run(cli: &Cli) -> Result<Report> {
+    let (Some(scene_path), Some(out)) = (&cli.scene, &cli.out) else {
+        anyhow::bail!("--scene and --out are required");
+    };
     cli.params.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     ensure!(cli.frames >= 1, "--frames must be at least 1");
+    ensure!(!(cli.window && cli.frame_task.is_some()), "--window shows one whole run; it cannot be a --frame-task");
+    let frames = match cli.frame_task {
+        Some((k, n)) => pm_live::task_frames(k, n, cli.frames),
+        None => 0..cli.frames,
+    };
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-live", &cli.scene, cli.scene_args)?;
+    let scene = pm_stage::load_scene("photon-live", scene_path, cli.scene_args)?;
     let photon_scene = match &cli.photon_scene {
         Some(p) => Some(pm_stage::load_scene("photon-live", p, cli.scene_args)?),
         None => None,
@@ -107,17 +163,23 @@ pub fn run(cli: &Cli) -> Result<Report> {
         (scene, photon_scene)
     };
     let mut live = Live::new(drawn, photon_scene, cli.params.clone(), cli.seed)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", cli.scene.display()))?;
-    let frames_dir = cli.out.join("frames");
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
+    let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
     let (w, h) = (cli.params.width, cli.params.height);
     let mut view = if cli.window { window::View::open(w, h)? } else { None };
-    let progress = Progress::new("frames", cli.frames as u64);
+    let progress = Progress::new("frames", frames.end as u64);
     let mut stats = Vec::new();
     let mut apng = Vec::new();
-    for f in 0..cli.frames {
+    for f in 0..frames.end {
         // Frame f shows time f / fps: animated lights and camera move there.
         live.set_time(cli.time.unwrap_or(f as f32 / cli.params.fps));
+        if f < frames.start {
+            // Another task draws it; this one needs only the state it leaves.
+            live.skip().map_err(|e| anyhow::anyhow!(e))?;
+            progress.set(f as u64 + 1);
+            continue;
+        }
         let s = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let image = live.frame_layers();
         let total = image.layer("total").context("no total layer")?;
@@ -131,7 +193,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
         }
         if cli.dump_frame == Some(f as u64) {
-            dump(&live, content_hash, diagonal, origin, &cli.out.join(format!("buffer-{f}.pmap")))?;
+            dump(&live, content_hash, diagonal, origin, &out.join(format!("buffer-{f}.pmap")))?;
         }
         apng.push(pm_image::srgb8(total, cli.params.exposure));
         stats.push(s);
@@ -144,26 +206,87 @@ pub fn run(cli: &Cli) -> Result<Report> {
         }
     }
     progress.finish();
-    pm_image::write_apng(&cli.out.join("live.apng"), w, h, &apng, cli.params.fps)?;
     let csv = frames_csv(&stats)?;
-    pm_format::write_atomically(&cli.out.join("frames.csv"), |f| std::io::Write::write_all(f, csv.as_bytes()))
-        .with_context(|| format!("{}: cannot write", cli.out.join("frames.csv").display()))?;
+    let csv_path = if cli.frame_task.is_some() {
+        frames_dir.join(format!("part-{:04}-{:04}.csv", frames.start, frames.end))
+    } else {
+        pm_image::write_apng(&out.join("live.apng"), w, h, &apng, cli.params.fps)?;
+        out.join("frames.csv")
+    };
+    write_text(&csv_path, &csv)?;
     // The vertex method's buffer fills over total / per_frame frames; the
     // image-space method has no warm-up beyond its first frame.
     let full = match cli.params.method {
         pm_live::Method::Vertex => (cli.params.total / cli.params.per_frame) as usize,
         pm_live::Method::Ispm => 1,
     };
-    let warm: Vec<&FrameStats> = stats.iter().skip(full).collect();
+    let warm: Vec<&FrameStats> = stats.iter().filter(|s| s.frame >= full as u64).collect();
     let secs = |s: &FrameStats| s.times.wall;
     let mean = if warm.is_empty() { 0.0 } else { warm.iter().map(|s| secs(s)).sum::<f64>() / warm.len() as f64 };
     eprintln!(
         "photon-live: {} frames of {w}x{h}; mean frame time after warm-up {:.2} ms ({:.1} fps)",
-        cli.frames,
+        frames.len(),
         1e3 * mean,
         if mean > 0.0 { 1.0 / mean } else { 0.0 }
     );
     Ok(Report { frames: stats, mean_frame_seconds: mean })
+}
+
+fn write_text(path: &std::path::Path, text: &str) -> Result<()> {
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// `photon-live assemble`: live.apng from frames/NNNN.png and frames.csv from the
+/// tasks' parts, which must cover frames 0..`frames` without gap or overlap.
+fn assemble(out: &std::path::Path, frames: u32, fps: f32) -> Result<()> {
+    ensure!(frames >= 1, "--frames must be at least 1");
+    ensure!(fps.is_finite() && fps > 0.0, "--fps must be positive");
+    let dir = out.join("frames");
+    let mut parts: Vec<(u32, u32, PathBuf)> = Vec::new();
+    for entry in std::fs::read_dir(&dir).with_context(|| format!("{}: cannot read", dir.display()))? {
+        let path = entry?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        if let Some(range) = name.strip_prefix("part-").and_then(|n| n.strip_suffix(".csv"))
+            && let Some((a, b)) = range.split_once('-')
+            && let (Ok(a), Ok(b)) = (a.parse(), b.parse())
+        {
+            parts.push((a, b, path));
+        }
+    }
+    parts.sort();
+    let mut csv = String::new();
+    let mut next = 0;
+    for (a, b, path) in &parts {
+        ensure!(
+            *a == next,
+            "{}: starts at frame {a} but the parts before it end at {next} (gap or overlap)",
+            path.display()
+        );
+        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let (header, rows) = text.split_once('\n').with_context(|| format!("{}: no header line", path.display()))?;
+        if csv.is_empty() {
+            csv = format!("{header}\n");
+        }
+        ensure!(csv.starts_with(header), "{}: columns differ from the first part's", path.display());
+        csv.push_str(rows);
+        next = *b;
+    }
+    ensure!(next == frames, "{}: the parts cover frames 0..{next}, not 0..{frames}", dir.display());
+    let mut size = None;
+    let mut images = Vec::with_capacity(frames as usize);
+    for f in 0..frames {
+        let path = dir.join(format!("{f:04}.png"));
+        let (w, h, rgb) = pm_image::read_png_rgb8(&path)?;
+        ensure!(size.is_none_or(|s| s == (w, h)), "{}: {w}x{h}, unlike the frames before it", path.display());
+        size = Some((w, h));
+        images.push(rgb);
+    }
+    let (w, h) = size.expect("at least one frame");
+    pm_image::write_apng(&out.join("live.apng"), w, h, &images, fps)?;
+    write_text(&out.join("frames.csv"), &csv)?;
+    eprintln!("photon-live assemble: {frames} frames from {} parts into {}", parts.len(), out.display());
+    Ok(())
 }
 
 /// frames.csv: per frame the times of its steps [s] and its counts; the columns

@@ -9,5 +9,5 @@ use clap::Parser;
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> std::process::ExitCode {
-    pm_stage::main_with("photon-live", || photon_live::run(&photon_live::Cli::parse()).map(|_| ()))
+    pm_stage::main_with("photon-live", || photon_live::main(&photon_live::Cli::parse()))
 }

@@ -62,6 +62,66 @@ fn frames_preview_and_timings_are_written_and_identical_for_any_thread_count() {
     assert!(img.layer("indirect").unwrap().iter().any(|p| p.max_element() > 0.0));
 }
 
+/// An animation split into three runs of frames (7 frames: 2, 2 and 3), each
+/// simulating the frames before its own without drawing, then assembled, gives the
+/// frames and preview of one run byte for byte, and frames.csv's counts; for the
+/// vertex method with a moving light and the temporal filter (state carried from
+/// frame to frame), and for the image-space method.
+#[test]
+fn frame_tasks_assembled_equal_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&str, &[&str]); 2] = [
+        ("jozwowski_room_16.gltf", &["--per-frame", "300", "--total", "900", "--temporal", "0.5"]),
+        ("caustic_ring.gltf", &["--method", "ispm", "--bounce-res", "16"]),
+    ];
+    for (name, extra) in cases {
+        let s = scene(name);
+        let common = |out: &std::path::Path| -> Vec<String> {
+            let mut a: Vec<String> = ["--scene", s.to_str().unwrap(), "--out", out.to_str().unwrap()]
+                .iter()
+                .map(|x| x.to_string())
+                .collect();
+            a.extend(["--frames", "7", "--width", "24", "--height", "16", "--fps", "10"].map(String::from));
+            a.extend(extra.iter().map(|x| x.to_string()));
+            a
+        };
+        let run = |args: Vec<String>| {
+            let o = live(&args.iter().map(String::as_str).collect::<Vec<_>>());
+            assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        };
+        let (one, split) = (dir.path().join(format!("{name}-one")), dir.path().join(format!("{name}-split")));
+        run(common(&one));
+        for k in [2, 0, 1] {
+            run([common(&split), vec!["--frame-task".into(), format!("{k}/3")]].concat());
+        }
+        assert!(!split.join("live.apng").exists(), "a task writes no preview");
+        assert!(split.join("frames/part-0004-0007.csv").exists());
+        let o = live(&["assemble", "--out", split.to_str().unwrap(), "--frames", "7", "--fps", "10"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for f in (0..7).map(|f| format!("frames/{f:04}.png")).chain(["live.apng".to_string()]) {
+            assert!(std::fs::read(one.join(&f)).unwrap() == std::fs::read(split.join(&f)).unwrap(), "{name}: {f}");
+        }
+        // frames.csv: the same rows but for the times (columns ending in _s).
+        let rows = |d: &std::path::Path| -> Vec<Vec<String>> {
+            let text = std::fs::read_to_string(d.join("frames.csv")).unwrap();
+            let header: Vec<String> = text.lines().next().unwrap().split(',').map(String::from).collect();
+            text.lines()
+                .map(|l| {
+                    l.split(',').zip(&header).filter(|(_, h)| !h.ends_with("_s")).map(|(v, _)| v.to_string()).collect()
+                })
+                .collect()
+        };
+        assert_eq!(rows(&one), rows(&split), "{name}: frames.csv");
+        assert_eq!(rows(&one).len(), 8);
+    }
+    // A missing part is named.
+    let split = dir.path().join("caustic_ring.gltf-split");
+    std::fs::remove_file(split.join("frames/part-0002-0004.csv")).unwrap();
+    let o = live(&["assemble", "--out", split.to_str().unwrap(), "--frames", "7"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("gap or overlap"), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 #[test]
 fn refuses_bad_settings_naming_the_option() {
     let dir = tempfile::tempdir().unwrap();

@@ -214,6 +214,24 @@ pub fn write_apng(path: &Path, width: u32, height: u32, frames: &[Vec<u8>], fps:
     write_frames(path, width, height, frames, Some(fps), png::Compression::Fast)
 }
 
+/// Read a PNG written by [`write_png`] or [`write_png_fast`]: its width, height and
+/// 8-bit sRGB bytes (R, G, B per pixel), the ones [`srgb8`] gave when it was written.
+pub fn read_png_rgb8(path: &Path) -> Result<(u32, u32, Vec<u8>)> {
+    let file = std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .map_err(|e| anyhow::anyhow!("{}: not a PNG: {e}", path.display()))?;
+    let info = reader.info();
+    if (info.color_type, info.bit_depth) != (png::ColorType::Rgb, png::BitDepth::Eight) {
+        bail!("{}: not an 8-bit RGB PNG ({:?}, {:?})", path.display(), info.color_type, info.bit_depth);
+    }
+    let (w, h) = (info.width, info.height);
+    let mut buf = vec![0; reader.output_buffer_size().context("PNG too large")?];
+    reader.next_frame(&mut buf).map_err(|e| anyhow::anyhow!("{}: cannot decode: {e}", path.display()))?;
+    buf.truncate(w as usize * h as usize * 3);
+    Ok((w, h, buf))
+}
+
 /// The one PNG encoder: a PNG of one frame, or with `fps` an animated PNG of all,
 /// written atomically.
 fn write_frames(

@@ -262,6 +262,14 @@ fn tree_photons(ring: &RingBuffer, direct: DirectMode) -> Vec<FullIrrPhoton> {
     ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()
 }
 
+/// The frames run `k` of `n` draws of an animation of `frames` frames: consecutive
+/// runs of nearly equal length (frames k x F / n up to (k + 1) x F / n), the
+/// frames dimension of a job plan (`photon-live --frame-task K/N`).
+pub fn task_frames(k: u32, n: u32, frames: u32) -> std::ops::Range<u32> {
+    let at = |i: u32| (i as u64 * frames as u64 / n.max(1) as u64) as u32;
+    at(k)..at(k + 1)
+}
+
 /// Flicker of `now` against `before` (same corners): mean |now - before| over
 /// mean(before), over channels; 0 when `before` is dark.
 pub fn flicker_of(now: &[pm_color::Rgb], before: &[pm_color::Rgb]) -> f64 {
@@ -417,7 +425,25 @@ impl Live {
 
     /// Shoot, balance, estimate and draw one frame (its image: [`Self::frame_layers`]).
     pub fn step(&mut self) -> Result<FrameStats, String> {
+        self.advance(true)
+    }
+
+    /// Everything of [`Self::step`] that later frames depend on (shoot, photon
+    /// search, corner estimates with their temporal filter), without drawing: a
+    /// renderer that starts at frame N (one task of an animation split across
+    /// machines) replays frames 0..N this way and then draws exactly what one run
+    /// from frame 0 draws. The image-space method carries nothing between frames.
+    pub fn skip(&mut self) -> Result<FrameStats, String> {
+        self.advance(false)
+    }
+
+    fn advance(&mut self, draw: bool) -> Result<FrameStats, String> {
         let p = &self.params;
+        if p.method == Method::Ispm && !draw {
+            let stats = FrameStats { frame: self.frame, ..Default::default() };
+            self.frame += 1;
+            return Ok(stats);
+        }
         if p.method == Method::Ispm {
             // The same seed every frame: a static light gives the same bounce map and
             // photons frame after frame (the paper's seeding by light and texel).
@@ -476,7 +502,7 @@ impl Live {
         let (scene, camera, fragments) = (&self.scene, &self.camera, &mut self.fragments);
         let raster = || {
             let t = Instant::now();
-            if p.draw == DrawMode::Raster {
+            if draw && p.draw == DrawMode::Raster {
                 pm_render::raster::first_hits_into(scene, camera, &film, Rect::full(&film), fragments);
             }
             t.elapsed().as_secs_f64()
@@ -507,6 +533,12 @@ impl Live {
             flicker = flicker_of(&now, &before);
         }
         let estimate = t.elapsed().as_secs_f64();
+        if !draw {
+            let stats = FrameStats { frame: self.frame, paths_shot: shot.paths, flicker, ..Default::default() };
+            self.previous = Some((e, active));
+            self.frame += 1;
+            return Ok(stats);
+        }
         let t = Instant::now();
         let maps = shadow_maps(&self.scene, p);
         let shading = LiveShading::new(&self.scene, &self.corners, &e, p, &maps).map_err(|e| e.to_string())?;
