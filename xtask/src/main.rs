@@ -24,8 +24,9 @@ struct Cli {
 enum Task {
     /// Run the pipeline stages in order (photon-trace, photon-sort, photon-irradiance,
     /// the irradiance-cache step, photon-render) as separate processes; steps whose
-    /// inputs and parameters are unchanged are skipped.
-    Run(run::RunArgs),
+    /// inputs and parameters are unchanged are skipped. With --trace-slices or
+    /// --tiles, the job plan executed here; with --emit, its job files written instead.
+    Run(RunCmd),
     /// Real-time photon mapping (Jozwowski 2002): photon-live with pipeline.toml's
     /// [live] settings, writing frames, live.apng and frames.csv.
     Live(run::LiveArgs),
@@ -37,7 +38,8 @@ enum Task {
     Compare(CompareArgs),
     /// Join region EXRs (photon-render --region) into the whole image and a PNG.
     Assemble(assemble::Args),
-    /// The pipeline as a job graph (plan.json) with the render cut into tiles, and
+    /// The pipeline as a job graph (plan.json) with the trace cut into slices and the
+    /// render into tiles (or, with --live, the animation into runs of frames), and
     /// with --emit the job files for Slurm (sbatch scripts, submit.sh) or an Open Job
     /// Description template.
     Plan(plan::Args),
@@ -62,6 +64,17 @@ enum Task {
     },
 }
 
+/// Options of `cargo xtask run`.
+#[derive(clap::Args, Debug)]
+struct RunCmd {
+    #[command(flatten)]
+    run: run::RunArgs,
+    /// Do not run: write the plan's job files for SYSTEM (slurm or openjd) into DIR,
+    /// as `cargo xtask plan --emit SYSTEM --plan-out DIR` does.
+    #[arg(long, num_args = 2, value_names = ["SYSTEM", "DIR"])]
+    emit: Option<Vec<String>>,
+}
+
 /// Options of `cargo xtask compare`.
 #[derive(clap::Args, Debug)]
 struct CompareArgs {
@@ -82,7 +95,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let root = workspace_root();
     let result = match cli.task {
-        Task::Run(a) => run::run(&a, &root).map(|_| ()),
+        Task::Run(RunCmd { run, emit: None }) => run::run(&run, &root).map(|_| ()),
+        Task::Run(RunCmd { run, emit: Some(emit) }) => emit_plan(run, &emit, &root),
         Task::Live(a) => run::live(&a, &root),
         Task::LiveStudy(a) => live_study::run(&a, &root),
         Task::Compare(a) => compare(&a),
@@ -101,6 +115,23 @@ fn main() -> std::process::ExitCode {
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// `cargo xtask run --emit SYSTEM DIR`: the plan's job files, not a run.
+fn emit_plan(run: run::RunArgs, emit: &[String], root: &std::path::Path) -> Result<()> {
+    let [system, dir] = emit else { anyhow::bail!("--emit needs SYSTEM and DIR") };
+    let system = <plan::Emit as clap::ValueEnum>::from_str(system, true)
+        .map_err(|_| anyhow::anyhow!("--emit {system}: expected slurm or openjd"))?;
+    let args = plan::Args {
+        run,
+        plan_out: dir.into(),
+        emit: Some(system),
+        estimate: None,
+        live: false,
+        frames: 120,
+        frame_tasks: 1,
+    };
+    plan::run(&args, root)
 }
 
 /// The repository root (the parent of this crate's folder).

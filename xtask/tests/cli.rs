@@ -19,3 +19,19 @@ fn assemble_names_a_missing_region_file() {
     assert!(err.contains(missing.to_str().unwrap()) && err.trim().lines().count() == 1, "{err}");
     assert!(!out.exists());
 }
+
+/// `cargo xtask run --emit SYSTEM DIR` names an unknown job system in one line
+/// before building or writing anything.
+#[test]
+fn run_emit_refuses_an_unknown_job_system() {
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = dir.path().join("jobs");
+    let o = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .args(["run", "--emit", "pbs", jobs.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--emit pbs: expected slurm or openjd") && err.trim().lines().count() == 1, "{err}");
+    assert!(!jobs.exists());
+}
