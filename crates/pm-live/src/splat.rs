@@ -283,6 +283,7 @@ pub fn splat(
     };
     let rects: Vec<Option<[u32; 4]>> =
         photons.par_iter().map(|p| p.screen_rect(camera, full_w, full_h).map(grow)).collect();
+    // Photons binned into tiles in photon order.
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tw * th) as usize];
     for (i, r) in rects.iter().enumerate() {
         if let Some([x0, y0, x1, y1]) = *r {
@@ -293,45 +294,91 @@ pub fn splat(
             }
         }
     }
-    let tiles: Vec<(Vec<Rgb>, Vec<Rgb>)> = bins
+    // What the kernel test reads of each pixel, packed (the G-buffer's surfaces are
+    // about 100 bytes; the inner loop reads every covered pixel once per photon).
+    // A Lambertian pixel's reflectance / pi is applied once to its sum of power x
+    // kernel, other BSDFs are evaluated per photon.
+    let lambert_only = output == SplatOutput::Irradiance;
+    let packed: Vec<Packed> = gbuffer
         .par_iter()
-        .enumerate()
-        .map(|(tile, list)| {
-            let (tx, ty) = (tile as u32 % tw, tile as u32 / tw);
-            let (px0, py0) = (tx * TILE, ty * TILE);
-            let (px1, py1) = ((px0 + TILE).min(w), (py0 + TILE).min(h));
-            let tw_px = (px1 - px0) as usize;
-            let n = tw_px * (py1 - py0) as usize;
-            let (mut indirect, mut caustic) = (vec![Rgb::ZERO; n], vec![Rgb::ZERO; n]);
-            for &i in list {
-                let ph = &photons[i as usize];
-                let [x0, y0, x1, y1] = rects[i as usize].expect("binned photons have a rectangle");
-                let acc = if ph.caustic { &mut caustic } else { &mut indirect };
-                for y in y0.max(py0)..y1.min(py1) {
-                    for x in x0.max(px0)..x1.min(px1) {
-                        let Some(s) = &gbuffer[(y * w + x) as usize] else { continue };
-                        let v = match output {
-                            SplatOutput::Radiance => ph.radiance_at(s),
-                            SplatOutput::Irradiance => ph.irradiance_at(s.p, s.n),
-                        };
-                        acc[(y - py0) as usize * tw_px + (x - px0) as usize] += v;
-                    }
-                }
-            }
-            (indirect, caustic)
+        .map(|s| match s {
+            None => Packed { p: Vec3::ZERO, n: Vec3::ZERO, kind: Kind::Empty },
+            Some(s) if lambert_only || s.lambert.is_some() => Packed { p: s.p, n: s.n, kind: Kind::Factor },
+            Some(s) => Packed { p: s.p, n: s.n, kind: Kind::Bsdf },
         })
         .collect();
     let (mut indirect, mut caustic) = (vec![Rgb::ZERO; (w * h) as usize], vec![Rgb::ZERO; (w * h) as usize]);
-    for (tile, (ti, tc)) in tiles.into_iter().enumerate() {
-        let (px0, py0) = ((tile as u32 % tw) * TILE, (tile as u32 / tw) * TILE);
-        let tw_px = ((px0 + TILE).min(w) - px0) as usize;
-        for (j, (a, b)) in ti.into_iter().zip(tc).enumerate() {
-            let (x, y) = (px0 as usize + j % tw_px, py0 as usize + j / tw_px);
-            indirect[y * w as usize + x] = a;
-            caustic[y * w as usize + x] = b;
+    let band = (TILE * w) as usize;
+    // Bands of tile rows in parallel, each writing its own rows of the output; a
+    // pixel sums its tile's photons in photon order, so the result does not depend
+    // on the thread count.
+    indirect.par_chunks_mut(band).zip(caustic.par_chunks_mut(band)).enumerate().for_each(|(ty, (ind, cau))| {
+        let ty = ty as u32;
+        let (py0, py1) = (ty * TILE, ((ty + 1) * TILE).min(h));
+        for tx in 0..tw {
+            let (px0, px1) = (tx * TILE, ((tx + 1) * TILE).min(w));
+            for &i in &bins[(ty * tw + tx) as usize] {
+                let ph = &photons[i as usize];
+                let [x0, y0, x1, y1] = rects[i as usize].expect("binned photons have a rectangle");
+                let acc = if ph.caustic { &mut *cau } else { &mut *ind };
+                for y in y0.max(py0)..y1.min(py1) {
+                    let row = (y * w) as usize;
+                    let local = ((y - py0) * w) as usize;
+                    for x in x0.max(px0)..x1.min(px1) {
+                        let q = &packed[row + x as usize];
+                        if q.kind == Kind::Empty
+                            || ph.wi.dot(q.n) <= 0.0
+                            || (q.p - ph.p).dot(ph.n).abs() >= ph.r_z
+                        {
+                            continue;
+                        }
+                        let k = ph.kernel(q.p);
+                        if !(k > 0.0) {
+                            continue;
+                        }
+                        let v = ph.power * k;
+                        acc[local + x as usize] += match q.kind {
+                            Kind::Bsdf => {
+                                let s = gbuffer[row + x as usize].as_ref().expect("a surface where packed has one");
+                                s.bsdf.f(s.wo, ph.wi, s.n) * v
+                            }
+                            _ => v,
+                        };
+                    }
+                }
+            }
         }
-    }
+        if !lambert_only {
+            // Lambertian pixels: reflectance / pi times their summed power x kernel.
+            for (j, (a, b)) in ind.iter_mut().zip(cau.iter_mut()).enumerate() {
+                if let Some(Surface { lambert: Some(f), .. }) = &gbuffer[py0 as usize * w as usize + j] {
+                    *a *= *f;
+                    *b *= *f;
+                }
+            }
+        }
+    });
     (indirect, caustic)
+}
+
+/// A pixel as the splat's inner loop reads it.
+#[derive(Clone, Copy)]
+struct Packed {
+    p: Vec3,
+    n: Vec3,
+    kind: Kind,
+}
+
+/// How a pixel's sum becomes its value.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// No surface.
+    Empty,
+    /// Sum power x kernel, times the Lambertian reflectance / pi at the end (or
+    /// nothing: irradiance).
+    Factor,
+    /// Sum BSDF x power x kernel per photon.
+    Bsdf,
 }
 
 /// The gather form of the same estimate: the indirect and caustic radiance at `s`
