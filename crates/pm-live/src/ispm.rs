@@ -327,22 +327,38 @@ pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) 
 /// [`surfaces`] into `out`, reusing its memory (a frame's G-buffer is tens of
 /// megabytes; faulting it back in every frame showed in the profile).
 pub fn surfaces_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut Vec<Option<Surface>>) {
-    out.clear();
-    out.par_extend(fragments.par_iter().with_min_len(1024).map(|f| {
-        let hit = f.as_ref()?.hit(scene);
-        let bsdf = scene.bsdf(&hit);
-        if bsdf.is_specular() {
-            return None;
-        }
-        let wo = (camera.position - hit.p).normalize_or(hit.ns);
-        let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-        Some(Surface::new(hit.p, n, wo, bsdf))
-    }));
+    // Filled in place: collecting anew faulted in fresh pages every frame.
+    out.resize(fragments.len(), None);
+    out.par_iter_mut().zip(fragments).with_min_len(1024).for_each(|(o, f)| {
+        *o = f.as_ref().and_then(|f| {
+            let hit = f.hit(scene);
+            let bsdf = scene.bsdf(&hit);
+            if bsdf.is_specular() {
+                return None;
+            }
+            let wo = (camera.position - hit.p).normalize_or(hit.ns);
+            let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+            Some(Surface::new(hit.p, n, wo, bsdf))
+        })
+    });
+}
+
+/// The image-space method's memory, kept between frames: the G-buffer and the
+/// splats' working arrays and outputs.
+#[derive(Default)]
+pub struct IspmScratch {
+    /// The eye's G-buffer (full resolution).
+    pub surfaces: Vec<Option<Surface>>,
+    /// The full-resolution splat (all photons, or the caustic ones when subsampled).
+    full: splat::SplatScratch,
+    /// The subsampled splat of the soft indirect photons.
+    low: splat::SplatScratch,
 }
 
 /// Draw one image-space frame of `scene` seen by `camera` into `buffers` (layers
 /// "total", "direct", "caustic", "indirect", "specular"). `fragments` and
-/// `surfaces` keep the rasteriser's and the G-buffer's memory between frames.
+/// `scratch` keep the rasteriser's, the G-buffer's and the splats' memory between
+/// frames.
 pub fn frame(
     scene: &Scene,
     camera: &Camera,
@@ -351,7 +367,7 @@ pub fn frame(
     caustics: bool,
     buffers: &mut FrameBuffers,
     fragments: &mut Vec<Option<Fragment>>,
-    surfaces: &mut Vec<Option<Surface>>,
+    scratch: &mut IspmScratch,
 ) -> Result<IspmStats, String> {
     let start = Instant::now();
     let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed };
@@ -381,12 +397,14 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
+    let IspmScratch { surfaces, full, low } = scratch;
     surfaces_into(scene, fragments, camera, surfaces);
     let surfaces = &*surfaces;
     let (w, h, f) = (p.width, p.height, p.subsample);
-    let (indirect, caustic, t_splat, t_upsample) = if f <= 1 {
-        let (i, c) = splat::splat(&photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance);
-        (i, c, t.elapsed().as_secs_f64(), 0.0)
+    let (t_splat, t_upsample) = if f <= 1 {
+        splat::splat_into(&photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance, full);
+        buffers.add_to_layer("indirect", &full.indirect);
+        (t.elapsed().as_secs_f64(), 0.0)
     } else {
         // Section 5.2: the soft indirect light's irradiance splatted at 1/f
         // resolution, upsampled with the joint bilateral filter, then times each
@@ -395,21 +413,21 @@ pub fn frame(
         // are a few pixels wide, are splatted at full resolution: upsampled they
         // were 130% off at f = 2 (`cargo bench -p pm-live --bench ispm`).
         let (caustic_photons, soft): (Vec<VolumePhoton>, Vec<VolumePhoton>) = photons.iter().partition(|q| q.caustic);
-        let (_, c) = splat::splat(&caustic_photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance);
+        splat::splat_into(&caustic_photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance, full);
         let low_gb = splat::subsample(surfaces, w, h, f);
-        let (li, _) = splat::splat(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance);
+        splat::splat_into(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let [e] = splat::upsample([&li], &low_gb, surfaces, camera.position, (w, h, f));
-        let i = e
+        let [e] = splat::upsample([&low.indirect], &low_gb, surfaces, camera.position, (w, h, f));
+        let i: Vec<Rgb> = e
             .into_iter()
             .zip(surfaces)
             .map(|(e, s)| s.as_ref().map_or(Rgb::ZERO, |s| s.bsdf.diffuse_albedo() * e / std::f32::consts::PI))
             .collect();
-        (i, c, t_splat, t.elapsed().as_secs_f64())
+        buffers.add_to_layer("indirect", &i);
+        (t_splat, t.elapsed().as_secs_f64())
     };
-    buffers.add_to_layer("indirect", &indirect);
-    buffers.add_to_layer("caustic", &caustic);
+    buffers.add_to_layer("caustic", &full.caustic);
     Ok(IspmStats {
         times: IspmTimes {
             gbuffer: t_gbuffer,

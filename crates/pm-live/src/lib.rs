@@ -305,8 +305,8 @@ pub struct Live {
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
     /// The frame's rasterised first hits.
     fragments: Vec<Option<pm_render::raster::Fragment>>,
-    /// The image-space method's G-buffer.
-    surfaces: Vec<Option<splat::Surface>>,
+    /// The image-space method's G-buffer and splat memory.
+    ispm: ispm::IspmScratch,
     /// Whether caustic paths are traced (the image-space method asks the scene
     /// analysis once: "simulate only the effects a scene calls for").
     caustics: bool,
@@ -343,7 +343,7 @@ impl Live {
             rest_lights,
             grid: None,
             fragments: Vec::new(),
-            surfaces: Vec::new(),
+            ispm: ispm::IspmScratch::default(),
             caustics,
         })
     }
@@ -455,7 +455,7 @@ impl Live {
                 self.caustics,
                 &mut self.buffers,
                 &mut self.fragments,
-                &mut self.surfaces,
+                &mut self.ispm,
             )?;
             let times = FrameTimes { draw: st.times.wall, wall: st.times.wall, ..Default::default() };
             let stats = FrameStats {

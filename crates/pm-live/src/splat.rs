@@ -262,9 +262,36 @@ pub fn splat(
     photons: &[VolumePhoton],
     gbuffer: &[Option<Surface>],
     camera: &Camera,
-    (full_w, full_h, factor): (u32, u32, u32),
+    size: (u32, u32, u32),
     output: SplatOutput,
 ) -> (Vec<Rgb>, Vec<Rgb>) {
+    let mut scratch = SplatScratch::default();
+    splat_into(photons, gbuffer, camera, size, output, &mut scratch);
+    (scratch.indirect, scratch.caustic)
+}
+
+/// The memory of [`splat_into`], kept between frames (fresh pages every frame
+/// showed in the profile): its working arrays and its two outputs.
+#[derive(Default)]
+pub struct SplatScratch {
+    rects: Vec<Option<[u32; 4]>>,
+    bins: Vec<Vec<u32>>,
+    packed: Vec<Packed>,
+    /// The indirect layer of the last splat.
+    pub indirect: Vec<Rgb>,
+    /// The caustic layer of the last splat.
+    pub caustic: Vec<Rgb>,
+}
+
+/// [`splat`] into `scratch.indirect` and `scratch.caustic`, reusing its memory.
+pub fn splat_into(
+    photons: &[VolumePhoton],
+    gbuffer: &[Option<Surface>],
+    camera: &Camera,
+    (full_w, full_h, factor): (u32, u32, u32),
+    output: SplatOutput,
+    scratch: &mut SplatScratch,
+) {
     let f = factor.max(1);
     let (w, h) = (full_w.div_ceil(f), full_h.div_ceil(f));
     let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
@@ -281,10 +308,12 @@ pub fn splat(
             ]
         }
     };
-    let rects: Vec<Option<[u32; 4]>> =
-        photons.par_iter().map(|p| p.screen_rect(camera, full_w, full_h).map(grow)).collect();
+    let SplatScratch { rects, bins, packed, indirect, caustic } = scratch;
+    rects.clear();
+    rects.par_extend(photons.par_iter().map(|p| p.screen_rect(camera, full_w, full_h).map(grow)));
     // Photons binned into tiles in photon order.
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tw * th) as usize];
+    bins.resize_with((tw * th) as usize, Vec::new);
+    bins.iter_mut().for_each(Vec::clear);
     for (i, r) in rects.iter().enumerate() {
         if let Some([x0, y0, x1, y1]) = *r {
             for ty in y0 / TILE..y1.div_ceil(TILE) {
@@ -299,15 +328,21 @@ pub fn splat(
     // A Lambertian pixel's reflectance / pi is applied once to its sum of power x
     // kernel, other BSDFs are evaluated per photon.
     let lambert_only = output == SplatOutput::Irradiance;
-    let packed: Vec<Packed> = gbuffer
-        .par_iter()
-        .map(|s| match s {
-            None => Packed { p: Vec3::ZERO, n: Vec3::ZERO, kind: Kind::Empty },
+    let empty = Packed { p: Vec3::ZERO, n: Vec3::ZERO, kind: Kind::Empty };
+    packed.resize(gbuffer.len(), empty);
+    packed.par_iter_mut().zip(gbuffer).with_min_len(1024).for_each(|(q, s)| {
+        *q = match s {
+            None => empty,
             Some(s) if lambert_only || s.lambert.is_some() => Packed { p: s.p, n: s.n, kind: Kind::Factor },
             Some(s) => Packed { p: s.p, n: s.n, kind: Kind::Bsdf },
-        })
-        .collect();
-    let (mut indirect, mut caustic) = (vec![Rgb::ZERO; (w * h) as usize], vec![Rgb::ZERO; (w * h) as usize]);
+        }
+    });
+    let packed = &*packed;
+    let (rects, bins) = (&*rects, &*bins);
+    for layer in [&mut *indirect, &mut *caustic] {
+        layer.clear();
+        layer.resize((w * h) as usize, Rgb::ZERO);
+    }
     let band = (TILE * w) as usize;
     // Bands of tile rows in parallel, each writing its own rows of the output; a
     // pixel sums its tile's photons in photon order, so the result does not depend
@@ -326,10 +361,7 @@ pub fn splat(
                     let local = ((y - py0) * w) as usize;
                     for x in x0.max(px0)..x1.min(px1) {
                         let q = &packed[row + x as usize];
-                        if q.kind == Kind::Empty
-                            || ph.wi.dot(q.n) <= 0.0
-                            || (q.p - ph.p).dot(ph.n).abs() >= ph.r_z
-                        {
+                        if q.kind == Kind::Empty || ph.wi.dot(q.n) <= 0.0 || (q.p - ph.p).dot(ph.n).abs() >= ph.r_z {
                             continue;
                         }
                         let k = ph.kernel(q.p);
@@ -358,7 +390,6 @@ pub fn splat(
             }
         }
     });
-    (indirect, caustic)
 }
 
 /// A pixel as the splat's inner loop reads it.
