@@ -104,33 +104,37 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         ("g_complete.png", "(g) complete image"),
     ];
     let tile = 256u32;
+    let (cell_w, cell_h) = (tile + 10, tile + 44);
+    let (sheet_w, sheet_h) = (4 * cell_w, 2 * cell_h);
     let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n",
-        4 * (tile + 10),
-        2 * (tile + 30)
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{sheet_w}\" height=\"{sheet_h}\" font-family=\"monospace\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     );
-    let mut grid = vec![glam::Vec3::ONE; (4 * tile * 2 * tile) as usize];
+    // The PNG: the same layout, captions rasterised with the plots' bundled font.
+    let mut grid = vec![glam::Vec3::ONE; (sheet_w * sheet_h) as usize];
     for (k, (file, caption)) in panels.iter().enumerate() {
-        let (cx, cy) = ((k % 4) as u32, (k / 4) as u32);
-        writeln!(
-            svg,
-            "<image href=\"{file}\" x=\"{}\" y=\"{}\" width=\"{tile}\" height=\"{tile}\"/><text x=\"{}\" y=\"{}\">{caption}</text>",
-            cx * (tile + 10),
-            cy * (tile + 30),
-            cx * (tile + 10),
-            cy * (tile + 30) + tile + 16
-        )?;
+        let (x0, y0) = ((k % 4) as u32 * cell_w, (k / 4) as u32 * cell_h);
+        writeln!(svg, "<image href=\"{file}\" x=\"{x0}\" y=\"{y0}\" width=\"{tile}\" height=\"{tile}\"/>")?;
+        for (line, text) in wrap(caption, 38).iter().enumerate() {
+            let (tx, ty) = (x0 as f64, (y0 + tile + 15 + 14 * line as u32) as f64);
+            writeln!(svg, "<text x=\"{tx}\" y=\"{ty}\">{text}</text>")?;
+            xtask::plot::text_pixels((tx, ty), text, "start", false, 11.0, &mut |x, y, a| {
+                if x >= 0 && y >= 0 && (x as u32) < sheet_w && (y as u32) < sheet_h {
+                    let p = &mut grid[(y as u32 * sheet_w + x as u32) as usize];
+                    *p *= 1.0 - a;
+                }
+            });
+        }
         let img = image::open(out.join(file)).with_context(|| format!("{file}: cannot read"))?.to_rgb8();
         let small = image::imageops::resize(&img, tile, tile, image::imageops::FilterType::Triangle);
         for (x, y, p) in small.enumerate_pixels() {
             let c = glam::Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32) / 255.0;
-            grid[((cy * tile + y) * 4 * tile + cx * tile + x) as usize] =
+            grid[((y0 + y) * sheet_w + x0 + x) as usize] =
                 glam::Vec3::new(pm_color::srgb_decode(c.x), pm_color::srgb_decode(c.y), pm_color::srgb_decode(c.z));
         }
     }
     svg.push_str("</svg>\n");
     std::fs::write(out.join("contact_sheet.svg"), svg)?;
-    pm_image::write_png(&out.join("contact_sheet.png"), 4 * tile, 2 * tile, &grid, 0.0)?;
+    pm_image::write_png(&out.join("contact_sheet.png"), sheet_w, sheet_h, &grid, 0.0)?;
 
     // The section 3 table.
     let fg = |v: &photon_render::Report| {
@@ -177,4 +181,19 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     std::fs::write(out.join("table.md"), &md)?;
     println!("{md}\nwrote {}", out.display());
     Ok(())
+}
+
+/// `text` broken at spaces into lines of at most `width` characters.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split(' ') {
+        match lines.last_mut() {
+            Some(l) if l.len() + 1 + word.len() <= width => {
+                l.push(' ');
+                l.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    lines
 }

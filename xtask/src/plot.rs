@@ -1,5 +1,7 @@
-//! Plots as lists of shapes, drawn once as SVG (with text) and rasterised to PNG
-//! (without text: there is no font rasteriser here), so both show the same drawing.
+//! Plots as lists of shapes, drawn once as SVG and rasterised to PNG, so both show
+//! the same drawing, text included: the PNG's text is rasterised with ab_glyph from
+//! a bundled font (Noto Mono, SIL Open Font License, `xtask/assets/OFL.txt`), so no
+//! system font is needed.
 
 use anyhow::Result;
 use std::fmt::Write as _;
@@ -40,13 +42,18 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     );
     let (wi, hi) = (w as u32, h as u32);
-    let mut px = vec![glam::Vec3::ONE; (wi * hi) as usize];
-    let mut put = |xx: i64, yy: i64, (r, g, b): Colour| {
+    let px = vec![glam::Vec3::ONE; (wi * hi) as usize];
+    let px = std::cell::RefCell::new(px);
+    // Cover pixel (x, y) with `colour` at opacity `a` (in linear radiance).
+    let blend = |xx: i64, yy: i64, a: f32, (r, g, b): Colour| {
         if xx >= 0 && yy >= 0 && (xx as u32) < wi && (yy as u32) < hi {
-            let c = glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0;
-            px[(yy as u32 * wi + xx as u32) as usize] = c.to_array().map(pm_color::srgb_decode).into();
+            let c: glam::Vec3 =
+                (glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0).to_array().map(pm_color::srgb_decode).into();
+            let p = &mut px.borrow_mut()[(yy as u32 * wi + xx as u32) as usize];
+            *p = *p * (1.0 - a) + c * a;
         }
     };
+    let put = |xx: i64, yy: i64, c: Colour| blend(xx, yy, 1.0, c);
     for shape in shapes {
         match shape {
             Shape::Line((x0, y0), (x1, y1), (r, g, b), dashed) => {
@@ -77,14 +84,71 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
                 let rot = if *rotated { format!(" transform=\"rotate(-90 {tx} {ty})\"") } else { String::new() };
                 writeln!(
                     svg,
-                    "<text x=\"{tx:.1}\" y=\"{ty:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rot}>{text}</text>"
+                    "<text x=\"{tx:.1}\" y=\"{ty:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rot}>{}</text>",
+                    escape(text)
                 )?;
+                text_pixels((*tx, *ty), text, anchor, *rotated, *size as f32, &mut |x, y, a| blend(x, y, a, (0, 0, 0)));
             }
         }
     }
     svg.push_str("</svg>\n");
     std::fs::write(svg_path, svg)?;
-    pm_image::write_png(png_path, wi, hi, &px, 0.0)
+    pm_image::write_png(png_path, wi, hi, &px.into_inner(), 0.0)
+}
+
+/// The bundled font.
+const FONT: &[u8] = include_bytes!("../assets/NotoMono-Regular.ttf");
+
+/// Text as SVG character data.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// Rasterise `text` of `size` px (the SVG font-size) with its baseline at `at`,
+/// anchored like SVG's text-anchor ("start", "middle", "end"), and with `rotated`
+/// turned by -90 degrees about `at` (SVG's rotate(-90 x y)): calls `cover` with each
+/// pixel and its coverage in [0, 1].
+pub fn text_pixels(
+    (tx, ty): (f64, f64),
+    text: &str,
+    anchor: &str,
+    rotated: bool,
+    size: f32,
+    cover: &mut dyn FnMut(i64, i64, f32),
+) {
+    use ab_glyph::{Font, FontRef, ScaleFont, point};
+    let font = FontRef::try_from_slice(FONT).expect("the bundled font parses");
+    // SVG's font-size is the em in pixels; ab_glyph scales by ascent - descent.
+    let em = font.units_per_em().unwrap_or(1000.0);
+    let scale = ab_glyph::PxScale::from(size * font.height_unscaled() / em);
+    let scaled = font.as_scaled(scale);
+    let ids: Vec<ab_glyph::GlyphId> = text.chars().map(|c| font.glyph_id(c)).collect();
+    let mut carets = Vec::with_capacity(ids.len());
+    let mut caret = 0.0f32;
+    for (k, &id) in ids.iter().enumerate() {
+        if k > 0 {
+            caret += scaled.kern(ids[k - 1], id);
+        }
+        carets.push(caret);
+        caret += scaled.h_advance(id);
+    }
+    let start = match anchor {
+        "middle" => -caret / 2.0,
+        "end" => -caret,
+        _ => 0.0,
+    };
+    for (&id, &x) in ids.iter().zip(&carets) {
+        let Some(outline) = font.outline_glyph(id.with_scale_and_position(scale, point(start + x, 0.0))) else {
+            continue;
+        };
+        let bb = outline.px_bounds();
+        outline.draw(|gx, gy, a| {
+            // (dx, dy): offset from the anchor along and across the text.
+            let (dx, dy) = (bb.min.x as f64 + gx as f64, bb.min.y as f64 + gy as f64);
+            let (x, y) = if rotated { (tx + dy, ty - dx) } else { (tx + dx, ty + dy) };
+            cover(x.round() as i64, y.round() as i64, a.clamp(0.0, 1.0));
+        });
+    }
 }
 
 /// A line chart of `series` (name, points) in a `w` x `h` canvas: axes from 0 (or
@@ -146,4 +210,55 @@ pub fn line_chart(
         s.push(Shape::Text((w - m - 120.0, ly + 4.0), name.clone(), "start", false, 12));
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Covered pixels (coverage above a half) of `text` at (100, 100), size 12.
+    fn covered(text: &str, anchor: &str, rotated: bool) -> Vec<(i64, i64)> {
+        let mut v = Vec::new();
+        text_pixels((100.0, 100.0), text, anchor, rotated, 12.0, &mut |x, y, a| {
+            if a > 0.5 {
+                v.push((x, y))
+            }
+        });
+        v
+    }
+
+    /// Text lands where SVG would put it: after, around or before the anchor, on
+    /// the baseline (capitals above it), turned by -90 degrees when rotated.
+    #[test]
+    fn text_is_placed_like_svg() {
+        let start = covered("HELLO", "start", false);
+        assert!(start.len() > 40, "{} pixels", start.len());
+        // Noto Mono advances 0.6 em: five capitals span 36 px at 12 px.
+        assert!(start.iter().all(|&(x, y)| (99..=137).contains(&x) && (90..=101).contains(&y)), "{start:?}");
+        let mean_x = |v: &[(i64, i64)]| v.iter().map(|p| p.0 as f64).sum::<f64>() / v.len() as f64;
+        let middle = covered("HELLO", "middle", false);
+        assert!((mean_x(&middle) - 100.0).abs() < 3.0, "{}", mean_x(&middle));
+        let end = covered("HELLO", "end", false);
+        assert!(end.iter().all(|&(x, _)| x <= 101), "{end:?}");
+        let turned = covered("HELLO", "start", true);
+        assert!(turned.iter().all(|&(x, y)| (90..=101).contains(&x) && (63..=101).contains(&y)), "{turned:?}");
+    }
+
+    /// The PNG carries the text the SVG does.
+    #[test]
+    fn png_has_the_labels() {
+        let dir = tempfile::tempdir().unwrap();
+        let (svg, png) = (dir.path().join("t.svg"), dir.path().join("t.png"));
+        draw(&[Shape::Text((20.0, 30.0), "error [%]".into(), "start", false, 14)], 120.0, 50.0, &svg, &png).unwrap();
+        let (w, _, rgb) = pm_image::read_png_rgb8(&png).unwrap();
+        let dark = |x0: u32, x1: u32| {
+            (15..35)
+                .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                .filter(|&(x, y)| rgb[((y * w + x) * 3) as usize] < 100)
+                .count()
+        };
+        assert!(dark(20, 100) > 30, "no text where the label is");
+        assert_eq!(dark(100, 120), 0, "ink past the label's end");
+        assert!(std::fs::read_to_string(&svg).unwrap().contains(">error [%]</text>"));
+    }
 }
