@@ -2,6 +2,7 @@
 //! the committed scenes are what the code generates), the pipeline runner (tests run
 //! it on a small scene) and the stage binaries it runs.
 
+pub mod accuracy;
 pub mod assemble;
 pub mod gen_scenes;
 pub mod plan;

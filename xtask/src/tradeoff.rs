@@ -1,17 +1,23 @@
-//! `cargo xtask tradeoff`: what accuracy costs in time. Renders a path-traced
-//! reference, then sweeps one setting at a time from the defaults (photon counts,
-//! k, precompute fraction, gather rays, irradiance-cache accuracy, lookup, record
-//! layout, and path tracing at several sample counts), timing every stage and
-//! measuring the error of the image and of its caustic and indirect components
-//! against the reference. Writes results.csv, results.md, plot.svg and plot.png.
+//! `cargo xtask tradeoff`: what accuracy costs in time. Renders a converged
+//! path-traced reference as two independent halves (their difference measures the
+//! reference's own noise), then sweeps one setting at a time from the defaults
+//! (photon counts, k, precompute fraction, gather rays, irradiance-cache accuracy,
+//! light samples, samples per pixel, lookup, record layout, and path tracing at
+//! several sample counts), each with several seeds, timing every stage. Errors
+//! leave out the light's pixels and their neighbours and are split into bias and
+//! noise ([`xtask::accuracy`]) for the image and for each layer (direct, caustic,
+//! indirect, specular). Writes results.csv, results.md, plot (error against time,
+//! lines per setting, the Pareto front), bias_noise (which setting buys which),
+//! layers (per-layer panels) as SVG and PNG, and error_map.png.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use pm_estimate::IrradianceParams;
 use pm_photon::{RecordLayout, TraceParams};
 use pm_render::{Lookup, Method, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use xtask::accuracy::{self, Split};
 use xtask::plot::{self, Shape};
 use xtask::stages::{self, Bins};
 
@@ -25,8 +31,18 @@ pub struct Args {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Image width and height [pixels].
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 256)]
     size: u32,
+    /// Renders per setting, each with its own seed (bias and noise need two or more).
+    #[arg(long, default_value_t = 3)]
+    seeds: u64,
+    /// Paths per pixel of the path-traced reference (in two halves with different
+    /// seeds); cached in the output folder by scene content, size and count.
+    #[arg(long, default_value_t = 16384)]
+    reference_spp: u32,
+    /// Copy results.csv, results.md, the plots and the error map here.
+    #[arg(long)]
+    docs: Option<PathBuf>,
 }
 
 /// One point of the sweep: the stage parameters it runs with.
@@ -41,10 +57,30 @@ struct Setting {
 
 impl Setting {
     /// Photon maps are shared by settings that differ only in rendering.
-    fn maps_key(&self) -> String {
+    fn maps_key(&self, seed: u64) -> String {
         let t = &self.trace;
         let i = &self.irradiance;
-        format!("g{}-c{}-{}-k{}-f{}", t.global_photons, t.caustic_photons, t.layout, i.k, i.fraction)
+        format!("g{}-c{}-{}-k{}-f{}-s{seed}", t.global_photons, t.caustic_photons, t.layout, i.k, i.fraction)
+    }
+}
+
+/// The layers compared, the image first.
+const LAYERS: [&str; 5] = ["total", "direct", "caustic", "indirect", "specular"];
+
+/// One setting's measurements.
+struct Row {
+    setting: Setting,
+    /// trace, sort, precompute, render [s], means over the seeds.
+    times: [f64; 4],
+    /// Per layer of [`LAYERS`].
+    splits: [Split; 5],
+    /// SSIM of the first seed's image.
+    ssim: f64,
+}
+
+impl Row {
+    fn total(&self) -> f64 {
+        self.times.iter().sum()
     }
 }
 
@@ -115,8 +151,50 @@ fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String
     stages::read_stats(stats)
 }
 
+/// The reference: two path-traced halves of `spp / 2` paths per pixel with their
+/// own seeds, cached by scene content, size and count. Returns their layers.
+fn reference_halves(
+    bins: &Bins,
+    base: &xtask::run::Pipeline,
+    scene: &Path,
+    out: &Path,
+    size: u32,
+    spp: u32,
+) -> Result<[pm_image::Layers; 2]> {
+    let key = format!("{}-{size}-{spp}", blake3::hash(&std::fs::read(scene)?).to_hex());
+    let key_file = out.join(format!("reference-{size}-{spp}.key"));
+    let halves = [0, 1].map(|h| out.join(format!("reference-{size}-{spp}-{h}.exr")));
+    if std::fs::read_to_string(&key_file).ok().as_deref() != Some(key.as_str()) || !halves.iter().all(|p| p.exists()) {
+        for (h, exr) in halves.iter().enumerate() {
+            println!("rendering reference half {} of 2 ({size}x{size}, path tracing, {} spp) ...", h + 1, spp / 2);
+            let p = RenderParams {
+                mode: Method::Path,
+                spp: (spp / 2).max(1),
+                width: size,
+                height: size,
+                ..base.render.clone()
+            };
+            let mut a =
+                vec!["--scene".to_string(), scene.display().to_string(), "--seed".into(), (1001 + h).to_string()];
+            a.extend(["--out".into(), exr.display().to_string()]);
+            a.extend(p.to_args());
+            let r: photon_render::Report =
+                stage(bins, "photon-render", &a, &out.join(format!("reference-{h}.stats.json")))?;
+            println!("  {:.1} s", r.seconds);
+        }
+        std::fs::write(&key_file, &key)?;
+    }
+    let [a, b] = &halves;
+    Ok([pm_image::read_exr(a)?, pm_image::read_exr(b)?])
+}
+
+fn layer(i: &pm_image::Layers, n: &str) -> Vec<glam::Vec3> {
+    i.layer(n).map(<[_]>::to_vec).unwrap_or_else(|| vec![glam::Vec3::ZERO; (i.width * i.height) as usize])
+}
+
 /// Run the trade-off study.
 pub fn run(args: &Args, root: &Path) -> Result<()> {
+    anyhow::ensure!(args.seeds >= 2, "--seeds {}: bias and noise need at least 2", args.seeds);
     let scene = if args.scene.is_absolute() { args.scene.clone() } else { root.join(&args.scene) };
     let size = args.size;
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
@@ -127,230 +205,493 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let s = |v: &dyn std::fmt::Display| v.to_string();
     let scene_s = scene.display().to_string();
 
-    // The reference: 4096 paths per pixel, cached by scene content and size.
-    let scene_hash = blake3::hash(&std::fs::read(&scene)?).to_hex().to_string();
-    let ref_exr = out.join(format!("reference-{size}.exr"));
-    let ref_key = out.join(format!("reference-{size}.key"));
-    if std::fs::read_to_string(&ref_key).ok().as_deref() != Some(scene_hash.as_str()) || !ref_exr.exists() {
-        println!("rendering the reference ({size}x{size}, path tracing, 4096 spp) ...");
-        let p = RenderParams { mode: Method::Path, spp: 4096, width: size, height: size, ..base.render.clone() };
-        let mut a =
-            vec![s(&"--scene"), scene_s.clone(), s(&"--seed"), s(&99), s(&"--out"), ref_exr.display().to_string()];
-        a.extend(p.to_args());
-        stage::<photon_render::Report>(&bins, "photon-render", &a, &out.join("reference.stats.json"))?;
-        std::fs::write(&ref_key, &scene_hash)?;
-    }
-    let reference = pm_image::read_exr(&ref_exr)?;
+    let [half_a, half_b] = reference_halves(&bins, &base, &scene, &out, size, args.reference_spp)?;
+    let n = (size * size) as usize;
+    let keep = accuracy::keep_mask(
+        &layer(&half_a, "total").iter().zip(layer(&half_b, "total")).map(|(a, b)| (*a + b) * 0.5).collect::<Vec<_>>(),
+        size as usize,
+        size as usize,
+    );
+    let references: Vec<(Vec<glam::Vec3>, f64)> =
+        LAYERS.iter().map(|l| accuracy::reference_from_halves(&layer(&half_a, l), &layer(&half_b, l), &keep)).collect();
+    println!(
+        "reference: {} spp in two halves; {} of {n} pixels compared; its own noise {:.2}% (relative RMS)",
+        args.reference_spp,
+        keep.iter().filter(|&&k| k).count(),
+        100.0
+            * accuracy::split(&[&references[0].0, &references[0].0], &references[0].0, references[0].1, &keep)
+                .reference_noise
+    );
 
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
-    let mut rows: Vec<(Setting, [f64; 4], [f64; 5])> = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
+    let mut default_image = None;
     for st in sweep(&base, size) {
-        // Photon maps, shared by settings that differ only in rendering.
         let mut times = [0.0f64; 4];
-        let mdir = out.join("maps").join(st.maps_key());
-        let photon_mapping = st.render.mode != Method::Path;
-        if photon_mapping {
-            if !maps.contains_key(&st.maps_key()) {
-                std::fs::create_dir_all(&mdir)?;
-                let o = |f: &str| mdir.join(f).display().to_string();
-                let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), mdir.display().to_string()];
-                a.extend(st.trace.to_args());
-                let t: photon_trace::Report = stage(&bins, "photon-trace", &a, &mdir.join("trace.json"))?;
-                let mut sort = 0.0;
-                for m in ["global", "caustic"] {
-                    if Path::new(&o(&format!("{m}.pmap"))).exists() {
-                        let a = [o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))];
-                        let r: photon_sort::Report = stage(&bins, "photon-sort", &a, &mdir.join("sort.json"))?;
-                        sort += r.seconds;
+        let mut images = Vec::new();
+        for seed in 1..=args.seeds {
+            // Photon maps, shared by settings that differ only in rendering.
+            let key = st.maps_key(seed);
+            let mdir = out.join("maps").join(&key);
+            let photon_mapping = st.render.mode != Method::Path;
+            if photon_mapping {
+                if !maps.contains_key(&key) {
+                    std::fs::create_dir_all(&mdir)?;
+                    let o = |f: &str| mdir.join(f).display().to_string();
+                    let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), mdir.display().to_string()];
+                    a.extend(st.trace.to_args());
+                    a.extend([s(&"--seed"), s(&seed)]);
+                    let t: photon_trace::Report = stage(&bins, "photon-trace", &a, &mdir.join("trace.json"))?;
+                    let mut sort = 0.0;
+                    for m in ["global", "caustic"] {
+                        if Path::new(&o(&format!("{m}.pmap"))).exists() {
+                            let a = [o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))];
+                            let r: photon_sort::Report = stage(&bins, "photon-sort", &a, &mdir.join("sort.json"))?;
+                            sort += r.seconds;
+                        }
                     }
+                    let mut a = vec![o("global.kd.pmap"), s(&"--out"), o("global.irr.pmap")];
+                    a.extend(st.irradiance.to_args());
+                    let i: photon_irradiance::Report = stage(&bins, "photon-irradiance", &a, &mdir.join("irr.json"))?;
+                    maps.insert(key.clone(), (mdir.clone(), [t.seconds, sort, i.seconds]));
                 }
-                let mut a = vec![o("global.kd.pmap"), s(&"--out"), o("global.irr.pmap")];
-                a.extend(st.irradiance.to_args());
-                let i: photon_irradiance::Report = stage(&bins, "photon-irradiance", &a, &mdir.join("irr.json"))?;
-                maps.insert(st.maps_key(), (mdir.clone(), [t.seconds, sort, i.seconds]));
+                let (_, t) = &maps[&key];
+                for k in 0..3 {
+                    times[k] += t[k] / args.seeds as f64;
+                }
             }
-            let (_, t) = &maps[&st.maps_key()];
-            times[..3].copy_from_slice(t);
-        }
-        let id = st.label.replace(' ', "_");
-        let img = out.join(format!("{id}.exr"));
-        let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), img.display().to_string()];
-        a.extend(st.render.to_args());
-        if photon_mapping {
-            a.extend([s(&"--global"), mdir.join("global.irr.pmap").display().to_string()]);
-            if mdir.join("caustic.kd.pmap").exists() {
-                a.extend([s(&"--caustic"), mdir.join("caustic.kd.pmap").display().to_string()]);
+            let id = format!("{}-s{seed}", st.label.replace(' ', "_"));
+            let img = out.join(format!("{id}.exr"));
+            let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), img.display().to_string()];
+            a.extend(st.render.to_args());
+            a.extend([s(&"--seed"), s(&seed)]);
+            if photon_mapping {
+                a.extend([s(&"--global"), mdir.join("global.irr.pmap").display().to_string()]);
+                if mdir.join("caustic.kd.pmap").exists() {
+                    a.extend([s(&"--caustic"), mdir.join("caustic.kd.pmap").display().to_string()]);
+                }
             }
+            let r: photon_render::Report = stage(&bins, "photon-render", &a, &out.join(format!("{id}.stats.json")))?;
+            times[3] += r.seconds / args.seeds as f64;
+            images.push(pm_image::read_exr(&img)?);
         }
-        let r: photon_render::Report = stage(&bins, "photon-render", &a, &out.join(format!("{id}.stats.json")))?;
-        times[3] = r.seconds;
-        let image = pm_image::read_exr(&img)?;
-        let layer = |i: &pm_image::Layers, n: &str| i.layer(n).map(<[_]>::to_vec).unwrap_or_default();
-        let total = pm_image::compare(&layer(&image, "total"), &layer(&reference, "total"), 1.0);
-        let ssim = pm_image::ssim(&layer(&image, "total"), &layer(&reference, "total"), size as usize, size as usize);
-        let caustic = pm_image::compare(&layer(&image, "caustic"), &layer(&reference, "caustic"), f32::INFINITY);
-        let indirect = pm_image::compare(&layer(&image, "indirect"), &layer(&reference, "indirect"), f32::INFINITY);
-        let errs = [total.rel_rmse, total.rel_bias, ssim, caustic.rel_rmse, indirect.rel_rmse];
+        let splits: [Split; 5] = std::array::from_fn(|k| {
+            let layers: Vec<Vec<glam::Vec3>> = images.iter().map(|i| layer(i, LAYERS[k])).collect();
+            let refs: Vec<&[glam::Vec3]> = layers.iter().map(Vec::as_slice).collect();
+            accuracy::split(&refs, &references[k].0, references[k].1, &keep)
+        });
+        let ssim = pm_image::ssim(&layer(&images[0], "total"), &references[0].0, size as usize, size as usize);
+        let row = Row { setting: st, times, splits, ssim };
+        let t = &row.splits[0];
         println!(
-            "  {:<24} {:>7.2} s  rel. RMSE {:.4}  bias {:+.4}  SSIM {:.4}",
-            st.label,
-            times.iter().sum::<f64>(),
-            errs[0],
-            errs[1],
-            errs[2]
+            "  {:<24} {:>7.2} s  error {:.4} = bias {:.4} (+) noise {:.4}  [measured {:.4}]",
+            row.setting.label,
+            row.total(),
+            t.error,
+            t.bias,
+            t.noise,
+            t.measured
         );
-        rows.push((st, times, errs));
+        if row.setting.axis == "default" {
+            default_image = Some(layer(&images[0], "total"));
+        }
+        rows.push(row);
     }
-    write_outputs(&out, size, &rows)
+    let map = accuracy::error_map(default_image.as_deref().unwrap_or(&[]), &references[0].0, &keep);
+    error_map_png(&out.join("error_map.png"), &map, size)?;
+    write_outputs(&out, size, args, &rows)?;
+    if let Some(docs) = &args.docs {
+        std::fs::create_dir_all(docs)?;
+        for f in [
+            "results.csv",
+            "results.md",
+            "plot.svg",
+            "plot.png",
+            "bias_noise.svg",
+            "bias_noise.png",
+            "layers.svg",
+            "layers.png",
+            "error_map.png",
+        ] {
+            std::fs::copy(out.join(f), docs.join(f))
+                .with_context(|| format!("{f}: cannot copy to {}", docs.display()))?;
+        }
+        println!("copied the results to {}", docs.display());
+    }
+    Ok(())
 }
 
-fn write_outputs(out: &Path, size: u32, rows: &[(Setting, [f64; 4], [f64; 5])]) -> Result<()> {
-    let total = |t: &[f64; 4]| t.iter().sum::<f64>();
-    let mut csv = String::from(
-        "axis,setting,trace_s,sort_s,irradiance_s,render_s,total_s,rel_rmse,rel_bias,ssim,caustic_rel_rmse,indirect_rel_rmse\n",
-    );
-    for (s, t, e) in rows {
-        writeln!(
-            csv,
-            "{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.5},{:.5},{:.5},{:.5},{:.5}",
-            s.axis,
-            s.label,
-            t[0],
-            t[1],
-            t[2],
-            t[3],
-            total(t),
-            e[0],
-            e[1],
-            e[2],
-            e[3],
-            e[4]
-        )?;
-    }
-    std::fs::write(out.join("results.csv"), csv)?;
-    // Pareto front: no faster point has lower error.
+/// Pareto front: the rows no faster row beats in error, fastest first.
+fn pareto(rows: &[Row], error: impl Fn(&Row) -> f64) -> Vec<usize> {
     let mut order: Vec<usize> = (0..rows.len()).collect();
-    order.sort_by(|&a, &b| total(&rows[a].1).total_cmp(&total(&rows[b].1)));
+    order.sort_by(|&a, &b| rows[a].total().total_cmp(&rows[b].total()));
     let mut front = Vec::new();
     let mut best = f64::INFINITY;
-    for &i in &order {
-        if rows[i].2[0] < best {
-            best = rows[i].2[0];
+    for i in order {
+        if error(&rows[i]) < best {
+            best = error(&rows[i]);
             front.push(i);
         }
     }
-    let base_t = total(&rows[0].1);
-    let pick = |budget: f64| {
-        front
-            .iter()
-            .copied()
-            .filter(|&i| total(&rows[i].1) <= budget)
-            .min_by(|&a, &b| rows[a].2[0].total_cmp(&rows[b].2[0]))
-    };
-    let mut md = format!(
-        "Trade-off on {size}x{size} against a 4096-spp path-traced reference (pixels that see the light left out of the RMSE). Times are wall seconds per stage on this machine, same session. The caustic column compares against the reference's caustic layer, whose own noise at 4096 spp is large (path tracing finds caustics poorly), so it ranks settings only roughly.\n\n| axis | setting | trace | sort | precompute | render | total [s] | rel. RMSE | bias | SSIM | caustic RMSE | indirect RMSE | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    front
+}
+
+fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()> {
+    let mut csv = String::from(
+        "axis,setting,seeds,trace_s,sort_s,irradiance_s,render_s,total_s,error,bias,noise,reference_noise,mean_bias,measured_rmse,ssim",
     );
-    for (i, (s, t, e)) in rows.iter().enumerate() {
+    for l in &LAYERS[1..] {
+        write!(csv, ",{l}_error,{l}_bias,{l}_noise,{l}_reference_noise")?;
+    }
+    csv.push('\n');
+    for r in rows {
+        let t = &r.splits[0];
+        write!(
+            csv,
+            "{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.5},{:.5},{:.5},{:.5},{:+.5},{:.5},{:.5}",
+            r.setting.axis,
+            r.setting.label,
+            args.seeds,
+            r.times[0],
+            r.times[1],
+            r.times[2],
+            r.times[3],
+            r.total(),
+            t.error,
+            t.bias,
+            t.noise,
+            t.reference_noise,
+            t.mean_bias,
+            t.measured,
+            r.ssim
+        )?;
+        for l in &r.splits[1..] {
+            write!(csv, ",{:.5},{:.5},{:.5},{:.5}", l.error, l.bias, l.noise, l.reference_noise)?;
+        }
+        csv.push('\n');
+    }
+    std::fs::write(out.join("results.csv"), csv)?;
+
+    let front = pareto(rows, |r| r.splits[0].error);
+    let pct = |v: f64| format!("{:.1}%", 100.0 * v);
+    let reference_noise = rows.first().map_or(0.0, |r| r.splits[0].reference_noise);
+    let smallest = rows.iter().map(|r| r.splits[0].error).fold(f64::INFINITY, f64::min);
+    let mut md = format!(
+        "Trade-off on {size}x{size} against a path-traced reference of {} paths per pixel (two halves with their own seeds; \
+         its own noise, from their difference, is {} relative RMS, {:.2} of the smallest error below, {}). Every setting is \
+         rendered with {} seeds; the light's pixels and their neighbours are left out. **error** is what one render is \
+         expected to be off from the truth, sqrt(bias^2 + noise^2); **bias** is the seeds' mean against the reference with \
+         both noises taken out; **noise** the spread of one render; **measured** what a single comparison with the \
+         reference reports. Times are wall seconds per stage (means over the seeds) on this machine (2 cores), one session.\n\n\
+         | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular | Pareto |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        args.reference_spp,
+        pct(reference_noise),
+        reference_noise / smallest.max(1e-12),
+        if reference_noise <= smallest / 3.0 {
+            "below a third of it, as required"
+        } else {
+            "above a third of it: raise --reference-spp"
+        },
+        args.seeds
+    );
+    for (i, r) in rows.iter().enumerate() {
+        let t = &r.splits[0];
+        let l = |k: usize| format!("{} / {}", pct(r.splits[k].bias), pct(r.splits[k].noise));
         writeln!(
             md,
-            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.4} | {:+.4} | {:.4} | {:.3} | {:.3} | {} |",
-            s.axis,
-            s.label,
-            t[0],
-            t[1],
-            t[2],
-            t[3],
-            total(t),
-            e[0],
-            e[1],
-            e[2],
-            e[3],
-            e[4],
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.setting.axis,
+            r.setting.label,
+            r.times[0],
+            r.times[1],
+            r.times[2],
+            r.times[3],
+            r.total(),
+            pct(t.error),
+            pct(t.bias),
+            pct(t.noise),
+            pct(t.measured),
+            l(1),
+            l(2),
+            l(3),
+            l(4),
             if front.contains(&i) { "yes" } else { "" }
         )?;
     }
-    // The reference's own noise: path tracing with 1024 spp has 4x the reference's
-    // variance, so its error against the reference is sqrt(1 + 4) times the
-    // reference's error against the truth.
-    if let Some(r) = rows.iter().find(|r| r.0.label == "path 1024 spp") {
+    md.push_str("\nLayers: bias / noise, relative to each layer's own mean in the reference.\n\n");
+    md.push_str("What each setting buys, from its smallest to its largest value (the defaults in between):\n\n");
+    let mut axes: Vec<&str> = Vec::new();
+    for r in rows {
+        if r.setting.axis != "default" && !axes.contains(&r.setting.axis) {
+            axes.push(r.setting.axis);
+        }
+    }
+    for axis in &axes {
+        let own: Vec<&Row> = rows.iter().filter(|r| r.setting.axis == *axis).collect();
+        let (first, last) = (own[0], own[own.len() - 1]);
+        let d = &rows[0];
         writeln!(
             md,
-            "\nNoise left in the reference: about {:.1}% relative RMSE (from the 1024-spp path image's error, {:.1}%, over sqrt(5)); errors below that level cannot be resolved.",
-            100.0 * r.2[0] / 5f64.sqrt(),
-            100.0 * r.2[0]
+            "- {axis}: {} -> {}: bias {} -> {} (defaults {}), noise {} -> {} (defaults {}), time {:.2} -> {:.2} s (defaults {:.2} s)",
+            first.setting.label,
+            last.setting.label,
+            pct(first.splits[0].bias),
+            pct(last.splits[0].bias),
+            pct(d.splits[0].bias),
+            pct(first.splits[0].noise),
+            pct(last.splits[0].noise),
+            pct(d.splits[0].noise),
+            first.total(),
+            last.total(),
+            d.total()
         )?;
     }
     md.push_str("\nBest setting per time budget (lowest error on the Pareto front within the budget):\n\n");
+    let base_t = rows[0].total();
     for (name, budget) in [("preview", 0.25 * base_t), ("balanced", base_t), ("final", 4.0 * base_t)] {
-        if let Some(i) = pick(budget) {
+        if let Some(&i) = front
+            .iter()
+            .filter(|&&i| rows[i].total() <= budget)
+            .min_by(|&&a, &&b| rows[a].splits[0].error.total_cmp(&rows[b].splits[0].error))
+        {
             writeln!(
                 md,
-                "- {name} (at most {budget:.2} s): {} ({:.2} s, rel. RMSE {:.4})",
-                rows[i].0.label,
-                total(&rows[i].1),
-                rows[i].2[0]
+                "- {name} (at most {budget:.2} s): {} ({:.2} s, error {})",
+                rows[i].setting.label,
+                rows[i].total(),
+                pct(rows[i].splits[0].error)
             )?;
         }
     }
     std::fs::write(out.join("results.md"), &md)?;
-    plot(out, rows, &front)?;
+    plots(out, rows, &front)?;
     println!("\n{md}\nwrote {}", out.display());
     Ok(())
 }
 
-/// Error against time (log axis) with the Pareto front: SVG with labels, and the
-/// same drawing rasterised to PNG (points and lines, no text).
-fn plot(out: &Path, rows: &[(Setting, [f64; 4], [f64; 5])], front: &[usize]) -> Result<()> {
-    let (w, h, m) = (900.0f64, 560.0f64, 70.0f64);
-    let t: Vec<f64> = rows.iter().map(|r| r.1.iter().sum::<f64>().max(1e-3)).collect();
-    let e: Vec<f64> = rows.iter().map(|r| r.2[0]).collect();
+/// The sweep's axes in legend order, and each one's colour.
+const AXES: [&str; 12] = [
+    "default",
+    "global photons",
+    "caustic photons",
+    "k",
+    "precompute fraction",
+    "gather rays",
+    "cache accuracy",
+    "light samples",
+    "max spp",
+    "lookup",
+    "records",
+    "path",
+];
+
+fn colour(axis: &str) -> plot::Colour {
+    plot::PALETTE[AXES.iter().position(|a| *a == axis).unwrap_or(0) % plot::PALETTE.len()]
+}
+
+/// A panel at (x0, y0) of size w x h: `value` of each row against its total time
+/// (log axis), a line through each axis's points (with the defaults' point), and
+/// `front` dashed.
+#[allow(clippy::too_many_arguments)]
+fn panel(
+    shapes: &mut Vec<Shape>,
+    (x0, y0, w, h): (f64, f64, f64, f64),
+    title: &str,
+    y_label: &str,
+    rows: &[Row],
+    value: &dyn Fn(&Row) -> f64,
+    front: &[usize],
+    labels: bool,
+) {
+    let m = 55.0;
+    let t: Vec<f64> = rows.iter().map(|r| r.total().max(1e-3)).collect();
     let (lt0, lt1) = (
         t.iter().cloned().fold(f64::INFINITY, f64::min).log10().floor(),
-        t.iter().cloned().fold(0.0, f64::max).log10().ceil(),
+        t.iter()
+            .cloned()
+            .fold(0.0, f64::max)
+            .log10()
+            .ceil()
+            .max(t.iter().cloned().fold(f64::INFINITY, f64::min).log10().floor() + 1.0),
     );
-    let emax = e.iter().cloned().fold(0.0, f64::max) * 1.1;
-    let x = |tv: f64| m + (tv.log10() - lt0) / (lt1 - lt0).max(1e-9) * (w - 2.0 * m);
-    let y = |ev: f64| h - m - ev / emax.max(1e-9) * (h - 2.0 * m);
-    let axes = [
-        "default",
-        "global photons",
-        "caustic photons",
-        "k",
-        "precompute fraction",
-        "gather rays",
-        "cache accuracy",
-        "lookup",
-        "records",
-        "path",
-        "light samples",
-        "max spp",
-    ];
-    let colour = |axis: &str| plot::PALETTE[axes.iter().position(|a| *a == axis).unwrap_or(0) % plot::PALETTE.len()];
-    // One list of shapes, written as SVG (with text) and rasterised to PNG (without).
+    let vmax = rows.iter().map(value).fold(0.0, f64::max).max(1e-9) * 1.1;
+    let x = |tv: f64| x0 + m + (tv.log10() - lt0) / (lt1 - lt0) * (w - 1.5 * m);
+    let y = |v: f64| y0 + h - m + 10.0 - v / vmax * (h - 1.6 * m);
     let black = (0u8, 0u8, 0u8);
-    let mut shapes =
-        vec![Shape::Line((m, h - m), (w - m, h - m), black, false), Shape::Line((m, m), (m, h - m), black, false)];
+    let (bx, by) = (x0 + m, y0 + h - m + 10.0);
+    shapes.push(Shape::Line((bx, by), (x0 + w - 0.5 * m, by), black, false));
+    shapes.push(Shape::Line((bx, y0 + 0.6 * m), (bx, by), black, false));
+    shapes.push(Shape::Text((x0 + w / 2.0, y0 + 22.0), title.into(), "middle", false, 13));
+    shapes.push(Shape::Text((x0 + w / 2.0, y0 + h - 8.0), "total time [s], log".into(), "middle", false, 11));
+    shapes.push(Shape::Text((x0 + 14.0, y0 + h / 2.0), y_label.into(), "middle", true, 11));
     for p in lt0 as i32..=lt1 as i32 {
         let xv = x(10f64.powi(p));
-        shapes.push(Shape::Line((xv, h - m), (xv, h - m + 5.0), black, false));
-        shapes.push(Shape::Text((xv, h - m + 20.0), format!("{}", 10f64.powi(p)), "middle", false, 12));
+        shapes.push(Shape::Line((xv, by), (xv, by + 5.0), black, false));
+        shapes.push(Shape::Text((xv, by + 17.0), format!("{}", 10f64.powi(p)), "middle", false, 10));
     }
     for k in 0..=4 {
-        let ev = emax * k as f64 / 4.0;
-        shapes.push(Shape::Text((m - 6.0, y(ev) + 4.0), format!("{ev:.3}"), "end", false, 12));
+        let v = vmax * k as f64 / 4.0;
+        shapes.push(Shape::Line((bx - 4.0, y(v)), (bx, y(v)), black, false));
+        shapes.push(Shape::Text((bx - 6.0, y(v) + 4.0), format!("{:.0}%", 100.0 * v), "end", false, 10));
     }
-    shapes.push(Shape::Text((w / 2.0, h - 25.0), "total time [s] (log)".into(), "middle", false, 12));
-    shapes.push(Shape::Text((18.0, h / 2.0), "relative RMSE vs reference".into(), "middle", true, 12));
     for wnd in front.windows(2) {
-        shapes.push(Shape::Line((x(t[wnd[0]]), y(e[wnd[0]])), (x(t[wnd[1]]), y(e[wnd[1]])), (77, 77, 77), true));
+        let (a, b) = (wnd[0], wnd[1]);
+        shapes.push(Shape::Line((x(t[a]), y(value(&rows[a]))), (x(t[b]), y(value(&rows[b]))), (60, 60, 60), true));
+    }
+    for axis in AXES.iter().skip(1) {
+        // The axis's points and the defaults, in time order.
+        let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
+        if pts.is_empty() {
+            continue;
+        }
+        if *axis != "path" {
+            pts.push(0);
+        }
+        pts.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
+        for wnd in pts.windows(2) {
+            let (a, b) = (wnd[0], wnd[1]);
+            shapes.push(Shape::Line((x(t[a]), y(value(&rows[a]))), (x(t[b]), y(value(&rows[b]))), colour(axis), false));
+        }
     }
     for (i, r) in rows.iter().enumerate() {
-        shapes.push(Shape::Dot((x(t[i]), y(e[i])), colour(r.0.axis)));
-        shapes.push(Shape::Text((x(t[i]) + 7.0, y(e[i]) - 4.0), r.0.label.clone(), "start", false, 9));
+        shapes.push(Shape::Dot((x(t[i]), y(value(r))), colour(r.setting.axis)));
+        if labels {
+            shapes.push(Shape::Text((x(t[i]) + 6.0, y(value(r)) - 5.0), r.setting.label.clone(), "start", false, 8));
+        }
     }
-    for (k, a) in axes.iter().enumerate() {
-        shapes.push(Shape::Dot((w - 190.0, m + 16.0 * k as f64), colour(a)));
-        shapes.push(Shape::Text((w - 180.0, m + 16.0 * k as f64 + 4.0), a.to_string(), "start", false, 12));
+}
+
+fn legend(shapes: &mut Vec<Shape>, x0: f64, y0: f64) {
+    for (k, a) in AXES.iter().enumerate() {
+        shapes.push(Shape::Dot((x0, y0 + 16.0 * k as f64), colour(a)));
+        shapes.push(Shape::Text((x0 + 10.0, y0 + 16.0 * k as f64 + 4.0), a.to_string(), "start", false, 11));
     }
-    plot::draw(&shapes, w, h, &out.join("plot.svg"), &out.join("plot.png"))
+    let y = y0 + 16.0 * AXES.len() as f64;
+    shapes.push(Shape::Line((x0 - 5.0, y), (x0 + 5.0, y), (60, 60, 60), true));
+    shapes.push(Shape::Text((x0 + 10.0, y + 4.0), "Pareto front".into(), "start", false, 11));
+}
+
+/// plot: error against time; bias_noise: bias against noise per setting (which
+/// setting buys which); layers: per-layer error against time.
+fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
+    let mut s = Vec::new();
+    panel(
+        &mut s,
+        (0.0, 0.0, 760.0, 560.0),
+        "error of one render against time",
+        "error sqrt(bias^2 + noise^2)",
+        rows,
+        &|r| r.splits[0].error,
+        front,
+        true,
+    );
+    legend(&mut s, 780.0, 60.0);
+    plot::draw(&s, 960.0, 560.0, &out.join("plot.svg"), &out.join("plot.png"))?;
+
+    // Bias against noise: moving along an axis horizontally buys bias, vertically noise.
+    let (w, h, m) = (760.0f64, 560.0f64, 60.0f64);
+    let bmax = rows.iter().map(|r| r.splits[0].bias).fold(0.0, f64::max).max(1e-9) * 1.1;
+    let nmax = rows.iter().map(|r| r.splits[0].noise).fold(0.0, f64::max).max(1e-9) * 1.1;
+    let x = |v: f64| m + v / bmax * (w - 1.5 * m);
+    let y = |v: f64| h - m - v / nmax * (h - 2.0 * m);
+    let black = (0u8, 0u8, 0u8);
+    let mut s = vec![
+        Shape::Line((m, h - m), (w - 0.5 * m, h - m), black, false),
+        Shape::Line((m, m), (m, h - m), black, false),
+        Shape::Text((w / 2.0, 24.0), "what each setting buys: bias (across) or noise (up)".into(), "middle", false, 13),
+        Shape::Text((w / 2.0, h - 18.0), "bias (relative RMS)".into(), "middle", false, 11),
+        Shape::Text((16.0, h / 2.0), "noise of one render (relative RMS)".into(), "middle", true, 11),
+    ];
+    for k in 0..=4 {
+        let (bv, nv) = (bmax * k as f64 / 4.0, nmax * k as f64 / 4.0);
+        s.push(Shape::Text((x(bv), h - m + 16.0), format!("{:.1}%", 100.0 * bv), "middle", false, 10));
+        s.push(Shape::Text((m - 6.0, y(nv) + 4.0), format!("{:.1}%", 100.0 * nv), "end", false, 10));
+    }
+    for axis in AXES.iter().skip(1) {
+        let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
+        if *axis != "path" && !pts.is_empty() {
+            pts.insert(pts.len() / 2, 0);
+        }
+        for wnd in pts.windows(2) {
+            let (a, b) = (&rows[wnd[0]].splits[0], &rows[wnd[1]].splits[0]);
+            s.push(Shape::Line((x(a.bias), y(a.noise)), (x(b.bias), y(b.noise)), colour(axis), false));
+        }
+    }
+    for r in rows {
+        let p = &r.splits[0];
+        s.push(Shape::Dot((x(p.bias), y(p.noise)), colour(r.setting.axis)));
+        s.push(Shape::Text((x(p.bias) + 6.0, y(p.noise) - 5.0), r.setting.label.clone(), "start", false, 8));
+    }
+    legend(&mut s, 780.0, 60.0);
+    plot::draw(&s, 960.0, 560.0, &out.join("bias_noise.svg"), &out.join("bias_noise.png"))?;
+
+    // Per layer.
+    let mut s = Vec::new();
+    for (k, name) in LAYERS[1..].iter().enumerate() {
+        let (px, py) = ((k % 2) as f64 * 480.0, (k / 2) as f64 * 340.0);
+        let f = pareto(rows, |r| r.splits[k + 1].error);
+        panel(
+            &mut s,
+            (px, py, 480.0, 340.0),
+            &format!("{name} layer"),
+            "error",
+            rows,
+            &|r| r.splits[k + 1].error,
+            &f,
+            false,
+        );
+    }
+    legend(&mut s, 985.0, 60.0);
+    plot::draw(&s, 1140.0, 680.0, &out.join("layers.svg"), &out.join("layers.png"))
+}
+
+/// The default setting's per-pixel relative error in false colour (black, blue,
+/// red, yellow, white from 0 to the scale's top, the 99th percentile), with a scale
+/// bar and its labels; the pixels left out are grey.
+fn error_map_png(path: &Path, map: &[f32], size: u32) -> Result<()> {
+    let mut sorted: Vec<f32> = map.iter().copied().filter(|v| *v > 0.0).collect();
+    sorted.sort_by(f32::total_cmp);
+    let top = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-6);
+    let ramp = |t: f32| -> glam::Vec3 {
+        let stops = [
+            glam::Vec3::ZERO,
+            glam::Vec3::new(0.0, 0.1, 0.8),
+            glam::Vec3::new(0.9, 0.1, 0.1),
+            glam::Vec3::new(1.0, 0.9, 0.1),
+            glam::Vec3::ONE,
+        ];
+        let u = t.clamp(0.0, 1.0) * 4.0;
+        let k = (u.floor() as usize).min(3);
+        stops[k].lerp(stops[k + 1], u - k as f32)
+    };
+    let (bar, pad) = (24u32, 90u32);
+    let (w, h) = (size + pad, size.max(120) + 20);
+    let mut px = vec![glam::Vec3::ONE; (w * h) as usize];
+    for (i, v) in map.iter().enumerate() {
+        let (x, y) = (i as u32 % size, i as u32 / size);
+        px[((y + 10) * w + x) as usize] =
+            if *v > 0.0 || sorted.is_empty() { ramp(v / top) } else { glam::Vec3::splat(0.5) };
+    }
+    let (bx, by0, by1) = (size + 10, 10u32, size.max(120) + 10);
+    for y in by0..by1 {
+        let t = 1.0 - (y - by0) as f32 / (by1 - by0) as f32;
+        for x in bx..bx + bar {
+            px[(y * w + x) as usize] = ramp(t);
+        }
+    }
+    let mut label = |text: String, y: f64| {
+        plot::text_pixels(((bx + bar + 4) as f64, y), &text, "start", false, 10.0, &mut |x, yy, a| {
+            if x >= 0 && yy >= 0 && (x as u32) < w && (yy as u32) < h {
+                let p = &mut px[(yy as u32 * w + x as u32) as usize];
+                *p *= 1.0 - a;
+            }
+        });
+    };
+    label(format!("{:.0}%", 100.0 * top), by0 as f64 + 8.0);
+    label(format!("{:.0}%", 50.0 * top), (by0 + by1) as f64 / 2.0 + 4.0);
+    label("0%".into(), by1 as f64);
+    // sRGB bytes were chosen for the ramp: store them as linear so the PNG shows them.
+    let linear: Vec<glam::Vec3> = px.iter().map(|c| c.to_array().map(pm_color::srgb_decode).into()).collect();
+    pm_image::write_png(path, w, h, &linear, 0.0)
 }

@@ -1,0 +1,181 @@
+//! What an error is made of: bias and noise of an estimator, from renders with
+//! different seeds against a reference whose own noise is known (the trade-off
+//! study's measures, `cargo xtask tradeoff`).
+//!
+//! With S renders I_k of one setting, their mean M, and a reference R = T + e_R
+//! (truth T, noise of per-pixel variance s_R^2), over the kept pixels and channels:
+//!
+//! ```text
+//! noise^2 = sum_k |I_k - M|^2 / ((S - 1) n)            (one render's variance)
+//! |M - R|^2 / n = bias^2 + noise^2 / S + s_R^2          (in expectation)
+//! bias^2  = max(0, |M - R|^2 / n - noise^2 / S - s_R^2)
+//! error   = sqrt(bias^2 + noise^2)                      (one render against T)
+//! ```
+//!
+//! each divided by the reference's mean (relative, like [`pm_image::compare`]).
+//! The reference's s_R^2 comes from two independent halves A and B of it:
+//! R = (A + B) / 2 has s_R^2 = |A - B|^2 / (4 n).
+
+use glam::Vec3;
+
+/// Bias and noise of one setting (relative to the reference's mean).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Split {
+    /// sqrt(bias^2 + noise^2): the expected error of one render against the truth.
+    pub error: f64,
+    /// RMS of the seeds' mean minus the reference, less the noise of both.
+    pub bias: f64,
+    /// RMS spread of one render about the seeds' mean.
+    pub noise: f64,
+    /// The reference's own noise (RMS).
+    pub reference_noise: f64,
+    /// Signed mean difference of the seeds' mean from the reference.
+    pub mean_bias: f64,
+    /// Mean over the seeds of each render's RMSE against the reference (what a
+    /// single comparison would report: it contains the reference's noise).
+    pub measured: f64,
+}
+
+/// Pixels to compare: all but those within one pixel of a pixel brighter than half
+/// the reference's brightest (the light seen directly, whose anti-aliased edge
+/// would otherwise dominate every error).
+pub fn keep_mask(reference: &[Vec3], width: usize, height: usize) -> Vec<bool> {
+    let peak = reference.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+    let bright: Vec<bool> = reference.iter().map(|p| p.max_element() > 0.5 * peak && peak > 0.0).collect();
+    (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as i64, (i / width) as i64);
+            !(-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let (xx, yy) = (x + dx, y + dy);
+                    xx >= 0
+                        && yy >= 0
+                        && xx < width as i64
+                        && yy < height as i64
+                        && bright[(yy * width as i64 + xx) as usize]
+                })
+            })
+        })
+        .collect()
+}
+
+/// The reference (mean of its halves) and its per-pixel noise variance averaged
+/// over the kept channels, from two independent halves of equal sample counts.
+pub fn reference_from_halves(a: &[Vec3], b: &[Vec3], keep: &[bool]) -> (Vec<Vec3>, f64) {
+    let r: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
+    let n = (keep.iter().filter(|&&k| k).count() * 3).max(1) as f64;
+    let d2: f64 = a.iter().zip(b).zip(keep).filter(|x| *x.1).map(|((a, b), _)| (*a - *b).length_squared() as f64).sum();
+    (r, d2 / (4.0 * n))
+}
+
+/// Split the error of `renders` (one per seed, at least two) against `reference`
+/// with per-pixel noise variance `reference_var`, over the `keep` pixels.
+pub fn split(renders: &[&[Vec3]], reference: &[Vec3], reference_var: f64, keep: &[bool]) -> Split {
+    let s = renders.len();
+    let idx: Vec<usize> = (0..reference.len()).filter(|&i| keep[i]).collect();
+    let n = (idx.len() * 3).max(1) as f64;
+    let mean_ref = idx.iter().map(|&i| reference[i].element_sum() as f64).sum::<f64>() / n;
+    let denom = mean_ref.abs().max(1e-30);
+    let mean_of = |i: usize| renders.iter().map(|r| r[i].as_dvec3()).sum::<glam::DVec3>() / s.max(1) as f64;
+    let (mut spread, mut diff, mut signed) = (0.0, 0.0, 0.0);
+    for &i in &idx {
+        let m = mean_of(i);
+        spread += renders.iter().map(|r| (r[i].as_dvec3() - m).length_squared()).sum::<f64>();
+        let d = m - reference[i].as_dvec3();
+        diff += d.length_squared();
+        signed += d.element_sum();
+    }
+    let noise2 = if s > 1 { spread / ((s - 1) as f64 * n) } else { 0.0 };
+    let bias2 = (diff / n - noise2 / s.max(1) as f64 - reference_var).max(0.0);
+    let measured = renders
+        .iter()
+        .map(|r| (idx.iter().map(|&i| (r[i] - reference[i]).as_dvec3().length_squared()).sum::<f64>() / n).sqrt())
+        .sum::<f64>()
+        / s.max(1) as f64;
+    Split {
+        error: (bias2 + noise2).sqrt() / denom,
+        bias: bias2.sqrt() / denom,
+        noise: noise2.sqrt() / denom,
+        reference_noise: reference_var.sqrt() / denom,
+        mean_bias: signed / n / denom,
+        measured: measured / denom,
+    }
+}
+
+/// Per-pixel relative error |image - reference| / mean(reference) (0 on pixels not
+/// kept), for error maps.
+pub fn error_map(image: &[Vec3], reference: &[Vec3], keep: &[bool]) -> Vec<f32> {
+    let idx: Vec<usize> = (0..reference.len()).filter(|&i| keep[i]).collect();
+    let mean = idx.iter().map(|&i| reference[i].element_sum() as f64).sum::<f64>() / (idx.len() * 3).max(1) as f64;
+    let denom = mean.max(1e-30) as f32;
+    image
+        .iter()
+        .zip(reference)
+        .zip(keep)
+        .map(|((a, b), &k)| if k { (*a - *b).abs().element_sum() / 3.0 / denom } else { 0.0 })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic standard normal sequence (Box-Muller on a 64-bit LCG).
+    struct Normal(u64);
+    impl Normal {
+        fn uniform(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn next(&mut self) -> f32 {
+            let (u, v) = (self.uniform(), self.uniform());
+            ((-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()) as f32
+        }
+    }
+
+    /// A known answer: truth T (varying), renders T x (1 + 0.04) + noise of 0.1 x
+    /// mean(T), a reference from two halves each with noise 0.05 x mean(T). The
+    /// split recovers bias 4%, noise 10% and reference noise 0.05 / sqrt(2) = 3.5%,
+    /// although the reference's noise is as large as the bias.
+    #[test]
+    fn split_recovers_a_known_bias_and_noise() {
+        let n = 200 * 200;
+        let mut g = Normal(7);
+        let truth: Vec<Vec3> = (0..n).map(|i| Vec3::splat(0.5 + 0.5 * ((i % 200) as f32 / 200.0))).collect();
+        let mean_t = 0.75f32;
+        let half = |g: &mut Normal| -> Vec<Vec3> {
+            truth.iter().map(|t| *t + Vec3::new(g.next(), g.next(), g.next()) * 0.05 * mean_t).collect()
+        };
+        let (a, b) = (half(&mut g), half(&mut g));
+        let keep = vec![true; n];
+        let (reference, var) = reference_from_halves(&a, &b, &keep);
+        let renders: Vec<Vec<Vec3>> = (0..4)
+            .map(|_| truth.iter().map(|t| *t * 1.04 + Vec3::new(g.next(), g.next(), g.next()) * 0.1 * mean_t).collect())
+            .collect();
+        let refs: Vec<&[Vec3]> = renders.iter().map(Vec::as_slice).collect();
+        let s = split(&refs, &reference, var, &keep);
+        // The bias field is 0.04 x T: its RMS over mean(T) is 0.04 x rms(T) / mean(T).
+        let rms_t = (truth.iter().map(|t| t.x as f64 * t.x as f64).sum::<f64>() / n as f64).sqrt();
+        let want_bias = 0.04 * rms_t / mean_t as f64;
+        assert!((s.bias - want_bias).abs() < 0.1 * want_bias, "bias {} want {want_bias}", s.bias);
+        assert!((s.noise - 0.1).abs() < 0.005, "noise {}", s.noise);
+        assert!((s.reference_noise - 0.05 / 2f64.sqrt()).abs() < 0.002, "reference noise {}", s.reference_noise);
+        assert!((s.mean_bias - 0.04).abs() < 0.003, "mean bias {}", s.mean_bias);
+        // A single comparison would report the reference's noise as error too.
+        assert!(s.measured > s.error, "{} vs {}", s.measured, s.error);
+        // Without the split (reference noise ignored) the bias would read high.
+        let naive = split(&refs, &reference, 0.0, &keep);
+        assert!(naive.bias > 1.2 * want_bias, "{}", naive.bias);
+    }
+
+    /// The light's pixels and their neighbours are left out, nothing else.
+    #[test]
+    fn mask_leaves_out_the_light_and_its_rim() {
+        let (w, h) = (8, 6);
+        let mut img = vec![Vec3::splat(0.3); w * h];
+        img[2 * w + 3] = Vec3::splat(50.0);
+        let keep = keep_mask(&img, w, h);
+        let out: Vec<usize> = (0..w * h).filter(|&i| !keep[i]).collect();
+        assert_eq!(out, [w + 2, w + 3, w + 4, 2 * w + 2, 2 * w + 3, 2 * w + 4, 3 * w + 2, 3 * w + 3, 3 * w + 4]);
+    }
+}
