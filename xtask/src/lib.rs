@@ -7,6 +7,7 @@ pub mod assemble;
 pub mod gen_scenes;
 pub mod plan;
 pub mod plot;
+pub mod quality;
 pub mod run;
 pub mod slurm_selftest;
 pub mod stages;

@@ -53,6 +53,16 @@ pub struct Pipeline {
     /// The real-time mode (`photon-live`, `cargo xtask live`).
     #[serde(default)]
     pub live: pm_live::LiveParams,
+    /// "preview", "balanced" or "final": the trace, irradiance and render settings
+    /// are picked from the measured accuracy/time front ([`crate::quality`]).
+    #[serde(default)]
+    pub quality: Option<String>,
+    /// Or a time budget [s] for the whole pipeline at the file's image size.
+    #[serde(default)]
+    pub time_budget_s: Option<f64>,
+    /// What quality or time_budget_s chose (not a key of the file).
+    #[serde(skip)]
+    pub chosen: Option<String>,
 }
 
 /// `effects = "auto"` or a list of forced effects.
@@ -91,9 +101,16 @@ impl Pipeline {
     /// Read, parse and range-check a pipeline file; every error is one line naming
     /// the file and the key.
     pub fn load(path: &Path) -> Result<Pipeline> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        let p: Pipeline = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+        let mut text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let syntax = |e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " "));
+        // A quality or time budget replaces the swept settings before anything is checked.
+        let mut doc: toml::Value = toml::from_str(&text).map_err(syntax)?;
+        let chosen = crate::quality::apply(&mut doc, path)?;
+        if chosen.is_some() {
+            text = toml::to_string(&doc).context("internal error: the pipeline does not serialise")?;
+        }
+        let mut p: Pipeline = toml::from_str(&text).map_err(syntax)?;
+        p.chosen = chosen;
         let fail = |e: String| anyhow::anyhow!("{}: {e}", path.display());
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
@@ -103,6 +120,9 @@ impl Pipeline {
             if !(0.0..=1.0).contains(share) {
                 bail!("{}: light_shares.{name} = {share} is out of range (in [0, 1])", path.display());
             }
+        }
+        if let Some(c) = &p.chosen {
+            println!("{}: {c}", path.display());
         }
         Ok(p)
     }

@@ -303,6 +303,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     if let Some(docs) = &args.docs {
         std::fs::create_dir_all(docs)?;
         for f in [
+            "front.json",
             "results.csv",
             "results.md",
             "plot.svg",
@@ -319,6 +320,25 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         println!("copied the results to {}", docs.display());
     }
     Ok(())
+}
+
+/// The pipeline.toml values of `s` that differ from `d`'s: (section, key, value),
+/// from their command lines (whose option names are the keys).
+fn overrides(d: &Setting, s: &Setting) -> Vec<(String, String, xtask::quality::Value)> {
+    let mut v = Vec::new();
+    for (section, a, b) in [
+        ("trace", d.trace.to_args(), s.trace.to_args()),
+        ("irradiance", d.irradiance.to_args(), s.irradiance.to_args()),
+        ("render", d.render.to_args(), s.render.to_args()),
+    ] {
+        for (da, sa) in a.chunks(2).zip(b.chunks(2)) {
+            if da[1] != sa[1] {
+                let key = sa[0].trim_start_matches("--").replace('-', "_");
+                v.push((section.to_string(), key, xtask::quality::Value::parse(&sa[1], &da[1])));
+            }
+        }
+    }
+    v
 }
 
 /// Pareto front: the rows no faster row beats in error, fastest first.
@@ -465,6 +485,26 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
         }
     }
     std::fs::write(out.join("results.md"), &md)?;
+    // The front as the quality knob reads it (`quality` in pipeline.toml).
+    let name = Path::new(&args.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
+    let f = xtask::quality::Front {
+        scene: name,
+        size,
+        machine: format!("{} cores", std::thread::available_parallelism().map_or(1, |n| n.get())),
+        defaults_s: rows[0].times,
+        points: front
+            .iter()
+            .map(|&i| xtask::quality::Point {
+                label: rows[i].setting.label.clone(),
+                times_s: rows[i].times,
+                error: rows[i].splits[0].error,
+                bias: rows[i].splits[0].bias,
+                noise: rows[i].splits[0].noise,
+                overrides: overrides(&rows[0].setting, &rows[i].setting),
+            })
+            .collect(),
+    };
+    std::fs::write(out.join("front.json"), serde_json::to_string_pretty(&f)? + "\n")?;
     plots(out, rows, &front)?;
     println!("\n{md}\nwrote {}", out.display());
     Ok(())
