@@ -21,7 +21,7 @@ pub enum Shape {
 }
 
 /// Colours for series, distinguishable on white.
-pub const PALETTE: [Colour; 12] = [
+pub const PALETTE: [Colour; 14] = [
     (0, 0, 0),
     (230, 25, 75),
     (60, 180, 75),
@@ -34,6 +34,8 @@ pub const PALETTE: [Colour; 12] = [
     (170, 110, 40),
     (250, 100, 200),
     (0, 0, 128),
+    (0, 190, 255),
+    (110, 70, 0),
 ];
 
 /// Write `shapes` on a white `w` x `h` canvas to `svg` and `png`.

@@ -53,6 +53,9 @@ struct Setting {
     trace: TraceParams,
     irradiance: IrradianceParams,
     render: RenderParams,
+    /// A real-time row instead: photon-live's settings (its frame of the scene's
+    /// camera after the buffer filled, timed as its mean frame time).
+    live: Option<pm_live::LiveParams>,
 }
 
 impl Setting {
@@ -95,6 +98,7 @@ fn sweep(base: &xtask::run::Pipeline, size: u32) -> Vec<Setting> {
         trace: base.trace.clone(),
         irradiance: base.irradiance.clone(),
         render,
+        live: None,
     };
     let mut v = vec![d.clone()];
     let with = |axis: &'static str, label: String, f: &dyn Fn(&mut Setting)| {
@@ -139,7 +143,46 @@ fn sweep(base: &xtask::run::Pipeline, size: u32) -> Vec<Setting> {
             s.render.spp = spp
         }));
     }
+    // The real-time methods on the same reference: Jozwowski's vertex estimates
+    // (paths in the buffer) and image-space photon mapping (subsampling).
+    let live = |method: pm_live::Method| pm_live::LiveParams { method, width: size, height: size, ..base.live.clone() };
+    for total in [5_000u32, 20_000, 80_000] {
+        v.push(with("live vertex", format!("vertex total {total}"), &|s| {
+            s.live = Some(pm_live::LiveParams { total, per_frame: total / 10, ..live(pm_live::Method::Vertex) })
+        }));
+    }
+    for f in [1u32, 2, 4] {
+        v.push(with("live ispm", format!("ispm subsample {f}"), &|s| {
+            s.live = Some(pm_live::LiveParams { subsample: f, ..live(pm_live::Method::Ispm) })
+        }));
+    }
     v
+}
+
+/// Render a real-time row's frame: photon-live runs until the vertex method's
+/// buffer is full (one frame more), writes the last frame's EXR, and the mean frame
+/// time after warm-up is the row's time [s].
+fn live_frame(
+    bins: &Bins,
+    scene: &str,
+    p: &pm_live::LiveParams,
+    seed: u64,
+    dir: &Path,
+) -> Result<(pm_image::Layers, f64)> {
+    let frames = (p.total / p.per_frame.max(1)).max(1) + 3;
+    let mut a = vec!["--scene".to_string(), scene.into(), "--out".into(), dir.display().to_string()];
+    a.extend(["--frames".into(), frames.to_string(), "--exr".into(), "--seed".into(), seed.to_string()]);
+    a.extend(p.to_args());
+    stages::run(bins, "photon-live", &a, "photon-live", true)?;
+    let csv =
+        std::fs::read_to_string(dir.join("frames.csv")).with_context(|| format!("{}: no frames.csv", dir.display()))?;
+    let header: Vec<&str> = csv.lines().next().unwrap_or_default().split(',').collect();
+    let col = header.iter().position(|h| *h == "total_s").context("frames.csv has no total_s")?;
+    let warm = (frames - 2) as usize;
+    let times: Vec<f64> = csv.lines().skip(1 + warm).filter_map(|l| l.split(',').nth(col)?.parse().ok()).collect();
+    let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
+    let exr = dir.join(format!("frames/{:04}.exr", frames - 1));
+    Ok((pm_image::read_exr(&exr)?, mean))
 }
 
 /// Run one stage quietly (its messages are kept for the error if it fails) and
@@ -230,6 +273,13 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         let mut times = [0.0f64; 4];
         let mut images = Vec::new();
         for seed in 1..=args.seeds {
+            if let Some(lp) = &st.live {
+                let dir = out.join("live").join(format!("{}-s{seed}", st.label.replace(' ', "_")));
+                let (img, secs) = live_frame(&bins, &scene_s, lp, seed, &dir)?;
+                times[3] += secs / args.seeds as f64;
+                images.push(img);
+                continue;
+            }
             // Photon maps, shared by settings that differ only in rendering.
             let key = st.maps_key(seed);
             let mdir = out.join("maps").join(&key);
@@ -402,7 +452,9 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
          rendered with {} seeds; the light's pixels and their neighbours are left out. **error** is what one render is \
          expected to be off from the truth, sqrt(bias^2 + noise^2); **bias** is the seeds' mean against the reference with \
          both noises taken out; **noise** the spread of one render; **measured** what a single comparison with the \
-         reference reports. Times are wall seconds per stage (means over the seeds) on this machine (2 cores), one session.\n\n\
+         reference reports. Times are wall seconds per stage (means over the seeds) on this machine (2 cores), one session; \
+         the real-time rows (photon-live, one frame of the same camera) count the mean frame time after the vertex \
+         method's buffer filled.\n\n\
          | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular | Pareto |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         args.reference_spp,
@@ -485,14 +537,16 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
         }
     }
     std::fs::write(out.join("results.md"), &md)?;
-    // The front as the quality knob reads it (`quality` in pipeline.toml).
+    // The front as the quality knob reads it (`quality` in pipeline.toml): batch
+    // settings only, the real-time rows being another program.
+    let batch_front = pareto(rows, |r| if r.setting.live.is_some() { f64::INFINITY } else { r.splits[0].error });
     let name = Path::new(&args.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
     let f = xtask::quality::Front {
         scene: name,
         size,
         machine: format!("{} cores", std::thread::available_parallelism().map_or(1, |n| n.get())),
         defaults_s: rows[0].times,
-        points: front
+        points: batch_front
             .iter()
             .map(|&i| xtask::quality::Point {
                 label: rows[i].setting.label.clone(),
@@ -511,7 +565,7 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 12] = [
+const AXES: [&str; 14] = [
     "default",
     "global photons",
     "caustic photons",
@@ -524,6 +578,8 @@ const AXES: [&str; 12] = [
     "lookup",
     "records",
     "path",
+    "live vertex",
+    "live ispm",
 ];
 
 fn colour(axis: &str) -> plot::Colour {
@@ -585,7 +641,7 @@ fn panel(
         if pts.is_empty() {
             continue;
         }
-        if *axis != "path" {
+        if !matches!(*axis, "path" | "live vertex" | "live ispm") {
             pts.push(0);
         }
         pts.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
@@ -650,7 +706,7 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
     }
     for axis in AXES.iter().skip(1) {
         let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
-        if *axis != "path" && !pts.is_empty() {
+        if !matches!(*axis, "path" | "live vertex" | "live ispm") && !pts.is_empty() {
             pts.insert(pts.len() / 2, 0);
         }
         for wnd in pts.windows(2) {
