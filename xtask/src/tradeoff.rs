@@ -87,8 +87,9 @@ impl Row {
     }
 }
 
-/// The defaults (pipeline.toml's values at `size`), then one setting at a time.
-fn sweep(base: &xtask::run::Pipeline, size: u32) -> Vec<Setting> {
+/// The defaults (pipeline.toml's values at `size`), then one setting at a time;
+/// `base_diagonal` is the scene's bounding-box diagonal [m].
+fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Setting> {
     let mut render = base.render.clone();
     render.width = size;
     render.height = size;
@@ -149,6 +150,14 @@ fn sweep(base: &xtask::run::Pipeline, size: u32) -> Vec<Setting> {
     for total in [5_000u32, 20_000, 80_000] {
         v.push(with("live vertex", format!("vertex total {total}"), &|s| {
             s.live = Some(pm_live::LiveParams { total, per_frame: total / 10, ..live(pm_live::Method::Vertex) })
+        }));
+    }
+    // Corner estimates need corners: the mesh split to edges of at most this
+    // fraction of the scene's diagonal (section 4.3).
+    let diagonal = base_diagonal;
+    for f in [0.05f32, 0.02] {
+        v.push(with("live vertex", format!("vertex subdivide {f} diag"), &|s| {
+            s.live = Some(pm_live::LiveParams { subdivide: f * diagonal, ..live(pm_live::Method::Vertex) })
         }));
     }
     for f in [1u32, 2, 4] {
@@ -269,7 +278,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
-    for st in sweep(&base, size) {
+    let diagonal = pm_scene::load(&scene).map(|s| s.bounds.diagonal()).unwrap_or(1.0);
+    for st in sweep(&base, size, diagonal) {
         let mut times = [0.0f64; 4];
         let mut images = Vec::new();
         for seed in 1..=args.seeds {
