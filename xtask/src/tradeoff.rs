@@ -43,6 +43,10 @@ pub struct Args {
     /// Copy results.csv, results.md, the plots and the error map here.
     #[arg(long)]
     docs: Option<PathBuf>,
+    /// Render nothing: rewrite results.md, front.json, the plots and the error map
+    /// from the output folder's results.csv, cached reference and images.
+    #[arg(long)]
+    replot: bool,
 }
 
 /// One point of the sweep: the stage parameters it runs with.
@@ -279,7 +283,12 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
     let diagonal = pm_scene::load(&scene).map(|s| s.bounds.diagonal()).unwrap_or(1.0);
-    for st in sweep(&base, size, diagonal) {
+    let settings = sweep(&base, size, diagonal);
+    if args.replot {
+        rows = read_rows(&out.join("results.csv"), &settings)?;
+        default_image = Some(layer(&pm_image::read_exr(&out.join("defaults-s1.exr"))?, "total"));
+    }
+    for st in settings.into_iter().filter(|_| !args.replot) {
         let mut times = [0.0f64; 4];
         let mut images = Vec::new();
         for seed in 1..=args.seeds {
@@ -380,6 +389,45 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         println!("copied the results to {}", docs.display());
     }
     Ok(())
+}
+
+/// The rows of a results.csv this study wrote, matched to `settings` by label.
+fn read_rows(path: &Path, settings: &[Setting]) -> Result<Vec<Row>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let col = |name: &str| {
+        header.iter().position(|h| *h == name).with_context(|| format!("{}: no column {name}", path.display()))
+    };
+    let mut rows = Vec::new();
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        let num = |name: &str| -> Result<f64> {
+            let c = col(name)?;
+            f.get(c).and_then(|v| v.parse().ok()).with_context(|| format!("{}: bad {name} in {line}", path.display()))
+        };
+        let label = f.get(col("setting")?).copied().unwrap_or_default();
+        let Some(setting) = settings.iter().find(|s| s.label == label) else { continue };
+        let split = |prefix: &str| -> Result<Split> {
+            let p = if prefix.is_empty() { String::new() } else { format!("{prefix}_") };
+            Ok(Split {
+                error: num(&format!("{p}error"))?,
+                bias: num(&format!("{p}bias"))?,
+                noise: num(&format!("{p}noise"))?,
+                reference_noise: num(&format!("{p}reference_noise"))?,
+                mean_bias: if prefix.is_empty() { num("mean_bias")? } else { 0.0 },
+                measured: if prefix.is_empty() { num("measured_rmse")? } else { 0.0 },
+            })
+        };
+        rows.push(Row {
+            setting: setting.clone(),
+            times: [num("trace_s")?, num("sort_s")?, num("irradiance_s")?, num("render_s")?],
+            splits: [split("")?, split("direct")?, split("caustic")?, split("indirect")?, split("specular")?],
+            ssim: num("ssim")?,
+        });
+    }
+    anyhow::ensure!(!rows.is_empty() && rows[0].setting.axis == "default", "{}: no defaults row first", path.display());
+    Ok(rows)
 }
 
 /// The pipeline.toml values of `s` that differ from `d`'s: (section, key, value),
@@ -596,9 +644,10 @@ fn colour(axis: &str) -> plot::Colour {
     plot::PALETTE[AXES.iter().position(|a| *a == axis).unwrap_or(0) % plot::PALETTE.len()]
 }
 
-/// A panel at (x0, y0) of size w x h: `value` of each row against its total time
-/// (log axis), a line through each axis's points (with the defaults' point), and
-/// `front` dashed.
+/// A panel at (x0, y0) of size w x h: `value` of each row that `show` admits
+/// against its total time (log axis), a line through each axis's points (with the
+/// defaults' point), and `front` dashed; with `zoom` the value axis spans the shown
+/// rows' range instead of starting at 0.
 #[allow(clippy::too_many_arguments)]
 fn panel(
     shapes: &mut Vec<Shape>,
@@ -607,23 +656,21 @@ fn panel(
     y_label: &str,
     rows: &[Row],
     value: &dyn Fn(&Row) -> f64,
+    show: &dyn Fn(&Row) -> bool,
     front: &[usize],
-    labels: bool,
+    (labels, zoom): (bool, bool),
 ) {
     let m = 55.0;
+    let vis: Vec<usize> = (0..rows.len()).filter(|&i| show(&rows[i])).collect();
     let t: Vec<f64> = rows.iter().map(|r| r.total().max(1e-3)).collect();
-    let (lt0, lt1) = (
-        t.iter().cloned().fold(f64::INFINITY, f64::min).log10().floor(),
-        t.iter()
-            .cloned()
-            .fold(0.0, f64::max)
-            .log10()
-            .ceil()
-            .max(t.iter().cloned().fold(f64::INFINITY, f64::min).log10().floor() + 1.0),
-    );
-    let vmax = rows.iter().map(value).fold(0.0, f64::max).max(1e-9) * 1.1;
+    let tmin = vis.iter().map(|&i| t[i]).fold(f64::INFINITY, f64::min);
+    let tmax = vis.iter().map(|&i| t[i]).fold(0.0, f64::max);
+    let (lt0, lt1) = (tmin.log10().floor(), tmax.log10().ceil().max(tmin.log10().floor() + 1.0));
+    let vhi = vis.iter().map(|&i| value(&rows[i])).fold(0.0, f64::max).max(1e-9);
+    let vlo = vis.iter().map(|&i| value(&rows[i])).fold(f64::INFINITY, f64::min);
+    let (vmin, vmax) = if zoom { (0.95 * vlo, 1.05 * vhi) } else { (0.0, 1.1 * vhi) };
     let x = |tv: f64| x0 + m + (tv.log10() - lt0) / (lt1 - lt0) * (w - 1.5 * m);
-    let y = |v: f64| y0 + h - m + 10.0 - v / vmax * (h - 1.6 * m);
+    let y = |v: f64| y0 + h - m + 10.0 - (v - vmin) / (vmax - vmin).max(1e-12) * (h - 1.6 * m);
     let black = (0u8, 0u8, 0u8);
     let (bx, by) = (x0 + m, y0 + h - m + 10.0);
     shapes.push(Shape::Line((bx, by), (x0 + w - 0.5 * m, by), black, false));
@@ -637,21 +684,24 @@ fn panel(
         shapes.push(Shape::Text((xv, by + 17.0), format!("{}", 10f64.powi(p)), "middle", false, 10));
     }
     for k in 0..=4 {
-        let v = vmax * k as f64 / 4.0;
+        let v = vmin + (vmax - vmin) * k as f64 / 4.0;
         shapes.push(Shape::Line((bx - 4.0, y(v)), (bx, y(v)), black, false));
-        shapes.push(Shape::Text((bx - 6.0, y(v) + 4.0), format!("{:.0}%", 100.0 * v), "end", false, 10));
+        let text = if zoom { format!("{:.1}%", 100.0 * v) } else { format!("{:.0}%", 100.0 * v) };
+        shapes.push(Shape::Text((bx - 6.0, y(v) + 4.0), text, "end", false, 10));
     }
     for wnd in front.windows(2) {
         let (a, b) = (wnd[0], wnd[1]);
-        shapes.push(Shape::Line((x(t[a]), y(value(&rows[a]))), (x(t[b]), y(value(&rows[b]))), (60, 60, 60), true));
+        if vis.contains(&a) && vis.contains(&b) {
+            shapes.push(Shape::Line((x(t[a]), y(value(&rows[a]))), (x(t[b]), y(value(&rows[b]))), (60, 60, 60), true));
+        }
     }
     for axis in AXES.iter().skip(1) {
         // The axis's points and the defaults, in time order.
-        let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
+        let mut pts: Vec<usize> = vis.iter().copied().filter(|&i| rows[i].setting.axis == *axis).collect();
         if pts.is_empty() {
             continue;
         }
-        if !matches!(*axis, "path" | "live vertex" | "live ispm") {
+        if !matches!(*axis, "path" | "live vertex" | "live ispm") && vis.contains(&0) {
             pts.push(0);
         }
         pts.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
@@ -660,7 +710,8 @@ fn panel(
             shapes.push(Shape::Line((x(t[a]), y(value(&rows[a]))), (x(t[b]), y(value(&rows[b]))), colour(axis), false));
         }
     }
-    for (i, r) in rows.iter().enumerate() {
+    for &i in &vis {
+        let r = &rows[i];
         shapes.push(Shape::Dot((x(t[i]), y(value(r))), colour(r.setting.axis)));
         if labels {
             shapes.push(Shape::Text((x(t[i]) + 6.0, y(value(r)) - 5.0), r.setting.label.clone(), "start", false, 8));
@@ -681,19 +732,35 @@ fn legend(shapes: &mut Vec<Shape>, x0: f64, y0: f64) {
 /// plot: error against time; bias_noise: bias against noise per setting (which
 /// setting buys which); layers: per-layer error against time.
 fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
+    // Left: every method; right: the photon-map settings alone, on their own scale.
+    let photon_map = |r: &Row| r.setting.live.is_none() && r.setting.render.mode != Method::Path;
+    let zoom_front = pareto(rows, |r| if photon_map(r) { r.splits[0].error } else { f64::INFINITY });
     let mut s = Vec::new();
+    let error = |r: &Row| r.splits[0].error;
     panel(
         &mut s,
-        (0.0, 0.0, 760.0, 560.0),
-        "error of one render against time",
+        (0.0, 0.0, 640.0, 560.0),
+        "every method: error of one render against time",
         "error sqrt(bias^2 + noise^2)",
         rows,
-        &|r| r.splits[0].error,
+        &error,
+        &|_| true,
         front,
-        true,
+        (false, false),
     );
-    legend(&mut s, 780.0, 60.0);
-    plot::draw(&s, 960.0, 560.0, &out.join("plot.svg"), &out.join("plot.png"))?;
+    panel(
+        &mut s,
+        (650.0, 0.0, 760.0, 560.0),
+        "the photon-map settings, zoomed",
+        "error sqrt(bias^2 + noise^2)",
+        rows,
+        &error,
+        &photon_map,
+        &zoom_front,
+        (true, true),
+    );
+    legend(&mut s, 1430.0, 60.0);
+    plot::draw(&s, 1590.0, 560.0, &out.join("plot.svg"), &out.join("plot.png"))?;
 
     // Bias against noise: moving along an axis horizontally buys bias, vertically noise.
     let (w, h, m) = (760.0f64, 560.0f64, 60.0f64);
@@ -744,8 +811,9 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
             "error",
             rows,
             &|r| r.splits[k + 1].error,
+            &|_| true,
             &f,
-            false,
+            (false, false),
         );
     }
     legend(&mut s, 985.0, 60.0);
