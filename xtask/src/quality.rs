@@ -4,7 +4,9 @@
 //! front of cornell_spheres when the class was never measured): the lowest error
 //! whose predicted time fits. The front records the study's image size and
 //! machine; a point's time is predicted for the pipeline's image size as its photon
-//! stages' time plus its render time scaled by the pixel count. preview, balanced
+//! stages' time plus its render time scaled by the pixel count (pessimistic: for
+//! the default 1024 x 1024 run it predicts 32 s against 10.7 s measured, the cache
+//! prepass and per-process costs growing less than the pixels). preview, balanced
 //! and final are a quarter of, equal to and four times the defaults' predicted
 //! time. The chosen point's parameters replace pipeline.toml's before it is read,
 //! so every check of the file applies to them.
