@@ -67,10 +67,7 @@ fn cluster() -> Result<()> {
     std::fs::write("/etc/slurm/slurm.conf", conf).context("/etc/slurm/slurm.conf: cannot write")?;
     sh("/usr/sbin/slurmctld").map_err(|e| {
         let log = std::fs::read_to_string("/tmp/slurm/slurmctld.log").unwrap_or_default();
-        anyhow::anyhow!(
-            "{e} {}",
-            log.lines().filter(|l| l.contains("fatal") || l.contains("error")).next_back().unwrap_or("")
-        )
+        anyhow::anyhow!("{e} {}", log.lines().rfind(|l| l.contains("fatal") || l.contains("error")).unwrap_or(""))
     })?;
     std::thread::sleep(Duration::from_secs(2));
     sh("/usr/sbin/slurmd")?;
