@@ -4,7 +4,7 @@
 
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
-use crate::{Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, Triangle};
+use crate::{Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, Triangle, Wrap};
 use glam::{DMat4, DVec3, Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use pm_bsdf::Bsdf;
 use pm_color::{Rgb, srgb_decode};
@@ -143,15 +143,24 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     ));
                 }
                 let image = info.texture().source();
-                let idx = match texture_of_image.get(&image.index()) {
+                let sampler = info.texture().sampler();
+                let wrap = [sampler.wrap_s(), sampler.wrap_t()].map(|w| match w {
+                    gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+                    gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+                    gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+                });
+                // One texture per image and wrapping (two samplers of one image differ).
+                let idx = match texture_of_image.get(&(image.index(), wrap)) {
                     Some(&t) => t,
                     None => {
                         let data = gltf::image::Data::from_source(image.source(), Some(base_dir), &buffers)
                             .map_err(|e| content(format!("material '{name}': base colour image: {e}")))?;
-                        textures.push(decode_texture(&data).ok_or_else(|| {
+                        let mut texture = decode_texture(&data).ok_or_else(|| {
                             content(format!("material '{name}': unsupported image format {:?}", data.format))
-                        })?);
-                        texture_of_image.insert(image.index(), textures.len() as u32 - 1);
+                        })?;
+                        texture.wrap = wrap;
+                        textures.push(texture);
+                        texture_of_image.insert((image.index(), wrap), textures.len() as u32 - 1);
                         textures.len() as u32 - 1
                     }
                 };
@@ -585,5 +594,5 @@ fn decode_texture(data: &gltf::image::Data) -> Option<Texture> {
             Rgb::new(c(0), c(1), c(2))
         })
         .collect();
-    Some(Texture { width: data.width, height: data.height, texels })
+    Some(Texture { width: data.width, height: data.height, texels, wrap: [Wrap::Repeat; 2] })
 }

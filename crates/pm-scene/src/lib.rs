@@ -97,10 +97,39 @@ pub struct Texture {
     pub height: u32,
     /// Row-major linear RGB reflectance.
     pub texels: Vec<Rgb>,
+    /// How u and v outside [0, 1] wrap (the glTF sampler's wrapS and wrapT).
+    pub wrap: [Wrap; 2],
+}
+
+/// How a texture coordinate outside [0, 1] maps back into the texture (glTF 2.0
+/// sampler wrapS / wrapT, section 3.8.4.3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Wrap {
+    /// The texture tiles (glTF's default).
+    #[default]
+    Repeat,
+    /// Texels beyond the edge repeat the edge texel.
+    ClampToEdge,
+    /// The texture tiles, every other copy mirrored.
+    MirroredRepeat,
+}
+
+impl Wrap {
+    /// Texel `i` of a row or column of `n` texels, wrapped into 0..n.
+    fn texel(self, i: i64, n: i64) -> i64 {
+        match self {
+            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::ClampToEdge => i.clamp(0, n - 1),
+            Wrap::MirroredRepeat => {
+                let m = i.rem_euclid(2 * n);
+                if m >= n { 2 * n - 1 - m } else { m }
+            }
+        }
+    }
 }
 
 impl Texture {
-    /// Bilinear lookup with repeat wrapping (glTF's default sampler).
+    /// Bilinear lookup, wrapped as the texture's sampler says.
     pub fn sample(&self, uv: Vec2) -> Rgb {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * self.width as f32 - 0.5;
@@ -110,7 +139,7 @@ impl Texture {
         }
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let at = |i: i64, j: i64| self.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+        let at = |i: i64, j: i64| self.texels[(self.wrap[1].texel(j, h) * w + self.wrap[0].texel(i, w)) as usize];
         let (i, j) = (x0 as i64, y0 as i64);
         (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
             + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy

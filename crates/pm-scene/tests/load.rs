@@ -225,3 +225,37 @@ fn candela_and_watts_per_steradian_files_agree() {
     }
     assert_eq!(candela.lights[0].power, watts.lights[0].power);
 }
+
+/// Texture wrapping (glTF sampler wrapS / wrapT): a 2 x 1 texture [red, blue]
+/// sampled at texel centres outside [0, 1] repeats, clamps or mirrors as the
+/// sampler says, per axis; and the loader reads the sampler (textured.gltf with
+/// its sampler given CLAMP_TO_EDGE and MIRRORED_REPEAT).
+#[test]
+fn texture_coordinates_wrap_as_the_sampler_says() {
+    use pm_scene::{Texture, Wrap};
+    let (red, blue) = (Vec3::X, Vec3::Z);
+    let tex = |s: Wrap| Texture { width: 2, height: 1, texels: vec![red, blue], wrap: [s, Wrap::Repeat] };
+    // Texel centres at u = 0.25 + k / 2.
+    let at = |t: &Texture, u: f32| t.sample(glam::Vec2::new(u, 0.5));
+    let cases = [
+        (Wrap::Repeat, [(1.25, red), (1.75, blue), (-0.25, blue), (-0.75, red)]),
+        (Wrap::ClampToEdge, [(1.25, blue), (1.75, blue), (-0.25, red), (-0.75, red)]),
+        (Wrap::MirroredRepeat, [(1.25, blue), (1.75, red), (-0.25, red), (-0.75, blue)]),
+    ];
+    for (wrap, probes) in cases {
+        for (u, want) in probes {
+            let got = at(&tex(wrap), u);
+            assert!((got - want).length() < 1e-5, "{wrap:?} at u = {u}: {got}, want {want}");
+        }
+    }
+    // The loader: the sampler's modes reach the texture.
+    let text = std::fs::read_to_string(data("textured.gltf"))
+        .unwrap()
+        .replace("\"magFilter\": 9728,", "\"magFilter\": 9728,\n   \"wrapS\": 33071,\n   \"wrapT\": 33648,");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("wrapped.gltf");
+    std::fs::write(&path, text).unwrap();
+    let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(s.textures[0].wrap, [Wrap::ClampToEdge, Wrap::MirroredRepeat]);
+    assert_eq!(load(&data("textured.gltf")).unwrap().textures[0].wrap, [Wrap::Repeat; 2]);
+}
