@@ -99,6 +99,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     // Textures: decode only images used as base colour.
     let mut textures = Vec::new();
     let mut texture_of_image = std::collections::HashMap::new();
+    // Per material, the TEXCOORD_n set its base-colour texture reads.
+    let mut uv_sets: Vec<u32> = Vec::new();
     let mut materials = Vec::new();
     for (i, m) in doc.materials().enumerate() {
         let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
@@ -136,12 +138,6 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         let base_texture = match pbr.base_color_texture() {
             None => None,
             Some(info) => {
-                if info.tex_coord() != 0 {
-                    warnings.push(format!(
-                        "material '{name}': base colour texture uses TEXCOORD_{}; TEXCOORD_0 is used",
-                        info.tex_coord()
-                    ));
-                }
                 let image = info.texture().source();
                 let sampler = info.texture().sampler();
                 let wrap = [sampler.wrap_s(), sampler.wrap_t()].map(|w| match w {
@@ -175,6 +171,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if !pm_color::is_valid(emission) {
             return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
+        uv_sets.push(pbr.base_color_texture().map_or(0, |info| info.tex_coord()));
         materials.push(Material { name, bsdf, base_texture, emission, double_sided: m.double_sided() });
     }
     // glTF's default material (primitives without one): white-ish diffuse.
@@ -229,7 +226,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                 let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
                 let first = triangles.len();
                 let material = prim.material().index().map_or(default_material, |i| i as u32);
-                let skipped = read_primitive(&prim, &buffers, world, normal_m, material, &mut triangles)
+                let mat = (material, uv_sets.get(material as usize).copied().unwrap_or(0));
+                let skipped = read_primitive(&prim, &buffers, world, normal_m, mat, &mut triangles)
                     .map_err(|m| content(format!("{what}: {m}")))?;
                 skipped_degenerate += skipped;
                 if triangles.len() > first {
@@ -240,7 +238,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     if animation.moves(node.index()) {
                         // The same primitive in the node's own space, re-posed per frame.
                         let mut local = Vec::new();
-                        read_primitive(&prim, &buffers, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut local)
+                        read_primitive(&prim, &buffers, Mat4::IDENTITY, Mat3::IDENTITY, mat, &mut local)
                             .map_err(|m| content(format!("{what}: {m}")))?;
                         if local.len() == triangles.len() - first {
                             animation.meshes.push(AnimatedMesh { object: objects.len(), node: node.index(), local });
@@ -467,7 +465,7 @@ fn read_primitive(
     buffers: &[gltf::buffer::Data],
     world: Mat4,
     normal_m: Mat3,
-    material: u32,
+    (material, uv_set): (u32, u32),
     out: &mut Vec<Triangle>,
 ) -> Result<usize, String> {
     use gltf::accessor::{DataType, Dimensions};
@@ -504,9 +502,10 @@ fn read_primitive(
     if let Some(a) = normal_acc.clone() {
         check("NORMAL", a, Dimensions::Vec3, &[DataType::F32])?;
     }
-    let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
+    let uv_name = format!("TEXCOORD_{uv_set}");
+    let uv_acc = prim.get(&gltf::Semantic::TexCoords(uv_set));
     if let Some(a) = uv_acc.clone() {
-        check("TEXCOORD_0", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+        check(&uv_name, a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
     }
     if let Some(a) = prim.indices() {
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
@@ -528,11 +527,11 @@ fn read_primitive(
         None
     };
     let uvs: Option<Vec<Vec2>> = if uv_acc.is_some() {
-        reader.read_tex_coords(0).map(|it| it.into_f32().map(Vec2::from).collect())
+        reader.read_tex_coords(uv_set).map(|it| it.into_f32().map(Vec2::from).collect())
     } else {
         None
     };
-    for (what, len) in [("NORMAL", normals.as_ref().map(Vec::len)), ("TEXCOORD_0", uvs.as_ref().map(Vec::len))] {
+    for (what, len) in [("NORMAL", normals.as_ref().map(Vec::len)), (uv_name.as_str(), uvs.as_ref().map(Vec::len))] {
         if let Some(len) = len
             && len != positions.len()
         {

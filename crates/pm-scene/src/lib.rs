@@ -61,7 +61,8 @@ pub struct Triangle {
     pub p: [Vec3; 3],
     /// World-space unit vertex normals, when the file had usable ones.
     pub n: Option<[Vec3; 3]>,
-    /// Texture coordinates (TEXCOORD_0), when present.
+    /// Texture coordinates (the set the base-colour texture names, TEXCOORD_0 by
+    /// default), when present.
     pub uv: Option<[Vec2; 3]>,
     /// Unit geometric normal from the winding (counter-clockwise = front).
     pub ng: Vec3,

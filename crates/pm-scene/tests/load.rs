@@ -259,3 +259,39 @@ fn texture_coordinates_wrap_as_the_sampler_says() {
     assert_eq!(s.textures[0].wrap, [Wrap::ClampToEdge, Wrap::MirroredRepeat]);
     assert_eq!(load(&data("textured.gltf")).unwrap().textures[0].wrap, [Wrap::Repeat; 2]);
 }
+
+/// A base-colour texture reads the texture coordinate set it names (texCoord): the
+/// textured quad with its coordinates moved to TEXCOORD_1 and nonsense in
+/// TEXCOORD_0 samples as before when the material says texCoord 1, and not when it
+/// says 0.
+#[test]
+fn base_colour_texture_reads_its_own_texcoord_set() {
+    let original: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("textured.gltf")).unwrap()).unwrap();
+    let variant = |tex_coord: u64| {
+        let mut g = original.clone();
+        // Accessor 3: the position bytes read as four VEC2 (not the quad's coordinates).
+        g["accessors"].as_array_mut().unwrap().push(serde_json::json!(
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC2"}
+        ));
+        g["meshes"][0]["primitives"][0]["attributes"] =
+            serde_json::json!({"POSITION": 0, "TEXCOORD_0": 3, "TEXCOORD_1": 1});
+        g["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = tex_coord.into();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sets.gltf");
+        std::fs::write(&path, g.to_string()).unwrap();
+        let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        [0.25f32, 0.75].map(|x| {
+            let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+            match s.bsdf(&h) {
+                pm_bsdf::Bsdf::Lambert { rho } => rho,
+                other => panic!("{other:?}"),
+            }
+        })
+    };
+    let (red, blue) = (Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.5 * pm_color::srgb_decode(188.0 / 255.0)));
+    let [a, b] = variant(1);
+    assert!((a - red).length() < 1e-4 && (b - blue).length() < 1e-4, "{a} {b}");
+    let [a, b] = variant(0);
+    assert!((a - red).length() > 1e-2 || (b - blue).length() > 1e-2, "{a} {b}");
+}
