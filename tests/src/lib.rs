@@ -156,6 +156,7 @@ pub fn material(name: &str, bsdf: pm_bsdf::Bsdf, emission: f32) -> pm_scene::Mat
         name: name.into(),
         bsdf,
         base_texture: None,
+        base_uv: glam::Affine2::IDENTITY,
         emission: glam::Vec3::splat(emission),
         double_sided: false,
     }

@@ -47,6 +47,7 @@ fn a_mirror_hidden_from_every_light_produces_no_caustics() {
         name: name.into(),
         bsdf,
         base_texture: None,
+        base_uv: glam::Affine2::IDENTITY,
         emission: Rgb::splat(e),
         double_sided: false,
     };

@@ -29,6 +29,7 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
         name: "floor".into(),
         bsdf: Bsdf::Lambert { rho: Rgb::splat(0.5) },
         base_texture: None,
+        base_uv: glam::Affine2::IDENTITY,
         emission: Rgb::ZERO,
         double_sided: false,
     }];

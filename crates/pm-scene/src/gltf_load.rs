@@ -49,8 +49,9 @@ const DIFFUSE_ROUGHNESS: f32 = 0.5;
 /// unstable and better served by the mirror model.
 const MIN_ALPHA: f32 = 0.02;
 
-const SUPPORTED_EXTENSIONS: [&str; 5] = [
+const SUPPORTED_EXTENSIONS: [&str; 6] = [
     "KHR_lights_punctual",
+    "KHR_texture_transform",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
@@ -171,13 +172,33 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if !pm_color::is_valid(emission) {
             return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
-        uv_sets.push(pbr.base_color_texture().map_or(0, |info| info.tex_coord()));
-        materials.push(Material { name, bsdf, base_texture, emission, double_sided: m.double_sided() });
+        // KHR_texture_transform: uv' = offset + R(rotation) (scale * uv), and its own
+        // texture coordinate set when it names one.
+        let (uv_set, base_uv) = match pbr.base_color_texture() {
+            None => (0, glam::Affine2::IDENTITY),
+            Some(info) => match info.texture_transform() {
+                None => (info.tex_coord(), glam::Affine2::IDENTITY),
+                Some(t) => {
+                    let (sin, cos) = t.rotation().sin_cos();
+                    // The extension's matrix, columns (cos, sin) and (-sin, cos).
+                    let r = glam::Mat2::from_cols(glam::Vec2::new(cos, sin), glam::Vec2::new(-sin, cos));
+                    let m = r * glam::Mat2::from_diagonal(glam::Vec2::from(t.scale()));
+                    let a = glam::Affine2::from_mat2_translation(m, glam::Vec2::from(t.offset()));
+                    if !a.is_finite() {
+                        return Err(content(format!("material '{name}': texture transform is not finite")));
+                    }
+                    (t.tex_coord().unwrap_or(info.tex_coord()), a)
+                }
+            },
+        };
+        uv_sets.push(uv_set);
+        materials.push(Material { name, bsdf, base_texture, base_uv, emission, double_sided: m.double_sided() });
     }
     // glTF's default material (primitives without one): white-ish diffuse.
     let default_material = materials.len() as u32;
     materials.push(Material {
         name: "default".into(),
+        base_uv: glam::Affine2::IDENTITY,
         bsdf: Bsdf::Lambert { rho: Rgb::splat(0.8) },
         base_texture: None,
         emission: Rgb::ZERO,

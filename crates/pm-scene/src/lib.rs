@@ -156,6 +156,9 @@ pub struct Material {
     pub bsdf: Bsdf,
     /// Base colour texture (index into [`Scene::textures`]) multiplied into the BSDF colour.
     pub base_texture: Option<u32>,
+    /// The base colour texture's coordinate transform (KHR_texture_transform;
+    /// identity without it).
+    pub base_uv: glam::Affine2,
     /// Emitted radiance L_e [W sr^-1 m^-2 per channel].
     pub emission: Rgb,
     /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
@@ -781,7 +784,7 @@ impl Scene {
     pub fn bsdf(&self, hit: &Hit) -> Bsdf {
         let m = self.material(hit);
         match m.base_texture {
-            Some(t) => m.bsdf.tinted(self.textures[t as usize].sample(hit.uv)),
+            Some(t) => m.bsdf.tinted(self.textures[t as usize].sample(m.base_uv.transform_point2(hit.uv))),
             None => m.bsdf,
         }
     }
