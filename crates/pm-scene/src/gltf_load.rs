@@ -167,6 +167,26 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if m.emissive_texture().is_some() {
             warnings.push(format!("material '{name}': emissive texture ignored (emissiveFactor used)"));
         }
+        // What is not read yet, said once per material.
+        if pbr.metallic_roughness_texture().is_some() {
+            warnings.push(format!("material '{name}': metallicRoughness texture ignored (the factors are used)"));
+        }
+        if m.normal_texture().is_some() {
+            warnings.push(format!("material '{name}': normal texture ignored (interpolated vertex normals are used)"));
+        }
+        if m.occlusion_texture().is_some() {
+            warnings.push(format!(
+                "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
+            ));
+        }
+        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            warnings.push(format!("material '{name}': alphaMode {:?} ignored (rendered opaque)", m.alpha_mode()));
+        }
+        if let Some(v) = m.volume()
+            && (v.attenuation_distance().is_finite() || v.attenuation_color() != [1.0; 3])
+        {
+            warnings.push(format!("material '{name}': volume attenuation ignored (the medium is clear)"));
+        }
         let ef = m.emissive_factor();
         let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
         if !pm_color::is_valid(emission) {
@@ -245,6 +265,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     continue;
                 }
                 let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
+                if prim.get(&gltf::Semantic::Colors(0)).is_some()
+                    && warned_modes.insert(format!("COLOR_0 {}", mesh.index()))
+                {
+                    warnings.push(format!("{what}: vertex colours (COLOR_0) ignored"));
+                }
                 let first = triangles.len();
                 let material = prim.material().index().map_or(default_material, |i| i as u32);
                 let mat = (material, uv_sets.get(material as usize).copied().unwrap_or(0));

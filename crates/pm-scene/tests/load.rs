@@ -346,3 +346,42 @@ fn texture_transform_moves_the_base_colour_texture() {
     }
     assert!(differs_from_opposite, "the probes cannot tell the rotation's sense");
 }
+
+/// What is not read yet is said, once, naming the material (or mesh): the textured
+/// quad given a metallicRoughness, normal and occlusion texture, alphaMode MASK,
+/// volume attenuation and vertex colours.
+#[test]
+fn ignored_material_features_are_warned_naming_the_material() {
+    let mut g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("textured.gltf")).unwrap()).unwrap();
+    let m = &mut g["materials"][0];
+    m["pbrMetallicRoughness"]["metallicRoughnessTexture"] = serde_json::json!({"index": 0});
+    m["normalTexture"] = serde_json::json!({"index": 0});
+    m["occlusionTexture"] = serde_json::json!({"index": 0});
+    m["alphaMode"] = "MASK".into();
+    m["extensions"] = serde_json::json!({
+        "KHR_materials_transmission": {"transmissionFactor": 1.0},
+        "KHR_materials_volume": {"thicknessFactor": 0.1, "attenuationDistance": 0.5, "attenuationColor": [1.0, 0.5, 0.5]}
+    });
+    g["extensionsUsed"] = serde_json::json!(["KHR_materials_transmission", "KHR_materials_volume"]);
+    // COLOR_0: accessor 0 (the positions, a valid VEC3 float colour accessor).
+    g["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = 0.into();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ignored.gltf");
+    std::fs::write(&path, g.to_string()).unwrap();
+    let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    for what in
+        ["metallicRoughness texture", "normal texture", "occlusion texture", "alphaMode Mask", "volume attenuation"]
+    {
+        let n = s.warnings.iter().filter(|w| w.contains(what) && w.contains("material 'checker'")).count();
+        assert_eq!(n, 1, "{what}: {:?}", s.warnings);
+    }
+    assert_eq!(
+        s.warnings.iter().filter(|w| w.contains("COLOR_0") && w.contains("mesh 'quad'")).count(),
+        1,
+        "{:?}",
+        s.warnings
+    );
+    // The plain file warns of none of them.
+    assert!(load(&data("textured.gltf")).unwrap().warnings.is_empty());
+}
