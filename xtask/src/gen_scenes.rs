@@ -109,10 +109,29 @@ impl Doc {
         self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
     }
 
-    fn camera(&mut self, eye: [f32; 3], yfov: f32, aspect: f32) {
+    /// The camera: at `eye`, looking down -z turned by the unit quaternion `rotation`
+    /// (x, y, z, w; none: not turned). Numbers are written as given (an f32 as its
+    /// widened f64 digits, as the older scenes have them).
+    fn camera<T: serde::Serialize>(&mut self, eye: [T; 3], rotation: Option<[f64; 4]>, yfov: T, aspect: T) {
         self.cameras
             .push(json!({"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}));
-        self.nodes.push(json!({"name": "camera", "camera": 0, "translation": eye}));
+        let mut node = json!({"name": "camera", "camera": 0, "translation": eye});
+        if let Some(r) = rotation {
+            node["rotation"] = json!(r);
+        }
+        self.nodes.push(node);
+    }
+
+    /// A white point light of `w_per_sr` W/sr at `at`, its intensity written in
+    /// candela as the glTF specification asks (x 683 lm/W, the loader's
+    /// [`pm_scene::LUMINOUS_EFFICACY`]). Returns the light's node.
+    fn point_light(&mut self, name: &str, w_per_sr: f64, at: [f64; 3]) -> usize {
+        let candela = w_per_sr * pm_scene::LUMINOUS_EFFICACY as f64;
+        self.lights.push(json!({"name": name, "type": "point", "intensity": candela, "color": [1.0, 1.0, 1.0]}));
+        let light = self.lights.len() - 1;
+        self.nodes
+            .push(json!({"name": name, "translation": at, "extensions": {"KHR_lights_punctual": {"light": light}}}));
+        self.nodes.len() - 1
     }
 
     fn write(self, dir: &Path, name: &str, check: bool) -> Result<()> {
@@ -264,7 +283,7 @@ fn cornell_shell(doc: &mut Doc) {
     doc.mesh_node("right_wall", &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]), blue);
     let (s, y) = (0.25, h - 0.002);
     doc.mesh_node("ceiling_light", &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]), light);
-    doc.camera([0.0, 1.0, 3.8], 0.69, 1.0);
+    doc.camera([0.0f32, 1.0, 3.8], None, 0.69, 1.0);
 }
 
 fn cornell_spheres() -> Doc {
@@ -307,7 +326,7 @@ fn furnace() -> Doc {
         "emissiveFactor": [1.0, 1.0, 1.0]
     }));
     doc.flat_mesh_node("furnace_sphere", &sphere([0.0, 0.0, 0.0], 1.0, 32, 16, true), m);
-    doc.camera([0.0, 0.0, 0.0], 1.2, 1.0);
+    doc.camera([0.0f32, 0.0, 0.0], None, 1.2, 1.0);
     doc
 }
 
@@ -318,14 +337,9 @@ fn plane_point() -> Doc {
     let mut doc = Doc::default();
     let m = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
     doc.mesh_node("floor", &quad([-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0], [-2.0, 0.0, -2.0]), m);
-    // 10 W/sr, written in candela as the glTF specification asks (x 683 lm/W).
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 6830.0, "color": [1.0, 1.0, 1.0]}));
-    doc.nodes.push(
-        json!({"name": "bulb", "translation": [0.0, 1.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
-    );
+    doc.point_light("bulb", 10.0, [0.0, 1.0, 0.0]);
     // Looking down -y: rotate -90 degrees about x (camera -z becomes -y).
-    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 1.0, "aspectRatio": 1.0, "znear": 0.01}}));
-    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 3.0, 0.0], "rotation": [-0.70710678, 0.0, 0.0, 0.70710678]}));
+    doc.camera([0.0, 3.0, 0.0], Some([-0.70710678, 0.0, 0.0, 0.70710678]), 1.0, 1.0);
     doc
 }
 
@@ -361,14 +375,9 @@ fn caustic_ring() -> Doc {
     }));
     doc.mesh_node("floor", &quad([-1.5, 0.0, 1.5], [1.5, 0.0, 1.5], [1.5, 0.0, -1.5], [-1.5, 0.0, -1.5]), floor);
     doc.mesh_node("ring", &cylinder(0.0, 0.0, 0.5, 0.0, 0.2, 200), metal);
-    // 3 W/sr, in candela.
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 2049.0, "color": [1.0, 1.0, 1.0]}));
-    doc.nodes.push(
-        json!({"name": "bulb", "translation": [0.0, 0.5, 1.2], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
-    );
-    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 0.8, "aspectRatio": 1.0, "znear": 0.01}}));
+    doc.point_light("bulb", 3.0, [0.0, 0.5, 1.2]);
     // 1.5 m up and 1.3 m in front, looking down 50 degrees at the ring.
-    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 1.5, 1.3], "rotation": [-0.4226183, 0.0, 0.0, 0.9063078]}));
+    doc.camera([0.0, 1.5, 1.3], Some([-0.4226183, 0.0, 0.0, 0.9063078]), 0.8, 1.0);
     doc
 }
 
@@ -441,12 +450,7 @@ fn jozwowski_room(n: usize) -> Doc {
         &merge(&[split(block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4)), split(block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3))]),
         boxes,
     );
-    // 6 W/sr, in candela.
-    doc.lights.push(json!({"name": "bulb", "type": "point", "intensity": 4098.0, "color": [1.0, 1.0, 1.0]}));
-    doc.nodes.push(
-        json!({"name": "bulb", "translation": [1.2, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
-    );
-    let light_node = doc.nodes.len() - 1;
+    let light_node = doc.point_light("bulb", 6.0, [1.2, 2.0, 0.0]);
     // The light's path: 33 keys around a circle of radius 1.2 m at 2 m height, linear
     // between them, 8 s per turn.
     let keys = 32;
@@ -463,9 +467,8 @@ fn jozwowski_room(n: usize) -> Doc {
         "samplers": [{"input": input, "output": output, "interpolation": "LINEAR"}],
         "channels": [{"sampler": 0, "target": {"node": light_node, "path": "translation"}}]
     }));
-    doc.cameras.push(json!({"type": "perspective", "perspective": {"yfov": 1.3, "aspectRatio": 1.0, "znear": 0.01}}));
     // At the front, 1.4 m up, looking toward the back wall and slightly down.
-    doc.nodes.push(json!({"name": "camera", "camera": 0, "translation": [0.0, 1.4, 1.9], "rotation": [-0.0871557, 0.0, 0.0, 0.9961947]}));
+    doc.camera([0.0, 1.4, 1.9], Some([-0.0871557, 0.0, 0.0, 0.9961947]), 1.3, 1.0);
     doc
 }
 
