@@ -8,9 +8,7 @@ use pm_format::{
     CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Header, Layout, MapKind, Order, Photon, PhotonMap,
     PhotonRecord,
 };
-use pm_photon::{
-    Budget, LightSelector, MapPass, RecordLayout, Slice, TraceConfig, TraceParams, TracedMap, TracedSlice,
-};
+use pm_photon::{Budget, LightSelector, MapPass, MapStats, RecordLayout, Slice, TraceConfig, TraceParams, TracedSlice};
 use pm_stage::Progress;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -231,6 +229,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
             .collect(),
         ..Default::default()
     };
+    let lights: Vec<String> = scene.lights.iter().map(|l| l.name.clone()).collect();
     let passes = [
         (MapPass::Global, MapKind::Global, "global", budget(args.emit_global, args.params.global_photons)),
         (MapPass::Caustic, MapKind::Caustic, "caustic", budget(args.emit_caustic, args.params.caustic_photons)),
@@ -266,10 +265,22 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
             // A slice keeps full precision and unscaled power: the merge scales and
             // encodes, as the single run does.
             let layout = if pass == MapPass::Global { Layout::FullIrradiance } else { Layout::Full };
-            let meta =
-                serde_json::to_string(&SliceParams { map: params.json(), chunks: &traced.chunks, slice, budget })?;
-            write_map(&path, header(Order::Slice, layout, 0, meta), &traced.photons, true, pass)?;
-            *map_slot(&mut report, pass) = slice_report(&traced, &scene, secs);
+            let meta = SliceParams {
+                map: params.json(),
+                slice,
+                budget,
+                lights: lights.clone(),
+                chunks: traced.chunks.clone(),
+            };
+            write_map(
+                &path,
+                header(Order::Slice, layout, 0, serde_json::to_string(&meta)?),
+                &traced.photons,
+                true,
+                pass,
+            )?;
+            // Unscaled power is no power: the slice reports none.
+            *map_slot(&mut report, pass) = map_report(&traced.totals(), [0.0; 3], &lights, secs);
             continue;
         }
         let traced = pm_photon::merge_slices(vec![traced]).map_err(|e| anyhow::anyhow!("internal error: {e}"))?;
@@ -281,7 +292,8 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
         }
         let h = header(Order::Unsorted, Layout::Compact, traced.stats.emitted, params.json().to_string());
         write_map(&path, h, &traced.photons, full, pass)?;
-        *map_slot(&mut report, pass) = map_report(&traced, &scene, secs);
+        let power = pm_photon::total_power(&traced.photons).to_array();
+        *map_slot(&mut report, pass) = map_report(&traced.stats, power, &lights, secs);
     }
     report.seconds = start.elapsed().as_secs_f64();
     if let Some(p) = &args.stats_json {
@@ -313,21 +325,22 @@ fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, pass: 
     }
 }
 
-fn map_report(traced: &TracedMap, scene: &pm_scene::Scene, secs: f64) -> MapReport {
-    let s = &traced.stats;
+/// A map's report from its statistics, the summed power of its photons [W per
+/// channel] and the names of the scene's lights.
+fn map_report(s: &MapStats, total_power_w: [f64; 3], lights: &[String], secs: f64) -> MapReport {
     MapReport {
         skipped: None,
         emitted: s.emitted,
         stored: s.stored,
         stored_per_bounce: s.stored_per_bounce.clone(),
-        emitted_per_light: scene.lights.iter().zip(&s.emitted_per_light).map(|(l, n)| (l.name.clone(), *n)).collect(),
+        emitted_per_light: lights.iter().zip(&s.emitted_per_light).map(|(l, n)| (l.clone(), *n)).collect(),
         rays: s.rays,
         truncated_paths: s.truncated_paths,
         hit_emission_cap: s.hit_cap,
-        total_power_w: pm_photon::total_power(&traced.photons).to_array(),
+        total_power_w,
         seconds: secs,
-        paths_per_second: s.emitted as f64 / secs.max(1e-9),
-        rays_per_second: s.rays as f64 / secs.max(1e-9),
+        paths_per_second: if secs > 0.0 { s.emitted as f64 / secs } else { 0.0 },
+        rays_per_second: if secs > 0.0 { s.rays as f64 / secs } else { 0.0 },
     }
 }
 
@@ -359,49 +372,14 @@ impl MapParams<'_> {
 }
 
 /// A slice file's header parameters: the map's (which the merged map gets), the
-/// slice, its budget and what each of its chunks stored.
-#[derive(serde::Serialize)]
-struct SliceParams<'a> {
+/// slice, its budget, the scene's light names and what each of its chunks stored.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct SliceParams {
     map: serde_json::Value,
     slice: Slice,
     budget: Budget,
-    chunks: &'a [pm_photon::ChunkStats],
-}
-
-/// [`SliceParams`] as read back.
-#[derive(serde::Deserialize)]
-struct SliceParamsOwned {
-    map: serde_json::Value,
-    slice: Slice,
-    budget: Budget,
+    lights: Vec<String>,
     chunks: Vec<pm_photon::ChunkStats>,
-}
-
-fn slice_report(traced: &TracedSlice, scene: &pm_scene::Scene, secs: f64) -> MapReport {
-    let sum = |f: fn(&pm_photon::ChunkStats) -> u64| traced.chunks.iter().map(f).sum::<u64>();
-    let emitted = sum(|c| c.per_light.iter().sum());
-    let rays = sum(|c| c.rays);
-    MapReport {
-        skipped: None,
-        emitted,
-        stored: traced.photons.len() as u64,
-        stored_per_bounce: Vec::new(),
-        emitted_per_light: scene
-            .lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
-                (l.name.clone(), traced.chunks.iter().map(|c| c.per_light.get(i).copied().unwrap_or(0)).sum())
-            })
-            .collect(),
-        rays,
-        truncated_paths: sum(|c| c.truncated),
-        hit_emission_cap: false,
-        total_power_w: [0.0; 3],
-        seconds: secs,
-        paths_per_second: emitted as f64 / secs.max(1e-9),
-        rays_per_second: rays as f64 / secs.max(1e-9),
-    }
 }
 
 /// Merge the output folders of every slice of one trace (`--slice J/M`) into
@@ -428,14 +406,14 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
         }
         let expect = pm_format::ReadExpect { kind: Some(kind), order: Some(Order::Slice), ..Default::default() };
         let mut slices = Vec::new();
-        let mut first: Option<(Header, serde_json::Value, PathBuf)> = None;
+        let mut first: Option<(Header, serde_json::Value, Vec<String>, PathBuf)> = None;
         for dir in inputs {
             let path = dir.join(&file);
             let m = pm_format::read(&path, &expect)?;
             let h = m.header().clone();
-            let meta: SliceParamsOwned = serde_json::from_str(&h.params)
+            let meta: SliceParams = serde_json::from_str(&h.params)
                 .with_context(|| format!("{}: header parameters are not a slice's", path.display()))?;
-            if let Some((h0, map0, p0)) = &first {
+            if let Some((h0, map0, _, p0)) = &first {
                 let same = (h.scene_hash, h.scene_diagonal, h.origin) == (h0.scene_hash, h0.scene_diagonal, h0.origin);
                 if !same || &meta.map != map0 {
                     bail!(
@@ -445,7 +423,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
                     );
                 }
             } else {
-                first = Some((h.clone(), meta.map.clone(), path.clone()));
+                first = Some((h.clone(), meta.map.clone(), meta.lights.clone(), path.clone()));
             }
             if !matches!(h.layout, Layout::Full | Layout::FullIrradiance) {
                 bail!("{}: a slice must hold full-precision records, not {:?}", path.display(), h.layout);
@@ -460,7 +438,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
                 bounces: Vec::new(),
             });
         }
-        let (h0, map0, _) = first.expect("at least one slice");
+        let (h0, map0, lights, _) = first.expect("at least one slice");
         let traced = pm_photon::merge_slices(slices).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
         let layout: RecordLayout = serde_json::from_value(map0["layout"].clone())
             .with_context(|| format!("{}: record layout unreadable", target.display()))?;
@@ -475,23 +453,8 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
         )
         .with_origin(h0.origin);
         write_map(&target, header, &traced.photons, layout == RecordLayout::Full, pass)?;
-        let s = &traced.stats;
-        *map_slot(&mut report, pass) = MapReport {
-            skipped: None,
-            emitted: s.emitted,
-            stored: s.stored,
-            emitted_per_light: s
-                .emitted_per_light
-                .iter()
-                .enumerate()
-                .map(|(i, n)| (format!("light {i}"), *n))
-                .collect(),
-            rays: s.rays,
-            truncated_paths: s.truncated_paths,
-            hit_emission_cap: s.hit_cap,
-            total_power_w: pm_photon::total_power(&traced.photons).to_array(),
-            ..Default::default()
-        };
+        let power = pm_photon::total_power(&traced.photons).to_array();
+        *map_slot(&mut report, pass) = map_report(&traced.stats, power, &lights, 0.0);
     }
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)

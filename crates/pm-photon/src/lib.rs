@@ -297,10 +297,35 @@ pub struct ChunkStats {
     pub per_light: Vec<u64>,
 }
 
+impl MapStats {
+    /// Count one chunk's paths, rays and cut paths in.
+    fn add_chunk(&mut self, chunk: &ChunkStats) {
+        if self.emitted_per_light.len() < chunk.per_light.len() {
+            self.emitted_per_light.resize(chunk.per_light.len(), 0);
+        }
+        for (a, b) in self.emitted_per_light.iter_mut().zip(&chunk.per_light) {
+            *a += b;
+        }
+        self.rays += chunk.rays;
+        self.truncated_paths += chunk.truncated;
+    }
+
+    /// Count stored photons by the bounces before them.
+    fn add_bounces(&mut self, bounces: &[u32]) {
+        for &b in bounces {
+            let b = b as usize;
+            if self.stored_per_bounce.len() <= b {
+                self.stored_per_bounce.resize(b + 1, 0);
+            }
+            self.stored_per_bounce[b] += 1;
+        }
+    }
+}
+
 /// A traced slice: its chunks in index order, each with its photons, whose power
 /// is Phi-hat / p_select [W per channel], not yet divided by the number emitted
 /// (which only the merge knows).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct TracedSlice {
     /// Which slice.
     pub slice: Slice,
@@ -308,22 +333,25 @@ pub struct TracedSlice {
     pub budget: Budget,
     /// Per chunk, its statistics.
     pub chunks: Vec<ChunkStats>,
-    /// The chunks' photons, concatenated in chunk order, with the surfaces hit
-    /// before each (empty when read back from a slice file, which does not keep it).
+    /// The chunks' photons, concatenated in chunk order.
     pub photons: Vec<Photon>,
-    /// Bounces before each photon (as [`PathOut::photons`]); empty or one per photon.
+    /// The surfaces each photon's path hit before it (as [`PathOut::photons`]): one
+    /// per photon, or empty when read back from a slice file, which does not keep it.
     pub bounces: Vec<u32>,
 }
 
-impl Default for Slice {
-    fn default() -> Slice {
-        Slice::WHOLE
-    }
-}
-
-impl Default for Budget {
-    fn default() -> Budget {
-        Budget::Emitted(0)
+impl TracedSlice {
+    /// What the slice traced, all its chunks counted (`emitted` is the paths it
+    /// traced; nothing is scaled or cut as a merge does).
+    pub fn totals(&self) -> MapStats {
+        let mut stats = MapStats::default();
+        for chunk in &self.chunks {
+            stats.add_chunk(chunk);
+        }
+        stats.add_bounces(&self.bounces);
+        stats.emitted = stats.emitted_per_light.iter().sum();
+        stats.stored = self.photons.len() as u64;
+        stats
     }
 }
 
@@ -379,7 +407,8 @@ pub fn trace_slice(
         return Err(TraceError::BadSlice(slice));
     }
     let targets = if cfg.pass == MapPass::Caustic { specular_targets(scene) } else { Vec::new() };
-    let mut out = TracedSlice { slice, budget: cfg.budget, ..Default::default() };
+    let mut out =
+        TracedSlice { slice, budget: cfg.budget, chunks: Vec::new(), photons: Vec::new(), bounces: Vec::new() };
     if cfg.pass == MapPass::Caustic && targets.is_empty() {
         return Ok(out);
     }
@@ -472,9 +501,8 @@ pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeErro
                 .collect()
         })
         .collect();
-    let mut stats = MapStats { emitted_per_light: Vec::new(), ..Default::default() };
+    let mut stats = MapStats::default();
     let mut photons: Vec<Photon> = Vec::new();
-    let mut bounces: Vec<u32> = Vec::new();
     let keep_bounces = slices.iter().all(|s| s.bounces.len() == s.photons.len());
     let mut emitted = 0;
     for c in 0..n_chunks {
@@ -497,16 +525,9 @@ pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeErro
         }
         photons.extend_from_slice(&s.photons[from..to]);
         if keep_bounces {
-            bounces.extend_from_slice(&s.bounces[from..to]);
+            stats.add_bounces(&s.bounces[from..to]);
         }
-        if stats.emitted_per_light.len() < chunk.per_light.len() {
-            stats.emitted_per_light.resize(chunk.per_light.len(), 0);
-        }
-        for (a, b) in stats.emitted_per_light.iter_mut().zip(&chunk.per_light) {
-            *a += b;
-        }
-        stats.rays += chunk.rays;
-        stats.truncated_paths += chunk.truncated;
+        stats.add_chunk(chunk);
         emitted = ((c + 1) * CHUNK).min(end);
     }
     let n_emitted = match budget {
@@ -515,13 +536,6 @@ pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeErro
     };
     stats.emitted = n_emitted;
     stats.hit_cap = (photons.len() as u64) < target && matches!(budget, Budget::Stored { .. });
-    for &b in &bounces {
-        let b = b as usize;
-        if stats.stored_per_bounce.len() <= b {
-            stats.stored_per_bounce.resize(b + 1, 0);
-        }
-        stats.stored_per_bounce[b] += 1;
-    }
     for p in &mut photons {
         p.power = scale_power(p.power, n_emitted);
     }
