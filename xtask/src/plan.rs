@@ -120,15 +120,7 @@ pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32, slices: u32) -> R
             // The trace as interleaved slices of the emission index space, each into
             // its own folder, then merged into the maps one trace writes.
             let dir = |k: &str| out.join("slices").join(format!("slice-{k}"));
-            let mut base = Vec::new();
-            let mut it = args.iter();
-            while let Some(a) = it.next() {
-                if matches!(a.as_str(), "--out" | "--stats-json") {
-                    it.next();
-                } else {
-                    base.push(a.clone());
-                }
-            }
+            let mut base = without(&args, &["--out", "--stats-json"]);
             base.extend(["--slice".into(), format!("{TASK}/{slices}"), "--out".into(), s(&dir(TASK))]);
             base.extend(["--stats-json".into(), s(&dir(TASK).join("trace.stats.json"))]);
             let maps: Vec<&str> =
@@ -158,15 +150,7 @@ pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32, slices: u32) -> R
             });
         } else if step.name == "photon-render" && tiles > 1 {
             // The render as tiles: its --out/--png/--stats-json replaced per task.
-            let mut base = Vec::new();
-            let mut it = args.iter();
-            while let Some(a) = it.next() {
-                if matches!(a.as_str(), "--out" | "--png" | "--stats-json") {
-                    it.next();
-                } else {
-                    base.push(a.clone());
-                }
-            }
+            let mut base = without(&args, &["--out", "--png", "--stats-json"]);
             let tile = |k: &str, ext: &str| s(&out.join("tiles").join(format!("tile-{k}.{ext}")));
             base.extend([
                 "--tile".into(),
@@ -223,6 +207,21 @@ pub(crate) fn job_plan(setup: &Setup, bins: &Bins, tiles: u32, slices: u32) -> R
     Ok(JobPlan { out: s(out), steps })
 }
 
+/// `args` without the options `flags` and their values (an array step replaces
+/// them per task).
+fn without(args: &[String], flags: &[&str]) -> Vec<String> {
+    let mut kept = Vec::new();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if flags.contains(&a.as_str()) {
+            it.next();
+        } else {
+            kept.push(a.clone());
+        }
+    }
+    kept
+}
+
 /// Wall time of one task of a run [s].
 #[derive(Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct TaskTime {
@@ -268,6 +267,17 @@ pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
         }
     }
     Ok((times, start.elapsed().as_secs_f64()))
+}
+
+/// [`execute`], then write each task's time to OUT/plan-times.json (what
+/// `cargo xtask plan --estimate` reads).
+pub fn execute_and_record(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
+    let (times, wall) = execute(plan, workers)?;
+    let path = Path::new(&plan.out).join("plan-times.json");
+    let text = serde_json::to_string_pretty(&times)? + "\n";
+    pm_format::write_atomically(&path, |f| std::io::Write::write_all(f, text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    Ok((times, wall))
 }
 
 /// Predicted wall time [s] of the plan's measured `times` on `nodes` machines: the

@@ -397,10 +397,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
             args.trace_slices,
             args.tiles
         );
-        let (times, wall) = crate::plan::execute(&plan, args.workers)?;
-        let path = set.out.join("plan-times.json");
-        std::fs::write(&path, serde_json::to_string_pretty(&times)? + "\n")
-            .with_context(|| format!("{}: cannot write", path.display()))?;
+        let (times, wall) = crate::plan::execute_and_record(&plan, args.workers)?;
         println!(
             "  whole run {wall:.2} s with {} worker(s); the model predicts {:.2} s on {} node(s)",
             args.workers,
@@ -639,10 +636,7 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
     if args.frame_tasks > 1 {
         let plan = crate::plan::live_plan(args, root, &bins)?;
-        let (times, wall) = crate::plan::execute(&plan, args.workers)?;
-        let path = Path::new(&plan.out).join("plan-times.json");
-        std::fs::write(&path, serde_json::to_string_pretty(&times)? + "\n")
-            .with_context(|| format!("{}: cannot write", path.display()))?;
+        let (_, wall) = crate::plan::execute_and_record(&plan, args.workers)?;
         println!("{} frames as {} tasks in {wall:.2} s with {} worker(s)", args.frames, args.frame_tasks, args.workers);
         println!("wrote {}/frames, live.apng and frames.csv", plan.out);
         return Ok(());
