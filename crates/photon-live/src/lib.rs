@@ -103,13 +103,7 @@ enum Command {
 }
 
 fn parse_task(s: &str) -> Result<(u32, u32), String> {
-    let (k, n) = s.split_once('/').ok_or("expected K/N (run K of N, K from 0)")?;
-    let k: u32 = k.trim().parse().map_err(|e| format!("K: {e}"))?;
-    let n: u32 = n.trim().parse().map_err(|e| format!("N: {e}"))?;
-    if n == 0 || k >= n {
-        return Err(format!("run {k} of {n}: needs 0 <= K < N"));
-    }
-    Ok((k, n))
+    pm_stage::parse_part(s, "run")
 }
 
 /// What a run did.
@@ -213,7 +207,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         pm_image::write_apng(&out.join("live.apng"), w, h, &apng, cli.params.fps)?;
         out.join("frames.csv")
     };
-    write_text(&csv_path, &csv)?;
+    pm_stage::write_text(&csv_path, &csv)?;
     // The vertex method's buffer fills over total / per_frame frames; the
     // image-space method has no warm-up beyond its first frame.
     let full = match cli.params.method {
@@ -230,11 +224,6 @@ pub fn run(cli: &Cli) -> Result<Report> {
         if mean > 0.0 { 1.0 / mean } else { 0.0 }
     );
     Ok(Report { frames: stats, mean_frame_seconds: mean })
-}
-
-fn write_text(path: &std::path::Path, text: &str) -> Result<()> {
-    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, text.as_bytes()))
-        .with_context(|| format!("{}: cannot write", path.display()))
 }
 
 /// `photon-live assemble`: live.apng from frames/NNNN.png and frames.csv from the
@@ -284,7 +273,7 @@ fn assemble(out: &std::path::Path, frames: u32, fps: f32) -> Result<()> {
     }
     let (w, h) = size.expect("at least one frame");
     pm_image::write_apng(&out.join("live.apng"), w, h, &images, fps)?;
-    write_text(&out.join("frames.csv"), &csv)?;
+    pm_stage::write_text(&out.join("frames.csv"), &csv)?;
     eprintln!("photon-live assemble: {frames} frames from {} parts into {}", parts.len(), out.display());
     Ok(())
 }

@@ -81,9 +81,7 @@ pub struct Cli {
 }
 
 fn parse_tile(s: &str) -> Result<(u32, u32), String> {
-    let (k, n) = s.split_once('/').ok_or_else(|| format!("expected K/N (tile K of N), got '{s}'"))?;
-    let parse = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("expected K/N with whole numbers, got '{s}'"));
-    Ok((parse(k)?, parse(n)?))
+    pm_stage::parse_part(s, "tile")
 }
 
 /// The rectangle --region or --tile asks for, checked against the image.

@@ -102,12 +102,7 @@ pub struct TraceArgs {
 }
 
 fn parse_slice(s: &str) -> Result<Slice, String> {
-    let (j, m) = s.split_once('/').ok_or("expected J/M (slice J of M, J from 0)")?;
-    let index: u32 = j.trim().parse().map_err(|e| format!("J: {e}"))?;
-    let count: u32 = m.trim().parse().map_err(|e| format!("M: {e}"))?;
-    if count == 0 || index >= count {
-        return Err(format!("slice {index} of {count}: needs 0 <= J < M"));
-    }
+    let (index, count) = pm_stage::parse_part(s, "slice")?;
     Ok(Slice { index, count })
 }
 

@@ -72,9 +72,25 @@ pub fn verify_kd_tree<R: pm_format::PhotonRecord>(path: &Path, records: &[R]) ->
         .map_err(|e| anyhow::anyhow!("{}: not a valid kd-tree: {e}", path.display()))
 }
 
+/// Parse K/N, part K (from 0) of N parts of some work (a trace slice, a tile, a run
+/// of frames): whole numbers with 0 <= K < N. `part` names it in the error.
+pub fn parse_part(s: &str, part: &str) -> Result<(u32, u32), String> {
+    let (k, n) = s.split_once('/').ok_or_else(|| format!("expected K/N ({part} K of N, K from 0), got '{s}'"))?;
+    let number = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("expected K/N with whole numbers, got '{s}'"));
+    let (k, n) = (number(k)?, number(n)?);
+    if n == 0 || k >= n {
+        return Err(format!("{part} {k} of {n}: needs 0 <= K < N"));
+    }
+    Ok((k, n))
+}
+
 /// Write a JSON value atomically (temporary file, then rename).
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)? + "\n";
+    write_text(path, &(serde_json::to_string_pretty(value)? + "\n"))
+}
+
+/// Write text atomically (temporary file, then rename).
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
     pm_format::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
         .with_context(|| format!("{}: cannot write", path.display()))
 }
