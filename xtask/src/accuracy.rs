@@ -68,14 +68,24 @@ pub fn reference_from_halves(a: &[Vec3], b: &[Vec3], keep: &[bool]) -> (Vec<Vec3
     (r, d2 / (4.0 * n))
 }
 
+/// Mean of `image` over the kept pixels and their channels (the denominator of
+/// every relative measure here).
+pub fn kept_mean(image: &[Vec3], keep: &[bool]) -> f64 {
+    let (sum, n) = image
+        .iter()
+        .zip(keep)
+        .filter(|x| *x.1)
+        .fold((0.0, 0usize), |(s, n), (p, _)| (s + p.element_sum() as f64, n + 3));
+    sum / n.max(1) as f64
+}
+
 /// Split the error of `renders` (one per seed, at least two) against `reference`
 /// with per-pixel noise variance `reference_var`, over the `keep` pixels.
 pub fn split(renders: &[&[Vec3]], reference: &[Vec3], reference_var: f64, keep: &[bool]) -> Split {
     let s = renders.len();
     let idx: Vec<usize> = (0..reference.len()).filter(|&i| keep[i]).collect();
     let n = (idx.len() * 3).max(1) as f64;
-    let mean_ref = idx.iter().map(|&i| reference[i].element_sum() as f64).sum::<f64>() / n;
-    let denom = mean_ref.abs().max(1e-30);
+    let denom = kept_mean(reference, keep).abs().max(1e-30);
     let mean_of = |i: usize| renders.iter().map(|r| r[i].as_dvec3()).sum::<glam::DVec3>() / s.max(1) as f64;
     let (mut spread, mut diff, mut signed) = (0.0, 0.0, 0.0);
     for &i in &idx {
@@ -105,9 +115,7 @@ pub fn split(renders: &[&[Vec3]], reference: &[Vec3], reference_var: f64, keep: 
 /// Per-pixel relative error |image - reference| / mean(reference) (0 on pixels not
 /// kept), for error maps.
 pub fn error_map(image: &[Vec3], reference: &[Vec3], keep: &[bool]) -> Vec<f32> {
-    let idx: Vec<usize> = (0..reference.len()).filter(|&i| keep[i]).collect();
-    let mean = idx.iter().map(|&i| reference[i].element_sum() as f64).sum::<f64>() / (idx.len() * 3).max(1) as f64;
-    let denom = mean.max(1e-30) as f32;
+    let denom = kept_mean(reference, keep).max(1e-30) as f32;
     image
         .iter()
         .zip(reference)

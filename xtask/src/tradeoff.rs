@@ -263,22 +263,18 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
 
     let [half_a, half_b] = reference_halves(&bins, &base, &scene, &out, size, args.reference_spp)?;
     let n = (size * size) as usize;
-    let keep = accuracy::keep_mask(
-        &layer(&half_a, "total").iter().zip(layer(&half_b, "total")).map(|(a, b)| (*a + b) * 0.5).collect::<Vec<_>>(),
-        size as usize,
-        size as usize,
-    );
+    let total = |h: &pm_image::Layers| layer(h, "total");
+    let (a, b) = (total(&half_a), total(&half_b));
+    let mean: Vec<glam::Vec3> = a.iter().zip(&b).map(|(a, b)| (*a + *b) * 0.5).collect();
+    let keep = accuracy::keep_mask(&mean, size as usize, size as usize);
     let references: Vec<(Vec<glam::Vec3>, f64)> =
         LAYERS.iter().map(|l| accuracy::reference_from_halves(&layer(&half_a, l), &layer(&half_b, l), &keep)).collect();
     println!(
         "reference: {} spp in two halves; {} of {n} pixels compared; its own noise {:.2}% (relative RMS)",
         args.reference_spp,
         keep.iter().filter(|&&k| k).count(),
-        100.0
-            * accuracy::split(&[&references[0].0, &references[0].0], &references[0].0, references[0].1, &keep)
-                .reference_noise
+        100.0 * references[0].1.sqrt() / accuracy::kept_mean(&references[0].0, &keep)
     );
-
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
