@@ -110,31 +110,26 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{sheet_w}\" height=\"{sheet_h}\" font-family=\"monospace\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     );
     // The PNG: the same layout, captions rasterised with the plots' bundled font.
-    let mut grid = vec![glam::Vec3::ONE; (sheet_w * sheet_h) as usize];
+    let mut sheet = xtask::plot::Canvas::new(sheet_w, sheet_h);
     for (k, (file, caption)) in panels.iter().enumerate() {
         let (x0, y0) = ((k % 4) as u32 * cell_w, (k / 4) as u32 * cell_h);
         writeln!(svg, "<image href=\"{file}\" x=\"{x0}\" y=\"{y0}\" width=\"{tile}\" height=\"{tile}\"/>")?;
         for (line, text) in wrap(caption, 38).iter().enumerate() {
             let (tx, ty) = (x0 as f64, (y0 + tile + 15 + 14 * line as u32) as f64);
             writeln!(svg, "<text x=\"{tx}\" y=\"{ty}\">{text}</text>")?;
-            xtask::plot::text_pixels((tx, ty), text, "start", false, 11.0, &mut |x, y, a| {
-                if x >= 0 && y >= 0 && (x as u32) < sheet_w && (y as u32) < sheet_h {
-                    let p = &mut grid[(y as u32 * sheet_w + x as u32) as usize];
-                    *p *= 1.0 - a;
-                }
-            });
+            sheet.text((tx, ty), text, "start", false, 11.0);
         }
         let img = image::open(out.join(file)).with_context(|| format!("{file}: cannot read"))?.to_rgb8();
         let small = image::imageops::resize(&img, tile, tile, image::imageops::FilterType::Triangle);
         for (x, y, p) in small.enumerate_pixels() {
             let c = glam::Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32) / 255.0;
-            grid[((y0 + y) * sheet_w + x0 + x) as usize] =
+            sheet.px[((y0 + y) * sheet_w + x0 + x) as usize] =
                 glam::Vec3::new(pm_color::srgb_decode(c.x), pm_color::srgb_decode(c.y), pm_color::srgb_decode(c.z));
         }
     }
     svg.push_str("</svg>\n");
     std::fs::write(out.join("contact_sheet.svg"), svg)?;
-    pm_image::write_png(&out.join("contact_sheet.png"), sheet_w, sheet_h, &grid, 0.0)?;
+    pm_image::write_png(&out.join("contact_sheet.png"), sheet_w, sheet_h, &sheet.px, 0.0)?;
 
     // The section 3 table.
     let fg = |v: &photon_render::Report| {

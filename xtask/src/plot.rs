@@ -43,19 +43,7 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
     let mut svg = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     );
-    let (wi, hi) = (w as u32, h as u32);
-    let px = vec![glam::Vec3::ONE; (wi * hi) as usize];
-    let px = std::cell::RefCell::new(px);
-    // Cover pixel (x, y) with `colour` at opacity `a` (in linear radiance).
-    let blend = |xx: i64, yy: i64, a: f32, (r, g, b): Colour| {
-        if xx >= 0 && yy >= 0 && (xx as u32) < wi && (yy as u32) < hi {
-            let c: glam::Vec3 =
-                (glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0).to_array().map(pm_color::srgb_decode).into();
-            let p = &mut px.borrow_mut()[(yy as u32 * wi + xx as u32) as usize];
-            *p = *p * (1.0 - a) + c * a;
-        }
-    };
-    let put = |xx: i64, yy: i64, c: Colour| blend(xx, yy, 1.0, c);
+    let mut canvas = Canvas::new(w as u32, h as u32);
     for shape in shapes {
         match shape {
             Shape::Line((x0, y0), (x1, y1), (r, g, b), dashed) => {
@@ -68,7 +56,7 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
                 for k in 0..=n {
                     let f = k as f64 / n as f64;
                     if !*dashed || (k / 4) % 2 == 0 {
-                        put((x0 + f * (x1 - x0)) as i64, (y0 + f * (y1 - y0)) as i64, (*r, *g, *b));
+                        canvas.put((x0 + f * (x1 - x0)) as i64, (y0 + f * (y1 - y0)) as i64, 1.0, (*r, *g, *b));
                     }
                 }
             }
@@ -77,7 +65,7 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
                 for dy in -3i64..=3 {
                     for dx in -3i64..=3 {
                         if dx * dx + dy * dy <= 10 {
-                            put(*cx as i64 + dx, *cy as i64 + dy, (*r, *g, *b));
+                            canvas.put(*cx as i64 + dx, *cy as i64 + dy, 1.0, (*r, *g, *b));
                         }
                     }
                 }
@@ -89,13 +77,46 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
                     "<text x=\"{tx:.1}\" y=\"{ty:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rot}>{}</text>",
                     escape(text)
                 )?;
-                text_pixels((*tx, *ty), text, anchor, *rotated, *size as f32, &mut |x, y, a| blend(x, y, a, (0, 0, 0)));
+                canvas.text((*tx, *ty), text, anchor, *rotated, *size as f32);
             }
         }
     }
     svg.push_str("</svg>\n");
     std::fs::write(svg_path, svg)?;
-    pm_image::write_png(png_path, wi, hi, &px.into_inner(), 0.0)
+    pm_image::write_png(png_path, canvas.width, canvas.height, &canvas.px, 0.0)
+}
+
+/// A white raster of linear radiance that shapes and text are drawn into.
+pub struct Canvas {
+    /// Width [pixels].
+    pub width: u32,
+    /// Height [pixels].
+    pub height: u32,
+    /// Row-major pixels.
+    pub px: Vec<glam::Vec3>,
+}
+
+impl Canvas {
+    /// A white canvas.
+    pub fn new(width: u32, height: u32) -> Canvas {
+        Canvas { width, height, px: vec![glam::Vec3::ONE; (width * height) as usize] }
+    }
+
+    /// Cover pixel (x, y), when it is on the canvas, with the sRGB `colour` at
+    /// opacity `a`.
+    pub fn put(&mut self, x: i64, y: i64, a: f32, (r, g, b): Colour) {
+        if x >= 0 && y >= 0 && (x as u32) < self.width && (y as u32) < self.height {
+            let c: glam::Vec3 =
+                (glam::Vec3::new(r as f32, g as f32, b as f32) / 255.0).to_array().map(pm_color::srgb_decode).into();
+            let p = &mut self.px[(y as u32 * self.width + x as u32) as usize];
+            *p = *p * (1.0 - a) + c * a;
+        }
+    }
+
+    /// Black text placed as SVG places it (see [`text_pixels`]).
+    pub fn text(&mut self, at: (f64, f64), text: &str, anchor: &str, rotated: bool, size: f32) {
+        text_pixels(at, text, anchor, rotated, size, &mut |x, y, a| self.put(x, y, a, (0, 0, 0)));
+    }
 }
 
 /// The bundled font.

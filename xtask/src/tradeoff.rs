@@ -823,6 +823,7 @@ fn error_map_png(path: &Path, map: &[f32], size: u32) -> Result<()> {
     let mut sorted: Vec<f32> = map.iter().copied().filter(|v| *v > 0.0).collect();
     sorted.sort_by(f32::total_cmp);
     let top = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-6);
+    // The ramp's stops are sRGB colours; the canvas holds linear radiance.
     let ramp = |t: f32| -> glam::Vec3 {
         let stops = [
             glam::Vec3::ZERO,
@@ -833,35 +834,26 @@ fn error_map_png(path: &Path, map: &[f32], size: u32) -> Result<()> {
         ];
         let u = t.clamp(0.0, 1.0) * 4.0;
         let k = (u.floor() as usize).min(3);
-        stops[k].lerp(stops[k + 1], u - k as f32)
+        stops[k].lerp(stops[k + 1], u - k as f32).to_array().map(pm_color::srgb_decode).into()
     };
     let (bar, pad) = (24u32, 90u32);
-    let (w, h) = (size + pad, size.max(120) + 20);
-    let mut px = vec![glam::Vec3::ONE; (w * h) as usize];
+    let mut canvas = plot::Canvas::new(size + pad, size.max(120) + 20);
+    let w = canvas.width;
     for (i, v) in map.iter().enumerate() {
         let (x, y) = (i as u32 % size, i as u32 / size);
-        px[((y + 10) * w + x) as usize] =
-            if *v > 0.0 || sorted.is_empty() { ramp(v / top) } else { glam::Vec3::splat(0.5) };
+        canvas.px[((y + 10) * w + x) as usize] =
+            if *v > 0.0 || sorted.is_empty() { ramp(v / top) } else { glam::Vec3::splat(pm_color::srgb_decode(0.5)) };
     }
     let (bx, by0, by1) = (size + 10, 10u32, size.max(120) + 10);
     for y in by0..by1 {
         let t = 1.0 - (y - by0) as f32 / (by1 - by0) as f32;
         for x in bx..bx + bar {
-            px[(y * w + x) as usize] = ramp(t);
+            canvas.px[(y * w + x) as usize] = ramp(t);
         }
     }
-    let mut label = |text: String, y: f64| {
-        plot::text_pixels(((bx + bar + 4) as f64, y), &text, "start", false, 10.0, &mut |x, yy, a| {
-            if x >= 0 && yy >= 0 && (x as u32) < w && (yy as u32) < h {
-                let p = &mut px[(yy as u32 * w + x as u32) as usize];
-                *p *= 1.0 - a;
-            }
-        });
-    };
-    label(format!("{:.0}%", 100.0 * top), by0 as f64 + 8.0);
-    label(format!("{:.0}%", 50.0 * top), (by0 + by1) as f64 / 2.0 + 4.0);
-    label("0%".into(), by1 as f64);
-    // sRGB bytes were chosen for the ramp: store them as linear so the PNG shows them.
-    let linear: Vec<glam::Vec3> = px.iter().map(|c| c.to_array().map(pm_color::srgb_decode).into()).collect();
-    pm_image::write_png(path, w, h, &linear, 0.0)
+    let x = (bx + bar + 4) as f64;
+    canvas.text((x, by0 as f64 + 8.0), &format!("{:.0}%", 100.0 * top), "start", false, 10.0);
+    canvas.text((x, (by0 + by1) as f64 / 2.0 + 4.0), &format!("{:.0}%", 50.0 * top), "start", false, 10.0);
+    canvas.text((x, by1 as f64), "0%", "start", false, 10.0);
+    pm_image::write_png(path, canvas.width, canvas.height, &canvas.px, 0.0)
 }
