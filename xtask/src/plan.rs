@@ -400,7 +400,7 @@ pub fn live_plan(args: &LiveArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
     let s = |p: &Path| p.display().to_string();
     let program = s(&bins.path("photon-live"));
     let frames = |k: u32| pm_live::task_frames(k, n, args.frames);
-    let part = |k: u32| out.join("frames").join(format!("part-{:04}-{:04}.csv", frames(k).start, frames(k).end));
+    let part = |k: u32| out.join("frames").join(pm_live::frames_part_file(&frames(k)));
     let pngs: Vec<String> = (0..args.frames).map(|f| s(&out.join("frames").join(format!("{f:04}.png")))).collect();
     let mut task_outputs = pngs.clone();
     task_outputs.extend((0..n).map(|k| s(&part(k))));

@@ -202,7 +202,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     progress.finish();
     let csv = frames_csv(&stats)?;
     let csv_path = if cli.frame_task.is_some() {
-        frames_dir.join(format!("part-{:04}-{:04}.csv", frames.start, frames.end))
+        frames_dir.join(pm_live::frames_part_file(&frames))
     } else {
         pm_image::write_apng(&out.join("live.apng"), w, h, &apng, cli.params.fps)?;
         out.join("frames.csv")

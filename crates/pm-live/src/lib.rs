@@ -270,6 +270,11 @@ pub fn task_frames(k: u32, n: u32, frames: u32) -> std::ops::Range<u32> {
     at(k)..at(k + 1)
 }
 
+/// The name of the part of frames.csv a run of `frames` writes (in OUT/frames).
+pub fn frames_part_file(frames: &std::ops::Range<u32>) -> String {
+    format!("part-{:04}-{:04}.csv", frames.start, frames.end)
+}
+
 /// Flicker of `now` against `before` (same corners): mean |now - before| over
 /// mean(before), over channels; 0 when `before` is dark.
 pub fn flicker_of(now: &[pm_color::Rgb], before: &[pm_color::Rgb]) -> f64 {
