@@ -152,14 +152,7 @@ pub fn closed_box(out: &mut Vec<pm_scene::Triangle>, lo: glam::Vec3, hi: glam::V
 
 /// A material of the given model, emission and name.
 pub fn material(name: &str, bsdf: pm_bsdf::Bsdf, emission: f32) -> pm_scene::Material {
-    pm_scene::Material {
-        name: name.into(),
-        bsdf,
-        base_texture: None,
-        base_uv: glam::Affine2::IDENTITY,
-        emission: glam::Vec3::splat(emission),
-        double_sided: false,
-    }
+    pm_scene::Material::new(name, bsdf, glam::Vec3::splat(emission))
 }
 
 /// A UV sphere (outward faces unless `inward`) of material `m`.

@@ -43,14 +43,7 @@ fn closed_box(out: &mut Vec<Triangle>, x0: f32, m: u32) {
 
 #[test]
 fn a_mirror_hidden_from_every_light_produces_no_caustics() {
-    let mat = |name: &str, bsdf: Bsdf, e: f32| Material {
-        name: name.into(),
-        bsdf,
-        base_texture: None,
-        base_uv: glam::Affine2::IDENTITY,
-        emission: Rgb::splat(e),
-        double_sided: false,
-    };
+    let mat = |name: &str, bsdf: Bsdf, e: f32| Material::new(name, bsdf, Rgb::splat(e));
     let mut tris = Vec::new();
     closed_box(&mut tris, 0.0, 0); // lit room
     closed_box(&mut tris, 2.0, 0); // dark room, holding the mirror

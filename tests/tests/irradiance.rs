@@ -25,14 +25,7 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
         Triangle::new([v(-l, -l), v(-l, l), v(l, l)], 0).unwrap(),
         Triangle::new([v(-l, -l), v(l, l), v(l, -l)], 0).unwrap(),
     ];
-    let mats = vec![Material {
-        name: "floor".into(),
-        bsdf: Bsdf::Lambert { rho: Rgb::splat(0.5) },
-        base_texture: None,
-        base_uv: glam::Affine2::IDENTITY,
-        emission: Rgb::ZERO,
-        double_sided: false,
-    }];
+    let mats = vec![Material::new("floor", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO)];
     let sun = Light {
         name: "sun".into(),
         kind: LightKind::Directional {

@@ -375,6 +375,55 @@ fn plastic_spec_prob(lo: Vec3) -> f32 {
     schlick(Rgb::splat(COAT_F0), lo.z).x.clamp(0.1, 0.9)
 }
 
+/// Below this roughness a metal is a perfect mirror.
+pub const MIRROR_ROUGHNESS: f32 = 0.05;
+/// At or above this roughness a dielectric is treated as Lambertian (its coat's
+/// highlight is spread over the hemisphere); below it, a GGX-coated diffuse base.
+pub const DIFFUSE_ROUGHNESS: f32 = 0.5;
+/// GGX alpha is clamped from below: near-delta microfacet lobes are numerically
+/// unstable and better served by the mirror model.
+pub const MIN_ALPHA: f32 = 0.02;
+
+/// The glTF 2.0 metallic-roughness parameters at one surface point (factors times
+/// texture values): what [`Bsdf::from_pbr`] turns into a scattering model, for the
+/// material's factors once and for every textured shading point alike.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pbr {
+    /// Base colour, linear, in [0, 1] per channel.
+    pub base: Rgb,
+    /// Metalness in [0, 1] (selects the conductor at 0.5 and above).
+    pub metallic: f32,
+    /// Perceptual roughness in [0, 1]; GGX alpha = roughness^2.
+    pub roughness: f32,
+    /// KHR_materials_transmission factor in [0, 1] (selects glass above 0).
+    pub transmission: f32,
+    /// Index of refraction (KHR_materials_ior), >= 1.
+    pub ior: f32,
+    /// Thin-walled transmission (no KHR_materials_volume thickness).
+    pub thin: bool,
+}
+
+impl Bsdf {
+    /// The scattering model of glTF parameters: glass when transmissive; a metal is
+    /// a mirror below [`MIRROR_ROUGHNESS`] and a GGX conductor with F0 = base colour
+    /// above; a dielectric is Lambertian at or above [`DIFFUSE_ROUGHNESS`] and a
+    /// GGX-coated diffuse base below.
+    pub fn from_pbr(p: &Pbr) -> Bsdf {
+        let base = p.base.clamp(Rgb::ZERO, Rgb::ONE);
+        let roughness = p.roughness.clamp(0.0, 1.0);
+        let alpha = (roughness * roughness).max(MIN_ALPHA);
+        if p.transmission > 0.0 {
+            Bsdf::Glass { eta: p.ior, tint: base, thin: p.thin }
+        } else if p.metallic >= 0.5 {
+            if roughness < MIRROR_ROUGHNESS { Bsdf::Mirror { r: base } } else { Bsdf::Conductor { f0: base, alpha } }
+        } else if roughness >= DIFFUSE_ROUGHNESS {
+            Bsdf::Lambert { rho: base }
+        } else {
+            Bsdf::Plastic { rho: base, alpha }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;
 

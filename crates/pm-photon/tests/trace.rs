@@ -22,14 +22,7 @@ fn sum_power(ps: impl Iterator<Item = Photon>) -> Vec3 {
 }
 
 fn material(name: &str, bsdf: Bsdf, emission: Rgb) -> Material {
-    Material {
-        name: name.into(),
-        bsdf,
-        base_texture: None,
-        base_uv: glam::Affine2::IDENTITY,
-        emission,
-        double_sided: false,
-    }
+    Material::new(name, bsdf, emission)
 }
 
 /// Quad a, b, c, d (counter-clockwise seen from the side it faces) as two triangles.

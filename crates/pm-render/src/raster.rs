@@ -30,6 +30,8 @@ struct ScreenTri {
     /// Barycentrics of each vertex in the original triangle (clipping makes new ones).
     b: [Vec3; 3],
     tri: u32,
+    /// Its material can be see-through: test [`Scene::present`] per fragment.
+    alpha: bool,
     /// Rows covered, [y0, y1).
     y0: u32,
     y1: u32,
@@ -91,7 +93,8 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
             let y0 = (lo.y - 0.5).ceil().max(rect.y0 as f32) as u32;
             let y1 = ((hi.y - 0.5).floor() + 1.0).min(rect.y1 as f32).max(y0 as f32) as u32;
             if y0 < y1 {
-                *slot = Some(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, y0, y1 });
+                let alpha = scene.has_alpha() && scene.materials[tri.material as usize].has_alpha();
+                *slot = Some(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, alpha, y0, y1 });
             }
         }
         kept.into_iter().flatten()
@@ -110,7 +113,7 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
         let by1 = (by0 + BAND).min(rect.y1);
         // While drawing, a fragment's `t` holds 1 / view depth of the surface.
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
-            raster_tri(st, rect, by0, by1, chunk);
+            raster_tri(scene, st, rect, by0, by1, chunk);
         }
         for (row, y) in chunk.chunks_mut(rw).zip(by0..by1) {
             let row2 = plane(y, h, tan_y);
@@ -125,8 +128,8 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
 
 /// Rasterise one screen triangle into the band [by0, by1) of rows: keep, per pixel
 /// centre, the nearest surface (largest 1 / view depth, held in the fragment's `t`
-/// while drawing; ties to the lower triangle id).
-fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option<Fragment>]) {
+/// while drawing; ties to the lower triangle id) that is there ([`Scene::present`]).
+fn raster_tri(scene: &Scene, st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option<Fragment>]) {
     let [a, b, c] = st.s;
     let area = (b - a).perp_dot(c - a);
     if !(area.abs() > 0.0) || !area.is_finite() {
@@ -164,8 +167,11 @@ fn raster_tri(st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option
             };
             if closer {
                 let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) / iz;
-                let bc = st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z;
-                *slot = Some(Fragment { tri: st.tri, b: bc.to_array(), t: iz });
+                let bc = (st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z).to_array();
+                if st.alpha && !scene.present(st.tri, bc) {
+                    continue;
+                }
+                *slot = Some(Fragment { tri: st.tri, b: bc, t: iz });
             }
         }
     }

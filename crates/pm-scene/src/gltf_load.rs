@@ -4,10 +4,13 @@
 
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
-use crate::{Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, Triangle, Wrap};
+use crate::{
+    AlphaMode, Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, TextureRef, Triangle,
+    Wrap,
+};
 use glam::{DMat4, DVec3, Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
-use pm_bsdf::Bsdf;
-use pm_color::{Rgb, srgb_decode};
+use pm_bsdf::{Bsdf, Pbr};
+use pm_color::Rgb;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -39,15 +42,6 @@ pub enum SceneError {
         message: String,
     },
 }
-
-/// Below this roughness a metal is a perfect mirror.
-const MIRROR_ROUGHNESS: f32 = 0.05;
-/// At or above this roughness a dielectric is treated as Lambertian (its coat's
-/// highlight is spread over the hemisphere); below it, a GGX-coated diffuse base.
-const DIFFUSE_ROUGHNESS: f32 = 0.5;
-/// GGX alpha is clamped from below: near-delta microfacet lobes are numerically
-/// unstable and better served by the mirror model.
-const MIN_ALPHA: f32 = 0.02;
 
 const SUPPORTED_EXTENSIONS: [&str; 6] = [
     "KHR_lights_punctual",
@@ -97,80 +91,61 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         }
     }
 
-    // Textures: decode only images used as base colour.
-    let mut textures = Vec::new();
-    let mut texture_of_image = std::collections::HashMap::new();
-    // Per material, the TEXCOORD_n set its base-colour texture reads.
-    let mut uv_sets: Vec<u32> = Vec::new();
+    // Textures: decoded once per image, wrapping and colour space, only when a
+    // material reads them.
+    let mut texture_loader = TextureLoader { base_dir, buffers: &buffers, textures: Vec::new(), cache: Default::default() };
+    // Per material, whether a texture reads TEXCOORD_1 (only then is it read).
+    let mut uv1_needed: Vec<bool> = Vec::new();
     let mut materials = Vec::new();
     for (i, m) in doc.materials().enumerate() {
         let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
         let pbr = m.pbr_metallic_roughness();
         let bc = pbr.base_color_factor();
         let mut base = Rgb::new(bc[0], bc[1], bc[2]);
-        if !base.is_finite() || base.min_element() < 0.0 {
+        if !base.is_finite() || base.min_element() < 0.0 || !(0.0..=1.0).contains(&bc[3]) {
             return Err(content(format!("material '{name}': baseColorFactor {bc:?} is not a colour")));
         }
         if base.max_element() > 1.0 {
             warnings.push(format!("material '{name}': albedo {base} above 1 clamped to 1"));
             base = base.min(Rgb::ONE);
         }
-        let metallic = pbr.metallic_factor();
-        let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
-        let alpha = (roughness * roughness).max(MIN_ALPHA);
         let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-        let bsdf = if transmission > 0.0 {
-            if transmission < 1.0 {
-                warnings.push(format!("material '{name}': partial transmission {transmission} treated as full"));
-            }
-            let thin = m.volume().is_none_or(|v| v.thickness_factor() <= 0.0);
-            let eta = m.ior().unwrap_or(1.5);
-            if !(eta.is_finite() && eta >= 1.0) {
-                return Err(content(format!("material '{name}': ior {eta} must be >= 1")));
-            }
-            Bsdf::Glass { eta, tint: base, thin }
-        } else if metallic >= 0.5 {
-            if roughness < MIRROR_ROUGHNESS { Bsdf::Mirror { r: base } } else { Bsdf::Conductor { f0: base, alpha } }
-        } else if roughness >= DIFFUSE_ROUGHNESS {
-            Bsdf::Lambert { rho: base }
-        } else {
-            Bsdf::Plastic { rho: base, alpha }
-        };
-        let base_texture = match pbr.base_color_texture() {
-            None => None,
-            Some(info) => {
-                let image = info.texture().source();
-                let sampler = info.texture().sampler();
-                let wrap = [sampler.wrap_s(), sampler.wrap_t()].map(|w| match w {
-                    gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
-                    gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
-                    gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
-                });
-                // One texture per image and wrapping (two samplers of one image differ).
-                let idx = match texture_of_image.get(&(image.index(), wrap)) {
-                    Some(&t) => t,
-                    None => {
-                        let data = gltf::image::Data::from_source(image.source(), Some(base_dir), &buffers)
-                            .map_err(|e| content(format!("material '{name}': base colour image: {e}")))?;
-                        let mut texture = decode_texture(&data).ok_or_else(|| {
-                            content(format!("material '{name}': unsupported image format {:?}", data.format))
-                        })?;
-                        texture.wrap = wrap;
-                        textures.push(texture);
-                        texture_of_image.insert((image.index(), wrap), textures.len() as u32 - 1);
-                        textures.len() as u32 - 1
-                    }
-                };
-                Some(idx)
-            }
-        };
-        if m.emissive_texture().is_some() {
-            warnings.push(format!("material '{name}': emissive texture ignored (emissiveFactor used)"));
+        if transmission > 0.0 && transmission < 1.0 {
+            warnings.push(format!("material '{name}': partial transmission {transmission} treated as full"));
         }
+        let ior = m.ior().unwrap_or(1.5);
+        if transmission > 0.0 && !(ior.is_finite() && ior >= 1.0) {
+            return Err(content(format!("material '{name}': ior {ior} must be >= 1")));
+        }
+        let factors = Pbr {
+            base,
+            metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+            roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+            transmission,
+            ior,
+            thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+        };
+        let bsdf = Bsdf::from_pbr(&factors);
+        let mut uses_uv1 = false;
+        let mut texture = |info: Option<gltf::texture::Info>, srgb: bool, what: &str| -> Result<_, SceneError> {
+            let Some(info) = info else { return Ok(None) };
+            let transform =
+                info.texture_transform().map(|t| (uv_transform(t.offset(), t.rotation(), t.scale()), t.tex_coord()));
+            let r = texture_loader
+                .texture_ref(info.texture(), info.tex_coord(), transform, srgb)
+                .map_err(|e| content(format!("material '{name}': {what} texture: {e}")))?;
+            if r.1 {
+                warnings.push(format!(
+                    "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
+                ));
+            }
+            uses_uv1 |= r.0.uv_set == 1;
+            Ok(Some(r.0))
+        };
+        let base_texture = texture(pbr.base_color_texture(), true, "base colour")?;
+        let metallic_roughness_texture = texture(pbr.metallic_roughness_texture(), false, "metallicRoughness")?;
+        let emissive_texture = texture(m.emissive_texture(), true, "emissive")?;
         // What is not read yet, said once per material.
-        if pbr.metallic_roughness_texture().is_some() {
-            warnings.push(format!("material '{name}': metallicRoughness texture ignored (the factors are used)"));
-        }
         if m.normal_texture().is_some() {
             warnings.push(format!("material '{name}': normal texture ignored (interpolated vertex normals are used)"));
         }
@@ -179,9 +154,17 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                 "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
             ));
         }
-        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
-            warnings.push(format!("material '{name}': alphaMode {:?} ignored (rendered opaque)", m.alpha_mode()));
-        }
+        let alpha_mode = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => {
+                let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                if !cutoff.is_finite() || cutoff < 0.0 {
+                    return Err(content(format!("material '{name}': alphaCutoff {cutoff} is not a non-negative number")));
+                }
+                AlphaMode::Mask { cutoff }
+            }
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        };
         if let Some(v) = m.volume()
             && (v.attenuation_distance().is_finite() || v.attenuation_color() != [1.0; 3])
         {
@@ -192,37 +175,28 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if !pm_color::is_valid(emission) {
             return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
-        // KHR_texture_transform: uv' = offset + R(rotation) (scale * uv), and its own
-        // texture coordinate set when it names one.
-        let (uv_set, base_uv) = match pbr.base_color_texture() {
-            None => (0, glam::Affine2::IDENTITY),
-            Some(info) => match info.texture_transform() {
-                None => (info.tex_coord(), glam::Affine2::IDENTITY),
-                Some(t) => {
-                    let (sin, cos) = t.rotation().sin_cos();
-                    // The extension's matrix, columns (cos, sin) and (-sin, cos).
-                    let r = glam::Mat2::from_cols(glam::Vec2::new(cos, sin), glam::Vec2::new(-sin, cos));
-                    let m = r * glam::Mat2::from_diagonal(glam::Vec2::from(t.scale()));
-                    let a = glam::Affine2::from_mat2_translation(m, glam::Vec2::from(t.offset()));
-                    if !a.is_finite() {
-                        return Err(content(format!("material '{name}': texture transform is not finite")));
-                    }
-                    (t.tex_coord().unwrap_or(info.tex_coord()), a)
-                }
-            },
-        };
-        uv_sets.push(uv_set);
-        materials.push(Material { name, bsdf, base_texture, base_uv, emission, double_sided: m.double_sided() });
+        uv1_needed.push(uses_uv1);
+        materials.push(Material {
+            name,
+            bsdf,
+            pbr: factors,
+            base_alpha: bc[3],
+            alpha_mode,
+            base_texture,
+            metallic_roughness_texture,
+            emissive_texture,
+            emission,
+            double_sided: m.double_sided(),
+        });
     }
+    let textures = texture_loader.textures;
     // glTF's default material (primitives without one): white-ish diffuse.
     let default_material = materials.len() as u32;
+    let default_factors =
+        Pbr { base: Rgb::splat(0.8), metallic: 0.0, roughness: 1.0, transmission: 0.0, ior: 1.5, thin: true };
     materials.push(Material {
-        name: "default".into(),
-        base_uv: glam::Affine2::IDENTITY,
-        bsdf: Bsdf::Lambert { rho: Rgb::splat(0.8) },
-        base_texture: None,
-        emission: Rgb::ZERO,
-        double_sided: false,
+        pbr: default_factors,
+        ..Material::new("default", Bsdf::from_pbr(&default_factors), Rgb::ZERO)
     });
 
     let mut animation = read_animations(&doc, &buffers).map_err(content)?;
@@ -265,14 +239,9 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     continue;
                 }
                 let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
-                if prim.get(&gltf::Semantic::Colors(0)).is_some()
-                    && warned_modes.insert(format!("COLOR_0 {}", mesh.index()))
-                {
-                    warnings.push(format!("{what}: vertex colours (COLOR_0) ignored"));
-                }
                 let first = triangles.len();
                 let material = prim.material().index().map_or(default_material, |i| i as u32);
-                let mat = (material, uv_sets.get(material as usize).copied().unwrap_or(0));
+                let mat = (material, uv1_needed.get(material as usize).copied().unwrap_or(false));
                 let skipped = read_primitive(&prim, &buffers, world, normal_m, mat, &mut triangles)
                     .map_err(|m| content(format!("{what}: {m}")))?;
                 skipped_degenerate += skipped;
@@ -511,7 +480,7 @@ fn read_primitive(
     buffers: &[gltf::buffer::Data],
     world: Mat4,
     normal_m: Mat3,
-    (material, uv_set): (u32, u32),
+    (material, read_uv1): (u32, bool),
     out: &mut Vec<Triangle>,
 ) -> Result<usize, String> {
     use gltf::accessor::{DataType, Dimensions};
@@ -548,10 +517,18 @@ fn read_primitive(
     if let Some(a) = normal_acc.clone() {
         check("NORMAL", a, Dimensions::Vec3, &[DataType::F32])?;
     }
-    let uv_name = format!("TEXCOORD_{uv_set}");
-    let uv_acc = prim.get(&gltf::Semantic::TexCoords(uv_set));
+    let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
     if let Some(a) = uv_acc.clone() {
-        check(&uv_name, a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+        check("TEXCOORD_0", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+    }
+    let uv1_acc = if read_uv1 { prim.get(&gltf::Semantic::TexCoords(1)) } else { None };
+    if let Some(a) = uv1_acc.clone() {
+        check("TEXCOORD_1", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+    }
+    let color_acc = prim.get(&gltf::Semantic::Colors(0));
+    if let Some(a) = color_acc.clone() {
+        let dims = if a.dimensions() == Dimensions::Vec3 { Dimensions::Vec3 } else { Dimensions::Vec4 };
+        check("COLOR_0", a, dims, &[DataType::F32, DataType::U8, DataType::U16])?;
     }
     if let Some(a) = prim.indices() {
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
@@ -572,12 +549,22 @@ fn read_primitive(
     } else {
         None
     };
-    let uvs: Option<Vec<Vec2>> = if uv_acc.is_some() {
-        reader.read_tex_coords(uv_set).map(|it| it.into_f32().map(Vec2::from).collect())
-    } else {
-        None
-    };
-    for (what, len) in [("NORMAL", normals.as_ref().map(Vec::len)), (uv_name.as_str(), uvs.as_ref().map(Vec::len))] {
+    let read_uv = |set: u32| reader.read_tex_coords(set).map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>());
+    let uvs = if uv_acc.is_some() { read_uv(0) } else { None };
+    let uvs1 = if uv1_acc.is_some() { read_uv(1) } else { None };
+    let colors: Option<Vec<Vec4>> =
+        if color_acc.is_some() { reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect()) } else { None };
+    if let Some(c) = &colors
+        && let Some(i) = c.iter().position(|c| !c.is_finite() || c.min_element() < 0.0)
+    {
+        return Err(format!("COLOR_0 of vertex {i} is not a non-negative finite colour"));
+    }
+    for (what, len) in [
+        ("NORMAL", normals.as_ref().map(Vec::len)),
+        ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
+        ("TEXCOORD_1", uvs1.as_ref().map(Vec::len)),
+        ("COLOR_0", colors.as_ref().map(Vec::len)),
+    ] {
         if let Some(len) = len
             && len != positions.len()
         {
@@ -613,31 +600,104 @@ fn read_primitive(
             n.iter().all(|v| *v != Vec3::ZERO && v.is_finite()).then_some(n)
         });
         let uv = uvs.as_ref().map(|u| [u[a], u[b], u[c]]);
-        out.push(Triangle { p, n, uv, ng, area, material });
+        let uv1 = uvs1.as_ref().map(|u| [u[a], u[b], u[c]]);
+        let color = colors.as_ref().map(|v| [v[a], v[b], v[c]].map(|c| c.min(Vec4::ONE)));
+        out.push(Triangle { p, n, uv, uv1, color, ng, area, material });
     }
     Ok(skipped)
 }
 
-fn decode_texture(data: &gltf::image::Data) -> Option<Texture> {
+/// The textures materials read, each image decoded once per wrapping and colour space.
+struct TextureLoader<'a> {
+    base_dir: &'a Path,
+    buffers: &'a [gltf::buffer::Data],
+    textures: Vec<Texture>,
+    cache: std::collections::HashMap<(usize, [Wrap; 2], bool), u32>,
+}
+
+impl TextureLoader<'_> {
+    /// The reference to `texture` read with TEXCOORD_`tex_coord` (or the transform's
+    /// own set) through `transform`; the flag says the set was above 1 and 0 is used.
+    fn texture_ref(
+        &mut self,
+        texture: gltf::Texture,
+        tex_coord: u32,
+        transform: Option<(glam::Affine2, Option<u32>)>,
+        srgb: bool,
+    ) -> Result<(TextureRef, bool), String> {
+        let (transform, set) = match transform {
+            None => (glam::Affine2::IDENTITY, tex_coord),
+            Some((a, set)) => (a, set.unwrap_or(tex_coord)),
+        };
+        if !transform.is_finite() {
+            return Err("texture transform is not finite".into());
+        }
+        let image = texture.source();
+        let sampler = texture.sampler();
+        let wrap = [sampler.wrap_s(), sampler.wrap_t()].map(|w| match w {
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        });
+        let key = (image.index(), wrap, srgb);
+        let index = match self.cache.get(&key) {
+            Some(&t) => t,
+            None => {
+                let data = gltf::image::Data::from_source(image.source(), Some(self.base_dir), self.buffers)
+                    .map_err(|e| format!("image {}: {e}", image.index()))?;
+                let mut t = decode_texture(&data, srgb)
+                    .ok_or_else(|| format!("image {}: unsupported image format {:?}", image.index(), data.format))?;
+                t.wrap = wrap;
+                self.textures.push(t);
+                let i = self.textures.len() as u32 - 1;
+                self.cache.insert(key, i);
+                i
+            }
+        };
+        Ok((TextureRef { texture: index, uv_set: if set == 1 { 1 } else { 0 }, transform }, set > 1))
+    }
+}
+
+/// KHR_texture_transform's matrix: uv' = offset + R(rotation) (scale * uv), with R's
+/// columns (cos, sin) and (-sin, cos).
+fn uv_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> glam::Affine2 {
+    let (sin, cos) = rotation.sin_cos();
+    let r = glam::Mat2::from_cols(Vec2::new(cos, sin), Vec2::new(-sin, cos));
+    glam::Affine2::from_mat2_translation(r * glam::Mat2::from_diagonal(Vec2::from(scale)), Vec2::from(offset))
+}
+
+/// 8-bit RGBA texels of a decoded image (16-bit channels keep their high byte; one
+/// channel is grey, two are grey and alpha).
+fn decode_texture(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
     use gltf::image::Format;
-    let channels = match data.format {
-        Format::R8 => 1,
-        Format::R8G8 => 2,
-        Format::R8G8B8 => 3,
-        Format::R8G8B8A8 => 4,
+    let (channels, bytes) = match data.format {
+        Format::R8 => (1, 1),
+        Format::R8G8 => (2, 1),
+        Format::R8G8B8 => (3, 1),
+        Format::R8G8B8A8 => (4, 1),
+        Format::R16 => (1, 2),
+        Format::R16G16 => (2, 2),
+        Format::R16G16B16 => (3, 2),
+        Format::R16G16B16A16 => (4, 2),
         _ => return None,
     };
-    let n = (data.width * data.height) as usize;
-    if n == 0 || data.pixels.len() < n * channels {
+    let n = (data.width as usize).checked_mul(data.height as usize)?;
+    if n == 0 || data.pixels.len() < n * channels * bytes {
         return None;
     }
+    // The high byte of a 16-bit channel: image decodes to native-endian u16.
+    let hi = if cfg!(target_endian = "little") { bytes - 1 } else { 0 };
     let texels = (0..n)
         .map(|i| {
-            let px = &data.pixels[i * channels..];
-            let c =
-                |k: usize| srgb_decode(px[k.min(channels - 1).min(if channels == 2 { 0 } else { k })] as f32 / 255.0);
-            Rgb::new(c(0), c(1), c(2))
+            let px = &data.pixels[i * channels * bytes..];
+            let c = |k: usize| px[k * bytes + hi];
+            match channels {
+                1 => [c(0), c(0), c(0), 255],
+                2 => [c(0), c(0), c(0), c(1)],
+                3 => [c(0), c(1), c(2), 255],
+                _ => [c(0), c(1), c(2), c(3)],
+            }
         })
         .collect();
-    Some(Texture { width: data.width, height: data.height, texels, wrap: [Wrap::Repeat; 2] })
+    Some(Texture::new(data.width, data.height, texels, srgb))
 }

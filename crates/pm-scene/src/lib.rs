@@ -29,7 +29,7 @@ pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff}
 pub use select::{LightSelectError, LightSelector};
 
 use glam::{Vec2, Vec3};
-use pm_bsdf::Bsdf;
+use pm_bsdf::{Bsdf, Pbr};
 use pm_color::Rgb;
 
 /// Luminous efficacy that converts photometric light units to radiometric ones
@@ -61,9 +61,13 @@ pub struct Triangle {
     pub p: [Vec3; 3],
     /// World-space unit vertex normals, when the file had usable ones.
     pub n: Option<[Vec3; 3]>,
-    /// Texture coordinates (the set the base-colour texture names, TEXCOORD_0 by
-    /// default), when present.
+    /// Texture coordinates TEXCOORD_0, when present.
     pub uv: Option<[Vec2; 3]>,
+    /// Texture coordinates TEXCOORD_1, when present (and read by some texture).
+    pub uv1: Option<[Vec2; 3]>,
+    /// Linear RGBA vertex colours (COLOR_0), when present: RGB multiplies the base
+    /// colour, A the alpha.
+    pub color: Option<[glam::Vec4; 3]>,
     /// Unit geometric normal from the winding (counter-clockwise = front).
     pub ng: Vec3,
     /// Area [m^2].
@@ -73,6 +77,20 @@ pub struct Triangle {
 }
 
 impl Triangle {
+    /// Swap corners 1 and 2 of the per-vertex attributes (a mirroring transform
+    /// reverses the winding).
+    fn swap_corners(&mut self) {
+        if let Some(uv) = self.uv.as_mut() {
+            uv.swap(1, 2);
+        }
+        if let Some(uv) = self.uv1.as_mut() {
+            uv.swap(1, 2);
+        }
+        if let Some(c) = self.color.as_mut() {
+            c.swap(1, 2);
+        }
+    }
+
     /// A triangle without vertex normals or UVs; `None` when it has no area.
     pub fn new(p: [Vec3; 3], material: u32) -> Option<Triangle> {
         let cross = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -82,6 +100,8 @@ impl Triangle {
             p,
             n: None,
             uv: None,
+            uv1: None,
+            color: None,
             ng,
             area,
             material,
@@ -89,17 +109,50 @@ impl Triangle {
     }
 }
 
-/// A linear-RGB texture (base colour, decoded from sRGB).
+/// A texture as the file stores it: 8-bit RGBA texels, decoded at lookup.
 #[derive(Clone, Debug)]
 pub struct Texture {
     /// Width in texels.
     pub width: u32,
     /// Height in texels.
     pub height: u32,
-    /// Row-major linear RGB reflectance.
-    pub texels: Vec<Rgb>,
+    /// Row-major RGBA, 8 bits per channel (one- and two-channel images are expanded
+    /// as glTF reads them: grey to RGB, the second channel to alpha).
+    pub texels: Vec<[u8; 4]>,
+    /// The RGB channels are sRGB-encoded colour (base colour, emissive); otherwise
+    /// linear data (metallic-roughness, normals). Alpha is always linear.
+    pub srgb: bool,
     /// How u and v outside [0, 1] wrap (the glTF sampler's wrapS and wrapT).
     pub wrap: [Wrap; 2],
+}
+
+/// Which texture a material parameter reads, with which coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`Scene::textures`].
+    pub texture: u32,
+    /// The TEXCOORD_n set it reads (0 or 1).
+    pub uv_set: u8,
+    /// KHR_texture_transform's uv' = offset + R(rotation) (scale * uv); identity
+    /// without it.
+    pub transform: glam::Affine2,
+}
+
+/// How a material's alpha (base colour alpha x texture alpha x COLOR_0 alpha) lets
+/// light through (glTF 2.0 `alphaMode`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    Opaque,
+    /// Surface points with alpha below the cutoff are not there.
+    Mask {
+        /// `alphaCutoff` (0.5 by default).
+        cutoff: f32,
+    },
+    /// The surface is there with probability alpha (stochastic transparency: each
+    /// ray decides by a hash of itself and the point, so the average over rays is
+    /// alpha blending).
+    Blend,
 }
 
 /// How a texture coordinate outside [0, 1] maps back into the texture (glTF 2.0
@@ -129,40 +182,110 @@ impl Wrap {
     }
 }
 
+/// sRGB-encoded 8-bit value to linear, per code.
+static SRGB_TO_LINEAR: std::sync::LazyLock<[f32; 256]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(|i| pm_color::srgb_decode(i as f32 / 255.0)));
+
 impl Texture {
-    /// Bilinear lookup, wrapped as the texture's sampler says.
-    pub fn sample(&self, uv: Vec2) -> Rgb {
+    /// A texture of linear-or-sRGB 8-bit RGBA texels with repeat wrapping.
+    pub fn new(width: u32, height: u32, texels: Vec<[u8; 4]>, srgb: bool) -> Texture {
+        Texture { width, height, texels, srgb, wrap: [Wrap::Repeat; 2] }
+    }
+
+    /// One texel as linear RGBA.
+    #[inline]
+    fn texel(&self, i: usize) -> glam::Vec4 {
+        let [r, g, b, a] = self.texels[i];
+        let a = a as f32 / 255.0;
+        if self.srgb {
+            let lut = &*SRGB_TO_LINEAR;
+            glam::Vec4::new(lut[r as usize], lut[g as usize], lut[b as usize], a)
+        } else {
+            glam::Vec4::new(r as f32 / 255.0, g as f32 / 255.0, b as f32 / 255.0, a)
+        }
+    }
+
+    /// Bilinear lookup of linear RGBA (sRGB texels decoded before filtering),
+    /// wrapped as the texture's sampler says.
+    pub fn sample(&self, uv: Vec2) -> glam::Vec4 {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * self.width as f32 - 0.5;
         let y = uv.y * self.height as f32 - 0.5;
         if !x.is_finite() || !y.is_finite() {
-            return self.texels[0];
+            return self.texel(0);
         }
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let at = |i: i64, j: i64| self.texels[(self.wrap[1].texel(j, h) * w + self.wrap[0].texel(i, w)) as usize];
+        let at = |i: i64, j: i64| self.texel((self.wrap[1].texel(j, h) * w + self.wrap[0].texel(i, w)) as usize);
         let (i, j) = (x0 as i64, y0 as i64);
         (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
             + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy
     }
+
+    /// Bilinear lookup of linear RGB.
+    pub fn sample_rgb(&self, uv: Vec2) -> Rgb {
+        let c = self.sample(uv);
+        Rgb::new(c.x, c.y, c.z)
+    }
 }
 
-/// A surface material: its scattering model and emission.
+/// A surface material: its scattering model and emission, and the textures that
+/// vary them over the surface.
 #[derive(Clone, Debug)]
 pub struct Material {
     /// Name from the file (or "material #i").
     pub name: String,
-    /// Scattering model with the base colour factor applied.
+    /// Scattering model of the factors alone: what every point has when no texture
+    /// or vertex colour varies it.
     pub bsdf: Bsdf,
-    /// Base colour texture (index into [`Scene::textures`]) multiplied into the BSDF colour.
-    pub base_texture: Option<u32>,
-    /// The base colour texture's coordinate transform (KHR_texture_transform;
-    /// identity without it).
-    pub base_uv: glam::Affine2,
-    /// Emitted radiance L_e [W sr^-1 m^-2 per channel].
+    /// The factors [`Material::bsdf`] was made from, which textures and vertex
+    /// colours multiply at a shading point ([`Scene::bsdf`]).
+    pub pbr: Pbr,
+    /// baseColorFactor's alpha.
+    pub base_alpha: f32,
+    /// How alpha lets light through.
+    pub alpha_mode: AlphaMode,
+    /// Base colour texture (RGB multiplies the base colour, A the alpha).
+    pub base_texture: Option<TextureRef>,
+    /// metallicRoughness texture: B multiplies metallic, G roughness.
+    pub metallic_roughness_texture: Option<TextureRef>,
+    /// Emissive texture, multiplied into `emission`.
+    pub emissive_texture: Option<TextureRef>,
+    /// Emitted radiance L_e [W sr^-1 m^-2 per channel] (emissiveFactor x
+    /// KHR_materials_emissive_strength), times the emissive texture where there is one.
     pub emission: Rgb,
     /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
     pub double_sided: bool,
+}
+
+impl Material {
+    /// An untextured opaque material of a scattering model and emitted radiance
+    /// [W sr^-1 m^-2 per channel] (scenes built in code).
+    pub fn new(name: impl Into<String>, bsdf: Bsdf, emission: Rgb) -> Material {
+        Material {
+            name: name.into(),
+            bsdf,
+            pbr: Pbr { base: Rgb::ONE, metallic: 0.0, roughness: 1.0, transmission: 0.0, ior: 1.5, thin: true },
+            base_alpha: 1.0,
+            alpha_mode: AlphaMode::Opaque,
+            base_texture: None,
+            metallic_roughness_texture: None,
+            emissive_texture: None,
+            emission,
+            double_sided: false,
+        }
+    }
+
+    /// True when points of this material can be see-through (alpha mask or blend).
+    pub fn has_alpha(&self) -> bool {
+        self.alpha_mode != AlphaMode::Opaque
+    }
+
+    /// True when the BSDF varies over the surface (textures; vertex colours are a
+    /// property of the mesh, checked at the hit).
+    fn varies(&self) -> bool {
+        self.base_texture.is_some() || self.metallic_roughness_texture.is_some()
+    }
 }
 
 /// One mesh primitive instance: a named run of consecutive triangles with one material.
@@ -271,8 +394,12 @@ pub struct Hit {
     pub ng: Vec3,
     /// Unit shading normal, on the same side as `ng`.
     pub ns: Vec3,
-    /// Texture coordinates (zero when the mesh has none).
+    /// Texture coordinates TEXCOORD_0 (zero when the mesh has none).
     pub uv: Vec2,
+    /// Texture coordinates TEXCOORD_1 (zero when the mesh has none).
+    pub uv1: Vec2,
+    /// Vertex colour COLOR_0, linear RGBA (one when the mesh has none).
+    pub color: glam::Vec4,
 }
 
 /// Axis-aligned bounds [m].
@@ -344,6 +471,8 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The glTF animations that move lights and the camera ([`Scene::set_time`]).
     pub animation: Animation,
+    /// Some material has an alpha mode: ray queries test alpha at candidate hits.
+    any_alpha: bool,
     bvh: Option<obvhs::cwbvh::CwBvh>,
     bvh_tris: Vec<BvhTri>,
     /// The BVH is built and traversed in normalised coordinates (p - centre) / diagonal,
@@ -412,12 +541,14 @@ impl Scene {
         let mut light_of_triangle = vec![u32::MAX; triangles.len()];
         for (i, l) in lights.iter().enumerate() {
             if let LightKind::Area { tris, .. } = &l.kind {
-                for &t in tris {
+                for t in tris.clone() {
                     light_of_triangle[t as usize] = i as u32;
                 }
             }
         }
+        let any_alpha = materials.iter().any(Material::has_alpha);
         let mut scene = Scene {
+            any_alpha,
             light_of_triangle,
             animation: Animation::default(),
             triangles,
@@ -516,19 +647,17 @@ impl Scene {
                 for (local, out) in m.local.iter().zip(&mut self.triangles[range.start as usize..range.end as usize]) {
                     let mut p = local.p.map(|q| world.transform_point3(q));
                     let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
-                    let mut uv = local.uv;
+                    let mut attrs = local.clone();
                     if flip {
                         p.swap(1, 2);
                         if let Some(n) = n.as_mut() {
                             n.swap(1, 2);
                         }
-                        if let Some(uv) = uv.as_mut() {
-                            uv.swap(1, 2);
-                        }
+                        attrs.swap_corners();
                     }
                     // A transform that flattens a triangle keeps its last good pose.
                     if let Some(moved) = Triangle::new(p, local.material) {
-                        *out = Triangle { n, uv, ..moved };
+                        *out = Triangle { n, p: moved.p, ng: moved.ng, area: moved.area, ..attrs };
                     }
                 }
             }
@@ -536,10 +665,10 @@ impl Scene {
             let anim = &self.animation;
             for l in &mut self.lights {
                 if let LightKind::Area { tris, .. } = &l.kind
-                    && let Some(&t0) = tris.first()
-                    && anim.meshes.iter().any(|m| self.objects[m.object].tris.contains(&t0))
+                    && !tris.is_empty()
+                    && anim.meshes.iter().any(|m| self.objects[m.object].tris.contains(&tris.start))
                 {
-                    let range = *tris.iter().min().unwrap_or(&t0)..*tris.iter().max().unwrap_or(&t0) + 1;
+                    let (range, t0) = (tris.clone(), tris.start);
                     let material = &self.materials[self.triangles[t0 as usize].material as usize];
                     *l = Light::area(l.name.clone(), range, &self.triangles, material);
                 }
@@ -595,7 +724,10 @@ impl Scene {
                     let p = b.map(|w| lerp3(&t.p, w));
                     if let Some(mut sub) = Triangle::new(p, t.material) {
                         sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
-                        sub.uv = t.uv.map(|uv| b.map(|w| uv[0] * w[0] + uv[1] * w[1] + uv[2] * w[2]));
+                        let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
+                        sub.uv = t.uv.as_ref().map(lerp2);
+                        sub.uv1 = t.uv1.as_ref().map(lerp2);
+                        sub.color = t.color.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
                         out.push(sub);
                     }
                 };
@@ -672,7 +804,7 @@ impl Scene {
             .iter()
             .map(|l| match &l.kind {
                 LightKind::Area { tris, .. } if !tris.is_empty() => {
-                    let t0 = tris[0] as usize;
+                    let t0 = tris.start as usize;
                     let material = &self.materials[self.triangles[t0].material as usize];
                     Light::area(l.name.clone(), object_range[t0].clone(), &triangles, material)
                 }
@@ -705,12 +837,13 @@ impl Scene {
         let mut hit = obvhs::ray::RayHit::none();
         let mut best_b = [0.0; 3];
         let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
-            match intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax * scale) {
-                Some((t, b)) => {
+            let bt = &self.bvh_tris[id];
+            match intersect_triangle(o, d, &bt.p, r.tmax * scale) {
+                Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => {
                     best_b = b;
                     t * self.bvh_inv_scale
                 }
-                None => f32::INFINITY,
+                _ => f32::INFINITY,
             }
         });
         // ray_traverse may test triangles after the best one; recompute barycentrics
@@ -730,8 +863,11 @@ impl Scene {
         };
         let (ray, scale) = self.bvh_ray(o, d, t_max);
         !bvh.ray_traverse_miss(ray, |r, id| {
-            intersect_triangle(o, d, &self.bvh_tris[id].p, r.tmax * scale)
-                .map_or(f32::INFINITY, |h| h.0 * self.bvh_inv_scale)
+            let bt = &self.bvh_tris[id];
+            match intersect_triangle(o, d, &bt.p, r.tmax * scale) {
+                Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => t * self.bvh_inv_scale,
+                _ => f32::INFINITY,
+            }
         })
     }
 
@@ -765,8 +901,64 @@ impl Scene {
             }
             None => ng,
         };
-        let uv = tr.uv.map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
-        Hit { t, tri, b, p, ng, ns, uv }
+        let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
+        let uv = tr.uv.as_ref().map_or(Vec2::ZERO, lerp);
+        let uv1 = tr.uv1.as_ref().map_or(Vec2::ZERO, lerp);
+        let color = tr.color.map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
+        Hit { t, tri, b, p, ng, ns, uv, uv1, color }
+    }
+
+    /// Alpha at barycentrics `b` of triangle `tri`: baseColorFactor's alpha times the
+    /// base texture's alpha times COLOR_0's alpha.
+    pub fn alpha(&self, tri: u32, b: [f32; 3]) -> f32 {
+        let tr = &self.triangles[tri as usize];
+        let m = &self.materials[tr.material as usize];
+        let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
+        let mut a = m.base_alpha;
+        if let Some(t) = &m.base_texture {
+            let uv = if t.uv_set == 1 { tr.uv1.as_ref() } else { tr.uv.as_ref() }.map_or(Vec2::ZERO, lerp);
+            a *= self.textures[t.texture as usize].sample(t.transform.transform_point2(uv)).w;
+        }
+        if let Some(c) = tr.color {
+            a *= c[0].w * b[0] + c[1].w * b[1] + c[2].w * b[2];
+        }
+        a
+    }
+
+    /// True when the surface is there at barycentrics `b` of triangle `tri`: always
+    /// for opaque materials, where alpha reaches the cutoff for masks, and for blended
+    /// materials with probability alpha, decided by a hash of the triangle and the
+    /// point (the same decision for every ray and stage that finds this point, and
+    /// independent between points; averaged over a pixel or a light path it is alpha
+    /// blending). Ray queries, the rasteriser and the photon tracer all see this.
+    pub fn present(&self, tri: u32, b: [f32; 3]) -> bool {
+        let m = &self.materials[self.triangles[tri as usize].material as usize];
+        match m.alpha_mode {
+            AlphaMode::Opaque => true,
+            AlphaMode::Mask { cutoff } => self.alpha(tri, b) >= cutoff,
+            AlphaMode::Blend => {
+                let key = ((tri as u64) << 32 | b[1].to_bits() as u64) ^ pm_sampling::mix64(b[2].to_bits() as u64);
+                let u = (pm_sampling::mix64(key) >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
+                u < self.alpha(tri, b)
+            }
+        }
+    }
+
+    /// The probability that a ray stops at this hit [0, 1]: alpha for a blended
+    /// material, 1 otherwise. A photon stored here carries its power divided by it,
+    /// so that the photons that stop estimate all the light that arrives (the
+    /// surface's own share, alpha, comes from the eye rays that stop here).
+    pub fn coverage(&self, hit: &Hit) -> f32 {
+        match self.material(hit).alpha_mode {
+            AlphaMode::Blend => self.alpha(hit.tri, hit.b).max(1.0 / 256.0),
+            _ => 1.0,
+        }
+    }
+
+    /// True when some material can be see-through (the rasteriser then tests
+    /// [`Scene::present`] per fragment).
+    pub fn has_alpha(&self) -> bool {
+        self.any_alpha
     }
 
     /// The index of the object (in `objects`) that triangle `tri` belongs to.
@@ -780,20 +972,88 @@ impl Scene {
         &self.materials[self.triangles[hit.tri as usize].material as usize]
     }
 
-    /// The BSDF at a hit, with the base-colour texture applied.
+    /// Linear RGBA of texture `t` at a hit.
+    #[inline]
+    pub fn lookup(&self, t: &TextureRef, hit: &Hit) -> glam::Vec4 {
+        let uv = if t.uv_set == 1 { hit.uv1 } else { hit.uv };
+        self.textures[t.texture as usize].sample(t.transform.transform_point2(uv))
+    }
+
+    /// The BSDF at a hit: the material's factors times its base-colour and
+    /// metallic-roughness textures and the vertex colour, through the same selection
+    /// ([`Bsdf::from_pbr`]) as the factors alone.
     pub fn bsdf(&self, hit: &Hit) -> Bsdf {
         let m = self.material(hit);
-        match m.base_texture {
-            Some(t) => m.bsdf.tinted(self.textures[t as usize].sample(m.base_uv.transform_point2(hit.uv))),
-            None => m.bsdf,
+        if !m.varies() && hit.color == glam::Vec4::ONE {
+            return m.bsdf;
         }
+        let mut pbr = m.pbr;
+        if let Some(t) = &m.base_texture {
+            let c = self.lookup(t, hit);
+            pbr.base *= Rgb::new(c.x, c.y, c.z);
+        }
+        pbr.base *= Rgb::new(hit.color.x, hit.color.y, hit.color.z);
+        if let Some(t) = &m.metallic_roughness_texture {
+            let c = self.lookup(t, hit);
+            pbr.roughness *= c.y;
+            pbr.metallic *= c.z;
+        }
+        Bsdf::from_pbr(&pbr)
     }
 
     /// Radiance emitted at a hit toward `wo` [W sr^-1 m^-2]: the front face emits, and
     /// the back too when the material is double-sided.
     pub fn emitted(&self, hit: &Hit, wo: Vec3) -> Rgb {
         let m = self.material(hit);
-        if m.emission == Rgb::ZERO || (!m.double_sided && wo.dot(hit.ng) <= 0.0) { Rgb::ZERO } else { m.emission }
+        if m.emission == Rgb::ZERO || (!m.double_sided && wo.dot(hit.ng) <= 0.0) {
+            return Rgb::ZERO;
+        }
+        self.emission_at(hit.tri, hit.b)
+    }
+
+    /// Emitted radiance [W sr^-1 m^-2 per channel] at barycentrics `b` of triangle
+    /// `tri`, on an emitting side: the material's emission times its emissive texture.
+    pub fn emission_at(&self, tri: u32, b: [f32; 3]) -> Rgb {
+        let tr = &self.triangles[tri as usize];
+        let m = &self.materials[tr.material as usize];
+        match &m.emissive_texture {
+            Some(t) => {
+                let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
+                let uv = if t.uv_set == 1 { tr.uv1.as_ref() } else { tr.uv.as_ref() }.map_or(Vec2::ZERO, lerp);
+                m.emission * self.textures[t.texture as usize].sample_rgb(t.transform.transform_point2(uv))
+            }
+            None => m.emission,
+        }
+    }
+
+    /// Mean emitted radiance over triangle `tri` [W sr^-1 m^-2 per channel]: for an
+    /// emissive texture, the mean over the centres of n^2 equal sub-triangles, n
+    /// twice the square root of the texels the triangle covers (4 to 64), so a light's power and
+    /// its triangles' selection follow the texture.
+    pub fn mean_emission(&self, tri: u32) -> Rgb {
+        let tr = &self.triangles[tri as usize];
+        let m = &self.materials[tr.material as usize];
+        let Some(t) = &m.emissive_texture else { return m.emission };
+        let tex = &self.textures[t.texture as usize];
+        let uv = if t.uv_set == 1 { tr.uv1 } else { tr.uv }.unwrap_or([Vec2::ZERO; 3]);
+        let uv = uv.map(|q| t.transform.transform_point2(q));
+        let texels = 0.5 * (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs() * (tex.width * tex.height) as f32;
+        let n = ((2.0 * texels.sqrt()).ceil() as u32).clamp(4, 64);
+        let mut sum = glam::DVec3::ZERO;
+        for i in 0..n {
+            for j in 0..n - i {
+                // Centres of the upright and (where there is one) inverted sub-triangles.
+                let mut add = |a: f32, b: f32| {
+                    let (u, v) = (a / n as f32, b / n as f32);
+                    sum += self.emission_at(tri, [1.0 - u - v, u, v]).as_dvec3();
+                };
+                add(i as f32 + 1.0 / 3.0, j as f32 + 1.0 / 3.0);
+                if i + j + 1 < n {
+                    add(i as f32 + 2.0 / 3.0, j as f32 + 2.0 / 3.0);
+                }
+            }
+        }
+        (sum / (n * n) as f64).as_vec3()
     }
 
     /// Sum of the power of all lights [W per channel].

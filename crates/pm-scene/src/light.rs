@@ -16,13 +16,18 @@ pub enum LightKind {
     /// The emissive triangles of one mesh primitive instance.
     Area {
         /// Triangle ids.
-        tris: Vec<u32>,
-        /// Cumulative triangle areas [m^2] for uniform-by-area sampling.
+        tris: std::ops::Range<u32>,
+        /// Cumulative triangle weights for picking a triangle: areas [m^2] (uniform
+        /// by area) for a uniform emitter, emitted power [W] for a textured one.
         cdf: Vec<f64>,
         /// Total area [m^2].
         area: f32,
-        /// Emitted radiance L_e [W sr^-1 m^-2 per channel].
+        /// Emitted radiance L_e [W sr^-1 m^-2 per channel] of the material's factors
+        /// (an emissive texture varies it over the surface).
         emission: Rgb,
+        /// For a textured emitter, per triangle the area density of picking a point
+        /// on it, p_tri / A_tri [m^-2]; empty for a uniform emitter (1 / area).
+        pdf_area: Vec<f32>,
         /// Both faces emit.
         two_sided: bool,
     },
@@ -104,11 +109,10 @@ impl Light {
         triangles: &[crate::Triangle],
         material: &crate::Material,
     ) -> Light {
-        let tris: Vec<u32> = tris.collect();
         let mut acc = 0.0f64;
         let cdf = tris
-            .iter()
-            .map(|&t| {
+            .clone()
+            .map(|t| {
                 acc += triangles[t as usize].area as f64;
                 acc
             })
@@ -120,6 +124,7 @@ impl Light {
                 cdf,
                 area: acc as f32,
                 emission: material.emission,
+                pdf_area: Vec::new(),
                 two_sided: material.double_sided,
             },
             power: Rgb::ZERO,
@@ -159,10 +164,20 @@ impl Light {
             Some(to_world(uniform_cone(u_dir, cos_max), (t.center - o).normalize()))
         };
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, two_sided } => {
-                let tri = &scene.triangles[tris[sample_cdf(cdf, u_sel)] as usize];
+            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
+                let i = sample_cdf(cdf, u_sel);
+                let id = tris.start + i as u32;
+                let tri = &scene.triangles[id as usize];
                 let b = pm_sampling::uniform_triangle(u_pos);
                 let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
+                // Radiance at the point, and the area its pick stands for (1 / pdf_pos).
+                let (emission, area) = match pdf_area.get(i) {
+                    Some(&pdf) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), 1.0 / pdf),
+                    None => (*emission, *area),
+                };
+                if emission == Rgb::ZERO {
+                    return None;
+                }
                 let (n, sides) = if *two_sided && u_tgt < 0.5 && targets.is_empty() {
                     (-tri.ng, 2.0)
                 } else if *two_sided {
@@ -172,7 +187,7 @@ impl Light {
                 };
                 let (dir, power) = if targets.is_empty() {
                     // pdf_pos = 1/A, pdf_dir = cos/pi (per side), so Phi-hat = L_e pi A sides.
-                    (to_world(cosine_hemisphere(u_dir), n), *emission * (PI * area * sides))
+                    (to_world(cosine_hemisphere(u_dir), n), emission * (PI * area * sides))
                 } else {
                     let d = cone_dir(p, pick(u_tgt))?;
                     let cos = if *two_sided { d.dot(tri.ng).abs() } else { d.dot(tri.ng) };
@@ -180,7 +195,7 @@ impl Light {
                     if cos <= 0.0 || pdf <= 0.0 {
                         return None;
                     }
-                    (d, *emission * (cos * area / pdf))
+                    (d, emission * (cos * area / pdf))
                 };
                 let origin = scene.offset_origin(p, tri.ng, dir);
                 Some(EmittedRay { origin, dir, power })
@@ -259,10 +274,44 @@ pub fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
 pub(crate) fn finish_lights(scene: &mut Scene) {
     let center = scene.bounds.center();
     let radius = (0.5 * scene.bounds.diagonal()).max(1e-6);
-    for light in &mut scene.lights {
+    let mut lights = std::mem::take(&mut scene.lights);
+    for light in &mut lights {
         light.power = match &mut light.kind {
-            LightKind::Area { area, emission, two_sided, .. } => {
-                *emission * (PI * *area * if *two_sided { 2.0 } else { 1.0 })
+            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
+                let sides = if *two_sided { 2.0 } else { 1.0 };
+                let textured = scene
+                    .triangles
+                    .get(tris.start as usize)
+                    .is_some_and(|t| scene.materials[t.material as usize].emissive_texture.is_some());
+                if textured {
+                    // Each triangle's mean radiance times its area, so that a
+                    // triangle is picked in proportion to the power it emits.
+                    let means: Vec<Rgb> = tris.clone().map(|t| scene.mean_emission(t)).collect();
+                    let weights: Vec<f64> = tris
+                        .clone()
+                        .zip(&means)
+                        .map(|(t, m)| pm_color::mean(*m) as f64 * scene.triangles[t as usize].area as f64)
+                        .collect();
+                    let total: f64 = weights.iter().sum();
+                    let mut acc = 0.0;
+                    *cdf = weights
+                        .iter()
+                        .map(|w| {
+                            acc += w;
+                            acc
+                        })
+                        .collect();
+                    *pdf_area = tris
+                        .clone()
+                        .zip(&weights)
+                        .map(|(t, w)| if total > 0.0 { (w / total) as f32 / scene.triangles[t as usize].area } else { 0.0 })
+                        .collect();
+                    let power: Rgb =
+                        tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area).sum();
+                    power * (PI * sides)
+                } else {
+                    *emission * (PI * *area * sides)
+                }
             }
             LightKind::Point { intensity, .. } => *intensity * FOUR_PI,
             // Integral of I t(cos)^2 over the cone: 2 pi I [(1 - ci) + (ci - co) / 3].
@@ -276,6 +325,7 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
             }
         };
     }
+    scene.lights = lights;
 }
 
 /// A sample of direct illumination toward a shading point (next-event estimation).
@@ -299,8 +349,10 @@ impl Light {
     /// Area lights are sampled uniformly by area and converted to solid angle.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, two_sided } => {
-                let tri = &scene.triangles[tris[sample_cdf(cdf, u_sel)] as usize];
+            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
+                let i = sample_cdf(cdf, u_sel);
+                let id = tris.start + i as u32;
+                let tri = &scene.triangles[id as usize];
                 let b = pm_sampling::uniform_triangle(u);
                 let q = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
                 let d = q - p;
@@ -315,8 +367,11 @@ impl Light {
                 if cos_l <= 0.0 {
                     return None;
                 }
-                let pdf = dist2 / (cos_l * area);
-                Some(LightSample { wi, dist, li: *emission, pdf, delta: false })
+                let (li, pdf) = match pdf_area.get(i) {
+                    Some(&pa) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), dist2 * pa / cos_l),
+                    None => (*emission, dist2 / (cos_l * area)),
+                };
+                (li != Rgb::ZERO).then_some(LightSample { wi, dist, li, pdf, delta: false })
             }
             LightKind::Point { position, intensity } => {
                 let d = *position - p;
@@ -348,11 +403,15 @@ impl Light {
     /// punctual lights and triangles that are not part of this light.
     pub fn pdf_li(&self, scene: &Scene, wi: Vec3, dist: f32, tri: u32) -> f32 {
         match &self.kind {
-            LightKind::Area { area, two_sided, .. } => {
+            LightKind::Area { tris, area, pdf_area, two_sided, .. } => {
+                if !tris.contains(&tri) {
+                    return 0.0;
+                }
                 let t = &scene.triangles[tri as usize];
                 let cos_l = -wi.dot(t.ng);
                 let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                if cos_l <= 0.0 { 0.0 } else { dist * dist / (cos_l * area) }
+                let pa = pdf_area.get((tri - tris.start) as usize).map_or(1.0 / area, |&p| p);
+                if cos_l <= 0.0 { 0.0 } else { dist * dist * pa / cos_l }
             }
             _ => 0.0,
         }

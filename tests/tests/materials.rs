@@ -1,0 +1,390 @@
+//! The glTF 2.0 material model at shading points (issue 14, section 3): textures
+//! that vary the BSDF, vertex colours, emissive textures, and alpha that lets rays
+//! and photons through, in every stage that finds surfaces. Each scene is a unit
+//! quad written here as glTF with its own PNG, so what is expected is worked out
+//! from the file's numbers, not from the loader.
+
+use glam::{Vec2, Vec3, Vec4};
+use pm_bsdf::Bsdf;
+use pm_color::{Rgb, srgb_decode};
+use pm_scene::{Scene, load};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+/// A glTF file in `dir`: quads (each four corners, counter-clockwise seen from the
+/// side it faces, with uv = corner (0,0), (1,0), (1,1), (0,1)), each with a material
+/// index and optional COLOR_0; `materials`; `images` as RGBA PNGs (texture i reads
+/// image i with nearest filtering); optional extra top-level JSON merged in.
+struct Doc {
+    quads: Vec<([Vec3; 4], usize, Option<[Vec4; 4]>)>,
+    materials: Vec<Value>,
+    images: Vec<(u32, u32, Vec<[u8; 4]>)>,
+    extra: Value,
+}
+
+impl Doc {
+    fn write(&self, dir: &Path, name: &str) -> PathBuf {
+        let mut bin: Vec<u8> = Vec::new();
+        let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
+        let mut push = |bin: &mut Vec<u8>, bytes: Vec<u8>, count: usize, ty: &str, ct: u32, minmax: Option<Value>| {
+            while bin.len() % 4 != 0 {
+                bin.push(0);
+            }
+            views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
+            bin.extend(bytes);
+            let mut a = json!({"bufferView": views.len() - 1, "componentType": ct, "count": count, "type": ty});
+            if let Some(Value::Array(mm)) = minmax {
+                a["min"] = mm[0].clone();
+                a["max"] = mm[1].clone();
+            }
+            accessors.push(a);
+            accessors.len() - 1
+        };
+        let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        for (i, (p, material, colors)) in self.quads.iter().enumerate() {
+            let pos: Vec<f32> = p.iter().flat_map(|v| v.to_array()).collect();
+            let lo = p.iter().fold(Vec3::splat(f32::INFINITY), |a, &b| a.min(b));
+            let hi = p.iter().fold(Vec3::splat(f32::NEG_INFINITY), |a, &b| a.max(b));
+            let pa = push(&mut bin, f32s(&pos), 4, "VEC3", 5126, Some(json!([lo.to_array(), hi.to_array()])));
+            let uv = push(&mut bin, f32s(&[0., 0., 1., 0., 1., 1., 0., 1.]), 4, "VEC2", 5126, None);
+            let idx: Vec<u8> = [0u16, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()).collect();
+            let ia = push(&mut bin, idx, 6, "SCALAR", 5123, None);
+            let mut attributes = json!({"POSITION": pa, "TEXCOORD_0": uv});
+            if let Some(c) = colors {
+                let c: Vec<f32> = c.iter().flat_map(|v| v.to_array()).collect();
+                attributes["COLOR_0"] = push(&mut bin, f32s(&c), 4, "VEC4", 5126, None).into();
+            }
+            meshes.push(json!({"name": format!("quad{i}"), "primitives": [
+                {"attributes": attributes, "indices": ia, "material": material}]}));
+            nodes.push(json!({"name": format!("quad{i}"), "mesh": i}));
+        }
+        let mut images = vec![];
+        for (k, (w, h, px)) in self.images.iter().enumerate() {
+            let file = format!("{name}_{k}.png");
+            let mut out = Vec::new();
+            let mut enc = png::Encoder::new(&mut out, *w, *h);
+            enc.set_color(png::ColorType::Rgba);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut wr = enc.write_header().unwrap();
+            wr.write_image_data(&px.concat()).unwrap();
+            wr.finish().unwrap();
+            std::fs::write(dir.join(&file), out).unwrap();
+            images.push(json!({"uri": file}));
+        }
+        std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+        let mut g = json!({
+            "asset": {"version": "2.0"},
+            "scene": 0,
+            "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
+            "nodes": nodes, "meshes": meshes, "materials": self.materials,
+            "buffers": [{"uri": format!("{name}.bin"), "byteLength": bin.len()}],
+            "bufferViews": views, "accessors": accessors,
+        });
+        if !images.is_empty() {
+            g["samplers"] = json!([{"magFilter": 9728, "minFilter": 9728}]);
+            g["textures"] = (0..images.len()).map(|i| json!({"sampler": 0, "source": i})).collect();
+            g["images"] = images.into();
+        }
+        if let Value::Object(extra) = &self.extra {
+            for (k, v) in extra {
+                g[k] = v.clone();
+            }
+        }
+        let path = dir.join(format!("{name}.gltf"));
+        std::fs::write(&path, g.to_string()).unwrap();
+        path
+    }
+}
+
+/// The unit quad in z = 0 facing +z.
+fn unit_quad() -> [Vec3; 4] {
+    [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]
+}
+
+fn loaded(doc: &Doc, name: &str) -> (tempfile::TempDir, Scene) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = doc.write(dir.path(), name);
+    let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    (dir, s)
+}
+
+/// The BSDF where a ray straight down at (x, y) meets the scene.
+fn bsdf_at(s: &Scene, x: f32, y: f32) -> Bsdf {
+    let h = s.intersect(Vec3::new(x, y, 1.0), Vec3::NEG_Z, f32::INFINITY).expect("the quad is there");
+    s.bsdf(&h)
+}
+
+/// metallicRoughness texture: blue is metalness, green roughness, per point, through
+/// the factors' selection. Texel 0 (B 255, G 0): a mirror of the base colour;
+/// texel 1 (B 0, G 255): a rough dielectric (Lambertian); with factors metallic 1
+/// and roughness 0.6, texel 1's green 255 gives roughness 0.6 and texel 0's blue
+/// 255 metallic 1. Red and alpha are not read.
+#[test]
+fn metallic_roughness_texture_selects_the_model_per_point() {
+    let doc = Doc {
+        quads: vec![(unit_quad(), 0, None)],
+        materials: vec![json!({"name": "mr", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.8, 0.6, 0.4, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.6,
+            "metallicRoughnessTexture": {"index": 0}}})],
+        images: vec![(2, 1, vec![[77, 0, 255, 3], [200, 255, 0, 255]])],
+        extra: json!({}),
+    };
+    let (_d, s) = loaded(&doc, "mr");
+    let base = Rgb::new(0.8, 0.6, 0.4);
+    assert_eq!(bsdf_at(&s, 0.25, 0.5), Bsdf::Mirror { r: base });
+    assert_eq!(bsdf_at(&s, 0.75, 0.5), Bsdf::Lambert { rho: base });
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // The texture is linear data: 128 of 255 green is roughness 0.6 x 0.502, a
+    // coated dielectric with alpha = roughness^2 (sRGB decoding would give 0.22).
+    let doc = Doc { images: vec![(1, 1, vec![[0, 128, 0, 255]])], ..doc };
+    let (_d, s) = loaded(&doc, "mr_half");
+    let r = 0.6 * 128.0 / 255.0;
+    match bsdf_at(&s, 0.5, 0.5) {
+        Bsdf::Plastic { rho, alpha } => {
+            assert_eq!(rho, base);
+            assert!((alpha - r * r).abs() < 1e-6, "alpha {alpha}, want {}", r * r);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// COLOR_0 multiplies the base colour (linear, interpolated), and its alpha the
+/// material's alpha.
+#[test]
+fn vertex_colours_multiply_the_base_colour() {
+    let c = Vec4::new(1.0, 0.5, 0.25, 1.0);
+    let doc = Doc {
+        quads: vec![(unit_quad(), 0, Some([c, c, Vec4::new(0.0, 0.5, 0.25, 1.0), c]))],
+        materials: vec![json!({"name": "vc", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}})],
+        images: vec![],
+        extra: json!({}),
+    };
+    let (_d, s) = loaded(&doc, "vc");
+    // (0.25, 0.25) lies in triangle (0, 1, 2), with weights (1 - x, x - y, y) =
+    // (0.75, 0, 0.25): corner 2's red 0 weighs a quarter.
+    let red = 0.8 * (0.75 * 1.0 + 0.25 * 0.0);
+    assert_eq!(bsdf_at(&s, 0.25, 0.25), Bsdf::Lambert { rho: Rgb::new(red, 0.4, 0.2) });
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+}
+
+/// An emissive texture multiplies emissiveFactor x strength (sRGB decoded).
+#[test]
+fn emissive_texture_scales_the_emitted_radiance() {
+    let doc = Doc {
+        quads: vec![(unit_quad(), 0, None)],
+        materials: vec![json!({"name": "glow", "emissiveFactor": [1.0, 0.5, 1.0],
+            "emissiveTexture": {"index": 0},
+            "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}})],
+        images: vec![(2, 1, vec![[255, 255, 255, 255], [128, 0, 64, 255]])],
+        extra: json!({"extensionsUsed": ["KHR_materials_emissive_strength"]}),
+    };
+    let (_d, s) = loaded(&doc, "glow");
+    let at = |x: f32| {
+        let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+        s.emitted(&h, Vec3::Z)
+    };
+    assert!((at(0.25) - Rgb::new(4.0, 2.0, 4.0)).length() < 1e-5, "{}", at(0.25));
+    let want = Rgb::new(4.0 * srgb_decode(128.0 / 255.0), 0.0, 4.0 * srgb_decode(64.0 / 255.0));
+    assert!((at(0.75) - want).length() < 1e-5, "{} want {want}", at(0.75));
+}
+
+/// Ray queries and the rasteriser agree on where a masked quad is: texture alpha 0 on
+/// the left half, 255 on the right, cutoff 0.5.
+fn masked_doc(alpha_mode: Value) -> Doc {
+    Doc {
+        quads: vec![(unit_quad(), 0, None)],
+        materials: vec![json!({"name": "leaf", "alphaMode": alpha_mode, "alphaCutoff": 0.5,
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})],
+        images: vec![(2, 1, vec![[255, 255, 255, 0], [255, 255, 255, 255]])],
+        extra: json!({}),
+    }
+}
+
+#[test]
+fn masked_alpha_lets_rays_through_in_every_query() {
+    let (_d, s) = loaded(&masked_doc("MASK".into()), "mask");
+    let o = |x: f32| Vec3::new(x, 0.5, 1.0);
+    assert!(s.intersect(o(0.25), Vec3::NEG_Z, f32::INFINITY).is_none());
+    assert!(s.intersect(o(0.75), Vec3::NEG_Z, f32::INFINITY).is_some());
+    assert!(!s.occluded(o(0.25), Vec3::NEG_Z, 2.0));
+    assert!(s.occluded(o(0.75), Vec3::NEG_Z, 2.0));
+    // The rasteriser, looking down at the quad: every pixel centre over the right
+    // half sees it and none over the left half does (the centres avoid x = 0.5).
+    let camera = pm_scene::Camera {
+        position: Vec3::new(0.5, 0.5, 2.0),
+        forward: Vec3::NEG_Z,
+        up: Vec3::Y,
+        right: Vec3::X,
+        yfov: 0.6,
+        aspect: Some(1.0),
+    };
+    let film = pm_render::Film { width: 32, height: 32, spp: 1, contrast: 0.0, seed: 0 };
+    let frags = pm_render::raster::first_hits(&s, &camera, &film, pm_render::Rect::full(&film));
+    let (mut seen, mut checked) = (0, 0);
+    for (i, f) in frags.iter().enumerate() {
+        let (x, y) = ((i % 32) as f32 + 0.5, (i / 32) as f32 + 0.5);
+        let d = camera.ray_direction(x / 32.0, y / 32.0, 1.0);
+        let by_ray = s.intersect(camera.position, d, f32::INFINITY);
+        assert_eq!(f.is_some(), by_ray.is_some(), "pixel {i}");
+        if let Some(h) = by_ray {
+            assert!(h.p.x > 0.5);
+            seen += 1;
+        }
+        checked += 1;
+    }
+    assert!(seen > 100 && seen < checked, "{seen} of {checked}");
+    // Opaque mode ignores alpha.
+    let (_d, s) = loaded(&masked_doc("OPAQUE".into()), "opaque");
+    assert!(s.intersect(o(0.25), Vec3::NEG_Z, f32::INFINITY).is_some());
+}
+
+/// BLEND is stochastic transparency: of many rays through a quad of alpha 0.3
+/// (baseColorFactor), 30% stop, whichever query asks; the decision is the same for
+/// the same point.
+#[test]
+fn blended_alpha_stops_that_fraction_of_rays() {
+    let doc = Doc {
+        quads: vec![(unit_quad(), 0, None)],
+        materials: vec![json!({"name": "veil", "alphaMode": "BLEND",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.3]}})],
+        images: vec![],
+        extra: json!({}),
+    };
+    let (_d, s) = loaded(&doc, "veil");
+    let n = 40_000;
+    let mut s_rng = pm_sampling::Sampler::new(7, 0);
+    let (mut hits, mut blocked) = (0, 0);
+    for _ in 0..n {
+        let u = s_rng.next_2d();
+        let o = Vec3::new(u.x, u.y, 1.0);
+        hits += s.intersect(o, Vec3::NEG_Z, f32::INFINITY).is_some() as u32;
+        blocked += s.occluded(o, Vec3::NEG_Z, 2.0) as u32;
+    }
+    // Binomial standard deviation sqrt(0.21 / 40000) = 0.0023: 5 sigma.
+    for (what, k) in [("intersect", hits), ("occluded", blocked)] {
+        let f = k as f32 / n as f32;
+        assert!((f - 0.3).abs() < 0.0115, "{what}: {f} of rays stopped");
+    }
+    // The same point decides the same way for a ray from elsewhere.
+    let p = Vec2::new(0.3, 0.6);
+    let a = s.intersect(Vec3::new(p.x, p.y, 1.0), Vec3::NEG_Z, f32::INFINITY).is_some();
+    let b = s.occluded(Vec3::new(p.x, p.y, 1.0), Vec3::NEG_Z, 5.0);
+    assert_eq!(a, b);
+}
+
+/// Photons under a sun straight down: a black blended quad (alpha 0.3) over a black
+/// floor. Photons that stop on the veil carry their power / 0.3, so the veil's
+/// stored power is the whole power falling on it (what its radiance estimate needs:
+/// its own 0.3 comes from the eye rays that stop there); the floor below it gets the
+/// other 70%. A masked leaf (the left half cut out) lets the floor under its hole get
+/// the full power.
+#[test]
+fn photons_pass_through_alpha_and_the_stored_power_is_unbiased() {
+    let floor = [Vec3::new(-1.0, -1.0, -1.0), Vec3::new(2.0, -1.0, -1.0), Vec3::new(2.0, 2.0, -1.0), Vec3::new(-1.0, 2.0, -1.0)];
+    for (mode, name) in [("BLEND", "veil"), ("MASK", "leaf")] {
+        let mut doc = masked_doc(mode.into());
+        doc.materials[0] = json!({"name": name, "alphaMode": mode, "alphaCutoff": 0.5,
+            "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, if mode == "BLEND" { 0.3 } else { 1.0 }],
+                "baseColorTexture": {"index": 0}}});
+        if mode == "BLEND" {
+            doc.images = vec![(1, 1, vec![[255, 255, 255, 255]])];
+        }
+        doc.quads.push((floor, 1, None));
+        doc.materials.push(json!({"name": "floor", "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]}}));
+        doc.extra = json!({
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 683.0}]}},
+        });
+        let dir = tempfile::tempdir().unwrap();
+        let path = doc.write(dir.path(), name);
+        // A sun node pointing down (-Z of the node is -z of the world: no rotation).
+        let mut g: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        g["nodes"].as_array_mut().unwrap().push(json!({"name": "sun", "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+        g["scenes"][0]["nodes"].as_array_mut().unwrap().push(2.into());
+        std::fs::write(&path, g.to_string()).unwrap();
+        let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let cfg = pm_photon::TraceConfig {
+            pass: pm_photon::MapPass::Global,
+            budget: pm_photon::Budget::Stored { target: 200_000, cap: 10_000_000 },
+            seed: 3,
+            selector: pm_photon::LightSelector::new(&s, &[]).unwrap(),
+        };
+        let photons = pm_photon::trace(&s, &cfg, &|_| {}).unwrap().photons;
+        // Irradiance 1 W/m^2: power per unit area of each region.
+        let area_power = |f: &dyn Fn(Vec3) -> bool, area: f32| {
+            photons.iter().filter(|p| f(p.position)).map(|p| p.power.x as f64).sum::<f64>() as f32 / area
+        };
+        let on_quad = |p: Vec3| p.z.abs() < 1e-4;
+        let under = |x0: f32, x1: f32| move |p: Vec3| p.z < -0.5 && p.x > x0 && p.x < x1 && p.y > 0.0 && p.y < 1.0;
+        if mode == "BLEND" {
+            let veil = area_power(&on_quad, 1.0);
+            let below = area_power(&under(0.0, 1.0), 1.0);
+            assert!((veil - 1.0).abs() < 0.05, "veil stores {veil} W/m^2 of 1");
+            assert!((below - 0.7).abs() < 0.04, "floor under the veil gets {below} W/m^2 of 0.7");
+        } else {
+            let hole = area_power(&under(0.0, 0.5), 0.5);
+            let shade = area_power(&under(0.5, 1.0), 0.5);
+            let leaf = area_power(&on_quad, 0.5);
+            assert!((hole - 1.0).abs() < 0.05, "floor under the hole gets {hole} W/m^2 of 1");
+            assert!(shade < 1e-3, "floor under the leaf gets {shade} W/m^2");
+            assert!((leaf - 1.0).abs() < 0.05, "leaf stores {leaf} W/m^2 of 1");
+        }
+    }
+}
+
+/// A textured emitter is a light whose power and sampling follow the texture: a
+/// 1 m^2 quad facing down with a 4 x 4 emissive texture of uneven texels, 1 m above a
+/// point. Quadrature over a 600 x 600 grid of the surface (the scene's own
+/// `emission_at`, which the emissive-texture test checks) gives the emitted power
+/// pi * integral of L_e dA and the irradiance at the point; the light's power, the
+/// mean power of emitted photons, and next-event estimates of the irradiance from
+/// `sample_li` (with their pdf) must agree with it.
+#[test]
+fn textured_emitters_emit_and_are_sampled_in_proportion_to_their_texture() {
+    let texels: Vec<[u8; 4]> =
+        (0..16u32).map(|i| [((i * 97) % 256) as u8, ((i * 53 + 40) % 256) as u8, (i * 16) as u8, 255]).collect();
+    let down = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 0.0, 1.0)];
+    let doc = Doc {
+        quads: vec![(down, 0, None)],
+        materials: vec![json!({"name": "panel", "emissiveFactor": [1.0, 1.0, 1.0], "emissiveTexture": {"index": 0}})],
+        images: vec![(4, 4, texels)],
+        extra: json!({}),
+    };
+    let (_d, s) = loaded(&doc, "panel");
+    assert_eq!(s.lights.len(), 1);
+    let light = &s.lights[0];
+    let x = Vec3::new(0.3, 0.6, 0.0);
+    let n = 600;
+    let (mut power, mut irradiance) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+    for i in 0..n {
+        for j in 0..n {
+            let (u, v) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+            let y = Vec3::new(v, u, 1.0); // corner order: (0,0) (0,1) (1,1) (1,0)
+            let h = s.intersect(Vec3::new(y.x, y.y, 0.5), Vec3::Z, 1.0).unwrap();
+            let le = s.emitted(&h, Vec3::NEG_Z).as_dvec3();
+            let da = 1.0 / (n * n) as f64;
+            power += le * std::f64::consts::PI * da;
+            let d = y - x;
+            let r2 = d.length_squared();
+            let cos = (d.z / r2.sqrt()) as f64; // the same at both ends: parallel planes
+            irradiance += le * cos * cos / r2 as f64 * da;
+        }
+    }
+    let rel = |a: glam::DVec3, b: glam::DVec3| ((a - b).length() / b.length()) as f32;
+    assert!(rel(light.power.as_dvec3(), power) < 0.02, "light power {} against quadrature {power}", light.power);
+    let mut sampler = pm_sampling::Sampler::new(11, 0);
+    let (mut emitted, mut nee) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+    let m = 200_000;
+    for _ in 0..m {
+        if let Some(r) = light.sample_emission(&s, &mut sampler) {
+            emitted += r.power.as_dvec3();
+        }
+        let (u_sel, u) = (sampler.next_1d(), sampler.next_2d());
+        if let Some(ls) = light.sample_li(&s, x, u_sel, u) {
+            nee += (ls.li * (ls.wi.z / ls.pdf)).as_dvec3();
+        }
+    }
+    let (emitted, nee) = (emitted / m as f64, nee / m as f64);
+    assert!(rel(emitted, power) < 0.01, "photon power {emitted} against {power}");
+    assert!(rel(nee, irradiance) < 0.01, "next-event irradiance {nee} against {irradiance}");
+}
