@@ -388,3 +388,86 @@ fn textured_emitters_emit_and_are_sampled_in_proportion_to_their_texture() {
     assert!(rel(emitted, power) < 0.01, "photon power {emitted} against {power}");
     assert!(rel(nee, irradiance) < 0.01, "next-event irradiance {nee} against {irradiance}");
 }
+
+/// An absorbing glass slab (KHR_materials_volume's attenuation): a closed box 0.4 m
+/// thick, ior 1.5, sigma_a = (1, 2, 0.5) m^-1, over a floor, seen and lit straight
+/// down. At normal incidence each face reflects R = ((1.5 - 1) / (1.5 + 1))^2 = 0.04,
+/// and with t = exp(-sigma_a 0.4) per crossing the slab transmits (Beer-Lambert
+/// with every internal reflection summed) T = (1 - R)^2 t / (1 - R^2 t^2). Photons
+/// from a sun (1 W/m^2) arrive on the floor under it with T W/m^2; the path tracer
+/// and the photon-map renderer see an emitting floor (L_e = 1) through it at T.
+#[test]
+fn absorbing_glass_transmits_the_beer_lambert_fraction() {
+    use pm_tests::{closed_box, material};
+    let sigma = Rgb::new(1.0, 2.0, 0.5);
+    let thick = 0.4f32;
+    let r = (0.5f32 / 2.5).powi(2);
+    let t = (-sigma * thick).exp();
+    let want = (1.0 - r) * (1.0 - r) * t / (Rgb::ONE - r * r * t * t);
+    let build = |floor_emission: f32, sun: bool| {
+        let mut tris = Vec::new();
+        // Outward-facing slab: the inward box with its triangles turned over.
+        let mut inward = Vec::new();
+        closed_box(&mut inward, Vec3::new(-1.0, 0.5, -1.0), Vec3::new(2.0, 0.5 + thick, 2.0), 0);
+        tris.extend(inward.iter().map(|t| pm_scene::Triangle::new([t.p[0], t.p[2], t.p[1]], 0).unwrap()));
+        let v = |x: f32, z: f32| Vec3::new(x, 0.0, z);
+        for q in [[v(-3.0, -3.0), v(-3.0, 4.0), v(4.0, 4.0)], [v(-3.0, -3.0), v(4.0, 4.0), v(4.0, -3.0)]] {
+            tris.push(pm_scene::Triangle::new(q, 1).unwrap());
+        }
+        let mut glass = material("absorbing glass", Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false }, 0.0);
+        glass.attenuation = sigma;
+        let floor = material("floor", Bsdf::Lambert { rho: Rgb::ZERO }, floor_emission);
+        let lights = if sun {
+            vec![pm_scene::Light {
+                name: "sun".into(),
+                kind: pm_scene::LightKind::Directional {
+                    direction: Vec3::NEG_Y,
+                    irradiance: Rgb::ONE,
+                    center: Vec3::ZERO,
+                    radius: 0.0,
+                },
+                power: Rgb::ZERO,
+            }]
+        } else {
+            vec![]
+        };
+        let camera = pm_scene::Camera {
+            position: Vec3::new(0.5, 3.0, 0.5),
+            forward: Vec3::NEG_Y,
+            up: Vec3::NEG_Z,
+            right: Vec3::X,
+            yfov: 0.1,
+            aspect: Some(1.0),
+        };
+        Scene::from_parts(tris, vec![glass, floor], lights, Some(camera))
+    };
+    // Photons.
+    let lit = build(0.0, true);
+    let cfg = pm_photon::TraceConfig {
+        pass: pm_photon::MapPass::Global,
+        budget: pm_photon::Budget::Emitted(400_000),
+        seed: 5,
+        selector: pm_photon::LightSelector::new(&lit, &[]).unwrap(),
+    };
+    let photons = pm_photon::trace(&lit, &cfg, &|_| {}).unwrap().photons;
+    let under: Rgb = photons
+        .iter()
+        .filter(|p| p.position.y.abs() < 1e-4 && (0.0..1.0).contains(&p.position.x) && (0.0..1.0).contains(&p.position.z))
+        .map(|p| p.power)
+        .sum();
+    let rel = |a: Rgb, b: Rgb| ((a - b) / b).abs().max_element();
+    assert!(rel(under, want) < 0.03, "photons: {under} W/m^2 under the slab, want {want}");
+    // The clear slab would give (1 - R)^2 / (1 - R^2): the test can tell.
+    assert!(rel(Rgb::splat((1.0 - r) * (1.0 - r) / (1.0 - r * r)), want) > 0.2);
+    // Eye paths.
+    let seen = build(1.0, false);
+    let maps = pm_tests::photon_maps(&seen, 20_000, 0, 0.25);
+    for (method, spp) in [(pm_render::Method::Path, 64), (pm_render::Method::Full, 4)] {
+        let mut cfg = pm_tests::render_params(method, 8, 8);
+        cfg.spp = spp;
+        let (img, _) = pm_tests::render(&seen, &maps, &cfg);
+        let px = img.layer("total").unwrap();
+        let mean = px.iter().copied().sum::<Rgb>() / px.len() as f32;
+        assert!(rel(mean, want) < 0.02, "{method:?}: {mean} through the slab, want {want}");
+    }
+}

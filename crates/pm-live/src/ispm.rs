@@ -115,11 +115,11 @@ fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
                 .map(|k| {
                     let mut s = Sampler::new(pm_sampling::mix64(seed ^ 0x626f_756e_6365 ^ li as u64), k as u64);
                     match light.sample_emission(scene, &mut s) {
-                        Some(ray) => Arrival {
-                            dir: ray.dir,
-                            power: ray.power / n as f32,
-                            hit: scene.intersect(ray.origin, ray.dir, f32::INFINITY),
-                        },
+                        Some(ray) => {
+                            let hit = scene.intersect(ray.origin, ray.dir, f32::INFINITY);
+                            let tr = hit.as_ref().map_or(Rgb::ONE, |h| scene.transmittance(h, ray.dir));
+                            Arrival { dir: ray.dir, power: ray.power * tr / n as f32, hit }
+                        }
                         None => Arrival { dir: Vec3::Z, power: Rgb::ZERO, hit: None },
                     }
                 })
@@ -261,6 +261,7 @@ pub fn trace(
                     break;
                 }
                 let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { break };
+                power *= scene.transmittance(&hit, d);
                 let wo = -d;
                 let bsdf = scene.bsdf(&hit);
                 if !bsdf.is_specular() {

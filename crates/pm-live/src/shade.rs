@@ -133,6 +133,7 @@ impl LiveShading<'_> {
         let mut next = first;
         for depth in 0..=self.max_depth {
             let Some(hit) = next else { break };
+            beta *= scene.transmittance(&hit, d);
             let wo = -d;
             let le = scene.emitted(&hit, wo);
             let bsdf = scene.bsdf(&hit);

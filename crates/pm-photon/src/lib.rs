@@ -197,6 +197,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         }
         out.rays += 1;
         let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
+        phi *= scene.transmittance(&hit, d);
         let bsdf = scene.bsdf(&hit);
         let wo = -d;
         let specular = bsdf.is_specular();

@@ -91,7 +91,7 @@ impl DirectLighting<'_> {
                 {
                     let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                     if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
-                        let le = scene.emitted(&h, -bs.wi);
+                        let le = scene.emitted(&h, -bs.wi) * scene.transmittance(&h, bs.wi);
                         if le.max_element() > 0.0
                             && let Some(p_l) = self.pdf_emitter(h.tri, bs.wi, h.t)
                         {

@@ -110,6 +110,7 @@ fn gather_radiance<G: PhotonRecord>(
     // spheres a gather ray meets four interfaces before a diffuse surface).
     for bounce in 0..ctx.cfg.max_depth.max(1) {
         let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return (Rgb::ZERO, first_t) };
+        beta *= scene.transmittance(&hit, d);
         if bounce == 0 {
             first_t = hit.t;
         }

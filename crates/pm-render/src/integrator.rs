@@ -42,6 +42,16 @@ impl Components {
         self.direct + self.caustic + self.indirect + self.specular
     }
 
+    /// Every component times `w` (per channel).
+    pub fn scaled(&self, w: Rgb) -> Components {
+        Components {
+            direct: self.direct * w,
+            caustic: self.caustic * w,
+            indirect: self.indirect * w,
+            specular: self.specular * w,
+        }
+    }
+
     /// Add another sample's components.
     pub fn add(&mut self, c: &Components) {
         self.direct += c.direct;
@@ -350,11 +360,28 @@ fn trace<G: PhotonRecord>(
     depth: u32,
     s: &mut Sampler,
     scratch: &mut Scratch,
-    mut vs: Option<&mut VisibleSurface>,
+    vs: Option<&mut VisibleSurface>,
 ) -> Components {
     let scene = ctx.scene;
-    let cfg = &ctx.cfg;
     let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return Components::default() };
+    let tr = scene.transmittance(&hit, d);
+    let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
+    if tr == Rgb::ONE { c } else { c.scaled(tr) }
+}
+
+/// [`trace`] from its hit (before the segment's transmittance).
+#[allow(clippy::too_many_arguments)]
+fn trace_hit<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    shade: &Shade<G>,
+    hit: &pm_scene::Hit,
+    d: Vec3,
+    depth: u32,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    mut vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let (scene, cfg, hit) = (ctx.scene, &ctx.cfg, *hit);
     let wo = -d;
     let le = scene.emitted(&hit, wo);
     let bsdf = scene.bsdf(&hit);

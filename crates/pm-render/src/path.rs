@@ -90,6 +90,7 @@ fn path_radiance(
     let mut n_diffuse = 0u32;
     for depth in 0..MAX_PATH {
         let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return l };
+        beta *= scene.transmittance(&hit, d);
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         if le.max_element() > 0.0 {

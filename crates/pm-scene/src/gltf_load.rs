@@ -165,10 +165,26 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             }
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         };
-        if let Some(v) = m.volume()
-            && (v.attenuation_distance().is_finite() || v.attenuation_color() != [1.0; 3])
-        {
-            warnings.push(format!("material '{name}': volume attenuation ignored (the medium is clear)"));
+        // KHR_materials_volume: attenuationColor is what is left after
+        // attenuationDistance, so sigma_a = -ln(colour) / distance (a colour of 0 is
+        // taken as 1e-6: opaque within a few distances).
+        let mut attenuation = Rgb::ZERO;
+        if let Some(v) = m.volume() {
+            let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
+            if !c.is_finite() || c.min_element() < 0.0 || !(d > 0.0) {
+                return Err(content(format!(
+                    "material '{name}': volume attenuation colour {c} or distance {d} is not valid"
+                )));
+            }
+            if factors.thin {
+                if d.is_finite() && c != Rgb::ONE {
+                    warnings.push(format!(
+                        "material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"
+                    ));
+                }
+            } else if d.is_finite() {
+                attenuation = -c.min(Rgb::ONE).max(Rgb::splat(1e-6)).ln() / d;
+            }
         }
         let ef = m.emissive_factor();
         let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
@@ -187,6 +203,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             emissive_texture,
             emission,
             double_sided: m.double_sided(),
+            attenuation,
         });
     }
     let textures = texture_loader.textures;

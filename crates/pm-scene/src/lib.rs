@@ -256,6 +256,10 @@ pub struct Material {
     pub emission: Rgb,
     /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
     pub double_sided: bool,
+    /// Absorption coefficient sigma_a [m^-1 per channel] of the medium this closed
+    /// surface bounds (KHR_materials_volume: -ln(attenuationColor) /
+    /// attenuationDistance); zero for a clear medium or no volume.
+    pub attenuation: Rgb,
 }
 
 impl Material {
@@ -273,6 +277,7 @@ impl Material {
             emissive_texture: None,
             emission,
             double_sided: false,
+            attenuation: Rgb::ZERO,
         }
     }
 
@@ -1009,6 +1014,22 @@ impl Scene {
             return Rgb::ZERO;
         }
         self.emission_at(hit.tri, hit.b)
+    }
+
+    /// Beer-Lambert transmittance exp(-sigma_a t) of the segment a ray along unit `d`
+    /// travelled to reach `hit` (per channel, in [0, 1]): below one when the ray
+    /// arrives at the back of a surface whose material bounds an absorbing medium
+    /// (KHR_materials_volume), that is when the segment ran inside it; one otherwise.
+    /// Every integrator multiplies its path throughput (or photon power) by this
+    /// after each intersection. A surface inside the medium that is not its boundary
+    /// does not see the attenuation (media are not nested).
+    #[inline]
+    pub fn transmittance(&self, hit: &Hit, d: Vec3) -> Rgb {
+        let sigma = self.material(hit).attenuation;
+        if sigma == Rgb::ZERO || d.dot(hit.ng) <= 0.0 {
+            return Rgb::ONE;
+        }
+        (-sigma * hit.t).exp()
     }
 
     /// Emitted radiance [W sr^-1 m^-2 per channel] at barycentrics `b` of triangle

@@ -352,7 +352,8 @@ fn texture_transform_moves_the_base_colour_texture() {
 
 /// What is not read yet is said, once, naming the material; what is read is not:
 /// the textured quad given a metallicRoughness, normal and occlusion texture,
-/// alphaMode MASK, volume attenuation and vertex colours.
+/// alphaMode MASK, volume attenuation and vertex colours. The volume's attenuation
+/// is read as an absorption coefficient.
 #[test]
 fn ignored_material_features_are_warned_naming_the_material() {
     let mut g: serde_json::Value =
@@ -373,13 +374,24 @@ fn ignored_material_features_are_warned_naming_the_material() {
     let path = dir.path().join("ignored.gltf");
     std::fs::write(&path, g.to_string()).unwrap();
     let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
-    for what in ["normal texture", "occlusion texture", "volume attenuation"] {
+    for what in ["normal texture", "occlusion texture"] {
         let n = s.warnings.iter().filter(|w| w.contains(what) && w.contains("material 'checker'")).count();
         assert_eq!(n, 1, "{what}: {:?}", s.warnings);
     }
-    for read in ["metallicRoughness", "alphaMode", "COLOR_0"] {
+    for read in ["metallicRoughness", "alphaMode", "COLOR_0", "attenuation"] {
         assert!(!s.warnings.iter().any(|w| w.contains(read)), "{read} is read: {:?}", s.warnings);
     }
+    // The volume's attenuation: sigma_a = -ln(attenuationColor) / attenuationDistance.
+    let m = &s.materials[0];
+    let want = Vec3::new(0.0, 2.0f32.ln() / 0.5, 2.0f32.ln() / 0.5);
+    assert!(close(m.attenuation, want), "{} want {want}", m.attenuation);
+    // A thin-walled volume (thicknessFactor 0) has no inside: its attenuation is said
+    // to be ignored.
+    let text = g.to_string().replace("\"thicknessFactor\":0.1", "\"thicknessFactor\":0.0");
+    std::fs::write(&path, text).unwrap();
+    let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(s.materials[0].attenuation, Vec3::ZERO);
+    assert_eq!(s.warnings.iter().filter(|w| w.contains("volume attenuation ignored")).count(), 1, "{:?}", s.warnings);
     // The plain file warns of none of them.
     assert!(load(&data("textured.gltf")).unwrap().warnings.is_empty());
 }
