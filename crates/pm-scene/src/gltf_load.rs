@@ -96,6 +96,9 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let mut texture_loader = TextureLoader { base_dir, buffers: &buffers, textures: Vec::new(), cache: Default::default() };
     // Per material, whether a texture reads TEXCOORD_1 (only then is it read).
     let mut uv1_needed: Vec<bool> = Vec::new();
+    // Per material, the TEXCOORD_n set its normal texture reads (tangents are needed
+    // only then, generated from that set when the file has none).
+    let mut tangent_sets: Vec<Option<u8>> = Vec::new();
     let mut materials = Vec::new();
     for (i, m) in doc.materials().enumerate() {
         let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
@@ -145,10 +148,35 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         let base_texture = texture(pbr.base_color_texture(), true, "base colour")?;
         let metallic_roughness_texture = texture(pbr.metallic_roughness_texture(), false, "metallicRoughness")?;
         let emissive_texture = texture(m.emissive_texture(), true, "emissive")?;
-        // What is not read yet, said once per material.
-        if m.normal_texture().is_some() {
-            warnings.push(format!("material '{name}': normal texture ignored (interpolated vertex normals are used)"));
-        }
+        let (normal_texture, normal_scale) = match m.normal_texture() {
+            None => (None, 1.0),
+            Some(nt) => {
+                // KHR_texture_transform on a normal texture is only in its JSON.
+                let transform = nt.extension_value("KHR_texture_transform").map(|t| {
+                    let pair = |k: &str, d: f32| {
+                        let a = t.get(k).and_then(|v| v.as_array());
+                        let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
+                        [at(0), at(1)]
+                    };
+                    let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+                    let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
+                    (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
+                });
+                let (r, above) = texture_loader
+                    .texture_ref(nt.texture(), nt.tex_coord(), transform, false)
+                    .map_err(|e| content(format!("material '{name}': normal texture: {e}")))?;
+                if above {
+                    warnings.push(format!(
+                        "material '{name}': normal texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
+                    ));
+                }
+                if !nt.scale().is_finite() {
+                    return Err(content(format!("material '{name}': normal texture scale {} is not finite", nt.scale())));
+                }
+                (Some(r), nt.scale())
+            }
+        };
+        // What is not read, said once per material.
         if m.occlusion_texture().is_some() {
             warnings.push(format!(
                 "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
@@ -191,7 +219,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if !pm_color::is_valid(emission) {
             return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
-        uv1_needed.push(uses_uv1);
+        uv1_needed.push(uses_uv1 || normal_texture.is_some_and(|t| t.uv_set == 1));
+        tangent_sets.push(normal_texture.map(|t| t.uv_set));
         materials.push(Material {
             name,
             bsdf,
@@ -201,6 +230,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             base_texture,
             metallic_roughness_texture,
             emissive_texture,
+            normal_texture,
+            normal_scale,
             emission,
             double_sided: m.double_sided(),
             attenuation,
@@ -258,7 +289,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                 let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
                 let first = triangles.len();
                 let material = prim.material().index().map_or(default_material, |i| i as u32);
-                let mat = (material, uv1_needed.get(material as usize).copied().unwrap_or(false));
+                let mat = PrimMaterial {
+                    material,
+                    read_uv1: uv1_needed.get(material as usize).copied().unwrap_or(false),
+                    tangent_set: tangent_sets.get(material as usize).copied().flatten(),
+                };
                 let skipped = read_primitive(&prim, &buffers, world, normal_m, mat, &mut triangles)
                     .map_err(|m| content(format!("{what}: {m}")))?;
                 skipped_degenerate += skipped;
@@ -492,12 +527,24 @@ fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), String> {
 
 /// Append one primitive's triangles in world space. Returns the number of degenerate
 /// triangles skipped; errors name what is wrong with the accessors.
+/// What [`read_primitive`] needs of a primitive's material.
+#[derive(Clone, Copy)]
+struct PrimMaterial {
+    /// Index into the scene's materials.
+    material: u32,
+    /// A texture reads TEXCOORD_1.
+    read_uv1: bool,
+    /// The material has a normal texture reading this TEXCOORD_n set: tangents are
+    /// read (TANGENT) or generated from it.
+    tangent_set: Option<u8>,
+}
+
 fn read_primitive(
     prim: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
     world: Mat4,
     normal_m: Mat3,
-    (material, read_uv1): (u32, bool),
+    PrimMaterial { material, read_uv1, tangent_set }: PrimMaterial,
     out: &mut Vec<Triangle>,
 ) -> Result<usize, String> {
     use gltf::accessor::{DataType, Dimensions};
@@ -547,25 +594,25 @@ fn read_primitive(
         let dims = if a.dimensions() == Dimensions::Vec3 { Dimensions::Vec3 } else { Dimensions::Vec4 };
         check("COLOR_0", a, dims, &[DataType::F32, DataType::U8, DataType::U16])?;
     }
+    let tangent_acc = if tangent_set.is_some() { prim.get(&gltf::Semantic::Tangents) } else { None };
+    if let Some(a) = tangent_acc.clone() {
+        check("TANGENT", a, Dimensions::Vec4, &[DataType::F32])?;
+    }
     if let Some(a) = prim.indices() {
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
-    let positions: Vec<Vec3> = reader
-        .read_positions()
-        .ok_or("POSITION cannot be read")?
-        .map(|p| world.transform_point3(Vec3::from(p)))
-        .collect();
+    let local_positions: Vec<Vec3> = reader.read_positions().ok_or("POSITION cannot be read")?.map(Vec3::from).collect();
+    let positions: Vec<Vec3> = local_positions.iter().map(|&p| world.transform_point3(p)).collect();
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(format!(
             "vertex {i} has a position that is not finite (NaN or Inf, or overflow after the node transform)"
         ));
     }
-    let normals: Option<Vec<Vec3>> = if normal_acc.is_some() {
-        reader.read_normals().map(|it| it.map(|n| (normal_m * Vec3::from(n)).normalize_or_zero()).collect())
-    } else {
-        None
-    };
+    let local_normals: Option<Vec<Vec3>> =
+        if normal_acc.is_some() { reader.read_normals().map(|it| it.map(Vec3::from).collect()) } else { None };
+    let normals: Option<Vec<Vec3>> =
+        local_normals.as_ref().map(|ns| ns.iter().map(|&n| (normal_m * n).normalize_or_zero()).collect());
     let read_uv = |set: u32| reader.read_tex_coords(set).map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>());
     let uvs = if uv_acc.is_some() { read_uv(0) } else { None };
     let uvs1 = if uv1_acc.is_some() { read_uv(1) } else { None };
@@ -600,9 +647,33 @@ fn read_primitive(
     }
     // A mirroring transform reverses the winding; keep counter-clockwise = front.
     let flip = Mat3::from_mat4(world).determinant() < 0.0;
+    // Tangents per corner (index position) in the node's space: the file's, or
+    // MikkTSpace's from the normal texture's coordinates (glTF 2.0 section 3.7.2.1).
+    let tangent_uvs = match tangent_set {
+        Some(1) => uvs1.as_ref(),
+        Some(_) => uvs.as_ref(),
+        None => None,
+    };
+    let corner_tangents: Option<Vec<Vec4>> = if tangent_set.is_none() {
+        None
+    } else if tangent_acc.is_some() {
+        let t: Vec<Vec4> = reader.read_tangents().ok_or("TANGENT cannot be read")?.map(Vec4::from).collect();
+        if t.len() != positions.len() {
+            return Err(format!("TANGENT has {} entries but POSITION has {}", t.len(), positions.len()));
+        }
+        Some(indices.iter().map(|&i| t[i as usize]).collect())
+    } else {
+        tangent_uvs.map(|uv| mikktspace_tangents(&local_positions, local_normals.as_deref(), uv, &indices))
+    };
+    let linear = Mat3::from_mat4(world);
+    let to_world = |t: Vec4| {
+        let w = if (t.w < 0.0) != flip { -1.0 } else { 1.0 };
+        (linear * t.truncate()).normalize_or_zero().extend(w)
+    };
     let mut skipped = 0;
-    for tri in indices.chunks_exact(3) {
-        let [a, b, c] = if flip { [tri[0], tri[2], tri[1]] } else { [tri[0], tri[1], tri[2]] }.map(|i| i as usize);
+    for (f, tri) in indices.chunks_exact(3).enumerate() {
+        let corners = if flip { [0, 2, 1] } else { [0, 1, 2] };
+        let [a, b, c] = corners.map(|k| tri[k] as usize);
         let p = [positions[a], positions[b], positions[c]];
         let cross = (p[1] - p[0]).cross(p[2] - p[0]);
         let area = 0.5 * cross.length();
@@ -619,9 +690,55 @@ fn read_primitive(
         let uv = uvs.as_ref().map(|u| [u[a], u[b], u[c]]);
         let uv1 = uvs1.as_ref().map(|u| [u[a], u[b], u[c]]);
         let color = colors.as_ref().map(|v| [v[a], v[b], v[c]].map(|c| c.min(Vec4::ONE)));
-        out.push(Triangle { p, n, uv, uv1, color, ng, area, material });
+        let tangent = corner_tangents.as_ref().map(|t| corners.map(|k| to_world(t[3 * f + k])));
+        out.push(Triangle { p, n, uv, uv1, color, tangent, ng, area, material });
     }
     Ok(skipped)
+}
+
+/// MikkTSpace tangents (bevy_mikktspace, the reference algorithm's port) of an
+/// indexed triangle list, per corner: xyz the tangent, w the bitangent's sign.
+/// Without vertex normals the faces' own normals are used (glTF's flat shading).
+fn mikktspace_tangents(positions: &[Vec3], normals: Option<&[Vec3]>, uvs: &[Vec2], indices: &[u32]) -> Vec<Vec4> {
+    struct Mesh<'a> {
+        p: &'a [Vec3],
+        n: Option<&'a [Vec3]>,
+        uv: &'a [Vec2],
+        idx: &'a [u32],
+        out: Vec<Vec4>,
+    }
+    impl bevy_mikktspace::Geometry for Mesh<'_> {
+        fn num_faces(&self) -> usize {
+            self.idx.len() / 3
+        }
+        fn num_vertices_of_face(&self, _: usize) -> usize {
+            3
+        }
+        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.p[self.idx[3 * face + vert] as usize].to_array()
+        }
+        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+            match self.n {
+                Some(n) => n[self.idx[3 * face + vert] as usize].to_array(),
+                None => {
+                    let q = |k: usize| self.p[self.idx[3 * face + k] as usize];
+                    (q(1) - q(0)).cross(q(2) - q(0)).normalize_or_zero().to_array()
+                }
+            }
+        }
+        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+            self.uv[self.idx[3 * face + vert] as usize].to_array()
+        }
+        fn set_tangent(&mut self, ts: Option<bevy_mikktspace::TangentSpace>, face: usize, vert: usize) {
+            if let Some(ts) = ts {
+                self.out[3 * face + vert] = Vec4::from(ts.tangent_encoded());
+            }
+        }
+    }
+    let mut mesh = Mesh { p: positions, n: normals, uv: uvs, idx: indices, out: vec![Vec4::ZERO; indices.len()] };
+    // The error type has no variants: generation cannot fail.
+    let _ = bevy_mikktspace::generate_tangents(&mut mesh);
+    mesh.out
 }
 
 /// The textures materials read, each image decoded once per wrapping and colour space.

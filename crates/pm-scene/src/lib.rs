@@ -68,6 +68,10 @@ pub struct Triangle {
     /// Linear RGBA vertex colours (COLOR_0), when present: RGB multiplies the base
     /// colour, A the alpha.
     pub color: Option<[glam::Vec4; 3]>,
+    /// World-space unit tangents (xyz) with the bitangent's sign (w: bitangent =
+    /// w cross(normal, tangent)), from TANGENT or generated with MikkTSpace, when the
+    /// material has a normal texture.
+    pub tangent: Option<[glam::Vec4; 3]>,
     /// Unit geometric normal from the winding (counter-clockwise = front).
     pub ng: Vec3,
     /// Area [m^2].
@@ -89,6 +93,9 @@ impl Triangle {
         if let Some(c) = self.color.as_mut() {
             c.swap(1, 2);
         }
+        if let Some(t) = self.tangent.as_mut() {
+            t.swap(1, 2);
+        }
     }
 
     /// A triangle without vertex normals or UVs; `None` when it has no area.
@@ -102,6 +109,7 @@ impl Triangle {
             uv: None,
             uv1: None,
             color: None,
+            tangent: None,
             ng,
             area,
             material,
@@ -251,6 +259,11 @@ pub struct Material {
     pub metallic_roughness_texture: Option<TextureRef>,
     /// Emissive texture, multiplied into `emission`.
     pub emissive_texture: Option<TextureRef>,
+    /// Tangent-space normal texture (linear RGB = (n + 1) / 2), perturbing the
+    /// shading normal (never the geometry).
+    pub normal_texture: Option<TextureRef>,
+    /// The normal texture's `scale`: multiplies the sampled normal's x and y.
+    pub normal_scale: f32,
     /// Emitted radiance L_e [W sr^-1 m^-2 per channel] (emissiveFactor x
     /// KHR_materials_emissive_strength), times the emissive texture where there is one.
     pub emission: Rgb,
@@ -275,6 +288,8 @@ impl Material {
             base_texture: None,
             metallic_roughness_texture: None,
             emissive_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
             emission,
             double_sided: false,
             attenuation: Rgb::ZERO,
@@ -653,6 +668,13 @@ impl Scene {
                     let mut p = local.p.map(|q| world.transform_point3(q));
                     let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
                     let mut attrs = local.clone();
+                    let linear = glam::Mat3::from_mat4(world);
+                    attrs.tangent = local.tangent.map(|t| {
+                        t.map(|t| {
+                            let w = if flip { -t.w } else { t.w };
+                            (linear * t.truncate()).normalize_or_zero().extend(w)
+                        })
+                    });
                     if flip {
                         p.swap(1, 2);
                         if let Some(n) = n.as_mut() {
@@ -733,6 +755,7 @@ impl Scene {
                         sub.uv = t.uv.as_ref().map(lerp2);
                         sub.uv1 = t.uv1.as_ref().map(lerp2);
                         sub.color = t.color.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
+                        sub.tangent = t.tangent.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
                         out.push(sub);
                     }
                 };
@@ -888,28 +911,34 @@ impl Scene {
         (obvhs::ray::Ray::new(o_n.into(), d.into(), 0.0, t_max * self.bvh_inv_scale), 1.0 / self.bvh_inv_scale)
     }
 
-    /// The hit record of triangle `tri` at barycentrics `b`, t along the ray.
+    /// The hit record of triangle `tri` at barycentrics `b`, t along the ray. The
+    /// shading normal is the interpolated vertex normal, perturbed by the material's
+    /// normal texture in the tangent frame (glTF 2.0 section 3.9.3: bitangent = w
+    /// cross(n, t)), and turned to the geometric normal's side.
     pub fn make_hit(&self, tri: u32, t: f32, b: [f32; 3]) -> Hit {
         let tr = &self.triangles[tri as usize];
         let p = tr.p[0] * b[0] + tr.p[1] * b[1] + tr.p[2] * b[2];
         let ng = tr.ng;
-        let ns = match tr.n {
-            Some(n) => {
-                let ns = (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or_zero();
-                if ns == Vec3::ZERO {
-                    ng
-                } else if ns.dot(ng) < 0.0 {
-                    -ns
-                } else {
-                    ns
-                }
-            }
-            None => ng,
-        };
         let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
         let uv = tr.uv.as_ref().map_or(Vec2::ZERO, lerp);
         let uv1 = tr.uv1.as_ref().map_or(Vec2::ZERO, lerp);
         let color = tr.color.map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
+        let mut ns = tr.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng));
+        let m = &self.materials[tr.material as usize];
+        if let (Some(nt), Some(tg)) = (&m.normal_texture, &tr.tangent) {
+            let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
+            let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
+            if tangent != Vec3::ZERO {
+                let bitangent = ns.cross(tangent) * if tg[0].w < 0.0 { -1.0 } else { 1.0 };
+                let tuv = if nt.uv_set == 1 { uv1 } else { uv };
+                let c = self.textures[nt.texture as usize].sample(nt.transform.transform_point2(tuv));
+                let v = (c.truncate() * 2.0 - Vec3::ONE) * Vec3::new(m.normal_scale, m.normal_scale, 1.0);
+                ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
+            }
+        }
+        if ns.dot(ng) < 0.0 {
+            ns = -ns;
+        }
         Hit { t, tri, b, p, ng, ns, uv, uv1, color }
     }
 
