@@ -197,6 +197,10 @@ impl Integrator for LiveShading<'_> {
         self.shade(hit, d, s, vs)
     }
 
+    fn adaptive(&self) -> bool {
+        !self.light.scene.has_stochastic_surfaces()
+    }
+
     fn counters(&self) -> &Counters {
         &self.counters
     }

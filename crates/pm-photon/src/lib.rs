@@ -217,7 +217,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
                     f |= flags::CAUSTIC;
                 }
                 let photon =
-                    Photon { position: hit.p, power: phi / scene.coverage(&hit), wi: wo, flags: f, normal: side_n, irradiance: Rgb::ZERO };
+                    Photon { position: hit.p, power: phi / scene.store_probability(&hit), wi: wo, flags: f, normal: side_n, irradiance: Rgb::ZERO };
                 out.photons.push((photon, bounce));
             }
             if cfg.pass == MapPass::Caustic {

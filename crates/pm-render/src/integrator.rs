@@ -142,6 +142,10 @@ pub trait Integrator: Sync {
 
     /// True: the image loop takes one sample at each pixel centre and supersamples
     /// where neighbours differ. False: every pixel takes all samples, jittered.
+    /// Integrators of scenes with stochastic surfaces (blended alpha, partial
+    /// transmission: [`pm_scene::Scene::has_stochastic_surfaces`]) say false: a pixel
+    /// whose first sample and neighbours happened to choose alike would keep that one
+    /// choice, and the image would be biased toward the likelier one.
     fn adaptive(&self) -> bool {
         true
     }
@@ -263,6 +267,10 @@ macro_rules! photon_map_integrator {
             fn counters(&self) -> &Counters {
                 let $pm = self;
                 &$get.counters
+            }
+            fn adaptive(&self) -> bool {
+                let $pm = self;
+                !$get.scene.has_stochastic_surfaces()
             }
         }
     };

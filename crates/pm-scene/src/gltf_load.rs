@@ -113,8 +113,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             base = base.min(Rgb::ONE);
         }
         let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-        if transmission > 0.0 && transmission < 1.0 {
-            warnings.push(format!("material '{name}': partial transmission {transmission} treated as full"));
+        if !(0.0..=1.0).contains(&transmission) {
+            return Err(content(format!("material '{name}': transmissionFactor {transmission} is not in [0, 1]")));
+        }
+        if m.transmission().is_some_and(|t| t.transmission_texture().is_some()) {
+            warnings.push(format!("material '{name}': transmission texture ignored (transmissionFactor used)"));
         }
         let ior = m.ior().unwrap_or(1.5);
         if transmission > 0.0 && !(ior.is_finite() && ior >= 1.0) {

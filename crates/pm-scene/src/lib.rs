@@ -301,10 +301,16 @@ impl Material {
         self.alpha_mode != AlphaMode::Opaque
     }
 
-    /// True when the BSDF varies over the surface (textures; vertex colours are a
-    /// property of the mesh, checked at the hit).
+    /// True when the BSDF varies over the surface (textures, partial transmission;
+    /// vertex colours are a property of the mesh, checked at the hit).
     fn varies(&self) -> bool {
-        self.base_texture.is_some() || self.metallic_roughness_texture.is_some()
+        self.base_texture.is_some() || self.metallic_roughness_texture.is_some() || self.partly_transmissive()
+    }
+
+    /// KHR_materials_transmission with a factor strictly between 0 and 1: a mix of
+    /// glass and the base BSDF.
+    pub fn partly_transmissive(&self) -> bool {
+        self.pbr.transmission > 0.0 && self.pbr.transmission < 1.0
     }
 }
 
@@ -500,6 +506,14 @@ pub struct Scene {
     /// hits in a 2 mm Cornell box); triangles are still intersected in world space.
     bvh_center: Vec3,
     bvh_inv_scale: f32,
+}
+
+/// A uniform number in [0, 1) from triangle `tri`, barycentrics `b` and `salt`: the
+/// per-point random choices (blended alpha, salt 0; partial transmission, salt 1)
+/// that every ray and stage finding the point makes alike.
+fn point_hash(tri: u32, b: [f32; 3], salt: u64) -> f32 {
+    let key = ((tri as u64) << 32 | b[1].to_bits() as u64) ^ pm_sampling::mix64(b[2].to_bits() as u64 ^ salt << 40);
+    (pm_sampling::mix64(key) >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
 }
 
 /// The BVH over `triangles` in the normalised coordinates of `bounds` (see
@@ -970,29 +984,36 @@ impl Scene {
         match m.alpha_mode {
             AlphaMode::Opaque => true,
             AlphaMode::Mask { cutoff } => self.alpha(tri, b) >= cutoff,
-            AlphaMode::Blend => {
-                let key = ((tri as u64) << 32 | b[1].to_bits() as u64) ^ pm_sampling::mix64(b[2].to_bits() as u64);
-                let u = (pm_sampling::mix64(key) >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
-                u < self.alpha(tri, b)
-            }
+            AlphaMode::Blend => point_hash(tri, b, 0) < self.alpha(tri, b),
         }
     }
 
-    /// The probability that a ray stops at this hit [0, 1]: alpha for a blended
-    /// material, 1 otherwise. A photon stored here carries its power divided by it,
-    /// so that the photons that stop estimate all the light that arrives (the
-    /// surface's own share, alpha, comes from the eye rays that stop here).
-    pub fn coverage(&self, hit: &Hit) -> f32 {
-        match self.material(hit).alpha_mode {
-            AlphaMode::Blend => self.alpha(hit.tri, hit.b).max(1.0 / 256.0),
+    /// The probability [0, 1] that a photon arriving here is stored: that a ray stops
+    /// here at all (alpha, for a blended material) times that the point's lobe choice
+    /// is the non-specular base (1 - transmission, for partial transmission; see
+    /// [`Scene::bsdf`]). A photon stored here carries its power divided by it, so the
+    /// stored photons estimate all the light that arrives; the surface's own shares
+    /// come from the eye rays that make the same choices.
+    pub fn store_probability(&self, hit: &Hit) -> f32 {
+        let m = self.material(hit);
+        let alpha = match m.alpha_mode {
+            AlphaMode::Blend => self.alpha(hit.tri, hit.b),
             _ => 1.0,
-        }
+        };
+        let base = if m.partly_transmissive() { 1.0 - m.pbr.transmission } else { 1.0 };
+        (alpha * base).max(1.0 / 256.0)
     }
 
     /// True when some material can be see-through (the rasteriser then tests
     /// [`Scene::present`] per fragment).
     pub fn has_alpha(&self) -> bool {
         self.any_alpha
+    }
+
+    /// True when some surface makes a random choice per point (blended alpha,
+    /// partial transmission): images then need all their samples in every pixel.
+    pub fn has_stochastic_surfaces(&self) -> bool {
+        self.materials.iter().any(|m| m.alpha_mode == AlphaMode::Blend || m.partly_transmissive())
     }
 
     /// The index of the object (in `objects`) that triangle `tri` belongs to.
@@ -1015,13 +1036,20 @@ impl Scene {
 
     /// The BSDF at a hit: the material's factors times its base-colour and
     /// metallic-roughness textures and the vertex colour, through the same selection
-    /// ([`Bsdf::from_pbr`]) as the factors alone.
+    /// ([`Bsdf::from_pbr`]) as the factors alone. Partial transmission (factor t) is
+    /// the mix t glass + (1 - t) base, sampled by choosing one of the two at each
+    /// point with those probabilities (a hash of the triangle and the point, like
+    /// blended alpha): every path, eye or light, sees one pure lobe, and the mix is
+    /// the expectation; photons are stored with [`Scene::store_probability`].
     pub fn bsdf(&self, hit: &Hit) -> Bsdf {
         let m = self.material(hit);
         if !m.varies() && hit.color == glam::Vec4::ONE {
             return m.bsdf;
         }
         let mut pbr = m.pbr;
+        if m.partly_transmissive() && point_hash(hit.tri, hit.b, 1) >= pbr.transmission {
+            pbr.transmission = 0.0;
+        }
         if let Some(t) = &m.base_texture {
             let c = self.lookup(t, hit);
             pbr.base *= Rgb::new(c.x, c.y, c.z);
