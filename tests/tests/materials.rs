@@ -116,9 +116,9 @@ fn bsdf_at(s: &Scene, x: f32, y: f32) -> Bsdf {
 
 /// metallicRoughness texture: blue is metalness, green roughness, per point, through
 /// the factors' selection. Texel 0 (B 255, G 0): a mirror of the base colour;
-/// texel 1 (B 0, G 255): a rough dielectric (Lambertian); with factors metallic 1
-/// and roughness 0.6, texel 1's green 255 gives roughness 0.6 and texel 0's blue
-/// 255 metallic 1. Red and alpha are not read.
+/// texel 1 (B 0, G 255): a dielectric of roughness 0.6 (GGX alpha 0.36 over the
+/// base, F0 0.04); with factors metallic 1 and roughness 0.6, texel 1's green 255
+/// gives roughness 0.6 and texel 0's blue 255 metallic 1. Red and alpha are not read.
 #[test]
 fn metallic_roughness_texture_selects_the_model_per_point() {
     let doc = Doc {
@@ -132,7 +132,13 @@ fn metallic_roughness_texture_selects_the_model_per_point() {
     let (_d, s) = loaded(&doc, "mr");
     let base = Rgb::new(0.8, 0.6, 0.4);
     assert_eq!(bsdf_at(&s, 0.25, 0.5), Bsdf::Mirror { r: base });
-    assert_eq!(bsdf_at(&s, 0.75, 0.5), Bsdf::Lambert { rho: base });
+    match bsdf_at(&s, 0.75, 0.5) {
+        Bsdf::Plastic { rho, alpha, f0, weight } => {
+            assert_eq!((rho, weight), (base, 1.0));
+            assert!((alpha - 0.36).abs() < 1e-6 && (f0 - Rgb::splat(0.04)).length() < 1e-6, "{alpha} {f0}");
+        }
+        other => panic!("{other:?}"),
+    }
     assert!(s.warnings.is_empty(), "{:?}", s.warnings);
     // The texture is linear data: 128 of 255 green is roughness 0.6 x 0.502, a
     // coated dielectric with alpha = roughness^2 (sRGB decoding would give 0.22).
@@ -140,7 +146,7 @@ fn metallic_roughness_texture_selects_the_model_per_point() {
     let (_d, s) = loaded(&doc, "mr_half");
     let r = 0.6 * 128.0 / 255.0;
     match bsdf_at(&s, 0.5, 0.5) {
-        Bsdf::Plastic { rho, alpha } => {
+        Bsdf::Plastic { rho, alpha, .. } => {
             assert_eq!(rho, base);
             assert!((alpha - r * r).abs() < 1e-6, "alpha {alpha}, want {}", r * r);
         }
@@ -163,7 +169,10 @@ fn vertex_colours_multiply_the_base_colour() {
     // (0.25, 0.25) lies in triangle (0, 1, 2), with weights (1 - x, x - y, y) =
     // (0.75, 0, 0.25): corner 2's red 0 weighs a quarter.
     let red = 0.8 * (0.75 * 1.0 + 0.25 * 0.0);
-    assert_eq!(bsdf_at(&s, 0.25, 0.25), Bsdf::Lambert { rho: Rgb::new(red, 0.4, 0.2) });
+    match bsdf_at(&s, 0.25, 0.25) {
+        Bsdf::Plastic { rho, .. } => assert_eq!(rho, Rgb::new(red, 0.4, 0.2)),
+        other => panic!("{other:?}"),
+    }
     assert!(s.warnings.is_empty(), "{:?}", s.warnings);
 }
 
@@ -627,7 +636,7 @@ fn partial_transmission_mixes_glass_and_the_base() {
         for q in [[v(-3.0, 0.0, -3.0), v(-3.0, 0.0, 4.0), v(4.0, 0.0, 4.0)], [v(-3.0, 0.0, -3.0), v(4.0, 0.0, 4.0), v(4.0, 0.0, -3.0)]] {
             tris.push(pm_scene::Triangle::new(q, 1).unwrap());
         }
-        let pbr = pm_bsdf::Pbr { base: Rgb::ONE, metallic: 0.0, roughness: 1.0, transmission: t, ior: 1.5, thin: true };
+        let pbr = pm_bsdf::Pbr { transmission: t, ..pm_bsdf::Pbr::dielectric(Rgb::ONE) };
         let mut sheet = material("sheet", Bsdf::from_pbr(&pbr), 0.0);
         sheet.pbr = pbr;
         sheet.double_sided = true;

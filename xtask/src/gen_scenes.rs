@@ -87,7 +87,22 @@ impl Doc {
         self.accessors.len() - 1
     }
 
+    /// Add a material; the extensions it uses are declared.
     fn material(&mut self, m: Value) -> usize {
+        if let Some(ext) = m["extensions"].as_object() {
+            for k in ext.keys() {
+                let known = [
+                    "KHR_materials_emissive_strength",
+                    "KHR_materials_specular",
+                    "KHR_materials_transmission",
+                    "KHR_materials_ior",
+                    "KHR_materials_volume",
+                ];
+                if let Some(&name) = known.iter().find(|&&n| n == k) {
+                    self.extensions.push(name);
+                }
+            }
+        }
         self.materials.push(m);
         self.materials.len() - 1
     }
@@ -254,8 +269,17 @@ fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
     ])
 }
 
+/// A Lambertian material: glTF's dielectric with its specular layer turned off
+/// (KHR_materials_specular's specularFactor 0; without it every glTF dielectric has
+/// a GGX layer, Appendix B). The analytic scenes need pure Lambertian surfaces.
 fn diffuse(name: &str, rgb: [f32; 3]) -> Value {
-    json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+    lambertian(json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}))
+}
+
+/// Material `m` with its dielectric specular layer turned off.
+fn lambertian(mut m: Value) -> Value {
+    m["extensions"]["KHR_materials_specular"] = json!({"specularFactor": 0.0});
+    m
 }
 
 /// The Cornell box shell: floor, ceiling, back, left (red), right (blue), and a square
@@ -265,12 +289,12 @@ fn cornell_shell(doc: &mut Doc) {
     let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
     let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
     let blue = doc.material(diffuse("blue", [0.12, 0.2, 0.75]));
-    let light = doc.material(json!({
+    let light = doc.material(lambertian(json!({
         "name": "ceiling_light",
         "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
         "emissiveFactor": [1.0, 1.0, 1.0],
         "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 12.0}}
-    }));
+    })));
     doc.extensions.push("KHR_materials_emissive_strength");
     let (l, h) = (1.0, 2.0);
     let whites = merge(&[
@@ -320,11 +344,11 @@ fn cornell_boxes() -> Doc {
 /// facets and lose about 1% of the energy, so the answer would no longer be exact.
 fn furnace() -> Doc {
     let mut doc = Doc::default();
-    let m = doc.material(json!({
+    let m = doc.material(lambertian(json!({
         "name": "furnace_wall",
         "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
         "emissiveFactor": [1.0, 1.0, 1.0]
-    }));
+    })));
     doc.flat_mesh_node("furnace_sphere", &sphere([0.0, 0.0, 0.0], 1.0, 32, 16, true), m);
     doc.camera([0.0f32, 0.0, 0.0], None, 1.2, 1.0);
     doc

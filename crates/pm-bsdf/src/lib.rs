@@ -1,6 +1,7 @@
 //! The scattering models of the scene (one place for all of them): Lambertian
 //! diffuse, perfect mirror, smooth dielectric (glass, solid or thin-walled), and GGX
-//! microfacet glossy reflection (conductor, and dielectric over a diffuse base).
+//! microfacet glossy reflection (conductor, and the glTF 2.0 dielectric: a GGX
+//! specular layer Fresnel-mixed over a diffuse base, Appendix B).
 //!
 //! Conventions (pbrt-v4, chapter 9): `wo` and `wi` are unit vectors pointing away
 //! from the surface; `n` is the unit shading normal on the side the geometry was
@@ -14,8 +15,8 @@ use pm_color::Rgb;
 use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
-/// Schlick reflectance at normal incidence of a dielectric coat (IOR 1.5).
-const COAT_F0: f32 = 0.04;
+mod albedo;
+
 
 /// One scattering model. Built once per material by the scene crate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,13 +48,27 @@ pub enum Bsdf {
         /// GGX roughness alpha = roughness^2.
         alpha: f32,
     },
-    /// Lambertian base under a GGX dielectric coat with F0 = 0.04 (glTF dielectric
-    /// with roughness below the diffuse threshold).
+    /// The glTF 2.0 dielectric (Appendix B, with KHR_materials_specular's weight
+    /// and colour): a GGX layer w F(wo.h) D G / (4 cos_o cos_i), F = F0 + (1 - F0)
+    /// (1 - wo.h)^5 Schlick's Fresnel at the half vector h, over the diffuse base.
+    /// Appendix B weights the base by 1 - w max F(wo.h), which creates energy at
+    /// grazing angles (a white smooth dielectric reflected 1.6 of the light at
+    /// cos 0.03, 1.04 averaged over the hemisphere); here the base is weighted by
+    /// what the layer leaves at both ends, rho / pi (1 - E_o)(1 - E_i) / (1 - E_avg),
+    /// with E the layer's directional albedo (tabulated) and E_avg its
+    /// cosine-weighted mean (albedo scaling, Kelemen and Szirmay-Kalos 2001):
+    /// reciprocal, and the albedo is rho (1 - E_o) + E_o, so a white base reflects
+    /// exactly everything at every roughness and angle.
     Plastic {
         /// Diffuse reflectance of the base per channel.
         rho: Rgb,
         /// GGX roughness alpha = roughness^2.
         alpha: f32,
+        /// Reflectance of the specular layer at normal incidence per channel:
+        /// min(((ior - 1) / (ior + 1))^2 specularColor, 1) (0.04 for ior 1.5).
+        f0: Rgb,
+        /// The specular layer's weight w in [0, 1] (specularFactor).
+        weight: f32,
     },
 }
 
@@ -103,7 +118,7 @@ impl Bsdf {
     pub fn diffuse_albedo(&self) -> Rgb {
         match *self {
             Bsdf::Lambert { rho } => rho,
-            Bsdf::Plastic { rho, .. } => rho * (1.0 - COAT_F0) + Rgb::splat(COAT_F0),
+            Bsdf::Plastic { rho, f0, weight, .. } => rho * (1.0 - weight * f0.max_element()) + f0 * weight,
             Bsdf::Conductor { f0, .. } => f0,
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
         }
@@ -126,7 +141,7 @@ impl Bsdf {
         match *self {
             Bsdf::Lambert { rho } => rho * FRAC_1_PI,
             Bsdf::Conductor { f0, alpha } => ggx_f(lo, li, alpha, f0),
-            Bsdf::Plastic { rho, alpha } => plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0)),
+            Bsdf::Plastic { rho, alpha, f0, weight } => plastic_f(rho, alpha, f0, weight, lo, li),
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
         }
     }
@@ -143,8 +158,8 @@ impl Bsdf {
         match *self {
             Bsdf::Lambert { .. } => cosine_hemisphere_pdf(li.z),
             Bsdf::Conductor { alpha, .. } => ggx_pdf(lo, li, alpha),
-            Bsdf::Plastic { alpha, .. } => {
-                let ps = plastic_spec_prob(lo);
+            Bsdf::Plastic { alpha, f0, weight, .. } => {
+                let ps = plastic_spec_prob(f0, weight, lo);
                 ps * ggx_pdf(lo, li, alpha) + (1.0 - ps) * cosine_hemisphere_pdf(li.z)
             }
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => 0.0,
@@ -209,8 +224,8 @@ impl Bsdf {
                     lobe: Lobe::Glossy,
                 }
             }
-            Bsdf::Plastic { rho, alpha } => {
-                let ps = plastic_spec_prob(lo);
+            Bsdf::Plastic { rho, alpha, f0, weight } => {
+                let ps = plastic_spec_prob(f0, weight, lo);
                 let li = if uc < ps { reflect(lo, ggx_sample_h(u, alpha)) } else { cosine_hemisphere(u) };
                 if li.z <= 0.0 {
                     return None;
@@ -219,7 +234,7 @@ impl Bsdf {
                 if pdf <= 0.0 {
                     return None;
                 }
-                let f = plastic_diffuse(rho, lo) + ggx_f(lo, li, alpha, Rgb::splat(COAT_F0));
+                let f = plastic_f(rho, alpha, f0, weight, lo, li);
                 let lobe = if uc < ps { Lobe::Glossy } else { Lobe::Diffuse };
                 BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false, lobe }
             }
@@ -365,21 +380,33 @@ fn ggx_pdf(lo: Vec3, li: Vec3, alpha: f32) -> f32 {
     ggx_d(h.z, alpha) * h.z / (4.0 * lh)
 }
 
-/// Diffuse base under the coat, attenuated by the light the coat reflects.
-fn plastic_diffuse(rho: Rgb, lo: Vec3) -> Rgb {
-    rho * (FRAC_1_PI * (1.0 - schlick(Rgb::splat(COAT_F0), lo.z).x))
+/// The glTF dielectric's f (Appendix B's fresnel_mix, KHR_materials_specular's
+/// form): the diffuse base weighted by 1 - w max(F), the GGX layer by w F, with F
+/// Schlick's Fresnel at the half vector of `lo` and `li`.
+fn plastic_f(rho: Rgb, alpha: f32, f0: Rgb, weight: f32, lo: Vec3, li: Vec3) -> Rgb {
+    let h = (lo + li).normalize_or_zero();
+    if h == Vec3::ZERO || lo.z <= 0.0 || li.z <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let f = schlick(f0, lo.dot(h).abs());
+    let d = ggx_d(h.z, alpha);
+    let g = ggx_g1(lo.z, alpha) * ggx_g1(li.z, alpha);
+    // The layer's albedo at each end (the largest channel), and its mean.
+    let m0 = f0.max_element();
+    let layer = |cos: f32| weight * albedo::layer_albedo(m0, cos, alpha);
+    let mean = weight * albedo::layer_albedo_mean(m0, alpha);
+    let base = (1.0 - layer(lo.z)) * (1.0 - layer(li.z)) / (1.0 - mean).max(1e-4);
+    rho * (FRAC_1_PI * base) + f * (weight * d * g / (4.0 * lo.z * li.z))
 }
 
-/// Probability of sampling the coat lobe: its Fresnel weight, kept away from 0 and 1.
-fn plastic_spec_prob(lo: Vec3) -> f32 {
-    schlick(Rgb::splat(COAT_F0), lo.z).x.clamp(0.1, 0.9)
+/// Probability of sampling the specular layer: its Fresnel weight seen from `lo`,
+/// kept away from 0 and 1.
+fn plastic_spec_prob(f0: Rgb, weight: f32, lo: Vec3) -> f32 {
+    (weight * schlick(f0, lo.z).max_element()).clamp(0.1, 0.9)
 }
 
 /// Below this roughness a metal is a perfect mirror.
 pub const MIRROR_ROUGHNESS: f32 = 0.05;
-/// At or above this roughness a dielectric is treated as Lambertian (its coat's
-/// highlight is spread over the hemisphere); below it, a GGX-coated diffuse base.
-pub const DIFFUSE_ROUGHNESS: f32 = 0.5;
 /// GGX alpha is clamped from below: near-delta microfacet lobes are numerically
 /// unstable and better served by the mirror model.
 pub const MIN_ALPHA: f32 = 0.02;
@@ -401,13 +428,37 @@ pub struct Pbr {
     pub ior: f32,
     /// Thin-walled transmission (no KHR_materials_volume thickness).
     pub thin: bool,
+    /// KHR_materials_specular's specularFactor in [0, 1]: the dielectric's specular
+    /// layer weight (1 without the extension; 0 makes a pure Lambertian).
+    pub specular: f32,
+    /// KHR_materials_specular's specularColorFactor (linear, >= 0): tints the
+    /// dielectric's F0 (one without the extension).
+    pub specular_color: Rgb,
+}
+
+impl Pbr {
+    /// The glTF defaults for a base colour: a fully rough dielectric, ior 1.5, with
+    /// the specification's specular layer.
+    pub fn dielectric(base: Rgb) -> Pbr {
+        Pbr {
+            base,
+            metallic: 0.0,
+            roughness: 1.0,
+            transmission: 0.0,
+            ior: 1.5,
+            thin: true,
+            specular: 1.0,
+            specular_color: Rgb::ONE,
+        }
+    }
 }
 
 impl Bsdf {
     /// The scattering model of glTF parameters: glass when transmissive; a metal is
     /// a mirror below [`MIRROR_ROUGHNESS`] and a GGX conductor with F0 = base colour
-    /// above; a dielectric is Lambertian at or above [`DIFFUSE_ROUGHNESS`] and a
-    /// GGX-coated diffuse base below.
+    /// above; a dielectric is the specification's Fresnel mix of a GGX specular layer
+    /// over the diffuse base at every roughness (Appendix B), Lambertian only when
+    /// KHR_materials_specular turns the layer off (specularFactor or F0 zero).
     pub fn from_pbr(p: &Pbr) -> Bsdf {
         let base = p.base.clamp(Rgb::ZERO, Rgb::ONE);
         let roughness = p.roughness.clamp(0.0, 1.0);
@@ -416,10 +467,15 @@ impl Bsdf {
             Bsdf::Glass { eta: p.ior, tint: base, thin: p.thin }
         } else if p.metallic >= 0.5 {
             if roughness < MIRROR_ROUGHNESS { Bsdf::Mirror { r: base } } else { Bsdf::Conductor { f0: base, alpha } }
-        } else if roughness >= DIFFUSE_ROUGHNESS {
-            Bsdf::Lambert { rho: base }
         } else {
-            Bsdf::Plastic { rho: base, alpha }
+            let r = (p.ior - 1.0) / (p.ior + 1.0);
+            let f0 = (p.specular_color.max(Rgb::ZERO) * (r * r)).min(Rgb::ONE);
+            let weight = p.specular.clamp(0.0, 1.0);
+            if weight == 0.0 || f0 == Rgb::ZERO || !f0.is_finite() {
+                Bsdf::Lambert { rho: base }
+            } else {
+                Bsdf::Plastic { rho: base, alpha, f0, weight }
+            }
         }
     }
 }
@@ -436,7 +492,7 @@ impl Bsdf {
             Bsdf::Mirror { r } => Bsdf::Mirror { r: r * c },
             Bsdf::Glass { eta, tint, thin } => Bsdf::Glass { eta, tint: tint * c, thin },
             Bsdf::Conductor { f0, alpha } => Bsdf::Conductor { f0: f0 * c, alpha },
-            Bsdf::Plastic { rho, alpha } => Bsdf::Plastic { rho: rho * c, alpha },
+            Bsdf::Plastic { rho, alpha, f0, weight } => Bsdf::Plastic { rho: rho * c, alpha, f0, weight },
         }
     }
 }

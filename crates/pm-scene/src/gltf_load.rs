@@ -43,13 +43,14 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 6] = [
+const SUPPORTED_EXTENSIONS: [&str; 7] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
     "KHR_materials_volume",
+    "KHR_materials_specular",
 ];
 
 /// Load a glTF 2.0 scene with the glTF specification's light units (see
@@ -120,7 +121,14 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             warnings.push(format!("material '{name}': transmission texture ignored (transmissionFactor used)"));
         }
         let ior = m.ior().unwrap_or(1.5);
-        if transmission > 0.0 && !(ior.is_finite() && ior >= 1.0) {
+        let (specular, specular_color) =
+            m.specular().map_or((1.0, Rgb::ONE), |s| (s.specular_factor(), Rgb::from(s.specular_color_factor())));
+        if !(0.0..=1.0).contains(&specular) || !specular_color.is_finite() || specular_color.min_element() < 0.0 {
+            return Err(content(format!(
+                "material '{name}': KHR_materials_specular factor {specular} or colour {specular_color} is not valid"
+            )));
+        }
+        if !(ior.is_finite() && ior >= 1.0) {
             return Err(content(format!("material '{name}': ior {ior} must be >= 1")));
         }
         let factors = Pbr {
@@ -130,6 +138,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             transmission,
             ior,
             thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+            specular,
+            specular_color,
         };
         let bsdf = Bsdf::from_pbr(&factors);
         let mut uses_uv1 = false;
@@ -151,6 +161,9 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         let base_texture = texture(pbr.base_color_texture(), true, "base colour")?;
         let metallic_roughness_texture = texture(pbr.metallic_roughness_texture(), false, "metallicRoughness")?;
         let emissive_texture = texture(m.emissive_texture(), true, "emissive")?;
+        let specular_texture = texture(m.specular().and_then(|s| s.specular_texture()), false, "specular")?;
+        let specular_color_texture =
+            texture(m.specular().and_then(|s| s.specular_color_texture()), true, "specular colour")?;
         let (normal_texture, normal_scale) = match m.normal_texture() {
             None => (None, 1.0),
             Some(nt) => {
@@ -233,6 +246,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             base_texture,
             metallic_roughness_texture,
             emissive_texture,
+            specular_texture,
+            specular_color_texture,
             normal_texture,
             normal_scale,
             emission,
@@ -243,8 +258,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let textures = texture_loader.textures;
     // glTF's default material (primitives without one): white-ish diffuse.
     let default_material = materials.len() as u32;
-    let default_factors =
-        Pbr { base: Rgb::splat(0.8), metallic: 0.0, roughness: 1.0, transmission: 0.0, ior: 1.5, thin: true };
+    let default_factors = Pbr::dielectric(Rgb::splat(0.8));
     materials.push(Material {
         pbr: default_factors,
         ..Material::new("default", Bsdf::from_pbr(&default_factors), Rgb::ZERO)

@@ -259,6 +259,11 @@ pub struct Material {
     pub metallic_roughness_texture: Option<TextureRef>,
     /// Emissive texture, multiplied into `emission`.
     pub emissive_texture: Option<TextureRef>,
+    /// KHR_materials_specular's specularTexture: A multiplies the specular weight.
+    pub specular_texture: Option<TextureRef>,
+    /// KHR_materials_specular's specularColorTexture: RGB (sRGB) multiplies the
+    /// specular colour.
+    pub specular_color_texture: Option<TextureRef>,
     /// Tangent-space normal texture (linear RGB = (n + 1) / 2), perturbing the
     /// shading normal (never the geometry).
     pub normal_texture: Option<TextureRef>,
@@ -282,12 +287,14 @@ impl Material {
         Material {
             name: name.into(),
             bsdf,
-            pbr: Pbr { base: Rgb::ONE, metallic: 0.0, roughness: 1.0, transmission: 0.0, ior: 1.5, thin: true },
+            pbr: Pbr::dielectric(Rgb::ONE),
             base_alpha: 1.0,
             alpha_mode: AlphaMode::Opaque,
             base_texture: None,
             metallic_roughness_texture: None,
             emissive_texture: None,
+            specular_texture: None,
+            specular_color_texture: None,
             normal_texture: None,
             normal_scale: 1.0,
             emission,
@@ -304,7 +311,11 @@ impl Material {
     /// True when the BSDF varies over the surface (textures, partial transmission;
     /// vertex colours are a property of the mesh, checked at the hit).
     fn varies(&self) -> bool {
-        self.base_texture.is_some() || self.metallic_roughness_texture.is_some() || self.partly_transmissive()
+        self.base_texture.is_some()
+            || self.metallic_roughness_texture.is_some()
+            || self.specular_texture.is_some()
+            || self.specular_color_texture.is_some()
+            || self.partly_transmissive()
     }
 
     /// KHR_materials_transmission with a factor strictly between 0 and 1: a mix of
@@ -1059,6 +1070,13 @@ impl Scene {
             let c = self.lookup(t, hit);
             pbr.roughness *= c.y;
             pbr.metallic *= c.z;
+        }
+        if let Some(t) = &m.specular_texture {
+            pbr.specular *= self.lookup(t, hit).w;
+        }
+        if let Some(t) = &m.specular_color_texture {
+            let c = self.lookup(t, hit);
+            pbr.specular_color *= Rgb::new(c.x, c.y, c.z);
         }
         Bsdf::from_pbr(&pbr)
     }

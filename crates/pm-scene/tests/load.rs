@@ -168,7 +168,7 @@ fn base_colour_texture_is_sampled_in_linear_rgb() {
     let probe = |x: f32| {
         let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
         match s.bsdf(&h) {
-            pm_bsdf::Bsdf::Lambert { rho } => rho,
+            pm_bsdf::Bsdf::Lambert { rho } | pm_bsdf::Bsdf::Plastic { rho, .. } => rho,
             other => panic!("{other:?}"),
         }
     };
@@ -288,7 +288,7 @@ fn base_colour_texture_reads_its_own_texcoord_set() {
         [0.25f32, 0.75].map(|x| {
             let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
             match s.bsdf(&h) {
-                pm_bsdf::Bsdf::Lambert { rho } => rho,
+                pm_bsdf::Bsdf::Lambert { rho } | pm_bsdf::Bsdf::Plastic { rho, .. } => rho,
                 other => panic!("{other:?}"),
             }
         })
@@ -323,7 +323,7 @@ fn texture_transform_moves_the_base_colour_texture() {
     let probe = |s: &pm_scene::Scene, x: f32, y: f32| {
         let h = s.intersect(Vec3::new(x, y, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
         let rho = match s.bsdf(&h) {
-            pm_bsdf::Bsdf::Lambert { rho } => rho,
+            pm_bsdf::Bsdf::Lambert { rho } | pm_bsdf::Bsdf::Plastic { rho, .. } => rho,
             other => panic!("{other:?}"),
         };
         (rho, h.uv)
