@@ -19,6 +19,17 @@ struct Doc {
     cameras: Vec<Value>,
     animations: Vec<Value>,
     extensions: Vec<&'static str>,
+    /// Texture images (width, height, RGBA texels), written as `<scene>_<k>.png`,
+    /// each with its own glTF texture and sampler (wrap modes).
+    images: Vec<(u32, u32, Vec<[u8; 4]>, [u32; 2])>,
+}
+
+/// Per-vertex attributes beyond positions and normals.
+#[derive(Default)]
+struct Attrs {
+    uv: Vec<[f32; 2]>,
+    uv1: Vec<[f32; 2]>,
+    color: Vec<[f32; 4]>,
 }
 
 /// Indexed triangle mesh with per-vertex normals.
@@ -116,6 +127,40 @@ impl Doc {
         self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
     }
 
+    /// A texture of RGBA texels with the sampler's wrap modes (glTF enums); its index.
+    fn texture(&mut self, w: u32, h: u32, texels: Vec<[u8; 4]>, wrap: [u32; 2]) -> usize {
+        assert_eq!(texels.len(), (w * h) as usize);
+        self.images.push((w, h, texels, wrap));
+        self.images.len() - 1
+    }
+
+    fn vec_accessor<const N: usize>(&mut self, v: &[[f32; N]], ty: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 34962);
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": ty}));
+        self.accessors.len() - 1
+    }
+
+    /// Add a mesh with normals and the given extra attributes, and a node for it.
+    fn mesh_node_attrs(&mut self, name: &str, mesh: &Mesh, attrs: &Attrs, material: usize) {
+        let pos = self.vec3_accessor(&mesh.p, true);
+        let nrm = self.vec3_accessor(&mesh.n, false);
+        let mut attributes = json!({"POSITION": pos, "NORMAL": nrm});
+        if !attrs.uv.is_empty() {
+            attributes["TEXCOORD_0"] = self.vec_accessor(&attrs.uv, "VEC2").into();
+        }
+        if !attrs.uv1.is_empty() {
+            attributes["TEXCOORD_1"] = self.vec_accessor(&attrs.uv1, "VEC2").into();
+        }
+        if !attrs.color.is_empty() {
+            attributes["COLOR_0"] = self.vec_accessor(&attrs.color, "VEC4").into();
+        }
+        let idx = self.index_accessor(&mesh.idx);
+        self.meshes
+            .push(json!({"name": name, "primitives": [{"attributes": attributes, "indices": idx, "material": material}]}));
+        self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
+    }
+
     /// Add a mesh without vertex normals (flat-shaded facets) and a node for it.
     fn flat_mesh_node(&mut self, name: &str, mesh: &Mesh, material: usize) {
         let pos = self.vec3_accessor(&mesh.p, true);
@@ -168,6 +213,23 @@ impl Doc {
         if !self.animations.is_empty() {
             root["animations"] = json!(self.animations);
         }
+        let mut files = Vec::new();
+        if !self.images.is_empty() {
+            let mut images = vec![];
+            let mut samplers = vec![];
+            for (k, (w, h, texels, wrap)) in self.images.iter().enumerate() {
+                let file = format!("{name}_{k}.png");
+                let img = image::RgbaImage::from_raw(*w, *h, texels.concat()).context("texture size")?;
+                let mut png = std::io::Cursor::new(Vec::new());
+                img.write_to(&mut png, image::ImageFormat::Png)?;
+                files.push((file.clone(), png.into_inner()));
+                images.push(json!({"uri": file, "mimeType": "image/png"}));
+                samplers.push(json!({"magFilter": 9729, "minFilter": 9729, "wrapS": wrap[0], "wrapT": wrap[1]}));
+            }
+            root["textures"] = (0..images.len()).map(|i| json!({"sampler": i, "source": i})).collect();
+            root["images"] = images.into();
+            root["samplers"] = samplers.into();
+        }
         let mut ext = self.extensions.clone();
         if !self.lights.is_empty() {
             root["extensions"] = json!({"KHR_lights_punctual": {"lights": self.lights}});
@@ -179,7 +241,7 @@ impl Doc {
             root["extensionsUsed"] = json!(ext);
         }
         let text = serde_json::to_string_pretty(&root)? + "\n";
-        let files = [(format!("{name}.gltf"), text.into_bytes()), (format!("{name}.bin"), self.bin)];
+        files.extend([(format!("{name}.gltf"), text.into_bytes()), (format!("{name}.bin"), self.bin)]);
         for (file, bytes) in files {
             let path = dir.join(&file);
             if check {
@@ -420,6 +482,157 @@ fn cornell_dense() -> Doc {
     doc
 }
 
+/// Texture coordinates of a mesh by projection along each vertex normal's dominant
+/// axis (box mapping), `scale` texture repeats per metre.
+fn box_uv(m: &Mesh, scale: f32) -> Vec<[f32; 2]> {
+    m.p.iter()
+        .zip(&m.n)
+        .map(|(p, n)| {
+            let a = n.map(f32::abs);
+            let (u, v) = if a[0] >= a[1] && a[0] >= a[2] {
+                (p[2] * n[0].signum(), p[1])
+            } else if a[1] >= a[2] {
+                (p[0], p[2] * n[1].signum())
+            } else {
+                (-p[0] * n[2].signum(), p[1])
+            };
+            [u * scale, 1.0 - v * scale]
+        })
+        .collect()
+}
+
+/// Every material feature the loader reads, in one Cornell box (issue 14): a block
+/// with a base-colour checker moved by KHR_texture_transform, a metallicRoughness
+/// texture (smooth-metal and rough-dielectric stripes) and a normal texture (bumps
+/// up to 20 degrees, MikkTSpace tangents); a block with COLOR_0 vertex colours and
+/// KHR_materials_specular (tinted F0, a specular texture on TEXCOORD_1); a sphere of
+/// absorbing glass (KHR_materials_volume attenuation); a leaf cut out by alpha MASK;
+/// a veil of alpha BLEND; a sheet with partial transmission (0.5); and a panel with
+/// an emissive texture on the left wall. The walls are Lambertian.
+fn materials() -> Doc {
+    let mut doc = Doc::default();
+    cornell_shell(&mut doc);
+    let (repeat, clamp) = (10497u32, 33071u32);
+    // A deterministic pseudo-random stream for the texture patterns.
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut rnd = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let checker = doc.texture(
+        8,
+        8,
+        (0..64).map(|i| if (i % 8 + i / 8) % 2 == 0 { [230, 200, 150, 255] } else { [90, 120, 170, 255] }).collect(),
+        [repeat, repeat],
+    );
+    let stripes = doc.texture(8, 1, (0..8).map(|i| if i % 2 == 0 { [0, 40, 255, 255] } else { [0, 230, 0, 255] }).collect(), [repeat, repeat]);
+    let bumps = doc.texture(
+        16,
+        16,
+        (0..256)
+            .map(|_| {
+                let (tilt, turn) = (rnd().sqrt() * 20f32.to_radians(), rnd() * 2.0 * PI);
+                let n = [tilt.sin() * turn.cos(), tilt.sin() * turn.sin(), tilt.cos()];
+                let c = |x: f32| ((x * 0.5 + 0.5) * 255.0).round() as u8;
+                [c(n[0]), c(n[1]), c(n[2]), 255]
+            })
+            .collect(),
+        [repeat, repeat],
+    );
+    let leaf_alpha = doc.texture(
+        16,
+        16,
+        (0..256)
+            .map(|i| {
+                let (x, y) = ((i % 16) as f32 / 7.5 - 1.0, (i / 16) as f32 / 7.5 - 1.0);
+                let inside = x * x + y * y < 0.9 && (x * 3.0).sin().abs() > 0.3;
+                [80, 170, 60, if inside { 255 } else { 0 }]
+            })
+            .collect(),
+        [clamp, clamp],
+    );
+    let glow = doc.texture(4, 1, vec![[255, 230, 190, 255], [40, 30, 20, 255], [255, 200, 120, 255], [0, 0, 0, 255]], [repeat, repeat]);
+    let spec = doc.texture(4, 4, (0..16).map(|i| [255, 255, 255, if i % 3 == 0 { 64 } else { 255 }]).collect(), [repeat, repeat]);
+    let tex = |index: usize| json!({"index": index});
+
+    let textured = doc.material(json!({
+        "name": "textured",
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 1.0, "roughnessFactor": 1.0,
+            "baseColorTexture": {"index": checker, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0], "offset": [0.1, 0.0]}}},
+            "metallicRoughnessTexture": tex(stripes)
+        },
+        "normalTexture": {"index": bumps, "scale": 1.0}
+    }));
+    doc.extensions.push("KHR_texture_transform");
+    let block_a = block(-0.45, -0.35, 0.5, 0.6, 0.5, 0.4);
+    let attrs = Attrs { uv: box_uv(&block_a, 1.5), ..Default::default() };
+    doc.mesh_node_attrs("textured_block", &block_a, &attrs, textured);
+
+    let coloured = doc.material(json!({
+        "name": "vertex_coloured",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.3},
+        "extensions": {"KHR_materials_specular": {
+            "specularFactor": 1.0, "specularColorFactor": [1.0, 0.6, 0.3],
+            "specularTexture": {"index": spec, "texCoord": 1}
+        }}
+    }));
+    let block_b = block(0.5, -0.5, 0.4, 0.9, 0.4, -0.3);
+    let attrs = Attrs {
+        uv: box_uv(&block_b, 1.0),
+        uv1: box_uv(&block_b, 3.0),
+        color: block_b.p.iter().map(|p| [0.3 + 0.5 * p[1] / 0.9, 0.4 + 0.4 * (p[0] - 0.3) / 0.4, 0.6, 1.0]).collect(),
+        ..Default::default()
+    };
+    doc.mesh_node_attrs("coloured_block", &block_b, &attrs, coloured);
+
+    let tinted_glass = doc.material(json!({
+        "name": "absorbing_glass",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {
+            "KHR_materials_transmission": {"transmissionFactor": 1.0},
+            "KHR_materials_ior": {"ior": 1.5},
+            "KHR_materials_volume": {"thicknessFactor": 0.5, "attenuationColor": [0.9, 0.6, 0.3], "attenuationDistance": 0.3}
+        }
+    }));
+    doc.mesh_node("glass_sphere", &sphere([0.35, 0.25, 0.35], 0.25, 32, 16, false), tinted_glass);
+
+    let leaf = doc.material(json!({
+        "name": "leaf", "doubleSided": true, "alphaMode": "MASK", "alphaCutoff": 0.5,
+        "pbrMetallicRoughness": {"baseColorTexture": tex(leaf_alpha), "metallicFactor": 0.0, "roughnessFactor": 0.8}
+    }));
+    let leaf_quad = quad([-0.9, 0.05, 0.45], [-0.3, 0.05, 0.45], [-0.3, 0.65, 0.45], [-0.9, 0.65, 0.45]);
+    let attrs = Attrs { uv: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], ..Default::default() };
+    doc.mesh_node_attrs("leaf", &leaf_quad, &attrs, leaf);
+
+    let veil = doc.material(lambertian(json!({
+        "name": "veil", "doubleSided": true, "alphaMode": "BLEND",
+        "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.5, 0.9, 0.4], "metallicFactor": 0.0, "roughnessFactor": 1.0}
+    })));
+    doc.mesh_node("veil", &quad([0.05, 0.95, -0.7], [0.9, 0.95, -0.7], [0.9, 1.6, -0.7], [0.05, 1.6, -0.7]), veil);
+
+    let sheet = doc.material(json!({
+        "name": "half_transmissive", "doubleSided": true,
+        "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.9, 0.85, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.2},
+        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.5}}
+    }));
+    doc.mesh_node("sheet", &quad([-0.25, 0.0, 0.75], [0.1, 0.0, 0.75], [0.1, 0.45, 0.75], [-0.25, 0.45, 0.75]), sheet);
+
+    let panel = doc.material(lambertian(json!({
+        "name": "glowing_panel",
+        "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "emissiveFactor": [1.0, 1.0, 1.0],
+        "emissiveTexture": tex(glow),
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}
+    })));
+    let panel_quad = quad([-0.995, 0.8, -0.2], [-0.995, 0.8, -0.6], [-0.995, 1.2, -0.6], [-0.995, 1.2, -0.2]);
+    let attrs = Attrs { uv: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], ..Default::default() };
+    doc.mesh_node_attrs("glowing_panel", &panel_quad, &attrs, panel);
+    doc
+}
+
 /// An axis-aligned quad split into n x n quads (for scenes of a given surface count).
 fn grid_quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], n: usize) -> Mesh {
     let at = |u: f32, v: f32| {
@@ -506,6 +719,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("plane_point", plane_point()),
         ("caustic_ring", caustic_ring()),
         ("cornell_dense", cornell_dense()),
+        ("materials", materials()),
         ("jozwowski_room_16", jozwowski_room(1)),
         ("jozwowski_room_64", jozwowski_room(2)),
         ("jozwowski_room_256", jozwowski_room(4)),
