@@ -27,7 +27,7 @@ impl Doc {
         let mut bin: Vec<u8> = Vec::new();
         let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
         let mut push = |bin: &mut Vec<u8>, bytes: Vec<u8>, count: usize, ty: &str, ct: u32, minmax: Option<Value>| {
-            while bin.len() % 4 != 0 {
+            while !bin.len().is_multiple_of(4) {
                 bin.push(0);
             }
             views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));

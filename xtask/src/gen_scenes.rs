@@ -21,8 +21,11 @@ struct Doc {
     extensions: Vec<&'static str>,
     /// Texture images (width, height, RGBA texels), written as `<scene>_<k>.png`,
     /// each with its own glTF texture and sampler (wrap modes).
-    images: Vec<(u32, u32, Vec<[u8; 4]>, [u32; 2])>,
+    images: Vec<Image>,
 }
+
+/// A texture image: width, height, RGBA texels, the sampler's wrapS and wrapT.
+type Image = (u32, u32, Vec<[u8; 4]>, [u32; 2]);
 
 /// Per-vertex attributes beyond positions and normals.
 #[derive(Default)]
@@ -143,6 +146,12 @@ impl Doc {
 
     /// Add a mesh with normals and the given extra attributes, and a node for it.
     fn mesh_node_attrs(&mut self, name: &str, mesh: &Mesh, attrs: &Attrs, material: usize) {
+        let m = self.mesh_attrs(name, mesh, attrs, material);
+        self.nodes.push(json!({"name": name, "mesh": m}));
+    }
+
+    /// Add a mesh with normals and the given extra attributes (no node); its index.
+    fn mesh_attrs(&mut self, name: &str, mesh: &Mesh, attrs: &Attrs, material: usize) -> usize {
         let pos = self.vec3_accessor(&mesh.p, true);
         let nrm = self.vec3_accessor(&mesh.n, false);
         let mut attributes = json!({"POSITION": pos, "NORMAL": nrm});
@@ -158,7 +167,7 @@ impl Doc {
         let idx = self.index_accessor(&mesh.idx);
         self.meshes
             .push(json!({"name": name, "primitives": [{"attributes": attributes, "indices": idx, "material": material}]}));
-        self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
+        self.meshes.len() - 1
     }
 
     /// Add a mesh without vertex normals (flat-shaded facets) and a node for it.
@@ -419,6 +428,8 @@ fn furnace() -> Doc {
 /// A 4 m x 4 m floor (albedo 0.5) under a point light of 10 W/sr, 1 m above its
 /// centre, seen from 3 m straight above: no surface sees another, so there is no
 /// indirect light, and the floor's radiance is exactly rho/pi I cos(theta)/d^2.
+// The camera's quaternion is written with the digits the committed file has.
+#[allow(clippy::approx_constant)]
 fn plane_point() -> Doc {
     let mut doc = Doc::default();
     let m = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
@@ -584,7 +595,6 @@ fn materials() -> Doc {
         uv: box_uv(&block_b, 1.0),
         uv1: box_uv(&block_b, 3.0),
         color: block_b.p.iter().map(|p| [0.3 + 0.5 * p[1] / 0.9, 0.4 + 0.4 * (p[0] - 0.3) / 0.4, 0.6, 1.0]).collect(),
-        ..Default::default()
     };
     doc.mesh_node_attrs("coloured_block", &block_b, &attrs, coloured);
 
@@ -630,6 +640,118 @@ fn materials() -> Doc {
     let panel_quad = quad([-0.995, 0.8, -0.2], [-0.995, 0.8, -0.6], [-0.995, 1.2, -0.6], [-0.995, 1.2, -0.2]);
     let attrs = Attrs { uv: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], ..Default::default() };
     doc.mesh_node_attrs("glowing_panel", &panel_quad, &attrs, panel);
+    doc
+}
+
+/// A torus around the y axis through `c`: ring radius `big`, tube radius `small`,
+/// `seg` x `rings` quads.
+fn torus(c: [f32; 3], big: f32, small: f32, seg: u32, rings: u32) -> Mesh {
+    let mut m = Mesh { p: vec![], n: vec![], idx: vec![] };
+    for j in 0..=rings {
+        let v = 2.0 * PI * j as f32 / rings as f32;
+        for i in 0..=seg {
+            let u = 2.0 * PI * i as f32 / seg as f32;
+            let n = [v.cos() * u.cos(), v.sin(), -v.cos() * u.sin()];
+            let r = big + small * v.cos();
+            m.p.push([c[0] + r * u.cos(), c[1] + small * v.sin(), c[2] - r * u.sin()]);
+            m.n.push(n);
+        }
+    }
+    let w = seg + 1;
+    for j in 0..rings {
+        for i in 0..seg {
+            let (a, b, cc, d) = (j * w + i, j * w + i + 1, (j + 1) * w + i + 1, (j + 1) * w + i);
+            m.idx.extend([a, b, cc, a, cc, d]);
+        }
+    }
+    m
+}
+
+/// Texture coordinates of a UV sphere or torus from its vertex order: (i / seg,
+/// j / rings) on its (seg + 1) x (rings + 1) grid, `repeat` times.
+fn grid_uv(seg: u32, rings: u32, repeat: f32) -> Vec<[f32; 2]> {
+    (0..=rings)
+        .flat_map(|j| (0..=seg).map(move |i| [repeat * i as f32 / seg as f32, repeat * j as f32 / rings as f32]))
+        .collect()
+}
+
+/// A scene of input at scale (issue 14, section 4): 1.36 million triangles from
+/// three textured, normal-mapped meshes (a sphere, a torus and a lumpy rock of
+/// 9-24k triangles each) instanced 100 times by nodes on a 10 x 10 grid, on a
+/// textured floor under a sun and a point light. The file stores each mesh once.
+fn instanced() -> Doc {
+    let mut doc = Doc::default();
+    let repeat = 10497u32;
+    let checker = doc.texture(
+        16,
+        16,
+        (0..256).map(|i| if (i % 16 / 4 + i / 64) % 2 == 0 { [220, 210, 190, 255] } else { [120, 90, 70, 255] }).collect(),
+        [repeat, repeat],
+    );
+    let bumps = doc.texture(
+        32,
+        32,
+        (0..1024)
+            .map(|i| {
+                let (x, y) = ((i % 32) as f32 / 32.0 * 2.0 * PI, (i / 32) as f32 / 32.0 * 2.0 * PI);
+                let n = [0.25 * x.sin(), 0.25 * y.cos(), 1.0];
+                let l = (n[0] * n[0] + n[1] * n[1] + 1.0f32).sqrt();
+                let c = |v: f32| ((v / l * 0.5 + 0.5) * 255.0).round() as u8;
+                [c(n[0]), c(n[1]), c(n[2]), 255]
+            })
+            .collect(),
+        [repeat, repeat],
+    );
+    let tex = |i: usize| json!({"index": i});
+    let floor = doc.material(json!({"name": "floor", "pbrMetallicRoughness": {
+        "baseColorTexture": tex(checker), "metallicFactor": 0.0, "roughnessFactor": 0.9}}));
+    let (l, y) = (11.0f32, 0.0f32);
+    let floor_quad = quad([-l, y, l], [l, y, l], [l, y, -l], [-l, y, -l]);
+    let attrs = Attrs { uv: vec![[0.0, 0.0], [8.0, 0.0], [8.0, 8.0], [0.0, 8.0]], ..Default::default() };
+    doc.mesh_node_attrs("floor", &floor_quad, &attrs, floor);
+    let colours = [[0.8, 0.3, 0.2], [0.3, 0.6, 0.8], [0.6, 0.6, 0.55]];
+    let kinds: Vec<(String, Mesh, Vec<[f32; 2]>, f32)> = vec![
+        ("ball".into(), sphere([0.0, 0.4, 0.0], 0.4, 96, 48, false), grid_uv(96, 48, 4.0), 0.0),
+        ("ring".into(), torus([0.0, 0.25, 0.0], 0.35, 0.15, 120, 48), grid_uv(120, 48, 6.0), 1.0),
+        ("rock".into(), {
+            let mut m = sphere([0.0, 0.35, 0.0], 0.35, 160, 80, false);
+            for (p, n) in m.p.iter_mut().zip(&m.n) {
+                let bump = 0.04 * ((7.0 * n[0]).sin() * (5.0 * n[1]).cos() + (9.0 * n[2]).sin());
+                for k in 0..3 {
+                    p[k] += bump * n[k];
+                }
+            }
+            m
+        }, grid_uv(160, 80, 5.0), 0.0),
+    ];
+    let mut meshes = vec![];
+    for (k, (name, mesh, uv, metallic)) in kinds.into_iter().enumerate() {
+        let c = colours[k];
+        let m = doc.material(json!({"name": name, "pbrMetallicRoughness": {
+            "baseColorFactor": [c[0], c[1], c[2], 1.0], "baseColorTexture": tex(checker),
+            "metallicFactor": metallic, "roughnessFactor": 0.4}, "normalTexture": tex(bumps)}));
+        meshes.push(doc.mesh_attrs(&name, &mesh, &Attrs { uv, ..Default::default() }, m));
+    }
+    for j in 0..10 {
+        for i in 0..10 {
+            let k = (i * 7 + j * 3) % 3;
+            let turn = 0.37 * (i * 10 + j) as f32;
+            let (s, c) = (0.5 * turn).sin_cos();
+            doc.nodes.push(json!({
+                "name": format!("instance_{i}_{j}"),
+                "mesh": meshes[k],
+                "translation": [2.0 * i as f32 - 9.0, 0.0, 2.0 * j as f32 - 9.0],
+                "rotation": [0.0, s, 0.0, c],
+            }));
+        }
+    }
+    doc.point_light("lamp", 40.0, [0.0, 4.0, 2.0]);
+    // A sun from the upper left: a directional light turned about x and y.
+    doc.lights.push(json!({"name": "sun", "type": "directional", "intensity": 2000.0}));
+    let light = doc.lights.len() - 1;
+    doc.nodes.push(json!({"name": "sun", "rotation": [-0.4082483, 0.4082483, 0.0, 0.8164966],
+        "extensions": {"KHR_lights_punctual": {"light": light}}}));
+    doc.camera([0.0f32, 9.0, 16.0], Some([-0.2588190, 0.0, 0.0, 0.9659258]), 0.9, 1.0);
     doc
 }
 
@@ -720,6 +842,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("caustic_ring", caustic_ring()),
         ("cornell_dense", cornell_dense()),
         ("materials", materials()),
+        ("instanced", instanced()),
         ("jozwowski_room_16", jozwowski_room(1)),
         ("jozwowski_room_64", jozwowski_room(2)),
         ("jozwowski_room_256", jozwowski_room(4)),

@@ -6,6 +6,7 @@ use xtask::{assemble, gen_scenes, plan, run, slurm_selftest};
 mod figure1;
 mod ispm_plot;
 mod live_study;
+mod scale;
 mod tradeoff;
 
 use anyhow::Result;
@@ -56,6 +57,10 @@ enum Task {
     /// Image-space photon mapping's error against its frame time, drawn from the
     /// output of `cargo bench -p pm-live --bench ispm`.
     IspmPlot(ispm_plot::Args),
+    /// What input at scale costs: each pipeline step under GNU time, with its wall
+    /// time, peak memory, scene load and BVH build time (BENCHMARKS.md, with
+    /// --scene scenes/instanced.gltf).
+    Scale(scale::Args),
     /// Write scenes/*.gltf + .bin from code.
     GenScenes {
         /// Fail if the committed files differ from what the code generates.
@@ -106,6 +111,7 @@ fn main() -> std::process::ExitCode {
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
         Task::IspmPlot(a) => ispm_plot::run(&a),
+        Task::Scale(a) => scale::run(&a, &root),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),
     };
     match result {

@@ -63,6 +63,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// of the scene's content hash: photon maps traced with one reading are refused by
 /// a stage that loads the scene with the other.
 pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
+    let start = std::time::Instant::now();
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
     let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
     let content = |message: String| SceneError::Content { path: path.to_owned(), message };
@@ -192,7 +193,13 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                 (Some(r), nt.scale())
             }
         };
-        // What is not read, said once per material.
+        // What is not read, said once per material: material extensions the loader
+        // does not know (clearcoat, sheen, iridescence, ...), then textures.
+        if let Some(ext) = m.extensions() {
+            for k in ext.keys() {
+                warnings.push(format!("material '{name}': extension {k} ignored"));
+            }
+        }
         if m.occlusion_texture().is_some() {
             warnings.push(format!(
                 "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
@@ -272,6 +279,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let mut objects = Vec::new();
     let mut camera = None;
     let mut skipped_degenerate = 0usize;
+    // Each mesh primitive's decoded vertex data, by (mesh, primitive).
+    let mut decoded: std::collections::HashMap<(usize, usize), std::rc::Rc<LocalPrim>> = Default::default();
     let mut warned_modes = BTreeSet::new();
     // Node transforms are composed in f64 and the scene is moved near its camera
     // before anything is cast to f32 (pbrt-v4's "camera-world" space, with the
@@ -307,11 +316,18 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                 let first = triangles.len();
                 let material = prim.material().index().map_or(default_material, |i| i as u32);
                 let mat = PrimMaterial {
-                    material,
                     read_uv1: uv1_needed.get(material as usize).copied().unwrap_or(false),
                     tangent_set: tangent_sets.get(material as usize).copied().flatten(),
                 };
-                let skipped = read_primitive(&prim, &buffers, world, normal_m, mat, &mut triangles)
+                // Decoded once per primitive, however many nodes instance its mesh.
+                let local = match decoded.entry((mesh.index(), pi)) {
+                    std::collections::hash_map::Entry::Occupied(e) => std::rc::Rc::clone(e.get()),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        let d = decode_primitive(&prim, &buffers, mat).map_err(|m| content(format!("{what}: {m}")))?;
+                        std::rc::Rc::clone(e.insert(std::rc::Rc::new(d)))
+                    }
+                };
+                let skipped = instance_primitive(&local, world, normal_m, material, &mut triangles)
                     .map_err(|m| content(format!("{what}: {m}")))?;
                 skipped_degenerate += skipped;
                 if triangles.len() > first {
@@ -321,11 +337,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     };
                     if animation.moves(node.index()) {
                         // The same primitive in the node's own space, re-posed per frame.
-                        let mut local = Vec::new();
-                        read_primitive(&prim, &buffers, Mat4::IDENTITY, Mat3::IDENTITY, mat, &mut local)
+                        let mut rest = Vec::new();
+                        instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
                             .map_err(|m| content(format!("{what}: {m}")))?;
-                        if local.len() == triangles.len() - first {
-                            animation.meshes.push(AnimatedMesh { object: objects.len(), node: node.index(), local });
+                        if rest.len() == triangles.len() - first {
+                            animation.meshes.push(AnimatedMesh { object: objects.len(), node: node.index(), local: rest });
                         } else {
                             warnings.push(format!(
                                 "node '{node_name}': its triangles degenerate differently at rest; not animated"
@@ -426,6 +442,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let mut scene = Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings);
     scene.animation = animation;
     scene.origin = origin;
+    scene.load_seconds = start.elapsed().as_secs_f64();
     Ok(scene)
 }
 
@@ -544,11 +561,9 @@ fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), String> {
 
 /// Append one primitive's triangles in world space. Returns the number of degenerate
 /// triangles skipped; errors name what is wrong with the accessors.
-/// What [`read_primitive`] needs of a primitive's material.
+/// What [`decode_primitive`] needs of a primitive's material.
 #[derive(Clone, Copy)]
 struct PrimMaterial {
-    /// Index into the scene's materials.
-    material: u32,
     /// A texture reads TEXCOORD_1.
     read_uv1: bool,
     /// The material has a normal texture reading this TEXCOORD_n set: tangents are
@@ -556,14 +571,26 @@ struct PrimMaterial {
     tangent_set: Option<u8>,
 }
 
-fn read_primitive(
+/// A primitive's vertex data decoded from its accessors once, in the mesh's own
+/// space, shared by every node that instances the mesh.
+struct LocalPrim {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+    uvs1: Option<Vec<Vec2>>,
+    colors: Option<Vec<Vec4>>,
+    indices: Vec<u32>,
+    /// Per corner (index position), in the mesh's space.
+    corner_tangents: Option<Vec<Vec4>>,
+}
+
+/// Decode one primitive's accessors (checked against their buffers) and, when its
+/// material has a normal texture, its tangents; errors name the accessor.
+fn decode_primitive(
     prim: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
-    world: Mat4,
-    normal_m: Mat3,
-    PrimMaterial { material, read_uv1, tangent_set }: PrimMaterial,
-    out: &mut Vec<Triangle>,
-) -> Result<usize, String> {
+    PrimMaterial { read_uv1, tangent_set, .. }: PrimMaterial,
+) -> Result<LocalPrim, String> {
     use gltf::accessor::{DataType, Dimensions};
     let check = |sem: &str, acc: gltf::Accessor, dims: Dimensions, types: &[DataType]| -> Result<(), String> {
         if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
@@ -619,17 +646,14 @@ fn read_primitive(
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
-    let local_positions: Vec<Vec3> = reader.read_positions().ok_or("POSITION cannot be read")?.map(Vec3::from).collect();
-    let positions: Vec<Vec3> = local_positions.iter().map(|&p| world.transform_point3(p)).collect();
+    let positions: Vec<Vec3> = reader.read_positions().ok_or("POSITION cannot be read")?.map(Vec3::from).collect();
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(format!(
             "vertex {i} has a position that is not finite (NaN or Inf, or overflow after the node transform)"
         ));
     }
-    let local_normals: Option<Vec<Vec3>> =
-        if normal_acc.is_some() { reader.read_normals().map(|it| it.map(Vec3::from).collect()) } else { None };
     let normals: Option<Vec<Vec3>> =
-        local_normals.as_ref().map(|ns| ns.iter().map(|&n| (normal_m * n).normalize_or_zero()).collect());
+        if normal_acc.is_some() { reader.read_normals().map(|it| it.map(Vec3::from).collect()) } else { None };
     let read_uv = |set: u32| reader.read_tex_coords(set).map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>());
     let uvs = if uv_acc.is_some() { read_uv(0) } else { None };
     let uvs1 = if uv1_acc.is_some() { read_uv(1) } else { None };
@@ -662,9 +686,7 @@ fn read_primitive(
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
         return Err(format!("index {bad} is out of range ({} vertices)", positions.len()));
     }
-    // A mirroring transform reverses the winding; keep counter-clockwise = front.
-    let flip = Mat3::from_mat4(world).determinant() < 0.0;
-    // Tangents per corner (index position) in the node's space: the file's, or
+    // Tangents per corner (index position) in the mesh's space: the file's, or
     // MikkTSpace's from the normal texture's coordinates (glTF 2.0 section 3.7.2.1).
     let tangent_uvs = match tangent_set {
         Some(1) => uvs1.as_ref(),
@@ -680,8 +702,30 @@ fn read_primitive(
         }
         Some(indices.iter().map(|&i| t[i as usize]).collect())
     } else {
-        tangent_uvs.map(|uv| mikktspace_tangents(&local_positions, local_normals.as_deref(), uv, &indices))
+        tangent_uvs.map(|uv| mikktspace_tangents(&positions, normals.as_deref(), uv, &indices))
     };
+    Ok(LocalPrim { positions, normals, uvs, uvs1, colors, indices, corner_tangents })
+}
+
+/// Append a decoded primitive's triangles placed by `world` (normals by `normal_m`,
+/// its inverse transpose). Returns the number of degenerate triangles skipped; an
+/// error when a position overflows.
+fn instance_primitive(
+    local: &LocalPrim,
+    world: Mat4,
+    normal_m: Mat3,
+    material: u32,
+    out: &mut Vec<Triangle>,
+) -> Result<usize, String> {
+    let LocalPrim { positions, normals, uvs, uvs1, colors, indices, corner_tangents } = local;
+    let positions: Vec<Vec3> = positions.iter().map(|&p| world.transform_point3(p)).collect();
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(format!("vertex {i} has a position that is not finite after the node transform (overflow)"));
+    }
+    let normals: Option<Vec<Vec3>> =
+        normals.as_ref().map(|ns| ns.iter().map(|&n| (normal_m * n).normalize_or_zero()).collect());
+    // A mirroring transform reverses the winding; keep counter-clockwise = front.
+    let flip = Mat3::from_mat4(world).determinant() < 0.0;
     let linear = Mat3::from_mat4(world);
     let to_world = |t: Vec4| {
         let w = if (t.w < 0.0) != flip { -1.0 } else { 1.0 };

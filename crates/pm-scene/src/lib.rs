@@ -508,6 +508,11 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The glTF animations that move lights and the camera ([`Scene::set_time`]).
     pub animation: Animation,
+    /// What loading took [s]: reading and decoding the file (geometry, textures,
+    /// tangents) and building the BVH (zero for scenes built in code).
+    pub load_seconds: f64,
+    /// Building the BVH [s] (part of `load_seconds` for loaded scenes).
+    pub bvh_seconds: f64,
     /// Some material has an alpha mode: ray queries test alpha at candidate hits.
     any_alpha: bool,
     bvh: Option<obvhs::cwbvh::CwBvh>,
@@ -582,7 +587,9 @@ impl Scene {
         warnings: Vec<String>,
     ) -> Scene {
         let bounds = bounds_of(&triangles);
+        let t0 = std::time::Instant::now();
         let (bvh, bvh_tris) = build_bvh(&triangles, &bounds);
+        let bvh_seconds = t0.elapsed().as_secs_f64();
         let mut light_of_triangle = vec![u32::MAX; triangles.len()];
         for (i, l) in lights.iter().enumerate() {
             if let LightKind::Area { tris, .. } = &l.kind {
@@ -593,6 +600,8 @@ impl Scene {
         }
         let any_alpha = materials.iter().any(Material::has_alpha);
         let mut scene = Scene {
+            load_seconds: bvh_seconds,
+            bvh_seconds,
             any_alpha,
             light_of_triangle,
             animation: Animation::default(),

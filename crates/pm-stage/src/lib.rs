@@ -61,6 +61,13 @@ pub fn load_scene(stage: &str, path: &Path, how: SceneArgs) -> Result<pm_scene::
     for w in &scene.warnings {
         eprintln!("{stage}: warning: {}: {w}", path.display());
     }
+    eprintln!(
+        "{stage}: scene loaded: {} triangles, {} textures in {:.3} s (BVH {:.3} s)",
+        scene.triangles.len(),
+        scene.textures.len(),
+        scene.load_seconds,
+        scene.bvh_seconds
+    );
     Ok(scene)
 }
 
