@@ -398,6 +398,47 @@ fn textured_emitters_emit_and_are_sampled_in_proportion_to_their_texture() {
     assert!(rel(nee, irradiance) < 0.01, "next-event irradiance {nee} against {irradiance}");
 }
 
+/// `tris` of material 0 (`m`) over a black 7 m floor at y = 0 (material 1, emitting
+/// `floor_emission`), lit by a sun straight down (1 W/m^2) when `sun`, seen by a
+/// narrow camera 3 m above (0.5, 0, 0.5) looking straight down.
+fn over_floor(mut tris: Vec<pm_scene::Triangle>, m: pm_scene::Material, floor_emission: f32, sun: bool) -> Scene {
+    let v = |x: f32, z: f32| Vec3::new(x, 0.0, z);
+    for q in [[v(-3.0, -3.0), v(-3.0, 4.0), v(4.0, 4.0)], [v(-3.0, -3.0), v(4.0, 4.0), v(4.0, -3.0)]] {
+        tris.push(pm_scene::Triangle::new(q, 1).unwrap());
+    }
+    let floor = pm_tests::material("floor", Bsdf::Lambert { rho: Rgb::ZERO }, floor_emission);
+    let sun = sun.then(|| pm_scene::Light {
+        name: "sun".into(),
+        kind: pm_scene::LightKind::Directional {
+            direction: Vec3::NEG_Y,
+            irradiance: Rgb::ONE,
+            center: Vec3::ZERO,
+            radius: 0.0,
+        },
+        power: Rgb::ZERO,
+    });
+    let camera = pm_scene::Camera {
+        position: Vec3::new(0.5, 3.0, 0.5),
+        forward: Vec3::NEG_Y,
+        up: Vec3::NEG_Z,
+        right: Vec3::X,
+        yfov: 0.1,
+        aspect: Some(1.0),
+    };
+    Scene::from_parts(tris, vec![m, floor], sun.into_iter().collect(), Some(camera))
+}
+
+/// The photons of a global map traced in `s` from 400,000 emitted.
+fn emitted_photons(s: &Scene) -> Vec<pm_format::Photon> {
+    let cfg = pm_photon::TraceConfig {
+        pass: pm_photon::MapPass::Global,
+        budget: pm_photon::Budget::Emitted(400_000),
+        seed: 5,
+        selector: pm_photon::LightSelector::new(s, &[]).unwrap(),
+    };
+    pm_photon::trace(s, &cfg, &|_| {}).unwrap().photons
+}
+
 /// An absorbing glass slab (KHR_materials_volume's attenuation): a closed box 0.4 m
 /// thick, ior 1.5, sigma_a = (1, 2, 0.5) m^-1, over a floor, seen and lit straight
 /// down. At normal incidence each face reflects R = ((1.5 - 1) / (1.5 + 1))^2 = 0.04,
@@ -414,51 +455,16 @@ fn absorbing_glass_transmits_the_beer_lambert_fraction() {
     let t = (-sigma * thick).exp();
     let want = (1.0 - r) * (1.0 - r) * t / (Rgb::ONE - r * r * t * t);
     let build = |floor_emission: f32, sun: bool| {
-        let mut tris = Vec::new();
         // Outward-facing slab: the inward box with its triangles turned over.
         let mut inward = Vec::new();
         closed_box(&mut inward, Vec3::new(-1.0, 0.5, -1.0), Vec3::new(2.0, 0.5 + thick, 2.0), 0);
-        tris.extend(inward.iter().map(|t| pm_scene::Triangle::new([t.p[0], t.p[2], t.p[1]], 0).unwrap()));
-        let v = |x: f32, z: f32| Vec3::new(x, 0.0, z);
-        for q in [[v(-3.0, -3.0), v(-3.0, 4.0), v(4.0, 4.0)], [v(-3.0, -3.0), v(4.0, 4.0), v(4.0, -3.0)]] {
-            tris.push(pm_scene::Triangle::new(q, 1).unwrap());
-        }
+        let slab = inward.iter().map(|t| pm_scene::Triangle::new([t.p[0], t.p[2], t.p[1]], 0).unwrap()).collect();
         let mut glass = material("absorbing glass", Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false }, 0.0);
         glass.attenuation = sigma;
-        let floor = material("floor", Bsdf::Lambert { rho: Rgb::ZERO }, floor_emission);
-        let lights = if sun {
-            vec![pm_scene::Light {
-                name: "sun".into(),
-                kind: pm_scene::LightKind::Directional {
-                    direction: Vec3::NEG_Y,
-                    irradiance: Rgb::ONE,
-                    center: Vec3::ZERO,
-                    radius: 0.0,
-                },
-                power: Rgb::ZERO,
-            }]
-        } else {
-            vec![]
-        };
-        let camera = pm_scene::Camera {
-            position: Vec3::new(0.5, 3.0, 0.5),
-            forward: Vec3::NEG_Y,
-            up: Vec3::NEG_Z,
-            right: Vec3::X,
-            yfov: 0.1,
-            aspect: Some(1.0),
-        };
-        Scene::from_parts(tris, vec![glass, floor], lights, Some(camera))
+        over_floor(slab, glass, floor_emission, sun)
     };
     // Photons.
-    let lit = build(0.0, true);
-    let cfg = pm_photon::TraceConfig {
-        pass: pm_photon::MapPass::Global,
-        budget: pm_photon::Budget::Emitted(400_000),
-        seed: 5,
-        selector: pm_photon::LightSelector::new(&lit, &[]).unwrap(),
-    };
-    let photons = pm_photon::trace(&lit, &cfg, &|_| {}).unwrap().photons;
+    let photons = emitted_photons(&build(0.0, true));
     let under: Rgb = photons
         .iter()
         .filter(|p| p.position.y.abs() < 1e-4 && (0.0..1.0).contains(&p.position.x) && (0.0..1.0).contains(&p.position.z))
@@ -628,51 +634,17 @@ fn partial_transmission_mixes_glass_and_the_base() {
     let r = 0.04f32;
     let want = t * (1.0 - 2.0 * r / (1.0 + r));
     let build = |floor_emission: f32, sun: bool| {
-        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
-        let mut tris = vec![];
-        for q in [[v(-1.0, 0.5, -1.0), v(-1.0, 0.5, 2.0), v(2.0, 0.5, 2.0)], [v(-1.0, 0.5, -1.0), v(2.0, 0.5, 2.0), v(2.0, 0.5, -1.0)]] {
-            tris.push(pm_scene::Triangle::new(q, 0).unwrap());
-        }
-        for q in [[v(-3.0, 0.0, -3.0), v(-3.0, 0.0, 4.0), v(4.0, 0.0, 4.0)], [v(-3.0, 0.0, -3.0), v(4.0, 0.0, 4.0), v(4.0, 0.0, -3.0)]] {
-            tris.push(pm_scene::Triangle::new(q, 1).unwrap());
-        }
+        let v = |x: f32, z: f32| Vec3::new(x, 0.5, z);
+        let sheet_tris = [[v(-1.0, -1.0), v(-1.0, 2.0), v(2.0, 2.0)], [v(-1.0, -1.0), v(2.0, 2.0), v(2.0, -1.0)]]
+            .map(|q| pm_scene::Triangle::new(q, 0).unwrap())
+            .to_vec();
         let pbr = pm_bsdf::Pbr { transmission: t, ..pm_bsdf::Pbr::dielectric(Rgb::ONE) };
         let mut sheet = material("sheet", Bsdf::from_pbr(&pbr), 0.0);
         sheet.pbr = pbr;
         sheet.double_sided = true;
-        let floor = material("floor", Bsdf::Lambert { rho: Rgb::ZERO }, floor_emission);
-        let lights = if sun {
-            vec![pm_scene::Light {
-                name: "sun".into(),
-                kind: pm_scene::LightKind::Directional {
-                    direction: Vec3::NEG_Y,
-                    irradiance: Rgb::ONE,
-                    center: Vec3::ZERO,
-                    radius: 0.0,
-                },
-                power: Rgb::ZERO,
-            }]
-        } else {
-            vec![]
-        };
-        let camera = pm_scene::Camera {
-            position: Vec3::new(0.5, 3.0, 0.5),
-            forward: Vec3::NEG_Y,
-            up: Vec3::NEG_Z,
-            right: Vec3::X,
-            yfov: 0.1,
-            aspect: Some(1.0),
-        };
-        Scene::from_parts(tris, vec![sheet, floor], lights, Some(camera))
+        over_floor(sheet_tris, sheet, floor_emission, sun)
     };
-    let lit = build(0.0, true);
-    let cfg = pm_photon::TraceConfig {
-        pass: pm_photon::MapPass::Global,
-        budget: pm_photon::Budget::Emitted(400_000),
-        seed: 5,
-        selector: pm_photon::LightSelector::new(&lit, &[]).unwrap(),
-    };
-    let photons = pm_photon::trace(&lit, &cfg, &|_| {}).unwrap().photons;
+    let photons = emitted_photons(&build(0.0, true));
     let density = |y: f32| {
         photons
             .iter()
@@ -717,13 +689,5 @@ fn every_material_feature_agrees_with_the_path_tracer() {
     cfg.mode = pm_render::Method::Path;
     cfg.spp = 1024;
     let (path, _) = pm_tests::render(&scene, &maps, &cfg);
-    let mean = |img: &pm_render::Image, layer: &str| {
-        let px = img.layer(layer).unwrap();
-        px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
-    };
-    for (layer, tol) in [("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)] {
-        let (f, p) = (mean(&full, layer), mean(&path, layer));
-        eprintln!("materials {layer}: full {f:.5}, path {p:.5} ({:+.2}%)", 100.0 * (f / p - 1.0));
-        assert!((f / p - 1.0).abs() < tol, "{layer}: full {f} vs path {p}");
-    }
+    pm_tests::assert_components_agree("materials", &full, &path);
 }

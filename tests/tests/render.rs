@@ -156,13 +156,5 @@ fn components_agree_with_the_path_tracers_components() {
     cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
-    let mean = |img: &pm_render::Image, layer: &str| {
-        let px = img.layer(layer).unwrap();
-        px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
-    };
-    for (layer, tol) in [("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)] {
-        let (f, p) = (mean(&full, layer), mean(&path, layer));
-        eprintln!("{layer}: full {f:.5}, path {p:.5} ({:+.2}%)", 100.0 * (f / p - 1.0));
-        assert!((f / p - 1.0).abs() < tol, "{layer}: full {f} vs path {p}");
-    }
+    pm_tests::assert_components_agree("cornell_spheres", &full, &path);
 }

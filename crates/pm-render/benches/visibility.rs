@@ -1,6 +1,7 @@
 //! First hits at 512 x 512 pixel centres by the rasteriser against eye rays, the
 //! image loop's own cost over rasterised hits (an integrator that returns the hit
-//! distance), and shadow rays to the first light, on the live room and cornell_spheres (1 and 2
+//! distance), and shadow rays to the first light, on the live room, cornell_spheres,
+//! cornell_dense (109k triangles) and instanced (1.46M) (1 and 2
 //! threads, best of 10 frames each).
 //!
 //! Run: `cargo bench -p pm-render --bench visibility`
@@ -25,7 +26,7 @@ fn main() {
         "| scene | triangles | threads | raster [ms] | image loop over raster [ms] | eye rays [ms] | shadow rays [ms] | raster / eye rays | cube shadow map 6 x 256^2 [ms] |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for name in ["jozwowski_room_1024", "cornell_spheres"] {
+    for name in ["jozwowski_room_1024", "cornell_spheres", "cornell_dense", "instanced"] {
         let scene = pm_scene::load(&dir.join(format!("{name}.gltf"))).unwrap();
         let camera = scene.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
