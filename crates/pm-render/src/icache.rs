@@ -27,27 +27,62 @@ struct Record {
     grad_r: [Vec3; 3],
 }
 
-/// The cache: records in insertion order, indexed by a hash grid whose cells are as
-/// large as the largest region a record can serve, so a lookup reads 27 cells.
-/// Made once per image by [`IrradianceCache::prepass`] (its own pipeline step, so
-/// that tiles rendered apart share one cache), read-only while rendering.
+/// The most a lookup may extrapolate: rendering's slack (see [`IrradianceCache::lookup`]).
+const MAX_SLACK: f32 = 2.0;
+
+/// The cache: records in insertion order, indexed by a hash grid in which every
+/// record is listed in each cell its reach (a x [`MAX_SLACK`] x R_i) overlaps, so a
+/// lookup reads the one cell it falls in (it read 27 cells, each record listed once,
+/// and lookups were 31% of rendering: BENCHMARKS.md). Made once per image by
+/// [`IrradianceCache::prepass`] (its own pipeline step, so that tiles rendered apart
+/// share one cache), read-only while rendering.
 #[derive(Clone, Debug)]
 pub struct IrradianceCache {
     records: Vec<Record>,
-    grid: HashMap<IVec3, Vec<u32>>,
+    grid: HashMap<IVec3, Vec<u32>, CellHash>,
     cell: f32,
     a: f32,
     spacing: (f32, f32),
 }
 
+/// A fast hash for grid cells (the standard SipHash was a visible part of lookups).
+#[derive(Clone, Copy, Debug, Default)]
+struct CellHash;
+
+impl std::hash::BuildHasher for CellHash {
+    type Hasher = CellHasher;
+    fn build_hasher(&self) -> CellHasher {
+        CellHasher(0)
+    }
+}
+
+/// [`CellHash`]'s hasher: a multiply-xorshift mix of the words written.
+#[derive(Clone, Copy, Debug)]
+struct CellHasher(u64);
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        mix64(self.0)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    fn write_i32(&mut self, v: i32) {
+        self.0 = (self.0 ^ v as u32 as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(23);
+    }
+}
+
 impl IrradianceCache {
     /// An empty cache for accuracy `a` and record spacing (min, max) [m].
     pub(crate) fn new(a: f32, spacing: (f32, f32)) -> Self {
-        // Cells as large as the farthest a record can serve at slack 2.
+        // Cells half as large as the farthest a record can serve: the largest
+        // records are listed in at most 5^3 cells, most in a few.
         IrradianceCache {
             records: Vec::new(),
-            grid: HashMap::new(),
-            cell: (2.0 * a * spacing.1).max(1e-12),
+            grid: HashMap::default(),
+            cell: (0.5 * MAX_SLACK * a * spacing.1).max(1e-12),
             a,
             spacing,
         }
@@ -96,8 +131,16 @@ impl IrradianceCache {
     }
 
     fn push(&mut self, rec: Record) {
-        let k = self.key(rec.p);
-        self.grid.entry(k).or_default().push(self.records.len() as u32);
+        let reach = Vec3::splat(MAX_SLACK * self.a * rec.r);
+        let (lo, hi) = (self.key(rec.p - reach), self.key(rec.p + reach));
+        let id = self.records.len() as u32;
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    self.grid.entry(IVec3::new(x, y, z)).or_default().push(id);
+                }
+            }
+        }
         self.records.push(rec);
     }
 
@@ -206,39 +249,33 @@ impl IrradianceCache {
     /// Ward's RADIANCE does for secondary samples, so jittered supersamples near a
     /// record's edge do not each trigger a fresh final gather).
     pub(crate) fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
-        let a = self.a * slack;
-        let k = self.key(p);
+        debug_assert!(slack <= MAX_SLACK);
+        let a = self.a * slack.min(MAX_SLACK);
+        let ids = self.grid.get(&self.key(p))?;
         let mut sum = Rgb::ZERO;
         let mut wsum = 0.0f32;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let Some(ids) = self.grid.get(&(k + IVec3::new(dx, dy, dz))) else { continue };
-                    for &i in ids {
-                        let r = &self.records[i as usize];
-                        let d = p - r.p;
-                        let eps = d.length() / r.r + (1.0 - n.dot(r.n)).max(0.0).sqrt();
-                        if eps >= a {
-                            continue;
-                        }
-                        // Ward's test: skip records in front of the point (they see
-                        // surfaces the point may not).
-                        if d.dot(n + r.n) * 0.5 < -0.05 * r.r {
-                            continue;
-                        }
-                        let w = 1.0 / eps.max(1e-4);
-                        let rot = r.n.cross(n);
-                        let e = Rgb::new(
-                            r.e.x + rot.dot(r.grad_r[0]) + d.dot(r.grad_t[0]),
-                            r.e.y + rot.dot(r.grad_r[1]) + d.dot(r.grad_t[1]),
-                            r.e.z + rot.dot(r.grad_r[2]) + d.dot(r.grad_t[2]),
-                        )
-                        .max(Rgb::ZERO);
-                        sum += e * w;
-                        wsum += w;
-                    }
-                }
+        for &i in ids {
+            let r = &self.records[i as usize];
+            let d = p - r.p;
+            let eps = d.length() / r.r + (1.0 - n.dot(r.n)).max(0.0).sqrt();
+            if eps >= a {
+                continue;
             }
+            // Ward's test: skip records in front of the point (they see
+            // surfaces the point may not).
+            if d.dot(n + r.n) * 0.5 < -0.05 * r.r {
+                continue;
+            }
+            let w = 1.0 / eps.max(1e-4);
+            let rot = r.n.cross(n);
+            let e = Rgb::new(
+                r.e.x + rot.dot(r.grad_r[0]) + d.dot(r.grad_t[0]),
+                r.e.y + rot.dot(r.grad_r[1]) + d.dot(r.grad_t[1]),
+                r.e.z + rot.dot(r.grad_r[2]) + d.dot(r.grad_t[2]),
+            )
+            .max(Rgb::ZERO);
+            sum += e * w;
+            wsum += w;
         }
         (wsum > 0.0).then(|| sum / wsum)
     }

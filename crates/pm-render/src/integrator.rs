@@ -17,7 +17,6 @@ use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
-use std::time::Instant;
 
 /// Specular bounces up to this depth trace both reflection and refraction (weighted
 /// by Fresnel); deeper ones pick one by Fresnel probability.
@@ -280,10 +279,6 @@ photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
 photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
 photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
 
-fn elapsed_ns(t: Instant) -> u64 {
-    t.elapsed().as_nanos() as u64
-}
-
 /// Soft indirect irradiance at a non-specular point: interpolated from the cache
 /// when a record covers it, else a fresh final gather.
 pub(crate) fn indirect_irradiance<G: PhotonRecord>(
@@ -295,18 +290,18 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     scratch: &mut Scratch,
 ) -> Rgb {
     if let Some(c) = &ctx.cache {
-        let t = Instant::now();
+        let t = scratch.clock();
         let e = c.lookup(p, ns, 2.0);
-        ctx.counters.ns_icache.fetch_add(elapsed_ns(t), Relaxed);
+        crate::gather::add_time(&ctx.counters.ns_icache, t);
         if let Some(e) = e {
             ctx.counters.cache_hits.fetch_add(1, Relaxed);
             return e;
         }
     }
-    let t = Instant::now();
+    let t = scratch.clock();
     ctx.counters.gathers.fetch_add(1, Relaxed);
     let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, true, scratch);
-    ctx.counters.ns_gather.fetch_add(elapsed_ns(t), Relaxed);
+    crate::gather::add_time(&ctx.counters.ns_gather, t);
     g.e
 }
 
@@ -403,7 +398,7 @@ fn trace_hit<G: PhotonRecord>(
         ctx.counters.terminated_paths.fetch_add(1, Relaxed);
         return Components { specular: le, ..Default::default() };
     }
-    let t0 = Instant::now();
+    let t0 = scratch.clock();
     let mut l = le;
     let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
         let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
@@ -427,7 +422,7 @@ fn trace_hit<G: PhotonRecord>(
     } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
         l += follow(s, scratch, bs.wi, bs.weight);
     }
-    ctx.counters.ns_specular.fetch_add(elapsed_ns(t0), Relaxed);
+    crate::gather::add_time(&ctx.counters.ns_specular, t0);
     Components { specular: l, ..Default::default() }
 }
 
@@ -495,14 +490,14 @@ fn shade_full<G: PhotonRecord>(
     let n = facing(hit.ng, wo);
     let ns = facing(hit.ns, wo);
     let albedo = bsdf.diffuse_albedo();
-    let t = Instant::now();
+    let t = scratch.clock();
     let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
     let direct = le + reflected;
     if let Some(v) = vs {
         v.direct = reflected;
     }
-    ctx.counters.ns_direct.fetch_add(elapsed_ns(t), Relaxed);
-    let t = Instant::now();
+    crate::gather::add_time(&ctx.counters.ns_direct, t);
+    let t = scratch.clock();
     let caustic = match &ctx.maps.caustic {
         Some(tree) => {
             let p = KnnParams {
@@ -514,7 +509,7 @@ fn shade_full<G: PhotonRecord>(
         }
         None => Rgb::ZERO,
     };
-    ctx.counters.ns_caustic.fetch_add(elapsed_ns(t), Relaxed);
+    crate::gather::add_time(&ctx.counters.ns_caustic, t);
     let e = if !cfg.indirect {
         Rgb::ZERO
     } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
