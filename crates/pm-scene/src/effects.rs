@@ -127,11 +127,11 @@ pub fn analyze(scene: &Scene) -> Effects {
                 let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
                 let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
                 let o2 = scene.offset_origin(h.p, h.ng, d2);
-                if let Some(h2) = scene.intersect(o2, d2, f32::INFINITY) {
-                    if !is_specular(h2.tri) {
-                        pair = Some((h.tri, h2.tri));
-                        break 'probe;
-                    }
+                if let Some(h2) = scene.intersect(o2, d2, f32::INFINITY)
+                    && !is_specular(h2.tri)
+                {
+                    pair = Some((h.tri, h2.tri));
+                    break 'probe;
                 }
                 continue 'probe;
             }
@@ -155,12 +155,12 @@ pub fn analyze(scene: &Scene) -> Effects {
                 for i in 0..48 {
                     let aspect = cam.aspect.unwrap_or(1.0);
                     let d = cam.ray_direction((i as f32 + 0.5) / 48.0, (j as f32 + 0.5) / 48.0, aspect);
-                    if let Some(h) = scene.intersect(cam.position, d, f32::INFINITY) {
-                        if is_specular(h.tri) {
-                            let n = name(h.tri);
-                            if !seen.contains(&n) {
-                                seen.push(n);
-                            }
+                    if let Some(h) = scene.intersect(cam.position, d, f32::INFINITY)
+                        && is_specular(h.tri)
+                    {
+                        let n = name(h.tri);
+                        if !seen.contains(&n) {
+                            seen.push(n);
                         }
                     }
                 }
