@@ -161,7 +161,9 @@ fn vertex_colours_multiply_the_base_colour() {
     let c = Vec4::new(1.0, 0.5, 0.25, 1.0);
     let doc = Doc {
         quads: vec![(unit_quad(), 0, Some([c, c, Vec4::new(0.0, 0.5, 0.25, 1.0), c]))],
-        materials: vec![json!({"name": "vc", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}})],
+        materials: vec![
+            json!({"name": "vc", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}}),
+        ],
         images: vec![],
         extra: json!({}),
     };
@@ -289,7 +291,12 @@ fn blended_alpha_stops_that_fraction_of_rays() {
 /// the full power.
 #[test]
 fn photons_pass_through_alpha_and_the_stored_power_is_unbiased() {
-    let floor = [Vec3::new(-1.0, -1.0, -1.0), Vec3::new(2.0, -1.0, -1.0), Vec3::new(2.0, 2.0, -1.0), Vec3::new(-1.0, 2.0, -1.0)];
+    let floor = [
+        Vec3::new(-1.0, -1.0, -1.0),
+        Vec3::new(2.0, -1.0, -1.0),
+        Vec3::new(2.0, 2.0, -1.0),
+        Vec3::new(-1.0, 2.0, -1.0),
+    ];
     for (mode, name) in [("BLEND", "veil"), ("MASK", "leaf")] {
         let mut doc = masked_doc(mode.into());
         doc.materials[0] = json!({"name": name, "alphaMode": mode, "alphaCutoff": 0.5,
@@ -308,7 +315,10 @@ fn photons_pass_through_alpha_and_the_stored_power_is_unbiased() {
         let path = doc.write(dir.path(), name);
         // A sun node pointing down (-Z of the node is -z of the world: no rotation).
         let mut g: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        g["nodes"].as_array_mut().unwrap().push(json!({"name": "sun", "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+        g["nodes"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({"name": "sun", "extensions": {"KHR_lights_punctual": {"light": 0}}}));
         g["scenes"][0]["nodes"].as_array_mut().unwrap().push(2.into());
         std::fs::write(&path, g.to_string()).unwrap();
         let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -467,7 +477,9 @@ fn absorbing_glass_transmits_the_beer_lambert_fraction() {
     let photons = emitted_photons(&build(0.0, true));
     let under: Rgb = photons
         .iter()
-        .filter(|p| p.position.y.abs() < 1e-4 && (0.0..1.0).contains(&p.position.x) && (0.0..1.0).contains(&p.position.z))
+        .filter(|p| {
+            p.position.y.abs() < 1e-4 && (0.0..1.0).contains(&p.position.x) && (0.0..1.0).contains(&p.position.z)
+        })
         .map(|p| p.power)
         .sum();
     let rel = |a: Rgb, b: Rgb| ((a - b) / b).abs().max_element();
@@ -543,7 +555,10 @@ fn normal_textures_tilt_the_shading_normal_in_the_tangent_frame() {
     g["buffers"][0]["byteLength"] = bin.len().into();
     g["bufferViews"].as_array_mut().unwrap().push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 64}));
     let view = g["bufferViews"].as_array().unwrap().len() - 1;
-    g["accessors"].as_array_mut().unwrap().push(json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC4"}));
+    g["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC4"}));
     g["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = (g["accessors"].as_array().unwrap().len() - 1).into();
     std::fs::write(&path, g.to_string()).unwrap();
     let s = load(&path).unwrap();
@@ -648,7 +663,11 @@ fn partial_transmission_mixes_glass_and_the_base() {
     let density = |y: f32| {
         photons
             .iter()
-            .filter(|p| (p.position.y - y).abs() < 1e-4 && (0.0..1.0).contains(&p.position.x) && (0.0..1.0).contains(&p.position.z))
+            .filter(|p| {
+                (p.position.y - y).abs() < 1e-4
+                    && (0.0..1.0).contains(&p.position.x)
+                    && (0.0..1.0).contains(&p.position.z)
+            })
             .filter(|p| p.wi.y > 0.0) // arriving from above
             .map(|p| p.power.x)
             .sum::<f32>()

@@ -165,8 +165,9 @@ impl Doc {
             attributes["COLOR_0"] = self.vec_accessor(&attrs.color, "VEC4").into();
         }
         let idx = self.index_accessor(&mesh.idx);
-        self.meshes
-            .push(json!({"name": name, "primitives": [{"attributes": attributes, "indices": idx, "material": material}]}));
+        self.meshes.push(
+            json!({"name": name, "primitives": [{"attributes": attributes, "indices": idx, "material": material}]}),
+        );
         self.meshes.len() - 1
     }
 
@@ -344,7 +345,9 @@ fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
 /// (KHR_materials_specular's specularFactor 0; without it every glTF dielectric has
 /// a GGX layer, Appendix B). The analytic scenes need pure Lambertian surfaces.
 fn diffuse(name: &str, rgb: [f32; 3]) -> Value {
-    lambertian(json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}))
+    lambertian(
+        json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}),
+    )
 }
 
 /// Material `m` with its dielectric specular layer turned off.
@@ -538,7 +541,12 @@ fn materials() -> Doc {
         (0..64).map(|i| if (i % 8 + i / 8) % 2 == 0 { [230, 200, 150, 255] } else { [90, 120, 170, 255] }).collect(),
         [repeat, repeat],
     );
-    let stripes = doc.texture(8, 1, (0..8).map(|i| if i % 2 == 0 { [0, 40, 255, 255] } else { [0, 230, 0, 255] }).collect(), [repeat, repeat]);
+    let stripes = doc.texture(
+        8,
+        1,
+        (0..8).map(|i| if i % 2 == 0 { [0, 40, 255, 255] } else { [0, 230, 0, 255] }).collect(),
+        [repeat, repeat],
+    );
     let bumps = doc.texture(
         16,
         16,
@@ -564,8 +572,18 @@ fn materials() -> Doc {
             .collect(),
         [clamp, clamp],
     );
-    let glow = doc.texture(4, 1, vec![[255, 230, 190, 255], [40, 30, 20, 255], [255, 200, 120, 255], [0, 0, 0, 255]], [repeat, repeat]);
-    let spec = doc.texture(4, 4, (0..16).map(|i| [255, 255, 255, if i % 3 == 0 { 64 } else { 255 }]).collect(), [repeat, repeat]);
+    let glow = doc.texture(
+        4,
+        1,
+        vec![[255, 230, 190, 255], [40, 30, 20, 255], [255, 200, 120, 255], [0, 0, 0, 255]],
+        [repeat, repeat],
+    );
+    let spec = doc.texture(
+        4,
+        4,
+        (0..16).map(|i| [255, 255, 255, if i % 3 == 0 { 64 } else { 255 }]).collect(),
+        [repeat, repeat],
+    );
     let tex = |index: usize| json!({"index": index});
 
     let textured = doc.material(json!({
@@ -685,7 +703,9 @@ fn instanced() -> Doc {
     let checker = doc.texture(
         16,
         16,
-        (0..256).map(|i| if (i % 16 / 4 + i / 64) % 2 == 0 { [220, 210, 190, 255] } else { [120, 90, 70, 255] }).collect(),
+        (0..256)
+            .map(|i| if (i % 16 / 4 + i / 64) % 2 == 0 { [220, 210, 190, 255] } else { [120, 90, 70, 255] })
+            .collect(),
         [repeat, repeat],
     );
     let bumps = doc.texture(
@@ -713,16 +733,21 @@ fn instanced() -> Doc {
     let kinds: Vec<(String, Mesh, Vec<[f32; 2]>, f32)> = vec![
         ("ball".into(), sphere([0.0, 0.4, 0.0], 0.4, 96, 48, false), grid_uv(96, 48, 4.0), 0.0),
         ("ring".into(), torus([0.0, 0.25, 0.0], 0.35, 0.15, 120, 48), grid_uv(120, 48, 6.0), 1.0),
-        ("rock".into(), {
-            let mut m = sphere([0.0, 0.35, 0.0], 0.35, 160, 80, false);
-            for (p, n) in m.p.iter_mut().zip(&m.n) {
-                let bump = 0.04 * ((7.0 * n[0]).sin() * (5.0 * n[1]).cos() + (9.0 * n[2]).sin());
-                for k in 0..3 {
-                    p[k] += bump * n[k];
+        (
+            "rock".into(),
+            {
+                let mut m = sphere([0.0, 0.35, 0.0], 0.35, 160, 80, false);
+                for (p, n) in m.p.iter_mut().zip(&m.n) {
+                    let bump = 0.04 * ((7.0 * n[0]).sin() * (5.0 * n[1]).cos() + (9.0 * n[2]).sin());
+                    for k in 0..3 {
+                        p[k] += bump * n[k];
+                    }
                 }
-            }
-            m
-        }, grid_uv(160, 80, 5.0), 0.0),
+                m
+            },
+            grid_uv(160, 80, 5.0),
+            0.0,
+        ),
     ];
     let mut meshes = vec![];
     for (k, (name, mesh, uv, metallic)) in kinds.into_iter().enumerate() {

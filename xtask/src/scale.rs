@@ -3,11 +3,11 @@
 //! the process's peak resident memory), and reports per step its wall time, peak
 //! memory, and the scene load and BVH build times the stage prints.
 
-use xtask::run::RunArgs;
-use xtask::stages::Bins;
 use anyhow::{Context, Result, bail};
 use std::path::Path;
 use std::process::Command;
+use xtask::run::RunArgs;
+use xtask::stages::Bins;
 
 /// Options of `cargo xtask scale`.
 #[derive(clap::Args, Debug)]
@@ -76,7 +76,9 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         println!("  {}: {:.2} s, peak {:.0} MB", row.step, row.wall, row.peak_mb);
         rows.push(row);
     }
-    println!("\n| step | wall time [s] | peak memory [MB] | scene load [s] | of which BVH [s] |\n|---|---|---|---|---|");
+    println!(
+        "\n| step | wall time [s] | peak memory [MB] | scene load [s] | of which BVH [s] |\n|---|---|---|---|---|"
+    );
     for r in &rows {
         let (load, bvh) = match r.load {
             Some((tris, l, b)) => (format!("{l:.2} ({tris} triangles)"), format!("{b:.2}")),

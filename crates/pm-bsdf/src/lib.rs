@@ -17,7 +17,6 @@ use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 mod albedo;
 
-
 /// One scattering model. Built once per material by the scene crate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Bsdf {

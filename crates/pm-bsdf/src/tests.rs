@@ -140,7 +140,9 @@ fn gltf_dielectric_keeps_its_specular_layer_and_conserves_energy() {
     for roughness in [0.1f32, 0.5, 1.0] {
         let b = Bsdf::from_pbr(&Pbr { roughness, ..white });
         let Bsdf::Plastic { f0, weight, alpha, .. } = b else { panic!("roughness {roughness}: {b:?}") };
-        assert!((f0 - Rgb::splat(0.04)).length() < 1e-6 && weight == 1.0 && alpha == (roughness * roughness).max(MIN_ALPHA));
+        assert!(
+            (f0 - Rgb::splat(0.04)).length() < 1e-6 && weight == 1.0 && alpha == (roughness * roughness).max(MIN_ALPHA)
+        );
         for cos in [1.0f32, 0.7, 0.3, 0.1, 0.03] {
             let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
             // Importance-sampled (the quadrature of a peaked lobe is too noisy here;
@@ -156,4 +158,3 @@ fn gltf_dielectric_keeps_its_specular_layer_and_conserves_energy() {
     let Bsdf::Plastic { f0, .. } = tinted else { panic!("{tinted:?}") };
     assert!((f0 - Rgb::new(2.0 / 9.0, 1.0 / 9.0, 0.0)).length() < 1e-6, "{f0}");
 }
-

@@ -271,7 +271,15 @@ pub fn trace(
                     // sphere lost 13% of its indirect light that way).
                     let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
                     let (r_xy, r_z) = kernel.radii(density);
-                    out.push(VolumePhoton { p: hit.p, n, wi: wo, power: power / scene.store_probability(&hit), r_xy, r_z, caustic });
+                    out.push(VolumePhoton {
+                        p: hit.p,
+                        n,
+                        wi: wo,
+                        power: power / scene.store_probability(&hit),
+                        r_xy,
+                        r_z,
+                        caustic,
+                    });
                 }
                 let Some((bs, factor)) = pm_photon::scatter(&bsdf, &hit, wo, &mut s) else { break };
                 power *= factor;

@@ -216,8 +216,14 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
                 if caustic {
                     f |= flags::CAUSTIC;
                 }
-                let photon =
-                    Photon { position: hit.p, power: phi / scene.store_probability(&hit), wi: wo, flags: f, normal: side_n, irradiance: Rgb::ZERO };
+                let photon = Photon {
+                    position: hit.p,
+                    power: phi / scene.store_probability(&hit),
+                    wi: wo,
+                    flags: f,
+                    normal: side_n,
+                    irradiance: Rgb::ZERO,
+                };
                 out.photons.push((photon, bounce));
             }
             if cfg.pass == MapPass::Caustic {

@@ -94,7 +94,8 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
             let y1 = ((hi.y - 0.5).floor() + 1.0).min(rect.y1 as f32).max(y0 as f32) as u32;
             if y0 < y1 {
                 let alpha = scene.has_alpha() && scene.materials[tri.material as usize].has_alpha();
-                *slot = Some(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, alpha, y0, y1 });
+                *slot =
+                    Some(ScreenTri { s, inv_z: poly_v.map(|q| 1.0 / q.z), b: poly_b, tri: t as u32, alpha, y0, y1 });
             }
         }
         kept.into_iter().flatten()

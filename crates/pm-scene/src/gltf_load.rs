@@ -5,8 +5,8 @@
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
 use crate::{
-    AlphaMode, Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, TextureRef, Triangle,
-    Wrap,
+    AlphaMode, Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, TextureRef,
+    Triangle, Wrap,
 };
 use glam::{DMat4, DVec3, Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use pm_bsdf::{Bsdf, Pbr};
@@ -95,7 +95,8 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
 
     // Textures: decoded once per image, wrapping and colour space, only when a
     // material reads them.
-    let mut texture_loader = TextureLoader { base_dir, buffers: &buffers, textures: Vec::new(), cache: Default::default() };
+    let mut texture_loader =
+        TextureLoader { base_dir, buffers: &buffers, textures: Vec::new(), cache: Default::default() };
     // Per material, whether a texture reads TEXCOORD_1 (only then is it read).
     let mut uv1_needed: Vec<bool> = Vec::new();
     // Per material, the TEXCOORD_n set its normal texture reads (tangents are needed
@@ -188,7 +189,10 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     ));
                 }
                 if !nt.scale().is_finite() {
-                    return Err(content(format!("material '{name}': normal texture scale {} is not finite", nt.scale())));
+                    return Err(content(format!(
+                        "material '{name}': normal texture scale {} is not finite",
+                        nt.scale()
+                    )));
                 }
                 (Some(r), nt.scale())
             }
@@ -210,7 +214,9 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             gltf::material::AlphaMode::Mask => {
                 let cutoff = m.alpha_cutoff().unwrap_or(0.5);
                 if !cutoff.is_finite() || cutoff < 0.0 {
-                    return Err(content(format!("material '{name}': alphaCutoff {cutoff} is not a non-negative number")));
+                    return Err(content(format!(
+                        "material '{name}': alphaCutoff {cutoff} is not a non-negative number"
+                    )));
                 }
                 AlphaMode::Mask { cutoff }
             }
@@ -341,7 +347,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                         instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
                             .map_err(|m| content(format!("{what}: {m}")))?;
                         if rest.len() == triangles.len() - first {
-                            animation.meshes.push(AnimatedMesh { object: objects.len(), node: node.index(), local: rest });
+                            animation.meshes.push(AnimatedMesh {
+                                object: objects.len(),
+                                node: node.index(),
+                                local: rest,
+                            });
                         } else {
                             warnings.push(format!(
                                 "node '{node_name}': its triangles degenerate differently at rest; not animated"
@@ -657,8 +667,11 @@ fn decode_primitive(
     let read_uv = |set: u32| reader.read_tex_coords(set).map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>());
     let uvs = if uv_acc.is_some() { read_uv(0) } else { None };
     let uvs1 = if uv1_acc.is_some() { read_uv(1) } else { None };
-    let colors: Option<Vec<Vec4>> =
-        if color_acc.is_some() { reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect()) } else { None };
+    let colors: Option<Vec<Vec4>> = if color_acc.is_some() {
+        reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect())
+    } else {
+        None
+    };
     if let Some(c) = &colors
         && let Some(i) = c.iter().position(|c| !c.is_finite() || c.min_element() < 0.0)
     {

@@ -304,10 +304,13 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
                     *pdf_area = tris
                         .clone()
                         .zip(&weights)
-                        .map(|(t, w)| if total > 0.0 { (w / total) as f32 / scene.triangles[t as usize].area } else { 0.0 })
+                        .map(
+                            |(t, w)| {
+                                if total > 0.0 { (w / total) as f32 / scene.triangles[t as usize].area } else { 0.0 }
+                            },
+                        )
                         .collect();
-                    let power: Rgb =
-                        tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area).sum();
+                    let power: Rgb = tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area).sum();
                     power * (PI * sides)
                 } else {
                     *emission * (PI * *area * sides)

@@ -262,4 +262,3 @@ fn axis_aligned_rays_hit_from_outside_and_inside_the_scene() {
         assert!(s.occluded(o, d, f32::INFINITY), "shadow ray from {o} along {d}");
     }
 }
-
