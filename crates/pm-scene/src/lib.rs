@@ -81,6 +81,12 @@ pub struct Triangle {
 }
 
 impl Triangle {
+    /// The corners' texture coordinates of set `set` (TEXCOORD_0 or TEXCOORD_1), when
+    /// the mesh has them.
+    pub fn uvs(&self, set: u8) -> Option<&[Vec2; 3]> {
+        if set == 1 { self.uv1.as_ref() } else { self.uv.as_ref() }
+    }
+
     /// Swap corners 1 and 2 of the per-vertex attributes (a mirroring transform
     /// reverses the winding).
     fn swap_corners(&mut self) {
@@ -228,12 +234,6 @@ impl Texture {
         let (i, j) = (x0 as i64, y0 as i64);
         (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
             + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy
-    }
-
-    /// Bilinear lookup of linear RGB.
-    pub fn sample_rgb(&self, uv: Vec2) -> Rgb {
-        let c = self.sample(uv);
-        Rgb::new(c.x, c.y, c.z)
     }
 }
 
@@ -957,23 +957,23 @@ impl Scene {
         let uv = tr.uv.as_ref().map_or(Vec2::ZERO, lerp);
         let uv1 = tr.uv1.as_ref().map_or(Vec2::ZERO, lerp);
         let color = tr.color.map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
-        let mut ns = tr.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng));
+        let ns = tr.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng));
+        let mut hit = Hit { t, tri, b, p, ng, ns, uv, uv1, color };
         let m = &self.materials[tr.material as usize];
         if let (Some(nt), Some(tg)) = (&m.normal_texture, &tr.tangent) {
             let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
             let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
             if tangent != Vec3::ZERO {
                 let bitangent = ns.cross(tangent) * if tg[0].w < 0.0 { -1.0 } else { 1.0 };
-                let tuv = if nt.uv_set == 1 { uv1 } else { uv };
-                let c = self.textures[nt.texture as usize].sample(nt.transform.transform_point2(tuv));
+                let c = self.lookup(nt, &hit);
                 let v = (c.truncate() * 2.0 - Vec3::ONE) * Vec3::new(m.normal_scale, m.normal_scale, 1.0);
-                ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
+                hit.ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
             }
         }
-        if ns.dot(ng) < 0.0 {
-            ns = -ns;
+        if hit.ns.dot(ng) < 0.0 {
+            hit.ns = -hit.ns;
         }
-        Hit { t, tri, b, p, ng, ns, uv, uv1, color }
+        hit
     }
 
     /// Alpha at barycentrics `b` of triangle `tri`: baseColorFactor's alpha times the
@@ -981,11 +981,9 @@ impl Scene {
     pub fn alpha(&self, tri: u32, b: [f32; 3]) -> f32 {
         let tr = &self.triangles[tri as usize];
         let m = &self.materials[tr.material as usize];
-        let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
         let mut a = m.base_alpha;
         if let Some(t) = &m.base_texture {
-            let uv = if t.uv_set == 1 { tr.uv1.as_ref() } else { tr.uv.as_ref() }.map_or(Vec2::ZERO, lerp);
-            a *= self.textures[t.texture as usize].sample(t.transform.transform_point2(uv)).w;
+            a *= self.sample_at(t, tr, b).w;
         }
         if let Some(c) = tr.color {
             a *= c[0].w * b[0] + c[1].w * b[1] + c[2].w * b[2];
@@ -1050,7 +1048,15 @@ impl Scene {
     /// Linear RGBA of texture `t` at a hit.
     #[inline]
     pub fn lookup(&self, t: &TextureRef, hit: &Hit) -> glam::Vec4 {
+        // The hit's interpolated coordinates: the same value as `sample_at`.
         let uv = if t.uv_set == 1 { hit.uv1 } else { hit.uv };
+        self.textures[t.texture as usize].sample(t.transform.transform_point2(uv))
+    }
+
+    /// Linear RGBA of texture `t` at barycentrics `b` of triangle `tr` (for queries
+    /// that have no [`Hit`]: alpha tests during traversal, light sampling).
+    pub fn sample_at(&self, t: &TextureRef, tr: &Triangle, b: [f32; 3]) -> glam::Vec4 {
+        let uv = tr.uvs(t.uv_set).map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
         self.textures[t.texture as usize].sample(t.transform.transform_point2(uv))
     }
 
@@ -1122,11 +1128,7 @@ impl Scene {
         let tr = &self.triangles[tri as usize];
         let m = &self.materials[tr.material as usize];
         match &m.emissive_texture {
-            Some(t) => {
-                let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
-                let uv = if t.uv_set == 1 { tr.uv1.as_ref() } else { tr.uv.as_ref() }.map_or(Vec2::ZERO, lerp);
-                m.emission * self.textures[t.texture as usize].sample_rgb(t.transform.transform_point2(uv))
-            }
+            Some(t) => m.emission * self.sample_at(t, tr, b).truncate(),
             None => m.emission,
         }
     }
@@ -1140,8 +1142,7 @@ impl Scene {
         let m = &self.materials[tr.material as usize];
         let Some(t) = &m.emissive_texture else { return m.emission };
         let tex = &self.textures[t.texture as usize];
-        let uv = if t.uv_set == 1 { tr.uv1 } else { tr.uv }.unwrap_or([Vec2::ZERO; 3]);
-        let uv = uv.map(|q| t.transform.transform_point2(q));
+        let uv = tr.uvs(t.uv_set).copied().unwrap_or([Vec2::ZERO; 3]).map(|q| t.transform.transform_point2(q));
         let texels = 0.5 * (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs() * (tex.width * tex.height) as f32;
         let n = ((2.0 * texels.sqrt()).ceil() as u32).clamp(4, 64);
         let mut sum = glam::DVec3::ZERO;

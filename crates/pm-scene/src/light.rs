@@ -25,9 +25,10 @@ pub enum LightKind {
         /// Emitted radiance L_e [W sr^-1 m^-2 per channel] of the material's factors
         /// (an emissive texture varies it over the surface).
         emission: Rgb,
-        /// For a textured emitter, per triangle the area density of picking a point
-        /// on it, p_tri / A_tri [m^-2]; empty for a uniform emitter (1 / area).
-        pdf_area: Vec<f32>,
+        /// For a textured emitter, per triangle the area one pick of a point on it
+        /// stands for, A_tri / p_tri [m^2] (the inverse of its area density); empty
+        /// for a uniform emitter, where every pick stands for `area`.
+        area_per_pick: Vec<f32>,
         /// Both faces emit.
         two_sided: bool,
     },
@@ -124,7 +125,7 @@ impl Light {
                 cdf,
                 area: acc as f32,
                 emission: material.emission,
-                pdf_area: Vec::new(),
+                area_per_pick: Vec::new(),
                 two_sided: material.double_sided,
             },
             power: Rgb::ZERO,
@@ -164,20 +165,8 @@ impl Light {
             Some(to_world(uniform_cone(u_dir, cos_max), (t.center - o).normalize()))
         };
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
-                let i = sample_cdf(cdf, u_sel);
-                let id = tris.start + i as u32;
-                let tri = &scene.triangles[id as usize];
-                let b = pm_sampling::uniform_triangle(u_pos);
-                let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
-                // Radiance at the point, and the area its pick stands for (1 / pdf_pos).
-                let (emission, area) = match pdf_area.get(i) {
-                    Some(&pdf) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), 1.0 / pdf),
-                    None => (*emission, *area),
-                };
-                if emission == Rgb::ZERO {
-                    return None;
-                }
+            LightKind::Area { two_sided, .. } => {
+                let AreaPick { tri, p, le: emission, area, .. } = self.pick_area_point(scene, u_sel, u_pos)?;
                 let (n, sides) = if *two_sided && u_tgt < 0.5 && targets.is_empty() {
                     (-tri.ng, 2.0)
                 } else if *two_sided {
@@ -251,6 +240,37 @@ impl Light {
     }
 }
 
+/// A point picked on an area light (see [`Light::pick_area_point`]).
+struct AreaPick<'s> {
+    /// Its triangle.
+    tri: &'s crate::Triangle,
+    /// The point [m].
+    p: Vec3,
+    /// Emitted radiance there L_e [W sr^-1 m^-2 per channel] (not zero).
+    le: Rgb,
+    /// The area the pick stands for, 1 / (its area density) [m^2].
+    area: f32,
+}
+
+impl Light {
+    /// Pick a point on an area light: a triangle from the light's cdf (by area, or by
+    /// emitted power for a textured emitter), then a uniform point on it. `None` for
+    /// other lights and where the point emits nothing.
+    fn pick_area_point<'s>(&self, scene: &'s Scene, u_sel: f32, u: glam::Vec2) -> Option<AreaPick<'s>> {
+        let LightKind::Area { tris, cdf, area, emission, area_per_pick, .. } = &self.kind else { return None };
+        let i = sample_cdf(cdf, u_sel);
+        let id = tris.start + i as u32;
+        let tri = &scene.triangles[id as usize];
+        let b = pm_sampling::uniform_triangle(u);
+        let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
+        let (le, area) = match area_per_pick.get(i) {
+            Some(&a) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), a),
+            None => (*emission, *area),
+        };
+        (le != Rgb::ZERO).then_some(AreaPick { tri, p, le, area })
+    }
+}
+
 /// cos of the half-angle of the cone from `o` that bounds target `t`; None if `o` is
 /// inside the sphere (the caller then cannot aim).
 fn cone_cos(o: Vec3, t: &Target) -> Option<f32> {
@@ -277,7 +297,7 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
     let mut lights = std::mem::take(&mut scene.lights);
     for light in &mut lights {
         light.power = match &mut light.kind {
-            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, two_sided } => {
                 let sides = if *two_sided { 2.0 } else { 1.0 };
                 let textured = scene
                     .triangles
@@ -301,14 +321,18 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
                             acc
                         })
                         .collect();
-                    *pdf_area = tris
+                    // A triangle (or light) that emits nothing is never picked: its area
+                    // density is zero, the area per pick infinite.
+                    *area_per_pick = tris
                         .clone()
                         .zip(&weights)
-                        .map(
-                            |(t, w)| {
-                                if total > 0.0 { (w / total) as f32 / scene.triangles[t as usize].area } else { 0.0 }
-                            },
-                        )
+                        .map(|(t, w)| {
+                            if total > 0.0 {
+                                scene.triangles[t as usize].area / (w / total) as f32
+                            } else {
+                                f32::INFINITY
+                            }
+                        })
                         .collect();
                     let power: Rgb = tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area).sum();
                     power * (PI * sides)
@@ -352,12 +376,8 @@ impl Light {
     /// Area lights are sampled uniformly by area and converted to solid angle.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, pdf_area, two_sided } => {
-                let i = sample_cdf(cdf, u_sel);
-                let id = tris.start + i as u32;
-                let tri = &scene.triangles[id as usize];
-                let b = pm_sampling::uniform_triangle(u);
-                let q = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
+            LightKind::Area { two_sided, .. } => {
+                let AreaPick { tri, p: q, le, area } = self.pick_area_point(scene, u_sel, u)?;
                 let d = q - p;
                 let dist2 = d.length_squared();
                 if !(dist2 > 0.0) {
@@ -370,11 +390,7 @@ impl Light {
                 if cos_l <= 0.0 {
                     return None;
                 }
-                let (li, pdf) = match pdf_area.get(i) {
-                    Some(&pa) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), dist2 * pa / cos_l),
-                    None => (*emission, dist2 / (cos_l * area)),
-                };
-                (li != Rgb::ZERO).then_some(LightSample { wi, dist, li, pdf, delta: false })
+                Some(LightSample { wi, dist, li: le, pdf: dist2 / (cos_l * area), delta: false })
             }
             LightKind::Point { position, intensity } => {
                 let d = *position - p;
@@ -406,15 +422,15 @@ impl Light {
     /// punctual lights and triangles that are not part of this light.
     pub fn pdf_li(&self, scene: &Scene, wi: Vec3, dist: f32, tri: u32) -> f32 {
         match &self.kind {
-            LightKind::Area { tris, area, pdf_area, two_sided, .. } => {
+            LightKind::Area { tris, area, area_per_pick, two_sided, .. } => {
                 if !tris.contains(&tri) {
                     return 0.0;
                 }
                 let t = &scene.triangles[tri as usize];
                 let cos_l = -wi.dot(t.ng);
                 let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                let pa = pdf_area.get((tri - tris.start) as usize).map_or(1.0 / area, |&p| p);
-                if cos_l <= 0.0 { 0.0 } else { dist * dist * pa / cos_l }
+                let area = area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
+                if cos_l <= 0.0 { 0.0 } else { dist * dist / (cos_l * area) }
             }
             _ => 0.0,
         }
