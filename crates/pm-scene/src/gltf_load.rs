@@ -144,31 +144,34 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             specular_color,
         };
         let bsdf = Bsdf::from_pbr(&factors);
+        // Every texture a material reads, with its coordinate set and transform.
         let mut uses_uv1 = false;
-        let mut texture = |info: Option<gltf::texture::Info>, srgb: bool, what: &str| -> Result<_, SceneError> {
-            let Some(info) = info else { return Ok(None) };
-            let transform =
-                info.texture_transform().map(|t| (uv_transform(t.offset(), t.rotation(), t.scale()), t.tex_coord()));
-            let r = texture_loader
-                .texture_ref(info.texture(), info.tex_coord(), transform, srgb)
+        let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, SceneError> {
+            let Some((texture, tex_coord, transform)) = source else { return Ok(None) };
+            let (r, above) = texture_loader
+                .texture_ref(texture, tex_coord, transform, srgb)
                 .map_err(|e| content(format!("material '{name}': {what} texture: {e}")))?;
-            if r.1 {
+            if above {
                 warnings.push(format!(
                     "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
                 ));
             }
-            uses_uv1 |= r.0.uv_set == 1;
-            Ok(Some(r.0))
+            uses_uv1 |= r.uv_set == 1;
+            Ok(Some(r))
         };
-        let base_texture = texture(pbr.base_color_texture(), true, "base colour")?;
-        let metallic_roughness_texture = texture(pbr.metallic_roughness_texture(), false, "metallicRoughness")?;
-        let emissive_texture = texture(m.emissive_texture(), true, "emissive")?;
-        let specular_texture = texture(m.specular().and_then(|s| s.specular_texture()), false, "specular")?;
+        let base_texture = texture(info(pbr.base_color_texture()), true, "base colour")?;
+        let metallic_roughness_texture = texture(info(pbr.metallic_roughness_texture()), false, "metallicRoughness")?;
+        let emissive_texture = texture(info(m.emissive_texture()), true, "emissive")?;
+        let specular_texture = texture(info(m.specular().and_then(|s| s.specular_texture())), false, "specular")?;
         let specular_color_texture =
-            texture(m.specular().and_then(|s| s.specular_color_texture()), true, "specular colour")?;
-        let (normal_texture, normal_scale) = match m.normal_texture() {
-            None => (None, 1.0),
-            Some(nt) => {
+            texture(info(m.specular().and_then(|s| s.specular_color_texture())), true, "specular colour")?;
+        let normal = m.normal_texture();
+        let normal_scale = normal.as_ref().map_or(1.0, |nt| nt.scale());
+        if !normal_scale.is_finite() {
+            return Err(content(format!("material '{name}': normal texture scale {normal_scale} is not finite")));
+        }
+        let normal_texture = texture(
+            normal.map(|nt| {
                 // KHR_texture_transform on a normal texture is only in its JSON.
                 let transform = nt.extension_value("KHR_texture_transform").map(|t| {
                     let pair = |k: &str, d: f32| {
@@ -180,23 +183,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
                     let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
                     (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
                 });
-                let (r, above) = texture_loader
-                    .texture_ref(nt.texture(), nt.tex_coord(), transform, false)
-                    .map_err(|e| content(format!("material '{name}': normal texture: {e}")))?;
-                if above {
-                    warnings.push(format!(
-                        "material '{name}': normal texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
-                    ));
-                }
-                if !nt.scale().is_finite() {
-                    return Err(content(format!(
-                        "material '{name}': normal texture scale {} is not finite",
-                        nt.scale()
-                    )));
-                }
-                (Some(r), nt.scale())
-            }
-        };
+                (nt.texture(), nt.tex_coord(), transform)
+            }),
+            false,
+            "normal",
+        )?;
         // What is not read, said once per material: material extensions the loader
         // does not know (clearcoat, sheen, iridescence, ...), then textures.
         if let Some(ext) = m.extensions() {
@@ -248,7 +239,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         if !pm_color::is_valid(emission) {
             return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
         }
-        uv1_needed.push(uses_uv1 || normal_texture.is_some_and(|t| t.uv_set == 1));
+        uv1_needed.push(uses_uv1);
         tangent_sets.push(normal_texture.map(|t| t.uv_set));
         materials.push(Material {
             name,
@@ -813,6 +804,19 @@ fn mikktspace_tangents(positions: &[Vec3], normals: Option<&[Vec3]>, uvs: &[Vec2
     // The error type has no variants: generation cannot fail.
     let _ = bevy_mikktspace::generate_tangents(&mut mesh);
     mesh.out
+}
+
+/// A texture as a material names it: the texture, its TEXCOORD_n, and its
+/// KHR_texture_transform (matrix, and the transform's own set if it names one).
+type TextureSource<'a> = (gltf::Texture<'a>, u32, Option<(glam::Affine2, Option<u32>)>);
+
+/// The [`TextureSource`] of a texture reference.
+fn info(i: Option<gltf::texture::Info<'_>>) -> Option<TextureSource<'_>> {
+    i.map(|i| {
+        let transform =
+            i.texture_transform().map(|t| (uv_transform(t.offset(), t.rotation(), t.scale()), t.tex_coord()));
+        (i.texture(), i.tex_coord(), transform)
+    })
 }
 
 /// The textures materials read, each image decoded once per wrapping and colour space.
