@@ -54,9 +54,7 @@ impl Doc {
     }
 
     fn vec3_accessor(&mut self, v: &[[f32; 3]], with_bounds: bool) -> usize {
-        let bytes: Vec<u8> = v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
-        let view = self.push_view(&bytes, 34962);
-        let mut acc = json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3"});
+        let i = self.vec_accessor(v, "VEC3");
         if with_bounds {
             let mut lo = [f32::INFINITY; 3];
             let mut hi = [f32::NEG_INFINITY; 3];
@@ -66,11 +64,10 @@ impl Doc {
                     hi[k] = hi[k].max(p[k]);
                 }
             }
-            acc["min"] = json!(lo);
-            acc["max"] = json!(hi);
+            self.accessors[i]["min"] = json!(lo);
+            self.accessors[i]["max"] = json!(hi);
         }
-        self.accessors.push(acc);
-        self.accessors.len() - 1
+        i
     }
 
     /// Key times [s] of an animation (a SCALAR float accessor with the min and max the
@@ -123,11 +120,7 @@ impl Doc {
 
     /// Add a mesh with one primitive and a node for it.
     fn mesh_node(&mut self, name: &str, mesh: &Mesh, material: usize) {
-        let pos = self.vec3_accessor(&mesh.p, true);
-        let nrm = self.vec3_accessor(&mesh.n, false);
-        let idx = self.index_accessor(&mesh.idx);
-        self.meshes.push(json!({"name": name, "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "material": material}]}));
-        self.nodes.push(json!({"name": name, "mesh": self.meshes.len() - 1}));
+        self.mesh_node_attrs(name, mesh, &Attrs::default(), material);
     }
 
     /// A texture of RGBA texels with the sampler's wrap modes (glTF enums); its index.
@@ -137,6 +130,7 @@ impl Doc {
         self.images.len() - 1
     }
 
+    /// A float vertex accessor of N-vectors (`ty` VEC2, VEC3 or VEC4); its index.
     fn vec_accessor<const N: usize>(&mut self, v: &[[f32; N]], ty: &str) -> usize {
         let bytes: Vec<u8> = v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
         let view = self.push_view(&bytes, 34962);
