@@ -449,6 +449,20 @@ fn emitted_photons(s: &Scene) -> Vec<pm_format::Photon> {
     pm_photon::trace(s, &cfg, &|_| {}).unwrap().photons
 }
 
+/// The mean radiance [W sr^-1 m^-2 per channel] of an 8 x 8 image of `s` from the
+/// path tracer (`path_spp` samples per pixel) and the photon-map renderer
+/// (`full_spp`, over 20,000 global photons).
+fn mean_seen(s: &Scene, path_spp: u32, full_spp: u32) -> [(pm_render::Method, Rgb); 2] {
+    let maps = pm_tests::photon_maps(s, 20_000, 0, 0.25);
+    [(pm_render::Method::Path, path_spp), (pm_render::Method::Full, full_spp)].map(|(method, spp)| {
+        let mut cfg = pm_tests::render_params(method, 8, 8);
+        cfg.spp = spp;
+        let (img, _) = pm_tests::render(s, &maps, &cfg);
+        let px = img.layer("total").unwrap();
+        (method, px.iter().copied().sum::<Rgb>() / px.len() as f32)
+    })
+}
+
 /// An absorbing glass slab (KHR_materials_volume's attenuation): a closed box 0.4 m
 /// thick, ior 1.5, sigma_a = (1, 2, 0.5) m^-1, over a floor, seen and lit straight
 /// down. At normal incidence each face reflects R = ((1.5 - 1) / (1.5 + 1))^2 = 0.04,
@@ -487,14 +501,7 @@ fn absorbing_glass_transmits_the_beer_lambert_fraction() {
     // The clear slab would give (1 - R)^2 / (1 - R^2): the test can tell.
     assert!(rel(Rgb::splat((1.0 - r) * (1.0 - r) / (1.0 - r * r)), want) > 0.2);
     // Eye paths.
-    let seen = build(1.0, false);
-    let maps = pm_tests::photon_maps(&seen, 20_000, 0, 0.25);
-    for (method, spp) in [(pm_render::Method::Path, 64), (pm_render::Method::Full, 4)] {
-        let mut cfg = pm_tests::render_params(method, 8, 8);
-        cfg.spp = spp;
-        let (img, _) = pm_tests::render(&seen, &maps, &cfg);
-        let px = img.layer("total").unwrap();
-        let mean = px.iter().copied().sum::<Rgb>() / px.len() as f32;
+    for (method, mean) in mean_seen(&build(1.0, false), 64, 4) {
         assert!(rel(mean, want) < 0.02, "{method:?}: {mean} through the slab, want {want}");
     }
 }
@@ -675,14 +682,8 @@ fn partial_transmission_mixes_glass_and_the_base() {
     let (floor, sheet) = (density(0.0), density(0.5));
     assert!((floor / want - 1.0).abs() < 0.03, "photons: {floor} W/m^2 on the floor, want {want}");
     assert!((sheet - 1.0).abs() < 0.03, "photons: the sheet stores {sheet} W/m^2 of 1");
-    let seen = build(1.0, false);
-    let maps = pm_tests::photon_maps(&seen, 20_000, 0, 0.25);
-    for (method, spp) in [(pm_render::Method::Path, 256), (pm_render::Method::Full, 64)] {
-        let mut cfg = pm_tests::render_params(method, 8, 8);
-        cfg.spp = spp;
-        let (img, _) = pm_tests::render(&seen, &maps, &cfg);
-        let px = img.layer("total").unwrap();
-        let mean = px.iter().map(|p| p.x).sum::<f32>() / px.len() as f32;
+    for (method, mean) in mean_seen(&build(1.0, false), 256, 64) {
+        let mean = mean.x;
         assert!((mean / want - 1.0).abs() < 0.03, "{method:?}: {mean} through the sheet, want {want}");
     }
 }
