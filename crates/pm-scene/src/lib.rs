@@ -23,7 +23,7 @@ mod select;
 
 pub use anim::Animation;
 pub use effects::{Decision, Effects, analyze};
-pub use geometry::{intersect_triangle, offset_ray_origin};
+pub use geometry::{TriangleRay, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};
 pub use select::{LightSelectError, LightSelector};
@@ -898,9 +898,10 @@ impl Scene {
         let (ray, scale) = self.bvh_ray(o, d, t_max);
         let mut hit = obvhs::ray::RayHit::none();
         let mut best_b = [0.0; 3];
+        let tri_ray = TriangleRay::new(o, d);
         let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
             let bt = &self.bvh_tris[id];
-            match intersect_triangle(o, d, &bt.p, r.tmax * scale) {
+            match tri_ray.hit(&bt.p, r.tmax * scale) {
                 Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => {
                     best_b = b;
                     t * self.bvh_inv_scale
@@ -914,7 +915,7 @@ impl Scene {
             return None;
         }
         let bt = &self.bvh_tris[hit.primitive_id as usize];
-        let (t, b) = intersect_triangle(o, d, &bt.p, f32::INFINITY).unwrap_or((hit.t, best_b));
+        let (t, b) = tri_ray.hit(&bt.p, f32::INFINITY).unwrap_or((hit.t, best_b));
         Some(self.make_hit(bt.id, t, b))
     }
 
@@ -924,9 +925,10 @@ impl Scene {
             return false;
         };
         let (ray, scale) = self.bvh_ray(o, d, t_max);
+        let tri_ray = TriangleRay::new(o, d);
         !bvh.ray_traverse_miss(ray, |r, id| {
             let bt = &self.bvh_tris[id];
-            match intersect_triangle(o, d, &bt.p, r.tmax * scale) {
+            match tri_ray.hit(&bt.p, r.tmax * scale) {
                 Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => t * self.bvh_inv_scale,
                 _ => f32::INFINITY,
             }
