@@ -220,24 +220,28 @@ pub fn precomputed_irradiance<R: PhotonRecord>(
     max_d2: f32,
     rejected: &mut Vec<f32>,
 ) -> Option<(Rgb, Nearest)> {
-    precomputed_irradiance_where(tree, x, n, max_d2, rejected, |_| true)
+    precomputed_irradiance_where(tree, x, n, max_d2, rejected, |_| true, 0)
 }
 
-/// [`precomputed_irradiance`] with an extra condition on the photon, tested in order
-/// of distance after the cheap ones (the renderer passes a visibility test, so a
-/// photon on the other side of a thin wall is not used).
+/// [`precomputed_irradiance`] with an extra condition on the photon, asked only of
+/// the nearest photon passing the cheap ones, then of the next nearest if it fails,
+/// at most `max_refusals` times (the renderer passes a visibility test, so a photon
+/// on the other side of a thin wall is not used).
 pub fn precomputed_irradiance_where<R: PhotonRecord>(
     tree: &KdTree<R>,
     x: Vec3,
     n: Vec3,
     max_d2: f32,
     rejected: &mut Vec<f32>,
-    extra: impl Fn(&R) -> bool,
+    extra: impl FnMut(&R) -> bool,
+    max_refusals: u32,
 ) -> Option<(Rgb, Nearest)> {
-    let hit = tree.nearest(
+    let hit = tree.nearest_where(
         x,
         max_d2,
-        |r| r.flags() & flags::HAS_IRRADIANCE != 0 && r.normal().dot(n) > SIMILAR_NORMAL_COS && extra(r),
+        |r| r.flags() & flags::HAS_IRRADIANCE != 0 && r.normal().dot(n) > SIMILAR_NORMAL_COS,
+        extra,
+        max_refusals,
         rejected,
     )?;
     Some((tree.nodes()[hit.index as usize].irradiance(), hit))

@@ -352,25 +352,74 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         accept: impl Fn(&R) -> bool,
         rejected: &mut Vec<f32>,
     ) -> Option<Nearest> {
+        self.nearest_where(x, max_d2, accept, |_| true, 0, rejected)
+    }
+
+    /// The nearest photon within `max_d2` that satisfies both `cheap` and `costly`,
+    /// where `costly` (a shadow ray) is asked only of the photon that is nearest among
+    /// those passing `cheap`: if it refuses, that photon is set aside and the search
+    /// repeated, up to `max_refusals` times (then there is no result). A single search
+    /// asking both of every closer candidate it meets asked `costly` of each photon
+    /// that improved on the best so far (several per query). `rejected` is scratch for the rank statistic: the rank is one more than the
+    /// photons closer than the result that failed either test.
+    pub fn nearest_where(
+        &self,
+        x: Vec3,
+        max_d2: f32,
+        cheap: impl Fn(&R) -> bool,
+        mut costly: impl FnMut(&R) -> bool,
+        max_refusals: u32,
+        rejected: &mut Vec<f32>,
+    ) -> Option<Nearest> {
         rejected.clear();
-        let mut best: Option<(u32, f32)> = None;
-        self.search(x, max_d2, |i, r, d2| {
-            if best.is_some_and(|(_, b)| d2 >= b) {
-                return best.map_or(max_d2, |b| b.1);
+        let mut set_aside: Vec<u32> = Vec::new();
+        // Cheap failures nearer than `floor` were recorded by an earlier pass.
+        let mut floor = f32::NEG_INFINITY;
+        loop {
+            let pass_start = rejected.len();
+            let mut best: Option<(u32, f32)> = None;
+            self.search(x, max_d2, |i, r, d2| {
+                let radius = best.map_or(max_d2, |b| b.1);
+                if best.is_some() && d2 >= radius {
+                    return radius;
+                }
+                if !cheap(r) {
+                    if d2 >= floor {
+                        rejected.push(d2);
+                    }
+                    radius
+                } else if set_aside.contains(&i) {
+                    radius
+                } else {
+                    best = Some((i, d2));
+                    d2
+                }
+            });
+            let (index, dist2) = best?;
+            // This pass's cheap failures at or beyond its result are met again by the
+            // next pass, if there is one; keep each photon counted once.
+            let mut k = pass_start;
+            for j in pass_start..rejected.len() {
+                if rejected[j] < dist2 {
+                    rejected[k] = rejected[j];
+                    k += 1;
+                }
             }
-            if accept(r) {
-                best = Some((i, d2));
-                d2
-            } else {
-                rejected.push(d2);
-                best.map_or(max_d2, |b| b.1)
+            rejected.truncate(k);
+            if costly(&self.nodes[index as usize]) {
+                return Some(Nearest {
+                    index,
+                    dist2,
+                    rank: 1 + rejected.iter().filter(|&&d| d < dist2).count() as u32,
+                });
             }
-        });
-        best.map(|(index, dist2)| Nearest {
-            index,
-            dist2,
-            rank: 1 + rejected.iter().filter(|&&d| d < dist2).count() as u32,
-        })
+            if set_aside.len() as u32 >= max_refusals {
+                return None;
+            }
+            rejected.push(dist2);
+            set_aside.push(index);
+            floor = dist2;
+        }
     }
 
     /// Call `f(index, record, dist2)` for every used photon within `max_d2` of `x`.

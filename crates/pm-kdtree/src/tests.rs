@@ -81,6 +81,55 @@ fn check_all_queries<R: PhotonRecord>(
                         .count();
                     prop_assert_eq!(n.rank as usize, 1 + closer_rejected);
                 }
+                // Nearest satisfying a cheap and a costly predicate: the costly one is
+                // asked of the cheap-passing photons in order of distance only.
+                let costly = |r: &R| (r.position().x * 7.0).fract().abs() > 0.3;
+                let both = |r: &R| direct(r) && costly(r);
+                let calls = std::cell::Cell::new(0usize);
+                let near = tree.nearest_where(
+                    x,
+                    r2,
+                    direct,
+                    |r| {
+                        calls.set(calls.get() + 1);
+                        costly(r)
+                    },
+                    u32::MAX,
+                    &mut rejected,
+                );
+                let want = brute_knn(&nodes, x, 1, r2, both);
+                prop_assert_eq!(near.map(|n| n.dist2), want.first().copied());
+                let used = |r: &&R| r.flags() & flags::UNUSED == 0;
+                let d2 = |r: &R| (r.position() - x).length_squared();
+                if let Some(n) = near {
+                    prop_assert!(both(&nodes[n.index as usize]));
+                    let closer = |r: &&R| d2(r) < n.dist2;
+                    let closer_rejected = nodes.iter().filter(used).filter(closer).filter(|r| !both(r)).count();
+                    prop_assert_eq!(n.rank as usize, 1 + closer_rejected);
+                    let asked = nodes.iter().filter(used).filter(closer).filter(|r| direct(r)).count();
+                    prop_assert_eq!(calls.get(), 1 + asked);
+                } else {
+                    let within = |r: &&R| d2(r) <= r2;
+                    prop_assert_eq!(
+                        calls.get(),
+                        nodes.iter().filter(used).filter(within).filter(|r| direct(r)).count()
+                    );
+                }
+                // At most `max_refusals` refusals, then no result.
+                calls.set(0);
+                let none = tree.nearest_where(
+                    x,
+                    r2,
+                    |_| true,
+                    |_| {
+                        calls.set(calls.get() + 1);
+                        false
+                    },
+                    3,
+                    &mut rejected,
+                );
+                prop_assert!(none.is_none());
+                prop_assert!(calls.get() <= 4);
             }
         }
     }

@@ -60,7 +60,7 @@ pub(crate) struct Gather {
     pub grad_r: [Vec3; 3],
 }
 
-/// Most shadow rays one precomputed lookup casts to find a visible photon.
+/// Most hidden photons one precomputed lookup tries before it misses.
 const VISIBILITY_TESTS: u32 = 16;
 
 /// Irradiance at a final-gather ray's hit point from the global map: the
@@ -82,23 +82,27 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                 // borrow the irradiance of the room next door (a coplanar floor passes
                 // the normal test). Measured in tests/tests/hard_scenes.rs.
                 let near = 1e-3 * ctx.scene.bounds.diagonal();
-                // At most VISIBILITY_TESTS shadow rays a lookup: among many curved
-                // objects, a lookup could try hundreds of hidden candidates before a
-                // miss (62% of a 1.46M-triangle scene's prepass; BENCHMARKS.md).
-                // After that the lookup misses, as when no candidate is visible.
-                let tests = std::cell::Cell::new(0u32);
+                // The nearest similar photon is tested first, then the next; after
+                // VISIBILITY_TESTS hidden ones the lookup misses, as when no candidate
+                // is visible: among many curved objects, a lookup could try hundreds
+                // (62% of a 1.46M-triangle scene's prepass; BENCHMARKS.md).
                 let visible = |r: &G| {
                     let q = r.position() + r.normal() * near * 0.5;
                     let o = p + n * near * 0.5;
                     let d = q - o;
                     let len = d.length();
-                    if len < near {
-                        return true;
-                    }
-                    tests.set(tests.get() + 1);
-                    tests.get() <= VISIBILITY_TESTS && !ctx.scene.occluded(o, d / len, len)
+                    len < near || !ctx.scene.occluded(o, d / len, len)
                 };
-                match pm_estimate::precomputed_irradiance_where(tree, p, n, max_d2, &mut scratch.rejected, visible) {
+                let found = pm_estimate::precomputed_irradiance_where(
+                    tree,
+                    p,
+                    n,
+                    max_d2,
+                    &mut scratch.rejected,
+                    visible,
+                    VISIBILITY_TESTS,
+                );
+                match found {
                     Some((e, hit)) => {
                         ctx.counters.lookup_rank[(hit.rank as usize - 1).min(2)].fetch_add(1, Relaxed);
                         e
