@@ -28,10 +28,18 @@ impl<'a> DirectLighting<'a> {
     /// lights are weighted by the power heuristic against BSDF sampling (the caller
     /// then also samples the BSDF).
     pub fn light_sample(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, mis: bool) -> Rgb {
-        let scene = self.scene;
-        let (li, p_sel) = self.lights.pick(s.next_1d());
+        let pick = s.next_1d();
         let u_tri = s.next_1d();
         let u = s.next_2d();
+        self.light_sample_at(hit, bsdf, wo, [u.x, u.y, u_tri, pick], mis)
+    }
+
+    /// [`Self::light_sample`] with its random numbers given: the point on the light
+    /// (u[0], u[1]), the emitting triangle (u[2]) and the light (u[3]).
+    pub fn light_sample_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Rgb {
+        let scene = self.scene;
+        let (li, p_sel) = self.lights.pick(u[3]);
+        let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
         let Some(ls) = scene.lights[li].sample_li(scene, hit.p, u_tri, u) else { return Rgb::ZERO };
         if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
             return Rgb::ZERO;
@@ -79,8 +87,12 @@ impl DirectLighting<'_> {
         let glossy = !matches!(bsdf, Bsdf::Lambert { .. });
         let side_o = wo.dot(hit.ng);
         let mut sum = Rgb::ZERO;
-        for _ in 0..n {
-            sum += self.light_sample(hit, bsdf, wo, s, glossy);
+        // The n light samples stratified among themselves: on a Cornell box's area
+        // light, n independent points left direct light the largest part of the
+        // image's error (BENCHMARKS.md, issue 18).
+        let net = s.net_4d();
+        for k in 0..n {
+            sum += self.light_sample_at(hit, bsdf, wo, net.point(k), glossy);
             if glossy {
                 // BSDF sampling, weighted against light sampling.
                 let u = s.next_2d();

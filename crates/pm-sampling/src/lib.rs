@@ -101,10 +101,35 @@ impl Sampler {
         }
     }
 
+    /// A set of 4-D points that one shading point uses together (its light samples),
+    /// stratified among themselves: the leading points of an Owen-scrambled Sobol'
+    /// net with a scramble of its own, drawn from this stream (one dimension is
+    /// consumed). Consecutive dimensions of the stream are independent of each other,
+    /// so n light samples drawn from them are n independent points; the net's first
+    /// two coordinates fall in distinct strata of the square (Burley 2020, section 3).
+    pub fn net_4d(&mut self) -> Net4 {
+        let u = self.next_1d();
+        Net4 { key: (mix64(self.noise_key ^ (u.to_bits() as u64) << 32 ^ self.dim as u64) >> 32) as u32 }
+    }
+
     /// The next two samples as a point in [0,1)^2.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         Vec2::new(self.next_1d(), self.next_1d())
+    }
+}
+
+/// A scrambled 4-D Sobol' net from [`Sampler::net_4d`].
+#[derive(Clone, Copy, Debug)]
+pub struct Net4 {
+    key: u32,
+}
+
+impl Net4 {
+    /// Point `k` (the first 2^16 are distinct), each coordinate in [0, 1).
+    #[inline]
+    pub fn point(&self, k: u32) -> [f32; 4] {
+        sobol_burley::sample_4d(k & 0xffff, 0, self.key).map(|v| v.min(ONE_MINUS_EPSILON))
     }
 }
 
@@ -207,6 +232,38 @@ pub const PI_F32: f32 = PI;
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// A shading point's net of n = 4^m points puts exactly one point in each of the
+    /// 2^m x 2^m strata of its first two coordinates, and n / 4 in each quarter of
+    /// the others; nets of different shading points (streams, or draws of one
+    /// stream) are scrambled differently. Independent draws would fail both counts.
+    #[test]
+    fn light_sample_nets_are_stratified() {
+        let mut firsts = std::collections::HashSet::new();
+        for index in 0..200u64 {
+            let mut s = Sampler::new(5, index);
+            for _draw in 0..3 {
+                let net = s.net_4d();
+                firsts.insert(net.point(0).map(f32::to_bits));
+                for (m, side) in [(1u32, 2usize), (2, 4), (3, 8)] {
+                    let n = 1u32 << (2 * m);
+                    let mut cells = vec![0u32; side * side];
+                    let mut quarters = [[0u32; 4]; 2];
+                    for k in 0..n {
+                        let u = net.point(k);
+                        assert!(u.iter().all(|&v| (0.0..1.0).contains(&v)));
+                        let cell = |v: f32| (v * side as f32) as usize;
+                        cells[cell(u[1]) * side + cell(u[0])] += 1;
+                        quarters[0][(u[2] * 4.0) as usize] += 1;
+                        quarters[1][(u[3] * 4.0) as usize] += 1;
+                    }
+                    assert!(cells.iter().all(|&c| c == 1), "index {index}, n {n}: {cells:?}");
+                    assert!(quarters.iter().flatten().all(|&c| c == n / 4), "index {index}, n {n}: {quarters:?}");
+                }
+            }
+        }
+        assert_eq!(firsts.len(), 600, "nets share scrambles");
+    }
 
     /// The four-at-a-time cache and the deferred hashing give exactly the scalar
     /// Owen-scrambled Sobol' values (and the hashed noise past them), for plain and
