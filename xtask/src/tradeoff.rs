@@ -10,7 +10,7 @@
 //! lines per setting, the Pareto front), bias_noise (which setting buys which),
 //! layers (per-layer panels) as SVG and PNG, and error_map.png.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use pm_estimate::IrradianceParams;
 use pm_photon::{RecordLayout, TraceParams};
 use pm_render::{Lookup, Method, RenderParams};
@@ -47,6 +47,11 @@ pub struct Args {
     /// from the output folder's results.csv, cached reference and images.
     #[arg(long)]
     replot: bool,
+    /// Only these axes of the sweep besides the defaults, comma-separated by name
+    /// ("path", "light samples", ...; all when not given): a larger image's
+    /// equal-error comparison needs only `--axes path`.
+    #[arg(long, value_delimiter = ',')]
+    axes: Vec<String>,
 }
 
 /// One point of the sweep: the stage parameters it runs with.
@@ -279,7 +284,15 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
     let diagonal = pm_scene::load(&scene).map(|s| s.bounds.diagonal()).unwrap_or(1.0);
-    let settings = sweep(&base, size, diagonal);
+    let mut settings = sweep(&base, size, diagonal);
+    if !args.axes.is_empty() {
+        for a in &args.axes {
+            if !AXES.contains(&a.as_str()) {
+                bail!("--axes: no axis named '{a}' (the axes: {})", AXES[1..].join(", "));
+            }
+        }
+        settings.retain(|s| s.axis == "default" || args.axes.iter().any(|a| a == s.axis));
+    }
     if args.replot {
         rows = read_rows(&out.join("results.csv"), &settings)?;
         default_image = Some(layer(&pm_image::read_exr(&out.join("defaults-s1.exr"))?, "total"));
