@@ -28,10 +28,7 @@ impl<'a> DirectLighting<'a> {
     /// lights are weighted by the power heuristic against BSDF sampling (the caller
     /// then also samples the BSDF).
     pub fn light_sample(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, mis: bool) -> Rgb {
-        let pick = s.next_1d();
-        let u_tri = s.next_1d();
-        let u = s.next_2d();
-        self.light_sample_at(hit, bsdf, wo, [u.x, u.y, u_tri, pick], mis)
+        self.light_sample_at(hit, bsdf, wo, light_numbers(s), mis)
     }
 
     /// [`Self::light_sample`] with its random numbers given: the point on the light
@@ -62,6 +59,16 @@ impl<'a> DirectLighting<'a> {
     }
 }
 
+/// One light sample's numbers drawn from the stream, in [`DirectLighting::light_sample_at`]'s
+/// order (point on the light, triangle, light), drawn light, triangle, point.
+#[inline]
+fn light_numbers(s: &mut Sampler) -> [f32; 4] {
+    let pick = s.next_1d();
+    let u_tri = s.next_1d();
+    let u = s.next_2d();
+    [u.x, u.y, u_tri, pick]
+}
+
 /// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.
 #[inline]
 pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -89,10 +96,15 @@ impl DirectLighting<'_> {
         let mut sum = Rgb::ZERO;
         // The n light samples stratified among themselves: on a Cornell box's area
         // light, n independent points left direct light the largest part of the
-        // image's error (BENCHMARKS.md, issue 18).
-        let net = s.net_4d();
+        // image's error (BENCHMARKS.md, issue 18). One sample (a live frame's)
+        // takes its numbers from the stream, as a net of one point would, cheaper.
+        let net = (n > 1).then(|| s.net_4d());
         for k in 0..n {
-            sum += self.light_sample_at(hit, bsdf, wo, net.point(k), glossy);
+            let u = match &net {
+                Some(net) => net.point(k),
+                None => light_numbers(s),
+            };
+            sum += self.light_sample_at(hit, bsdf, wo, u, glossy);
             if glossy {
                 // BSDF sampling, weighted against light sampling.
                 let u = s.next_2d();
