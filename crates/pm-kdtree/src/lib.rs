@@ -358,10 +358,10 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// The nearest photon within `max_d2` that satisfies both `cheap` and `costly`,
     /// where `costly` (a shadow ray) is asked only of the photon that is nearest among
     /// those passing `cheap`: if it refuses, that photon is set aside and the search
-    /// repeated, up to `max_refusals` times (then there is no result). A single search
-    /// asking both of every closer candidate it meets asked `costly` of each photon
-    /// that improved on the best so far (several per query). `rejected` is scratch for the rank statistic: the rank is one more than the
-    /// photons closer than the result that failed either test.
+    /// repeated, up to `max_refusals` times (then there is no result). Asking `costly`
+    /// inside one search would ask it of every candidate that improves on the best so
+    /// far. `rejected` is scratch for the rank statistic: the rank is one more than
+    /// the photons closer than the result that failed either test.
     pub fn nearest_where(
         &self,
         x: Vec3,

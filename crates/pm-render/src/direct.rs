@@ -59,8 +59,8 @@ impl<'a> DirectLighting<'a> {
     }
 }
 
-/// One light sample's numbers drawn from the stream, in [`DirectLighting::light_sample_at`]'s
-/// order (point on the light, triangle, light), drawn light, triangle, point.
+/// One light sample's numbers drawn from the stream (the light, then the triangle,
+/// then the point), in [`DirectLighting::light_sample_at`]'s order.
 #[inline]
 fn light_numbers(s: &mut Sampler) -> [f32; 4] {
     let pick = s.next_1d();

@@ -1051,14 +1051,18 @@ impl Scene {
     #[inline]
     pub fn lookup(&self, t: &TextureRef, hit: &Hit) -> glam::Vec4 {
         // The hit's interpolated coordinates: the same value as `sample_at`.
-        let uv = if t.uv_set == 1 { hit.uv1 } else { hit.uv };
-        self.textures[t.texture as usize].sample(t.transform.transform_point2(uv))
+        self.texel(t, if t.uv_set == 1 { hit.uv1 } else { hit.uv })
     }
 
     /// Linear RGBA of texture `t` at barycentrics `b` of triangle `tr` (for queries
     /// that have no [`Hit`]: alpha tests during traversal, light sampling).
     pub fn sample_at(&self, t: &TextureRef, tr: &Triangle, b: [f32; 3]) -> glam::Vec4 {
-        let uv = tr.uvs(t.uv_set).map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]);
+        self.texel(t, tr.uvs(t.uv_set).map_or(Vec2::ZERO, |uv| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2]))
+    }
+
+    /// Linear RGBA of texture `t` at the mesh's coordinates `uv`, through its transform.
+    #[inline]
+    fn texel(&self, t: &TextureRef, uv: Vec2) -> glam::Vec4 {
         self.textures[t.texture as usize].sample(t.transform.transform_point2(uv))
     }
 
