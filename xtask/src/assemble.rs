@@ -40,7 +40,7 @@ pub fn run(args: &Args) -> Result<()> {
     pm_image::write_exr(&args.out, &whole)?;
     if let Some(png) = &args.png {
         let total = whole.layers.iter().find(|l| l.0 == "total").context("no total layer")?;
-        pm_image::write_png(png, whole.width, whole.height, &total.1, args.exposure)?;
+        pm_image::write_png_fast(png, whole.width, whole.height, &total.1, args.exposure)?;
     }
     println!("wrote {} ({}x{}, {} regions)", args.out.display(), whole.width, whole.height, parts.len());
     Ok(())

@@ -213,8 +213,11 @@ pub fn run(cli: &Cli) -> Result<Report> {
             }
             None => pm_image::write_exr(out, &layers)?,
         }
+        // Fast compression: the PNG is a preview of the EXR; balanced compression took
+        // 0.28 s on one thread for 1024 x 1024 (7% of the default render), fast 0.04 s
+        // for a file 19% larger.
         if let Some(png) = &cli.png {
-            pm_image::write_png(
+            pm_image::write_png_fast(
                 png,
                 image.width,
                 image.height,
