@@ -74,11 +74,25 @@ impl TriangleRay {
     /// the triangle (p0, p1, p2), if it does.
     #[inline]
     pub fn hit(&self, p: &[Vec3; 3], t_max: f32) -> Option<(f32, [f32; 3])> {
-        let [kx, ky, kz] = self.k;
+        // One copy of the test per permutation, so the axis swizzle is fixed at
+        // compile time rather than indexed per vertex.
+        match self.k[2] {
+            0 => self.hit_in::<1, 2, 0>(p, t_max),
+            1 => self.hit_in::<2, 0, 1>(p, t_max),
+            _ => self.hit_in::<0, 1, 2>(p, t_max),
+        }
+    }
+
+    #[inline(always)]
+    fn hit_in<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        p: &[Vec3; 3],
+        t_max: f32,
+    ) -> Option<(f32, [f32; 3])> {
         let (sx, sy, sz) = (self.s.x, self.s.y, self.s.z);
         let perm = |v: Vec3| {
-            let a = (v - self.o).to_array();
-            Vec3::new(a[kx], a[ky], a[kz])
+            let a = v - self.o;
+            Vec3::new(a[KX], a[KY], a[KZ])
         };
         let mut p0 = perm(p[0]);
         let mut p1 = perm(p[1]);
