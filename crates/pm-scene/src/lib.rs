@@ -15,6 +15,7 @@
 //! rayon threads, and later the per-frame real-time and image-space modes.
 
 mod anim;
+mod bvh4;
 mod effects;
 mod geometry;
 mod gltf_load;
@@ -515,12 +516,10 @@ pub struct Scene {
     pub bvh_seconds: f64,
     /// Some material has an alpha mode: ray queries test alpha at candidate hits.
     any_alpha: bool,
-    bvh: Option<obvhs::bvh2::Bvh2>,
+    bvh: bvh4::Bvh4,
+    /// The triangles in the BVH's slot order.
     bvh_tris: Vec<BvhTri>,
-    /// The BVH is built and traversed in normalised coordinates (p - centre) / diagonal,
-    /// because obvhs's node tests are not scale-invariant (they missed 2.4% of closest
-    /// hits in a 2 mm Cornell box); triangles are still intersected in world space.
-    bvh_center: Vec3,
+    /// 1 / the diagonal of the BVH's bounds [m^-1] (the scale of ray-origin offsets).
     bvh_inv_scale: f32,
 }
 
@@ -532,18 +531,24 @@ fn point_hash(tri: u32, b: [f32; 3], salt: u64) -> f32 {
     (pm_sampling::mix64(key) >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
 }
 
-/// The BVH over `triangles` in the normalised coordinates of `bounds` (see
-/// `Scene::bvh_center`), and the triangles in its primitive order.
-fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (Option<obvhs::bvh2::Bvh2>, Vec<BvhTri>) {
+/// The BVH over `triangles` (whose bounds are `bounds`), and the triangles in its
+/// slot order.
+fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri>) {
+    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
+    let pad = 2e-7 * diag;
+    let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
     if triangles.is_empty() {
-        return (None, Vec::new());
+        return (bvh4::Bvh4::new(&obvhs::bvh2::Bvh2::default(), &tris, pad), Vec::new());
     }
-    let (c, inv) = (bounds.center(), 1.0 / bounds.diagonal().max(f32::MIN_POSITIVE));
+    // obvhs builds the tree (PLOC, reinsertion) over boxes in the normalised
+    // coordinates (p - centre) / diagonal, where its build behaves the same at every
+    // scale; the four-wide nodes then get boxes recomputed in world coordinates.
+    // Each triangle's box is padded by 2e-7 of the scene's size: with exact boxes,
+    // obvhs's slab tests missed rays that pass exactly through an edge lying on a
+    // node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
+    // midpoints slipped through; tests/tests/hard_cases.rs).
+    let (c, inv) = (bounds.center(), 1.0 / diag);
     let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
-    // Each triangle's box is padded by 2e-7 of the scene's size: with exact
-    // boxes, obvhs's slab tests missed rays that pass exactly through an edge
-    // lying on a node boundary (30 of 13,000 rays aimed at a sphere's vertices
-    // and edge midpoints slipped through; tests/tests/hard_cases.rs).
     let boxes: Vec<PaddedBox> = triangles
         .iter()
         .map(|t| {
@@ -552,19 +557,15 @@ fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (Option<obvhs::bvh2::Bv
             PaddedBox(obvhs::aabb::Aabb::new(a.min(b).min(c) - pad, a.max(b).max(c) + pad))
         })
         .collect();
-    // The binary BVH, not obvhs's compressed wide one (CWBVH): the wide nodes' 8-bit
+    // Our own four-wide traversal, not obvhs's compressed wide BVH (CWBVH): its 8-bit
     // quantised child boxes lost rays that start a few hundredths of a millimetre
-    // from a surface and hit it at once (13 of 200,000 gather rays from the walls
-    // of cornell_spheres, born near the floor, went through it; tests.rs). The
-    // binary nodes store exact boxes. Closest hits cost about the same, shadow rays
-    // 1.2-1.4x less on scenes up to 100k triangles and 1.25x more on the 1.46M-
-    // triangle instanced scene (visibility bench, BENCHMARKS.md); leaves of at most
-    // four triangles.
+    // from a surface and hit it at once (13 of 200,000 gather rays from the walls of
+    // cornell_spheres, born near the floor, went through it; tests.rs).
     let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
-    let mut bvh = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
-    bvh.reorder_in_stack_traversal_order();
-    let bvh_tris = bvh.primitive_indices.iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
-    (Some(bvh), bvh_tris)
+    let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
+    let bvh = bvh4::Bvh4::new(&bvh2, &tris, pad);
+    let bvh_tris = bvh.slots().iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
+    (bvh, bvh_tris)
 }
 
 /// The bounds of `triangles` (zero for none).
@@ -623,7 +624,6 @@ impl Scene {
             warnings,
             bvh,
             bvh_tris,
-            bvh_center: bounds.center(),
             bvh_inv_scale: 1.0 / bounds.diagonal().max(f32::MIN_POSITIVE),
         };
         light::finish_lights(&mut scene);
@@ -747,7 +747,6 @@ impl Scene {
             let (bvh, bvh_tris) = build_bvh(&self.triangles, &bvh_bounds);
             self.bvh = bvh;
             self.bvh_tris = bvh_tris;
-            self.bvh_center = bvh_bounds.center();
             self.bvh_inv_scale = 1.0 / bvh_bounds.diagonal().max(f32::MIN_POSITIVE);
             light::finish_lights(self);
         }
@@ -900,57 +899,28 @@ impl Scene {
 
     /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
-        let (ray, scale) = self.bvh_ray(o, d, t_max);
-        let mut hit = obvhs::ray::RayHit::none();
         let mut best_b = [0.0; 3];
         let tri_ray = TriangleRay::new(o, d);
-        let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
-            let bt = &self.bvh_tris[id];
-            match tri_ray.hit(&bt.p, r.tmax * scale) {
+        let (slot, t) = self.bvh.closest(o, d, t_max, |s, t_max| {
+            let bt = &self.bvh_tris[s as usize];
+            match tri_ray.hit(&bt.p, t_max) {
                 Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => {
                     best_b = b;
-                    t * self.bvh_inv_scale
+                    Some(t)
                 }
-                _ => f32::INFINITY,
+                _ => None,
             }
-        });
-        // ray_traverse may test triangles after the best one; recompute barycentrics
-        // for the recorded closest primitive.
-        if !found {
-            return None;
-        }
-        let bt = &self.bvh_tris[hit.primitive_id as usize];
-        let (t, b) = tri_ray.hit(&bt.p, f32::INFINITY).unwrap_or((hit.t, best_b));
-        Some(self.make_hit(bt.id, t, b))
+        })?;
+        Some(self.make_hit(self.bvh_tris[slot as usize].id, t, best_b))
     }
 
     /// True when something blocks the segment from `o` along unit `d` before `t_max`.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
-        let (ray, scale) = self.bvh_ray(o, d, t_max);
         let tri_ray = TriangleRay::new(o, d);
-        !bvh.ray_traverse_miss(ray, |r, id| {
-            let bt = &self.bvh_tris[id];
-            match tri_ray.hit(&bt.p, r.tmax * scale) {
-                Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => t * self.bvh_inv_scale,
-                _ => f32::INFINITY,
-            }
+        self.bvh.any(o, d, t_max, |s, t_max| {
+            let bt = &self.bvh_tris[s as usize];
+            matches!(tri_ray.hit(&bt.p, t_max), Some((_, b)) if !self.any_alpha || self.present(bt.id, b))
         })
-    }
-
-    /// The ray in the BVH's normalised coordinates, and the world length of one unit.
-    #[inline]
-    fn bvh_ray(&self, o: Vec3, d: Vec3, t_max: f32) -> (obvhs::ray::Ray, f32) {
-        let o_n = (o - self.bvh_center) * self.bvh_inv_scale;
-        // -0.0 components become +0.0: obvhs inverts a zero component by its sign
-        // (-0.0 gives a negative inverse) but orders children by `d < 0` (false for
-        // -0.0), and the two disagreeing made axis-aligned rays such as -Y from
-        // outside the scene miss everything (tests.rs: rays straight down onto a roof).
-        let d = d + Vec3::ZERO;
-        (obvhs::ray::Ray::new(o_n.into(), d.into(), 0.0, t_max * self.bvh_inv_scale), 1.0 / self.bvh_inv_scale)
     }
 
     /// The hit record of triangle `tri` at barycentrics `b`, t along the ray. The
