@@ -15,12 +15,22 @@ pub struct DirectLighting<'a> {
     pub scene: &'a Scene,
     /// Light choice by power (the same as the photon tracer's).
     pub lights: LightSelector,
+    /// The net a shading point's light samples are shifted copies of.
+    nets: pm_sampling::NetTable,
 }
+
+/// Light samples per shading point that [`DirectLighting::direct`] takes from its
+/// precomputed net; more take an Owen-scrambled net each (slower, equally good).
+const NET_POINTS: u32 = 256;
 
 impl<'a> DirectLighting<'a> {
     /// Direct lighting of `scene`; fails when nothing in it emits.
     pub fn new(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
-        Ok(DirectLighting { scene, lights: LightSelector::new(scene, &[])? })
+        Ok(DirectLighting {
+            scene,
+            lights: LightSelector::new(scene, &[])?,
+            nets: pm_sampling::NetTable::new(NET_POINTS),
+        })
     }
 
     /// One light-sampling estimate of reflected direct radiance: pick a light by power,
@@ -101,7 +111,7 @@ impl DirectLighting<'_> {
         let net = (n > 1).then(|| s.net_4d());
         for k in 0..n {
             let u = match &net {
-                Some(net) => net.point(k),
+                Some(net) => net.point(&self.nets, n, k),
                 None => light_numbers(s),
             };
             sum += self.light_sample_at(hit, bsdf, wo, u, glossy);

@@ -308,3 +308,45 @@ fn rays_from_a_corner_hit_the_floor_next_to_them() {
     }
     assert_eq!(lost, 0, "{lost} of {} rays disagree with the triangle-by-triangle answer", rays.len());
 }
+
+/// The BVH's answers equal a test of every triangle: closest hits and occlusion of
+/// segments between random surface points of cornell_spheres (its spheres' many
+/// small triangles, the walls' large ones, the light).
+#[test]
+fn bvh_answers_equal_a_test_of_every_triangle() {
+    let scene = load_scene("cornell_spheres.gltf");
+    let c = scene.bounds.center();
+    let mut s = pm_sampling::Sampler::new(5, 0);
+    let mut pts = Vec::new();
+    while pts.len() < 3000 {
+        let d = pm_sampling::uniform_sphere(s.next_2d());
+        if let Some(h) = scene.intersect(c, d, f32::INFINITY) {
+            let n = if h.ng.dot(d) > 0.0 { -h.ng } else { h.ng };
+            pts.push(scene.offset_origin(h.p, n, n));
+        }
+    }
+    let (mut occluded, mut differ) = (0, 0);
+    for i in 0..pts.len() {
+        let (a, b) = (pts[i], pts[(i * 7919 + 13) % pts.len()]);
+        let len = (b - a).length();
+        if len < 1e-3 {
+            continue;
+        }
+        let d = (b - a) / len;
+        let t = len * 0.999;
+        let hits: Vec<f32> = scene
+            .triangles
+            .iter()
+            .filter_map(|tr| crate::intersect_triangle(a, d, &tr.p, f32::INFINITY).map(|h| h.0))
+            .collect();
+        let nearest = hits.iter().copied().fold(f32::INFINITY, f32::min);
+        let blocked = nearest < t;
+        occluded += blocked as u32;
+        let got = scene.intersect(a, d, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
+        if scene.occluded(a, d, t) != blocked || got != nearest {
+            differ += 1;
+        }
+    }
+    assert!(occluded > 300, "too few occluded segments to mean anything: {occluded}");
+    assert_eq!(differ, 0, "{differ} of {} rays differ", pts.len());
+}
