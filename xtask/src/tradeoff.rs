@@ -133,7 +133,7 @@ fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Sett
     for f in [1.0f64, 0.0625] {
         v.push(with("precompute fraction", format!("fraction {f}"), &|s| s.irradiance.fraction = f));
     }
-    for r in [64u32, 1024] {
+    for r in [64u32, 128, 256, 1024] {
         v.push(with("gather rays", format!("gather rays {r}"), &|s| s.render.gather_rays = r));
     }
     for a in [0.15f32, 0.6] {
