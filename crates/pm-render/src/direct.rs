@@ -15,7 +15,7 @@ pub struct DirectLighting<'a> {
     pub scene: &'a Scene,
     /// Light choice by power (the same as the photon tracer's).
     pub lights: LightSelector,
-    /// The net a shading point's light samples are shifted copies of.
+    /// The net a shading point's light samples are scrambled copies of.
     nets: pm_sampling::NetTable,
 }
 
