@@ -103,7 +103,7 @@ impl Sampler {
 
     /// A set of 4-D points that one shading point uses together (its light samples),
     /// stratified among themselves: the leading points of a [`NetTable`]'s
-    /// Owen-scrambled Sobol' net under a random digital shift of its own, drawn from
+    /// Owen-scrambled Sobol' net, scrambled again with seeds of its own drawn from
     /// this stream (one dimension is consumed). Consecutive dimensions of the stream
     /// are independent of each other, so n light samples drawn from them are n
     /// independent points; the net's first two coordinates fall in distinct strata of
@@ -151,8 +151,8 @@ fn owen_scramble(x: u32, seed: u32) -> u32 {
 }
 
 /// The leading points of one fixed Owen-scrambled 4-D Sobol' net, kept as their 24
-/// significant bits, for [`Net4`]s to scramble again. Computed once by whoever samples with
-/// nets (no global state here).
+/// significant bits, for [`Net4`]s to scramble again. Computed once by whoever
+/// samples with nets (no global state here).
 #[derive(Clone, Debug)]
 pub struct NetTable {
     points: Vec<[u32; 4]>,
@@ -167,18 +167,6 @@ impl NetTable {
         let n = n.min(1 << 16);
         let bits = |v: f32| ((v * (1u32 << 24) as f32) as u32).min((1 << 24) - 1) << 8;
         NetTable { points: (0..n).map(|k| sobol_burley::sample_4d(k, 0, Self::SEED).map(bits)).collect() }
-    }
-}
-
-impl NetTable {
-    /// Points in the table.
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    /// True when the table holds no point.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
     }
 }
 

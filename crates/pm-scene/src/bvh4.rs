@@ -5,6 +5,7 @@
 //! world coordinates, padded, and tested with Ize's (2013) conservative slab test,
 //! so a ray through an edge on a node's boundary is not lost.
 
+use crate::Triangle;
 use glam::Vec3;
 
 /// Four children: the box of each (min x, y, z, then max x, y, z, one lane a
@@ -40,7 +41,8 @@ fn with_stack<T: Copy + Default, R>(need: usize, f: impl FnOnce(&mut [T]) -> R) 
 }
 
 /// The tree; leaves refer to triangle slots, whose order [`Bvh4::slots`] gives.
-#[derive(Clone, Debug)]
+/// The default is the empty tree, which no ray hits.
+#[derive(Clone, Debug, Default)]
 pub(crate) struct Bvh4 {
     nodes: Vec<Node4>,
     /// Index into the caller's triangles of each slot.
@@ -93,7 +95,7 @@ impl BoxRay {
 impl Bvh4 {
     /// Collapse `bvh` (over boxes of the triangles `tris`, in any coordinates) into
     /// four-wide nodes whose boxes bound `tris`'s vertices padded by `pad` [m].
-    pub(crate) fn new(bvh: &obvhs::bvh2::Bvh2, tris: &[[Vec3; 3]], pad: f32) -> Bvh4 {
+    pub(crate) fn new(bvh: &obvhs::bvh2::Bvh2, tris: &[Triangle], pad: f32) -> Bvh4 {
         let mut out = Bvh4 { nodes: Vec::new(), slots: Vec::new(), stack_need: 1 };
         if bvh.nodes.is_empty() || tris.is_empty() {
             return out;
@@ -115,7 +117,7 @@ impl Bvh4 {
         &mut self,
         bvh: &obvhs::bvh2::Bvh2,
         b2: usize,
-        tris: &[[Vec3; 3]],
+        tris: &[Triangle],
         pad: f32,
         level: usize,
         depth: &mut usize,
@@ -161,7 +163,7 @@ impl Bvh4 {
                 for k in cn.first_index..cn.first_index + cn.prim_count {
                     let t = bvh.primitive_indices[k as usize];
                     self.slots.push(t);
-                    for p in tris[t as usize] {
+                    for p in tris[t as usize].p {
                         bx = [bx[0].min(p - pad), bx[1].max(p + pad)];
                     }
                 }

@@ -534,19 +534,17 @@ fn point_hash(tri: u32, b: [f32; 3], salt: u64) -> f32 {
 /// The BVH over `triangles` (whose bounds are `bounds`), and the triangles in its
 /// slot order.
 fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri>) {
-    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
-    let pad = 2e-7 * diag;
-    let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
     if triangles.is_empty() {
-        return (bvh4::Bvh4::new(&obvhs::bvh2::Bvh2::default(), &tris, pad), Vec::new());
+        return (bvh4::Bvh4::default(), Vec::new());
     }
     // obvhs builds the tree (PLOC, reinsertion) over boxes in the normalised
     // coordinates (p - centre) / diagonal, where its build behaves the same at every
     // scale; the four-wide nodes then get boxes recomputed in world coordinates.
-    // Each triangle's box is padded by 2e-7 of the scene's size: with exact boxes,
-    // obvhs's slab tests missed rays that pass exactly through an edge lying on a
-    // node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
+    // Each triangle's box is padded by 2e-7 of the scene's size, in both: with exact
+    // boxes, obvhs's slab tests missed rays that pass exactly through an edge lying
+    // on a node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
     // midpoints slipped through; tests/tests/hard_cases.rs).
+    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
     let (c, inv) = (bounds.center(), 1.0 / diag);
     let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
     let boxes: Vec<PaddedBox> = triangles
@@ -563,7 +561,7 @@ fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri
     // cornell_spheres, born near the floor, went through it; tests.rs).
     let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
     let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
-    let bvh = bvh4::Bvh4::new(&bvh2, &tris, pad);
+    let bvh = bvh4::Bvh4::new(&bvh2, triangles, 2e-7 * diag);
     let bvh_tris = bvh.slots().iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
     (bvh, bvh_tris)
 }

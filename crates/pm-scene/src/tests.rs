@@ -263,6 +263,16 @@ fn axis_aligned_rays_hit_from_outside_and_inside_the_scene() {
     }
 }
 
+/// The distance to the nearest triangle of `scene` along the ray from `o` in
+/// direction `d`, found by testing every triangle (infinite if none).
+fn nearest_of_all_triangles(scene: &Scene, o: Vec3, d: Vec3) -> f32 {
+    scene
+        .triangles
+        .iter()
+        .filter_map(|t| intersect_triangle(o, d, &t.p, f32::INFINITY).map(|h| h.0))
+        .fold(f32::INFINITY, f32::min)
+}
+
 /// Rays born a few hundredths of a millimetre above the floor of cornell_spheres, on
 /// the walls, heading down: the closest hit is the floor at once, as a test of every
 /// triangle finds. obvhs's compressed wide BVH (8-bit child boxes) lost 13 of 200,000
@@ -270,13 +280,6 @@ fn axis_aligned_rays_hit_from_outside_and_inside_the_scene() {
 #[test]
 fn rays_from_a_corner_hit_the_floor_next_to_them() {
     let scene = load_scene("cornell_spheres.gltf");
-    let brute = |o: Vec3, d: Vec3| {
-        scene
-            .triangles
-            .iter()
-            .filter_map(|t| crate::intersect_triangle(o, d, &t.p, f32::INFINITY).map(|h| h.0))
-            .fold(f32::INFINITY, f32::min)
-    };
     // The rays the wide BVH lost, then a sweep along both back corners.
     let mut rays = vec![
         (Vec3::new(-0.99999905, 0.00026279688, 0.5118114), Vec3::new(0.46144128, -0.8682495, 0.18224932)),
@@ -299,7 +302,7 @@ fn rays_from_a_corner_hit_the_floor_next_to_them() {
     }
     let mut lost = 0;
     for &(o, d) in &rays {
-        let want = brute(o, d);
+        let want = nearest_of_all_triangles(&scene, o, d);
         let got = scene.intersect(o, d, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
         // Both infinite where the hit lies within the triangle test's rounding bound.
         if got != want && !((got - want).abs() <= 1e-4 * want.max(1.0)) {
@@ -334,12 +337,7 @@ fn bvh_answers_equal_a_test_of_every_triangle() {
         }
         let d = (b - a) / len;
         let t = len * 0.999;
-        let hits: Vec<f32> = scene
-            .triangles
-            .iter()
-            .filter_map(|tr| crate::intersect_triangle(a, d, &tr.p, f32::INFINITY).map(|h| h.0))
-            .collect();
-        let nearest = hits.iter().copied().fold(f32::INFINITY, f32::min);
+        let nearest = nearest_of_all_triangles(&scene, a, d);
         let blocked = nearest < t;
         occluded += blocked as u32;
         let got = scene.intersect(a, d, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
