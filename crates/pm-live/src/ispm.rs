@@ -174,7 +174,7 @@ pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<B
                 let hit = a.hit.as_ref()?;
                 let wo = -a.dir;
                 let bsdf = scene.bsdf(hit);
-                let mut s = Sampler::salted(seed ^ li as u64, 0x6d61_7000_0000 ^ k as u64, 0);
+                let mut s = Sampler::hashed(seed ^ li as u64, 0x6d61_7000_0000 ^ k as u64);
                 let (bs, factor) = pm_photon::scatter(&bsdf, hit, wo, &mut s)?;
                 if bs.specular && !caustics {
                     return None;
@@ -254,7 +254,7 @@ pub fn trace(
         .with_min_len(64)
         .map(|(i, b)| {
             let mut out = Vec::new();
-            let mut s = Sampler::salted(seed, 0x7472_6163_6500 ^ i as u64, 0);
+            let mut s = Sampler::hashed(seed, 0x7472_6163_6500 ^ i as u64);
             let (mut o, mut d, mut power, mut density, mut caustic) = (b.origin, b.dir, b.power, b.density, b.specular);
             for _ in 0..MAX_EVENTS {
                 if out.len() as u32 >= stored || !pm_color::is_valid(power) || power == Rgb::ZERO {

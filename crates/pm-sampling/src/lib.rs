@@ -71,6 +71,17 @@ impl Sampler {
         }
     }
 
+    /// A stream that is only ever point 0 of its sequence (one sample per pixel, one
+    /// path per photon of a frame): hashed white noise from the first dimension,
+    /// keyed like [`Sampler::salted`]`(seed, salt, 0)`. Point 0 of an Owen-scrambled
+    /// Sobol' sequence is a uniform random point of [0, 1)^d (each coordinate
+    /// scrambled independently), and a stream's seed is its own, so without a
+    /// second point to stratify against this is the same distribution; it skips the
+    /// Sobol' evaluation, which was a fifth of a live frame's shading.
+    pub fn hashed(seed: u64, salt: u64) -> Sampler {
+        Sampler { dim: Self::SOBOL_DIMS, ..Sampler::salted(seed, salt, 0) }
+    }
+
     #[cold]
     fn derive(&mut self, seed: u64, salt: Option<u64>, index: u64) {
         let seed = salt.map_or(seed, |salt| mix64(seed ^ mix64(salt)));
@@ -349,6 +360,31 @@ mod tests {
                 assert_eq!(s.next_1d().to_bits(), want.to_bits(), "seed {seed} index {index} dim {d}");
             }
         }
+    }
+
+    /// A hashed stream is the salted stream's noise (from its dimension 256 on), and
+    /// across streams its first two dimensions are uniform and independent in the
+    /// square, as point 0 of an Owen-scrambled Sobol' sequence is: chi-square over
+    /// 16 x 16 cells of 65,536 streams, 255 degrees of freedom (p = 0.001 at 330).
+    #[test]
+    fn hashed_streams_are_uniform_points_of_the_square() {
+        let mut h = Sampler::hashed(5, 77);
+        let mut s = Sampler::salted(5, 77, 0);
+        for _ in 0..Sampler::SOBOL_DIMS {
+            s.next_1d();
+        }
+        for _ in 0..40 {
+            assert_eq!(h.next_1d().to_bits(), s.next_1d().to_bits());
+        }
+        let mut cells = [0u32; 256];
+        let n = 1u64 << 16;
+        for salt in 0..n {
+            let u = Sampler::hashed(9, salt).next_2d();
+            cells[(u.x * 16.0) as usize * 16 + (u.y * 16.0) as usize] += 1;
+        }
+        let e = n as f64 / 256.0;
+        let chi2: f64 = cells.iter().map(|&c| (c as f64 - e).powi(2) / e).sum();
+        assert!(chi2 < 330.0, "chi-square {chi2}");
     }
 
     #[test]
