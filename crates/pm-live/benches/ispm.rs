@@ -139,8 +139,9 @@ fn run() {
         let camera = s.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
         let gb = ispm::surfaces(s, &raster::first_hits(s, &camera, &film, Rect::full(&film)), &camera);
+        let packed = splat::GBuffer::from_surfaces(&gb);
         let t = Instant::now();
-        let (si, _) = splat::splat(&photons, &gb, &camera, (512, 512, 1), SplatOutput::Radiance);
+        let (si, _) = splat::splat(&photons, &packed, &camera, (512, 512, 1), SplatOutput::Radiance);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let index = PhotonIndex::new(&photons);

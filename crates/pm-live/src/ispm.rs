@@ -9,7 +9,7 @@
 //!
 //! Units: power W per RGB channel, radiance W sr^-1 m^-2, lengths m.
 
-use crate::splat::{self, PhotonIndex, SplatOutput, Surface, VolumePhoton};
+use crate::splat::{self, GBuffer, PhotonIndex, SplatOutput, Surface, VolumePhoton};
 use crate::{LiveParams, LiveShading};
 use glam::Vec3;
 use pm_color::Rgb;
@@ -324,32 +324,29 @@ pub struct IspmStats {
     pub photons: usize,
 }
 
-/// The splat's G-buffer: the surface at each pixel of the rasterised first hits,
-/// none where nothing is seen or a mirror or glass is (photons cannot be splatted
-/// there; the paper's section 2.1).
+/// The surface the splat sees at each pixel of the rasterised first hits: none
+/// where nothing is seen or a mirror or glass is (photons cannot be splatted there;
+/// the paper's section 2.1).
 pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
-    let mut out = Vec::new();
-    surfaces_into(scene, fragments, camera, &mut out);
-    out
+    fragments.par_iter().with_min_len(1024).map(|f| surface_at(scene, f, camera)).collect()
 }
 
-/// [`surfaces`] into `out`, reusing its memory (a frame's G-buffer is tens of
-/// megabytes; faulting it back in every frame showed in the profile).
-pub fn surfaces_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut Vec<Option<Surface>>) {
-    // Filled in place: collecting anew faulted in fresh pages every frame.
-    out.resize(fragments.len(), None);
-    out.par_iter_mut().zip(fragments).with_min_len(1024).for_each(|(o, f)| {
-        *o = f.as_ref().and_then(|f| {
-            let hit = f.hit(scene);
-            let bsdf = scene.bsdf(&hit);
-            if bsdf.is_specular() {
-                return None;
-            }
-            let wo = (camera.position - hit.p).normalize_or(hit.ns);
-            let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-            Some(Surface::new(hit.p, n, wo, bsdf))
-        })
-    });
+/// The splat's G-buffer of [`surfaces`] into `out`, reusing its memory (a frame's
+/// G-buffer is tens of megabytes; faulting it back in every frame showed in the
+/// profile).
+pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut GBuffer) {
+    out.fill(fragments.len(), |j| surface_at(scene, &fragments[j], camera));
+}
+
+fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Option<Surface> {
+    let hit = fragment.as_ref()?.hit(scene);
+    let bsdf = scene.bsdf(&hit);
+    if bsdf.is_specular() {
+        return None;
+    }
+    let wo = (camera.position - hit.p).normalize_or(hit.ns);
+    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+    Some(Surface::new(hit.p, n, wo, bsdf))
 }
 
 /// The image-space method's memory, kept between frames: the G-buffer and the
@@ -357,7 +354,7 @@ pub fn surfaces_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Cam
 #[derive(Default)]
 pub struct IspmScratch {
     /// The eye's G-buffer (full resolution).
-    pub surfaces: Vec<Option<Surface>>,
+    pub gbuffer: GBuffer,
     /// The full-resolution splat (all photons, or the caustic ones when subsampled).
     full: splat::SplatScratch,
     /// The subsampled splat of the soft indirect photons.
@@ -406,12 +403,12 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let IspmScratch { surfaces, full, low } = scratch;
-    surfaces_into(scene, fragments, camera, surfaces);
-    let surfaces = &*surfaces;
+    let IspmScratch { gbuffer, full, low } = scratch;
+    gbuffer_into(scene, fragments, camera, gbuffer);
+    let gbuffer = &*gbuffer;
     let (w, h, f) = (p.width, p.height, p.subsample);
     let (t_splat, t_upsample) = if f <= 1 {
-        splat::splat_into(&photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance, full);
+        splat::splat_into(&photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
         buffers.add_to_layer("indirect", &full.indirect);
         (t.elapsed().as_secs_f64(), 0.0)
     } else {
@@ -422,18 +419,14 @@ pub fn frame(
         // are a few pixels wide, are splatted at full resolution: upsampled they
         // were 130% off at f = 2 (`cargo bench -p pm-live --bench ispm`).
         let (caustic_photons, soft): (Vec<VolumePhoton>, Vec<VolumePhoton>) = photons.iter().partition(|q| q.caustic);
-        splat::splat_into(&caustic_photons, surfaces, camera, (w, h, 1), SplatOutput::Radiance, full);
-        let low_gb = splat::subsample(surfaces, w, h, f);
+        splat::splat_into(&caustic_photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
+        let low_gb = gbuffer.subsample(w, h, f);
         splat::splat_into(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let [e] = splat::upsample([&low.indirect], &low_gb, surfaces, camera.position, (w, h, f));
-        let i: Vec<Rgb> = e
-            .into_iter()
-            .zip(surfaces)
-            .map(|(e, s)| s.as_ref().map_or(Rgb::ZERO, |s| s.bsdf.diffuse_albedo() * e / std::f32::consts::PI))
-            .collect();
-        buffers.add_to_layer("indirect", &i);
+        let [mut e] = splat::upsample([&low.indirect], &low_gb, gbuffer, camera.position, (w, h, f));
+        e.par_iter_mut().enumerate().with_min_len(4096).for_each(|(j, e)| *e *= gbuffer.albedo_over_pi(j));
+        buffers.add_to_layer("indirect", &e);
         (t_splat, t.elapsed().as_secs_f64())
     };
     buffers.add_to_layer("caustic", &full.caustic);

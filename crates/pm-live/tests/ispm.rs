@@ -38,7 +38,8 @@ fn splatting_equals_gathering() {
     let (w, h) = (61, 47);
     let gb = gbuffer(&s, w, h);
     let camera = s.camera.clone().unwrap();
-    let (ind, cau) = splat::splat(&photons, &gb, &camera, (w, h, 1), SplatOutput::Radiance);
+    let (ind, cau) =
+        splat::splat(&photons, &splat::GBuffer::from_surfaces(&gb), &camera, (w, h, 1), SplatOutput::Radiance);
     let index = PhotonIndex::new(&photons);
     let (mut lit, mut worst) = (0, 0.0f32);
     for (j, g) in gb.iter().enumerate() {
