@@ -81,6 +81,41 @@ pub struct GBuffer {
     others: Vec<Surface>,
 }
 
+/// A photon's kernel (equation 2 and the cone falloff) with its divisions done
+/// once: the splat evaluates it at every pixel a volume covers.
+#[derive(Clone, Copy, Debug)]
+pub struct KernelForm {
+    r_z: f32,
+    r_xy2: f32,
+    inv_r_xy: f32,
+    /// (r_xy - r_z) / r_z.
+    squash: f32,
+    /// 3 / (π r_xy²) [m^-2].
+    norm: f32,
+}
+
+impl KernelForm {
+    /// The radial coordinate t at distance `dist` from the photon, `dn` = |d·n| of
+    /// that along its normal: |d| / r_xy (1 + |cos| (r_xy - r_z) / r_z).
+    #[inline]
+    fn t(&self, dist: f32, dn: f32) -> f32 {
+        (dist + dn * self.squash) * self.inv_r_xy
+    }
+
+    /// κ [m^-2] at offset `d` from the photon whose normal is `n`: zero outside the
+    /// slab |d·n| < r_z and beyond |d| = r_xy (both imply t >= 1, and are cheaper).
+    #[inline]
+    pub fn at(&self, d: Vec3, n: Vec3) -> f32 {
+        let dn = d.dot(n).abs();
+        let d2 = d.length_squared();
+        if dn >= self.r_z || d2 >= self.r_xy2 {
+            return 0.0;
+        }
+        let t = self.t(d2.sqrt(), dn);
+        if t < 1.0 { self.norm * (1.0 - t) } else { 0.0 }
+    }
+}
+
 /// A G-buffer pixel: point [m], unit normal toward the viewer, diffuse albedo / π
 /// [sr^-1], and what it is ([`EMPTY`], [`LAMBERT`] or an index into `others`).
 #[derive(Clone, Copy, Debug)]
@@ -201,20 +236,26 @@ impl VolumePhoton {
     #[inline]
     pub fn kernel_t(&self, x: Vec3) -> f32 {
         let d = x - self.p;
-        let dist = d.length();
-        if dist == 0.0 {
-            return 0.0;
-        }
-        let cos = (d.dot(self.n) / dist).abs();
-        dist / self.r_xy * (1.0 + cos * (self.r_xy - self.r_z) / self.r_z)
+        self.kernel_form().t(d.length(), d.dot(self.n).abs())
     }
 
     /// The kernel κ at `x` [m^-2]: the cone falloff 1 - t, normalised so that it
     /// integrates to one over the photon's surface plane (∫ (1 - t) dA = π r_xy² / 3).
     #[inline]
     pub fn kernel(&self, x: Vec3) -> f32 {
-        let t = self.kernel_t(x);
-        if t < 1.0 { 3.0 * (1.0 - t) / (PI * self.r_xy * self.r_xy) } else { 0.0 }
+        self.kernel_form().at(x - self.p, self.n)
+    }
+
+    /// The kernel's constants, for evaluating it at many points.
+    #[inline]
+    pub fn kernel_form(&self) -> KernelForm {
+        KernelForm {
+            r_z: self.r_z,
+            r_xy2: self.r_xy * self.r_xy,
+            inv_r_xy: 1.0 / self.r_xy,
+            squash: (self.r_xy - self.r_z) / self.r_z,
+            norm: 3.0 / (PI * self.r_xy * self.r_xy),
+        }
     }
 
     /// Irradiance this photon adds at a point `p` with normal `n` [W m^-2 per
@@ -227,7 +268,7 @@ impl VolumePhoton {
     /// of its light (the furnace test measured 57% with it).
     #[inline]
     pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Rgb {
-        if self.wi.dot(n) <= 0.0 || (p - self.p).dot(self.n).abs() >= self.r_z {
+        if self.wi.dot(n) <= 0.0 {
             return Rgb::ZERO;
         }
         let k = self.kernel(p);
@@ -238,9 +279,7 @@ impl VolumePhoton {
     /// cosine: see [`Self::irradiance_at`]) [W sr^-1 m^-2].
     #[inline]
     pub fn radiance_at(&self, s: &Surface) -> Rgb {
-        // Outside the slab |d.n_p| <= r_z the kernel is zero: a dot product decides
-        // for most of a volume's pixels.
-        if self.wi.dot(s.n) <= 0.0 || (s.p - self.p).dot(self.n).abs() >= self.r_z {
+        if self.wi.dot(s.n) <= 0.0 {
             return Rgb::ZERO;
         }
         let k = self.kernel(s.p);
@@ -459,6 +498,7 @@ pub fn splat_into(
             let (px0, px1) = (tx * TILE, ((tx + 1) * TILE).min(w));
             for &i in &bins[(ty * tw + tx) as usize] {
                 let ph = &photons[i as usize];
+                let form = ph.kernel_form();
                 let [x0, y0, x1, y1] = rects[i as usize].expect("binned photons have a rectangle");
                 let acc = if ph.caustic { &mut *cau } else { &mut *ind };
                 for y in y0.max(py0)..y1.min(py1) {
@@ -466,10 +506,10 @@ pub fn splat_into(
                     let local = ((y - py0) * w) as usize;
                     for x in x0.max(px0)..x1.min(px1) {
                         let q = &pixels[row + x as usize];
-                        if q.kind == EMPTY || ph.wi.dot(q.n) <= 0.0 || (q.p - ph.p).dot(ph.n).abs() >= ph.r_z {
+                        if q.kind == EMPTY || ph.wi.dot(q.n) <= 0.0 {
                             continue;
                         }
-                        let k = ph.kernel(q.p);
+                        let k = form.at(q.p - ph.p, ph.n);
                         if !(k > 0.0) {
                             continue;
                         }
