@@ -454,7 +454,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
             outcomes.push(Outcome { step: step.name.clone(), ran: false });
             continue;
         }
-        let key = step_key(step.kind.program(), &step.args, &step.inputs);
+        let key = step_key(&bins.path(step.kind.program()), &step.args, &step.inputs);
         if !args.force
             && keys.get(&step.name).and_then(|k| k.as_str()) == Some(key.as_str())
             && step.outputs.iter().all(|f| f.exists())
@@ -505,10 +505,15 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     Ok(outcomes)
 }
 
-/// blake3 over the program, its arguments and the contents of its input files.
-fn step_key(program: &str, args: &[String], inputs: &[PathBuf]) -> String {
+/// blake3 over the program (its name and the binary's contents: a rebuilt stage
+/// runs again), its arguments and the contents of its input files.
+fn step_key(program: &Path, args: &[String], inputs: &[PathBuf]) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(program.as_bytes());
+    h.update(program.file_name().unwrap_or_default().as_encoded_bytes());
+    match std::fs::read(program) {
+        Ok(bytes) => h.update(blake3::hash(&bytes).as_bytes()),
+        Err(_) => h.update(b"absent"),
+    };
     for a in args {
         h.update(a.as_bytes());
         h.update(&[0]);
@@ -646,4 +651,29 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     stages::run(&bins, "photon-live", &set.args, "photon-live", false)?;
     println!("wrote {}/frames, live.apng and frames.csv", set.out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step runs again when its stage binary was rebuilt, its arguments or an
+    /// input changed; not when nothing did.
+    #[test]
+    fn a_step_key_covers_the_binary_the_arguments_and_the_inputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let (bin, input) = (dir.path().join("photon-render"), dir.path().join("map.pmap"));
+        std::fs::write(&bin, b"build 1").unwrap();
+        std::fs::write(&input, b"photons").unwrap();
+        let args = vec!["--k".to_string(), "50".to_string()];
+        let key = || step_key(&bin, &args, std::slice::from_ref(&input));
+        let first = key();
+        assert_eq!(key(), first);
+        std::fs::write(&bin, b"build 2").unwrap();
+        let rebuilt = key();
+        assert_ne!(rebuilt, first, "a rebuilt binary");
+        std::fs::write(&input, b"other photons").unwrap();
+        assert_ne!(key(), rebuilt, "a changed input");
+        assert_ne!(step_key(&bin, &["--k".into(), "60".into()], &[input.clone()]), key(), "other arguments");
+    }
 }
