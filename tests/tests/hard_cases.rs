@@ -192,3 +192,72 @@ fn rays_at_glass_sphere_vertices_and_edges_never_slip_through() {
     eprintln!("{} rays, {silhouette} at the silhouette", aims.len());
     assert_eq!(slipped, 0, "{slipped} of {} rays passed a point on the closed sphere", aims.len());
 }
+
+/// Light samples next to an area light (a 1 m emitting panel standing on a floor):
+/// the floor's direct light at 0.1 mm to 50 cm from the panel's foot. Sampled by
+/// area, a sample's weight cos_s cos_l A / d^2 has no bound as the point nears the
+/// panel: one sample in thousands carries most of the estimate. Triangles this near
+/// are sampled by solid angle (Arvo 1995), where the weight is at most f L_e Ω /
+/// p_tri. Asserted at each distance: the mean of 2^16 stratified samples within 1%
+/// of Lambert's closed form (measured: within 0.1%), and no sample above 8 times the
+/// mean (measured: 4). Sampled by area the same samples gave 0.040 against 0.250 at
+/// 0.1 mm (+14% at 1 mm, -4.5% at 1 cm), with single samples 31,763, 25,019 and
+/// 1,794 times the mean; and with the sampler in f32, -6% at 0.1 mm.
+#[test]
+fn light_samples_next_to_an_area_light_have_bounded_weights() {
+    use pm_bsdf::Bsdf;
+    use pm_color::Rgb;
+    use pm_scene::{Material, Scene, Triangle};
+    let v = Vec3::new;
+    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
+        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+    };
+    let mut tris = Vec::new();
+    quad(&mut tris, [v(-2., 0., -2.), v(-2., 0., 2.), v(2., 0., 2.), v(2., 0., -2.)], 0); // floor, +y
+    let panel = [v(-0.5, 0., 0.), v(0.5, 0., 0.), v(0.5, 1., 0.), v(-0.5, 1., 0.)];
+    quad(&mut tris, panel, 1); // facing +z
+    let rho = 0.5;
+    let mats = vec![
+        Material::new("floor", Bsdf::Lambert { rho: Rgb::splat(rho) }, Rgb::ZERO),
+        Material::new("panel", Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::ONE),
+    ];
+    let scene = Scene::from_parts(tris, mats, vec![], None);
+    let light = pm_render::DirectLighting::new(&scene).unwrap();
+    let mut bad = Vec::new();
+    for z in [1e-4f32, 1e-3, 1e-2, 0.1, 0.5] {
+        let p = v(0.1, 0.0, z);
+        // Lambert's formula for the panel's irradiance factor, normal +y.
+        let mut e = 0.0f64;
+        for i in 0..4 {
+            let (a, b) = ((panel[i] - p).normalize(), (panel[(i + 1) % 4] - p).normalize());
+            e += 0.5 * a.dot(b).clamp(-1.0, 1.0).acos() as f64 * Vec3::Y.dot(a.cross(b).normalize()) as f64;
+        }
+        let want = rho as f64 / std::f64::consts::PI * e.abs();
+        let hit = scene.intersect(p + Vec3::Y, -Vec3::Y, f32::INFINITY).unwrap();
+        let bsdf = scene.bsdf(&hit);
+        let m = 1u32 << 16;
+        let (mut sum, mut max) = (0.0f64, 0.0f32);
+        for k in 0..m {
+            let u = [
+                (k as f32 + 0.5) / m as f32,
+                k.reverse_bits() as f32 / 4_294_967_296.0,
+                ((k * 7919) % m) as f32 / m as f32,
+                0.5,
+            ];
+            let w = light.light_sample_at(&hit, &bsdf, Vec3::Y, u, false).x;
+            sum += w as f64;
+            max = max.max(w);
+        }
+        let mean = sum / m as f64;
+        eprintln!(
+            "{z} m from the panel: mean {mean:.5} (Lambert {want:.5}), largest sample {:.1} x the mean",
+            max as f64 / mean
+        );
+        bad.extend(((mean / want - 1.0).abs() >= 0.01).then(|| format!("at {z} m: {mean} against {want}")));
+        bad.extend(
+            ((max as f64) >= 8.0 * mean).then(|| format!("at {z} m: a sample of {max} against a mean of {mean}")),
+        );
+    }
+    assert!(bad.is_empty(), "{bad:?}");
+}

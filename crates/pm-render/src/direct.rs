@@ -87,13 +87,14 @@ pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl DirectLighting<'_> {
-    /// The density [sr^-1] with which [`Self::light_sample`] picks direction `wi` toward
-    /// the emitting triangle `tri` seen at distance `t` (light choice included); `None`
+    /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p` picks
+    /// direction `wi` toward the emitting triangle `tri` seen at distance `t` (light
+    /// choice included); `None`
     /// when the triangle belongs to no light. For MIS weights of BSDF-sampled emission.
-    pub fn pdf_emitter(&self, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
+    pub fn pdf_emitter(&self, p: Vec3, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
         let li = self.scene.light_of_triangle[tri as usize];
         (li != u32::MAX).then(|| {
-            self.scene.lights[li as usize].pdf_li(self.scene, wi, t, tri) * self.lights.probs[li as usize] as f32
+            self.scene.lights[li as usize].pdf_li(self.scene, p, wi, t, tri) * self.lights.probs[li as usize] as f32
         })
     }
 
@@ -127,7 +128,7 @@ impl DirectLighting<'_> {
                     if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
                         let le = scene.emitted(&h, -bs.wi) * scene.transmittance(&h, bs.wi);
                         if le.max_element() > 0.0
-                            && let Some(p_l) = self.pdf_emitter(h.tri, bs.wi, h.t)
+                            && let Some(p_l) = self.pdf_emitter(hit.p, h.tri, bs.wi, h.t)
                         {
                             sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
                         }

@@ -83,6 +83,8 @@ fn path_radiance(
     let mut beta = Rgb::ONE;
     let mut l = Components::default();
     let mut prev_pdf = 0.0f32;
+    // The last non-specular shading point (light sampling's densities depend on it).
+    let mut prev_p = o;
     let mut prev_specular = true;
     // Classification of emission found at the next hit, and the path's history.
     let mut emission_layer = Layer::Direct;
@@ -96,7 +98,7 @@ fn path_radiance(
         if le.max_element() > 0.0 {
             if prev_specular {
                 add(&mut l, emission_layer, beta * le);
-            } else if let Some(p_l) = light.pdf_emitter(hit.tri, d, hit.t) {
+            } else if let Some(p_l) = light.pdf_emitter(prev_p, hit.tri, d, hit.t) {
                 add(&mut l, emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
             }
         }
@@ -165,6 +167,7 @@ fn path_radiance(
         if !beta.is_finite() {
             return l;
         }
+        prev_p = hit.p;
         o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;
     }

@@ -282,6 +282,56 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(b0, b1)
 }
 
+/// Solid angle [sr] of the spherical triangle with unit vertices `a`, `b`, `c`:
+/// tan(Ω / 2) = |a·(b×c)| / (1 + a·b + b·c + c·a) (Van Oosterom and Strackee 1983),
+/// which keeps its precision for small and nearly flat triangles where the sum of
+/// the angles minus π loses it. In f64: seen from a point 0.1 mm from a 1 m edge,
+/// two corners are π - 2e-4 apart, and f32 rounds their cosine to -1.
+pub fn spherical_triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+    let num = a.dot(b.cross(c)).abs();
+    let den = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
+    (2.0 * num.atan2(den)) as f32
+}
+
+/// A direction distributed uniformly in solid angle over the spherical triangle
+/// with unit vertices `a`, `b`, `c` of area `area` (its solid angle,
+/// [`spherical_triangle_area`]), from `u` in [0, 1)^2 (Arvo 1995, "Stratified
+/// sampling of spherical triangles"): `u.x` chooses the point C' on arc AC such that
+/// triangle ABC' has area `u.x` x `area`, `u.y` a point on arc BC' with the cosine
+/// to B uniform, which is uniform in area within ABC'. The map is continuous, so
+/// stratified `u` give stratified directions. Computed in f64 (see
+/// [`spherical_triangle_area`]). `None` for a degenerate triangle.
+pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, area: f32, u: Vec2) -> Option<Vec3> {
+    use glam::DVec3;
+    let (a, b, c) = (a.as_dvec3().normalize(), b.as_dvec3().normalize(), c.as_dvec3().normalize());
+    // The angle at A, between the great circles AB and AC.
+    let (n_ab, n_ac) = (a.cross(b).normalize_or_zero(), a.cross(c).normalize_or_zero());
+    if n_ab == DVec3::ZERO || n_ac == DVec3::ZERO {
+        return None;
+    }
+    let cos_alpha = n_ab.dot(n_ac).clamp(-1.0, 1.0);
+    let sin_alpha = (1.0 - cos_alpha * cos_alpha).max(0.0).sqrt();
+    let cos_c = a.dot(b);
+    // Area of the sub-triangle ABC', and C' on arc AC (Arvo's equations).
+    let sub = u.x as f64 * area as f64;
+    let (s, t) = (sub - cos_alpha.acos()).sin_cos();
+    let uu = t - cos_alpha;
+    let v = s + sin_alpha * cos_c;
+    let den = (v * s + uu * t) * sin_alpha;
+    if den == 0.0 {
+        return None;
+    }
+    let q = (((v * t - uu * s) * cos_alpha - v) / den).clamp(-1.0, 1.0);
+    let c_perp = (c - a * c.dot(a)).normalize_or_zero();
+    let c1 = a * q + c_perp * (1.0 - q * q).max(0.0).sqrt();
+    // A point on arc BC', uniform in the cosine to B.
+    let z = 1.0 - u.y as f64 * (1.0 - c1.dot(b));
+    let c1_perp = (c1 - b * c1.dot(b)).normalize_or_zero();
+    let w = (b * z + c1_perp * (1.0 - z * z).max(0.0).sqrt()).as_vec3().normalize_or_zero();
+    (w != Vec3::ZERO && w.is_finite()).then_some(w)
+}
+
 /// Choose an index from a discrete distribution by a cumulative table (last entry is
 /// the total, entries non-decreasing). Returns the index; u in [0,1).
 pub fn sample_cdf(cdf: &[f64], u: f32) -> usize {
@@ -360,6 +410,72 @@ mod tests {
                 assert_eq!(s.next_1d().to_bits(), want.to_bits(), "seed {seed} index {index} dim {d}");
             }
         }
+    }
+
+    /// Irradiance factor ∫ cos dω over a polygon seen from the origin with normal
+    /// `n` (Lambert's formula: 1/2 Σ Θ_i n·Γ_i over the edges).
+    fn polygon_cos_integral(v: &[Vec3], n: Vec3) -> f64 {
+        let mut sum = 0.0f64;
+        for i in 0..v.len() {
+            let (a, b) = (v[i].normalize(), v[(i + 1) % v.len()].normalize());
+            let theta = a.dot(b).clamp(-1.0, 1.0).acos() as f64;
+            sum += theta * n.dot(a.cross(b).normalize()) as f64;
+        }
+        0.5 * sum.abs()
+    }
+
+    /// Solid-angle sampling of spherical triangles (Arvo 1995): every direction
+    /// falls inside the triangle; Ω from the Van Oosterom-Strackee formula equals a
+    /// Monte Carlo estimate by area sampling; the sampled directions' mean cosine
+    /// times Ω equals Lambert's closed form for the polygon, for triangles far, near
+    /// and almost edge-on (each within 0.5% at 2^16 stratified samples); and the
+    /// first coordinate stratifies: u.x = 1/2 splits off half the solid angle. A wrong
+    /// vertex angle or arc formula fails the cosine or the half-area count.
+    #[test]
+    fn spherical_triangles_are_sampled_uniformly_in_solid_angle() {
+        let n = Vec3::Z;
+        let tris = [
+            [Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.5, -0.5, 2.5), Vec3::new(0.0, 1.0, 1.5)],
+            [Vec3::new(-0.05, 0.01, 0.02), Vec3::new(1.0, 0.0, 0.5), Vec3::new(0.3, 1.0, 0.05)],
+            [Vec3::new(0.2, -0.3, 0.01), Vec3::new(2.0, 0.1, 0.05), Vec3::new(0.5, 1.5, 0.3)],
+        ];
+        for t in tris {
+            let (a, b, c) = (t[0].normalize(), t[1].normalize(), t[2].normalize());
+            let omega = spherical_triangle_area(a, b, c);
+            // Ω = ∫ cos_l / d^2 dA by area sampling.
+            let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
+            let (ng, area) = (e1.cross(e2).normalize(), 0.5 * e1.cross(e2).length());
+            let m = 1 << 16;
+            let mut omega_area = 0.0f64;
+            for k in 0..m {
+                let bc = uniform_triangle(Vec2::new((k as f32 + 0.5) / m as f32, radical_inverse(k)));
+                let q = t[0] * bc.x + t[1] * bc.y + t[2] * (1.0 - bc.x - bc.y);
+                omega_area += (area * q.normalize().dot(ng).abs() / q.length_squared()) as f64 / m as f64;
+            }
+            assert!((omega as f64 / omega_area - 1.0).abs() < 5e-3, "Ω {omega} vs {omega_area}");
+            let mut cos_sum = 0.0f64;
+            for k in 0..m {
+                let u = Vec2::new((k as f32 + 0.5) / m as f32, radical_inverse(k));
+                let w = sample_spherical_triangle(a, b, c, omega, u).expect("a proper triangle");
+                // Inside: on the inner side of the three great circles.
+                let side = a.cross(b).dot(c).signum();
+                for (p, q) in [(a, b), (b, c), (c, a)] {
+                    assert!(p.cross(q).dot(w) * side > -1e-4, "direction {w} outside");
+                }
+                cos_sum += w.dot(n).max(0.0) as f64;
+            }
+            let want = polygon_cos_integral(&t, n);
+            let got = omega as f64 * cos_sum / m as f64;
+            assert!((got / want - 1.0).abs() < 5e-3, "∫cos: sampled {got}, Lambert {want}");
+            // u.x = 1/2 (with u.y = 1, the point C' itself) halves the area.
+            let c_half = sample_spherical_triangle(a, b, c, omega, Vec2::new(0.5, 1.0)).unwrap();
+            let sub = spherical_triangle_area(a, b, c_half);
+            assert!((sub / omega - 0.5).abs() < 1e-3, "half area: {sub} of {omega}");
+        }
+    }
+
+    fn radical_inverse(k: usize) -> f32 {
+        (k as u32).reverse_bits() as f32 * (1.0 / 4_294_967_296.0)
     }
 
     /// A hashed stream is the salted stream's noise (from its dimension 256 on), and

@@ -240,6 +240,47 @@ impl Light {
     }
 }
 
+/// Area-light triangles are sampled by solid angle from points nearer their
+/// centroid than this many times their bounding radius. Sampled by area, a light
+/// sample's weight cos_l A / d^2 grows without bound at points near the triangle
+/// (a facet of an emitting sphere seen from the next facet: the furnace test's
+/// worst pixel was a single such sample); by solid angle it is at most Ω. Farther
+/// away the two are nearly alike and area sampling is cheaper (no trigonometry).
+const SOLID_ANGLE_NEAR: f32 = 1.5;
+
+/// The solid angle [sr] triangle `tri` subtends at `p`, with the unit directions
+/// to its corners, when `p` is near enough for solid-angle sampling (see
+/// [`SOLID_ANGLE_NEAR`]) and the solid angle is not degenerate; `None` otherwise.
+/// Sampling and its density both decide by this, so they agree.
+fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> {
+    let c = (tri.p[0] + tri.p[1] + tri.p[2]) / 3.0;
+    let r2 = tri.p.iter().map(|v| (*v - c).length_squared()).fold(0.0f32, f32::max);
+    if (p - c).length_squared() >= SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2 {
+        return None;
+    }
+    let v = tri.p.map(|q| (q - p).normalize_or_zero());
+    if v.contains(&Vec3::ZERO) {
+        return None;
+    }
+    let omega = pm_sampling::spherical_triangle_area(v[0], v[1], v[2]);
+    (omega > 1e-5 && omega.is_finite()).then_some((omega, v))
+}
+
+/// Area of a triangle [m^2].
+fn tri_area(tri: &crate::Triangle) -> f32 {
+    0.5 * (tri.p[1] - tri.p[0]).cross(tri.p[2] - tri.p[0]).length()
+}
+
+/// Barycentrics of a point `q` in the plane of `tri`.
+fn barycentrics(tri: &crate::Triangle, q: Vec3) -> [f32; 3] {
+    let (e1, e2, d) = (tri.p[1] - tri.p[0], tri.p[2] - tri.p[0], q - tri.p[0]);
+    let n = e1.cross(e2);
+    let inv = 1.0 / n.length_squared().max(f32::MIN_POSITIVE);
+    let b1 = d.cross(e2).dot(n) * inv;
+    let b2 = e1.cross(d).dot(n) * inv;
+    [1.0 - b1 - b2, b1, b2]
+}
+
 /// A point picked on an area light (see [`Light::pick_area_point`]).
 struct AreaPick<'s> {
     /// Its triangle.
@@ -373,9 +414,42 @@ pub struct LightSample {
 
 impl Light {
     /// Sample a direction toward this light from point `p` (pbrt-v4 section 12.2).
-    /// Area lights are sampled uniformly by area and converted to solid angle.
+    /// Area lights: a triangle from the light's cdf, then a point on it uniform by
+    /// area, converted to solid angle; or, when `p` is near the triangle (see
+    /// [`near_solid_angle`]), a direction uniform in the solid angle it subtends
+    /// (Arvo 1995), whose weight stays bounded where the area density's d^2 /
+    /// cos goes to zero.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, two_sided }
+                if let i = sample_cdf(cdf, u_sel)
+                    && let tri = &scene.triangles[(tris.start + i as u32) as usize]
+                    && let Some((omega, v)) = near_solid_angle(tri, p) =>
+            {
+                let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
+                let cos_l = -wi.dot(tri.ng);
+                if !(if *two_sided { cos_l.abs() } else { cos_l } > 0.0) {
+                    return None;
+                }
+                // Where the direction meets the triangle's plane.
+                let dist = (tri.p[0] - p).dot(tri.ng) / -cos_l;
+                if !(dist > 0.0 && dist.is_finite()) {
+                    return None;
+                }
+                let id = tris.start + i as u32;
+                let le = match area_per_pick.is_empty() {
+                    true => *emission,
+                    false => scene.emission_at(id, barycentrics(tri, p + wi * dist)),
+                };
+                let per_pick = area_per_pick.get(i).copied().unwrap_or(*area);
+                (le != Rgb::ZERO).then(|| LightSample {
+                    wi,
+                    dist,
+                    li: le,
+                    pdf: tri_area(tri) / (per_pick * omega),
+                    delta: false,
+                })
+            }
             LightKind::Area { two_sided, .. } => {
                 let AreaPick { tri, p: q, le, area } = self.pick_area_point(scene, u_sel, u)?;
                 let d = q - p;
@@ -420,7 +494,7 @@ impl Light {
     /// Solid-angle density with which [`Light::sample_li`] would pick direction `wi`
     /// landing on triangle `tri` at distance `dist` (for MIS); 0 for
     /// punctual lights and triangles that are not part of this light.
-    pub fn pdf_li(&self, scene: &Scene, wi: Vec3, dist: f32, tri: u32) -> f32 {
+    pub fn pdf_li(&self, scene: &Scene, p: Vec3, wi: Vec3, dist: f32, tri: u32) -> f32 {
         match &self.kind {
             LightKind::Area { tris, area, area_per_pick, two_sided, .. } => {
                 if !tris.contains(&tri) {
@@ -429,8 +503,14 @@ impl Light {
                 let t = &scene.triangles[tri as usize];
                 let cos_l = -wi.dot(t.ng);
                 let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                let area = area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
-                if cos_l <= 0.0 { 0.0 } else { dist * dist / (cos_l * area) }
+                let area = *area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
+                if cos_l <= 0.0 {
+                    0.0
+                } else if let Some((omega, _)) = near_solid_angle(t, p) {
+                    tri_area(t) / (area * omega)
+                } else {
+                    dist * dist / (cos_l * area)
+                }
             }
             _ => 0.0,
         }
