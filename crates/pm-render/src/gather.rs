@@ -23,9 +23,6 @@ pub struct Scratch {
     pub(crate) rejected: Vec<f32>,
     /// Calls of [`Scratch::clock`] so far (one in [`TIME_EVERY`] is timed).
     ticks: u32,
-    /// Light samples per shading point when not the configured number (the extra
-    /// samples of supersampled pixels).
-    pub(crate) light_samples: Option<u32>,
 }
 
 /// The per-component times in the render statistics time one call in this many and

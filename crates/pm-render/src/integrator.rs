@@ -151,11 +151,6 @@ pub trait Integrator: Sync {
 
     /// Work counters (final gathers, lookups, cut paths, time per component).
     fn counters(&self) -> &Counters;
-
-    /// Called on a thread's scratch before it takes the extra samples of
-    /// supersampled pixels, which average `spp` samples each: an integrator may
-    /// spend less per sample there. None by default.
-    fn supersampling(&self, _scratch: &mut Self::Scratch, _spp: u32) {}
 }
 
 /// The photon-map integrator (Christensen 1999 section 1.3): at the first
@@ -251,16 +246,6 @@ pub struct PhotonsView<'a, G>(pub PhotonMapping<'a, G>);
 /// The final-gathered soft indirect term alone: Figure 1 (f).
 pub struct IndirectView<'a, G>(pub PhotonMapping<'a, G>);
 
-/// Light samples per eye sample among the extra samples of a pixel supersampled to
-/// `spp` (the first sample takes `light_samples`): max(1, light_samples / spp), so
-/// a supersampled pixel averages about twice the light samples of the others
-/// (8 + 15 at the defaults) rather than spp times as many. Its direct light stays
-/// the least noisy in the image; taking all of them cost a quarter of the default
-/// render's direct-light rays for pixels that are supersampled for their edges.
-pub(crate) fn supersample_light_samples(light_samples: u32, spp: u32) -> u32 {
-    (light_samples / spp.max(1)).max(1)
-}
-
 /// The photon-map integrators differ only in what they compute at the first
 /// non-specular hit (`shade`); the specular recursion is [`trace`]'s.
 macro_rules! photon_map_integrator {
@@ -285,10 +270,6 @@ macro_rules! photon_map_integrator {
             fn adaptive(&self) -> bool {
                 let $pm = self;
                 !$get.scene.has_stochastic_surfaces()
-            }
-            fn supersampling(&self, scratch: &mut Scratch, spp: u32) {
-                let $pm = self;
-                scratch.light_samples = Some(supersample_light_samples($get.cfg.light_samples, spp));
             }
         }
     };
@@ -510,7 +491,7 @@ fn shade_full<G: PhotonRecord>(
     let ns = facing(hit.ns, wo);
     let albedo = bsdf.diffuse_albedo();
     let t = scratch.clock();
-    let reflected = ctx.light.direct(hit, bsdf, wo, s, scratch.light_samples.unwrap_or(cfg.light_samples));
+    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
     let direct = le + reflected;
     if let Some(v) = vs {
         v.direct = reflected;

@@ -433,21 +433,14 @@ pub fn render_into<I: Integrator>(
             supersampled = mark.len() as u64;
             let extra: Vec<(usize, Components)> = mark
                 .par_iter()
-                .map_init(
-                    || {
-                        let mut scratch = I::Scratch::default();
-                        integ.supersampling(&mut scratch, film.spp);
-                        scratch
-                    },
-                    |scratch, &j| {
-                        let (x, y) = pixel_of(j);
-                        let mut acc = Components::default();
-                        for k in 1..film.spp {
-                            acc.add(&sample(x, y, k, scratch, None));
-                        }
-                        (j, acc)
-                    },
-                )
+                .map_init(I::Scratch::default, |scratch, &j| {
+                    let (x, y) = pixel_of(j);
+                    let mut acc = Components::default();
+                    for k in 1..film.spp {
+                        acc.add(&sample(x, y, k, scratch, None));
+                    }
+                    (j, acc)
+                })
                 .collect();
             for (j, acc) in extra {
                 pixels[j].0.add(&acc);
