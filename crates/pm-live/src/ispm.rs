@@ -359,6 +359,8 @@ pub struct IspmScratch {
     full: splat::SplatScratch,
     /// The subsampled splat of the soft indirect photons.
     low: splat::SplatScratch,
+    /// Its upsampled radiance.
+    up: Vec<Rgb>,
 }
 
 /// Draw one image-space frame of `scene` seen by `camera` into `buffers` (layers
@@ -403,7 +405,7 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let IspmScratch { gbuffer, full, low } = scratch;
+    let IspmScratch { gbuffer, full, low, up } = scratch;
     gbuffer_into(scene, fragments, camera, gbuffer);
     let gbuffer = &*gbuffer;
     let (w, h, f) = (p.width, p.height, p.subsample);
@@ -424,9 +426,8 @@ pub fn frame(
         splat::splat_into(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let [mut e] = splat::upsample([&low.indirect], &low_gb, gbuffer, camera.position, (w, h, f));
-        e.par_iter_mut().enumerate().with_min_len(4096).for_each(|(j, e)| *e *= gbuffer.albedo_over_pi(j));
-        buffers.add_to_layer("indirect", &e);
+        splat::upsample_into(&low.indirect, &low_gb, gbuffer, camera.position, (w, h, f), true, up);
+        buffers.add_to_layer("indirect", up);
         (t_splat, t.elapsed().as_secs_f64())
     };
     buffers.add_to_layer("caustic", &full.caustic);

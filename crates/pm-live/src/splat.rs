@@ -195,16 +195,6 @@ impl GBuffer {
         self.pixels.is_empty()
     }
 
-    /// True where a non-specular surface is seen.
-    pub fn has_surface(&self, j: usize) -> bool {
-        self.pixels[j].kind != EMPTY
-    }
-
-    /// Diffuse albedo / π at pixel `j` [sr^-1]; zero where there is no surface.
-    pub fn albedo_over_pi(&self, j: usize) -> Rgb {
-        self.pixels[j].albedo_pi
-    }
-
     /// The G-buffer sampled every `factor` pixels of a `w` x `h` one: the pixel at
     /// the centre of each `factor` x `factor` block (clamped to the image), row by
     /// row (section 5.2).
@@ -326,36 +316,32 @@ impl VolumePhoton {
 }
 
 /// Joint bilateral upsampling of a subsampled splat (section 5.2, Figure 12): each
-/// full-resolution surface takes the values of the (up to) four surrounding samples
-/// weighted by bilinear distance, normal agreement (max(0, n·n')^8) and depth
-/// agreement (1 / (1 + (Δd / 0.05 d)^2)), normalised; with no usable sample around
-/// it takes none (zero). Upsamples several layers of the same samples at once and
-/// returns them at full resolution.
-pub fn upsample<const N: usize>(
-    low: [&[Rgb]; N],
+/// full-resolution surface of `gbuffer` takes the values of the (up to) four
+/// surrounding samples of `low` weighted by bilinear distance, normal agreement
+/// (max(0, n·n')^8) and depth agreement (1 / (1 + (Δd / 0.05 d)^2)), normalised;
+/// with no usable sample around it takes none (zero). With `reflect`, the result is
+/// multiplied by the pixel's diffuse albedo / π (irradiance in, Lambertian radiance
+/// out). Written into `out`, reusing its memory.
+pub fn upsample_into(
+    low: &[Rgb],
     low_gbuffer: &GBuffer,
     gbuffer: &GBuffer,
     camera_position: Vec3,
     (w, h, factor): (u32, u32, u32),
-) -> [Vec<Rgb>; N] {
+    reflect: bool,
+    out: &mut Vec<Rgb>,
+) {
     let f = factor.max(1);
     let (lw, lh) = (w.div_ceil(f), h.div_ceil(f));
     let (low_px, px) = (&low_gbuffer.pixels, &gbuffer.pixels);
     let low_depth: Vec<f32> = low_px.iter().map(|q| (q.p - camera_position).length()).collect();
-    let mut out: [Vec<Rgb>; N] = std::array::from_fn(|_| vec![Rgb::ZERO; (w * h) as usize]);
-    let mut rows: Vec<[&mut [Rgb]; N]> = Vec::with_capacity(h as usize);
-    {
-        let mut iters: Vec<_> = out.iter_mut().map(|o| o.chunks_mut(w as usize)).collect();
-        for _ in 0..h {
-            let row: Vec<&mut [Rgb]> = iters.iter_mut().map(|it| it.next().expect("h rows")).collect();
-            rows.push(row.try_into().unwrap_or_else(|_| unreachable!("N layers")));
-        }
-    }
-    rows.into_par_iter().enumerate().for_each(|(y, mut row)| {
+    out.resize((w * h) as usize, Rgb::ZERO);
+    out.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
         let fy = (y as f32 - (f / 2) as f32) / f as f32;
         let iy = fy.floor();
         let ay = fy - iy;
-        for x in 0..w as usize {
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = Rgb::ZERO;
             let s = &px[y * w as usize + x];
             if s.kind == EMPTY {
                 continue;
@@ -365,7 +351,7 @@ pub fn upsample<const N: usize>(
             let ax = fx - ix;
             let depth = (s.p - camera_position).length();
             let inv_sigma = 1.0 / (0.05 * depth).max(1e-6);
-            let mut sum = [Rgb::ZERO; N];
+            let mut sum = Rgb::ZERO;
             let mut wsum = 0.0f32;
             for (dx, dy, wb) in
                 [(0, 0, (1.0 - ax) * (1.0 - ay)), (1, 0, ax * (1.0 - ay)), (0, 1, (1.0 - ax) * ay), (1, 1, ax * ay)]
@@ -382,19 +368,14 @@ pub fn upsample<const N: usize>(
                 let c = s.n.dot(q.n).max(0.0);
                 let (c2, r) = (c * c, (low_depth[k] - depth) * inv_sigma);
                 let wgt = wb.max(1e-4) * (c2 * c2) * (c2 * c2) / (1.0 + r * r);
-                for (acc, layer) in sum.iter_mut().zip(&low) {
-                    *acc += layer[k] * wgt;
-                }
+                sum += low[k] * wgt;
                 wsum += wgt;
             }
             if wsum > 1e-8 {
-                for (o, acc) in row.iter_mut().zip(sum) {
-                    o[x] = acc / wsum;
-                }
+                *o = if reflect { sum * s.albedo_pi / wsum } else { sum / wsum };
             }
         }
     });
-    out
 }
 
 /// What the splat adds up per pixel.

@@ -251,13 +251,26 @@ impl FrameBuffers {
     pub fn add_to_layer(&mut self, name: &str, values: &[Rgb]) {
         let Some(k) = LAYERS.iter().position(|&n| n == name) else { return };
         let [total, rest @ ..] = &mut self.layers;
-        let mut layer = if k == 0 { None } else { Some(&mut rest[k - 1]) };
-        for (j, v) in values.iter().enumerate().take(total.len()) {
-            let v = if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO };
-            total[j] += v;
-            if let Some(l) = layer.as_deref_mut() {
-                l[j] += v;
-            }
+        let n = total.len().min(values.len());
+        let clean = |v: &Rgb| if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO };
+        // In parallel: a 1920 x 1080 frame's layers are 25 MB each.
+        const CHUNK: usize = 1 << 14;
+        let values = &values[..n];
+        if k == 0 {
+            total[..n].par_chunks_mut(CHUNK).zip(values.par_chunks(CHUNK)).for_each(|(t, v)| {
+                t.iter_mut().zip(v).for_each(|(t, v)| *t += clean(v));
+            });
+        } else {
+            let layer = &mut rest[k - 1][..n];
+            (total[..n].par_chunks_mut(CHUNK), layer.par_chunks_mut(CHUNK), values.par_chunks(CHUNK))
+                .into_par_iter()
+                .for_each(|(t, l, v)| {
+                    for ((t, l), v) in t.iter_mut().zip(l).zip(v) {
+                        let v = clean(v);
+                        *t += v;
+                        *l += v;
+                    }
+                });
         }
     }
 
