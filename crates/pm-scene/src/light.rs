@@ -253,7 +253,7 @@ const SOLID_ANGLE_NEAR: f32 = 1.5;
 /// [`SOLID_ANGLE_NEAR`]) and the solid angle is not degenerate; `None` otherwise.
 /// Sampling and its density both decide by this, so they agree.
 fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> {
-    let c = (tri.p[0] + tri.p[1] + tri.p[2]) / 3.0;
+    let c = (tri.p[0] + tri.p[1] + tri.p[2]) * (1.0 / 3.0);
     let r2 = tri.p.iter().map(|v| (*v - c).length_squared()).fold(0.0f32, f32::max);
     if (p - c).length_squared() >= SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2 {
         return None;
@@ -264,11 +264,6 @@ fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> 
     }
     let omega = pm_sampling::spherical_triangle_area(v[0], v[1], v[2]);
     (omega > 1e-5 && omega.is_finite()).then_some((omega, v))
-}
-
-/// Area of a triangle [m^2].
-fn tri_area(tri: &crate::Triangle) -> f32 {
-    0.5 * (tri.p[1] - tri.p[0]).cross(tri.p[2] - tri.p[0]).length()
 }
 
 /// Barycentrics of a point `q` in the plane of `tri`.
@@ -446,7 +441,7 @@ impl Light {
                     wi,
                     dist,
                     li: le,
-                    pdf: tri_area(tri) / (per_pick * omega),
+                    pdf: tri.area / (per_pick * omega),
                     delta: false,
                 })
             }
@@ -507,7 +502,7 @@ impl Light {
                 if cos_l <= 0.0 {
                     0.0
                 } else if let Some((omega, _)) = near_solid_angle(t, p) {
-                    tri_area(t) / (area * omega)
+                    t.area / (area * omega)
                 } else {
                     dist * dist / (cos_l * area)
                 }
