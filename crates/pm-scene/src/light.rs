@@ -240,13 +240,13 @@ impl Light {
     }
 }
 
-/// Area-light triangles are sampled by solid angle from points nearer their
-/// centroid than this many times their bounding radius. Sampled by area, a light
-/// sample's weight cos_l A / d^2 grows without bound at points near the triangle
-/// (a facet of an emitting sphere seen from the next facet: the furnace test's
-/// worst pixel was a single such sample); by solid angle it is at most Ω. Farther
-/// away the two are nearly alike and area sampling is cheaper (no trigonometry).
-const SOLID_ANGLE_NEAR: f32 = 1.5;
+/// Area-light triangles are sampled by solid angle from points nearer to them than
+/// half their bounding radius. Sampled by area, a light sample's weight
+/// cos_l A / d^2 grows without bound as the point nears the triangle (a floor at
+/// the foot of an emitting panel; a facet of an emitting sphere seen from the next
+/// facet); by solid angle it is at most Ω. Farther away the two are nearly alike and
+/// area sampling is cheaper (no trigonometry).
+const SOLID_ANGLE_NEAR: f32 = 0.5;
 
 /// The solid angle [sr] triangle `tri` subtends at `p`, with the unit directions
 /// to its corners, when `p` is near enough for solid-angle sampling (see
@@ -255,7 +255,9 @@ const SOLID_ANGLE_NEAR: f32 = 1.5;
 fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> {
     let c = (tri.p[0] + tri.p[1] + tri.p[2]) * (1.0 / 3.0);
     let r2 = tri.p.iter().map(|v| (*v - c).length_squared()).fold(0.0f32, f32::max);
-    if (p - c).length_squared() >= SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2 {
+    // Cheap first: beyond (1 + NEAR) r of the centroid the triangle is beyond NEAR r.
+    let (near2, far) = (SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2, 1.0 + SOLID_ANGLE_NEAR);
+    if (p - c).length_squared() >= far * far * r2 || (closest_point(tri, p) - p).length_squared() >= near2 {
         return None;
     }
     let v = tri.p.map(|q| (q - p).normalize_or_zero());
@@ -264,6 +266,41 @@ fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> 
     }
     let omega = pm_sampling::spherical_triangle_area(v[0], v[1], v[2]);
     (omega > 1e-5 && omega.is_finite()).then_some((omega, v))
+}
+
+/// The point of triangle `tri` nearest `p` (Ericson 2004, "Real-Time Collision
+/// Detection", section 5.1.5: by the Voronoi region of `p`).
+fn closest_point(tri: &crate::Triangle, p: Vec3) -> Vec3 {
+    let [a, b, c] = tri.p;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 /// Barycentrics of a point `q` in the plane of `tri`.
@@ -508,6 +545,44 @@ impl Light {
                 }
             }
             _ => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The nearest point of a triangle against a search over a fine barycentric grid,
+    /// for points in front of, behind, beside and beyond the corners and edges of a
+    /// thin and a fat triangle: never farther than the grid's best, and inside the
+    /// triangle.
+    #[test]
+    fn closest_point_is_the_nearest_point_of_the_triangle() {
+        let tris = [
+            crate::Triangle::new([Vec3::ZERO, Vec3::X, Vec3::Y], 0).unwrap(),
+            crate::Triangle::new([Vec3::new(-1.0, 0.2, 0.3), Vec3::new(2.0, 0.1, -0.2), Vec3::new(0.4, 0.15, 0.1)], 0)
+                .unwrap(),
+        ];
+        let h = |i: u64, s: u64| (pm_sampling::mix64(i * 13 + s) >> 40) as f32 / (1u64 << 24) as f32 * 6.0 - 3.0;
+        let n = 200;
+        for tri in &tris {
+            for i in 0..300 {
+                let p = Vec3::new(h(i, 1), h(i, 2), h(i, 3));
+                let q = closest_point(tri, p);
+                let mut best = f32::INFINITY;
+                for a in 0..=n {
+                    for b in 0..=(n - a) {
+                        let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
+                        let g = tri.p[0] * (1.0 - u - v) + tri.p[1] * u + tri.p[2] * v;
+                        best = best.min((g - p).length());
+                    }
+                }
+                let d = (q - p).length();
+                assert!(d <= best + 1e-5, "point {p}: {d} against the grid's {best}");
+                let [b0, b1, b2] = barycentrics(tri, q);
+                assert!(b0.min(b1).min(b2) > -1e-4, "nearest point {q} outside the triangle");
+            }
         }
     }
 }
