@@ -63,9 +63,10 @@ fn run() {
         "| scene | size | direct | bounces | subsample | G-buffer | direct | bounce map | trace | splat | upsample | frame | fps | texels | stored photons |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    let rows: [(&str, DirectMode, u32, u32); 6] = [
+    let rows: [(&str, DirectMode, u32, u32); 7] = [
         ("cornell_spheres", DirectMode::Rays, 1, 1),
         ("cornell_spheres", DirectMode::Rays, 1, 4),
+        ("cornell_spheres", DirectMode::ShadowMap, 1, 4),
         ("cornell_spheres", DirectMode::Rays, 3, 4),
         ("caustic_ring", DirectMode::ShadowMap, 1, 1),
         ("caustic_ring", DirectMode::Rays, 1, 1),
@@ -203,20 +204,22 @@ fn run() {
             .collect()
     };
     let reference = blocks(path.layer("total").unwrap());
+    let reference_direct = blocks(path.layer("direct").unwrap());
     // Error measures over the blocks that do not see the light: relative RMSE and
     // bias of the image, and the median and 90th percentile of the blocks'
     // relative errors (the RMSE is ruled by a few caustic blocks).
-    let measure = |img: &[Rgb]| {
-        let e = pm_image::compare(img, &reference, 4.0);
+    let measure_against = |img: &[Rgb], reference: &[Rgb]| {
+        let e = pm_image::compare(img, reference, 4.0);
         let mut rel: Vec<f32> = img
             .iter()
-            .zip(&reference)
+            .zip(reference)
             .filter(|(_, r)| r.max_element() <= 4.0 && r.max_element() > 0.01)
             .map(|(a, r)| (*a - *r).abs().element_sum() / r.element_sum())
             .collect();
         rel.sort_by(f32::total_cmp);
         (e.rel_rmse, e.rel_bias, rel[rel.len() / 2], rel[rel.len() * 9 / 10])
     };
+    let measure = |img: &[Rgb]| measure_against(img, &reference);
     // The reference's own noise: a second path-traced image with another seed.
     let film2 = Film { seed: 12, ..film };
     let (path2, _) = pm_render::render_region(&camera, &film2, Rect::full(&film2), &pt, false, &|_, _| {}).unwrap();
@@ -250,6 +253,41 @@ fn run() {
         println!(
             "| {bounce_res} | {bounces} | {subsample} | {:.1} | {er:.4} | {eb:+.4} | {em:.4} | {e9:.4} |",
             wall * 1e3
+        );
+    }
+
+    // Direct light both ways (the issue: "shadow rays or shadow maps: measure both").
+    println!(
+        "\nDirect light by shadow rays or a shadow map (cornell_spheres, 512 x 512, bounce_res 48, 8 bounces, subsample 4; against the path tracer, 4 x 4 blocks)"
+    );
+    println!(
+        "| direct | light samples | frame [ms] | direct step [ms] | direct layer: relative RMSE | mean bias | median block error | image: median block error |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (direct, light_samples) in [(DirectMode::Rays, 1), (DirectMode::Rays, 4), (DirectMode::ShadowMap, 1)] {
+        let p = LiveParams {
+            method: Method::Ispm,
+            bounce_res: 48,
+            bounces: 8,
+            subsample: 4,
+            direct,
+            light_samples,
+            ..LiveParams::default()
+        };
+        let mut live = Live::new(s.clone(), None, p, 1).unwrap();
+        let (mut wall, mut step) = (f64::INFINITY, f64::INFINITY);
+        for _ in 0..4 {
+            let st = live.step().unwrap();
+            wall = wall.min(st.times.wall);
+            step = step.min(st.ispm.map_or(f64::INFINITY, |i| i.times.direct));
+        }
+        let layers = live.frame_layers();
+        let (dr, db, dm, _) = measure_against(&blocks(layers.layer("direct").unwrap()), &reference_direct);
+        let (_, _, tm, _) = measure(&blocks(layers.layer("total").unwrap()));
+        println!(
+            "| {direct:?} | {light_samples} | {:.1} | {:.1} | {dr:.4} | {db:+.4} | {dm:.4} | {tm:.4} |",
+            wall * 1e3,
+            step * 1e3
         );
     }
 }

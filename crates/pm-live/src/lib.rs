@@ -37,8 +37,12 @@ pm_params::value_enum! {
     pub enum DirectMode {
         /// A shadow ray per light sample at every pixel: sharp shadows.
         Rays,
-        /// Point and spot lights: every light at every pixel, visibility from a cube
-        /// shadow map drawn by the rasteriser each frame (other lights: shadow rays).
+        /// Every light at every pixel, visibility from a cube shadow map drawn by the
+        /// rasteriser each frame at the light's centre: point and spot lights exactly;
+        /// small planar area lights with their unoccluded irradiance in closed form
+        /// (Lambertian surfaces; one light sample elsewhere) and the centre's
+        /// visibility, so without noise but with hard shadows. Scenes with other
+        /// lights keep shadow rays.
         ShadowMap,
         /// The photons' estimate at the corners, like indirect light (the thesis).
         Photons,
@@ -239,22 +243,14 @@ fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
     direct == DirectMode::Photons || p.flags & flags::DIRECT == 0
 }
 
-/// The cube shadow maps of `scene`'s point and spot lights when direct light comes
-/// from shadow maps (none otherwise, and none for other lights).
-fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<pm_render::raster::CubeDepth>> {
+/// The shadow maps of `scene`'s lights when direct light comes from shadow maps
+/// (none otherwise): point and spot lights, and small planar one-sided area lights
+/// ([`shade::LightMap`]); none for the others.
+fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<shade::LightMap>> {
     if p.direct != DirectMode::ShadowMap {
         return Vec::new();
     }
-    scene
-        .lights
-        .iter()
-        .map(|l| match l.kind {
-            pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => {
-                Some(pm_render::raster::CubeDepth::new(scene, position, p.shadow_map_res))
-            }
-            _ => None,
-        })
-        .collect()
+    scene.lights.iter().map(|l| shade::LightMap::new(scene, l, p.shadow_map_res)).collect()
 }
 
 /// The photons of `ring` the estimates read (see [`Live::tree_photons`]).

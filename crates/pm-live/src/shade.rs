@@ -33,8 +33,8 @@ pub struct LiveShading<'a> {
     direct: DirectMode,
     light_samples: u32,
     max_depth: u32,
-    /// A cube shadow map per light (point and spot lights; none for the others).
-    shadow_maps: &'a [Option<CubeDepth>],
+    /// A shadow map per light (see [`LightMap`]; none for lights without one).
+    shadow_maps: &'a [Option<LightMap>],
     /// True when every light has a shadow map (else shadow rays serve all lights).
     all_mapped: bool,
     counters: Counters,
@@ -47,7 +47,7 @@ impl<'a> LiveShading<'a> {
         corners: &'a Corners,
         e: &'a [Rgb],
         p: &LiveParams,
-        shadow_maps: &'a [Option<CubeDepth>],
+        shadow_maps: &'a [Option<LightMap>],
     ) -> Result<Self, pm_scene::LightSelectError> {
         Self::with(scene, Indirect::Corners { corners, e }, p.direct, p, shadow_maps)
     }
@@ -60,7 +60,7 @@ impl<'a> LiveShading<'a> {
         photons: &'a [VolumePhoton],
         index: &'a PhotonIndex,
         p: &LiveParams,
-        shadow_maps: &'a [Option<CubeDepth>],
+        shadow_maps: &'a [Option<LightMap>],
     ) -> Result<Self, pm_scene::LightSelectError> {
         let direct = if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct };
         Self::with(scene, Indirect::Photons { photons, index }, direct, p, shadow_maps)
@@ -71,7 +71,7 @@ impl<'a> LiveShading<'a> {
         indirect: Indirect<'a>,
         direct: DirectMode,
         p: &LiveParams,
-        shadow_maps: &'a [Option<CubeDepth>],
+        shadow_maps: &'a [Option<LightMap>],
     ) -> Result<Self, pm_scene::LightSelectError> {
         Ok(LiveShading {
             light: DirectLighting::new(scene)?,
@@ -100,10 +100,11 @@ impl<'a> LiveShading<'a> {
 }
 
 impl LiveShading<'_> {
-    /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps: every point and
-    /// spot light evaluated exactly (f I cos / d^2), visibility from its cube map with
-    /// a bias of two texels at the point's distance over the cosine of incidence. A scene with other lights (area,
-    /// directional) keeps shadow rays for all of them.
+    /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps: every light at
+    /// every pixel, visibility from its cube map with a bias of two texels at the
+    /// point's distance over the cosine of incidence. Point and spot lights: f I cos
+    /// / d^2. Area lights: see [`LightMap`]. A scene with lights that have no map
+    /// (directional, large or curved area lights) keeps shadow rays for all of them.
     fn mapped_direct(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
         if !self.all_mapped {
@@ -111,14 +112,24 @@ impl LiveShading<'_> {
         }
         let mut sum = Rgb::ZERO;
         for (light, map) in scene.lights.iter().zip(self.shadow_maps.iter().flatten()) {
+            // Whether the map's centre sees the point.
+            let visible = || {
+                let d = map.depth.position() - hit.p;
+                let dist = d.length();
+                // Two texels at the point's distance, more at grazing light where one
+                // texel spans a longer stretch of the surface (shadow acne otherwise).
+                let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(hit.ng) / dist).abs().max(0.25);
+                map.depth.visible(hit.p, bias)
+            };
+            if let Some(area) = &map.area {
+                sum += area.reflected(hit, bsdf, wo, light, scene, s, &visible);
+                continue;
+            }
             let Some(ls) = light.sample_li(scene, hit.p, 0.5, glam::Vec2::splat(0.5)) else { continue };
             if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
                 continue;
             }
-            // Two texels at the point's distance, more at grazing light where one
-            // texel spans a longer stretch of the surface (shadow acne otherwise).
-            let bias = 2.0 * map.texel_angle() * ls.dist / ls.wi.dot(hit.ng).abs().max(0.25);
-            if map.visible(hit.p, bias) {
+            if visible() {
                 sum += bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs() * ls.li / ls.pdf;
             }
         }
@@ -175,6 +186,148 @@ impl LiveShading<'_> {
             return Components { specular: beta * (le + direct + indirect), ..Default::default() };
         }
         Components::default()
+    }
+}
+
+/// A light's shadow map for [`crate::DirectMode::ShadowMap`]: depth seen from its
+/// centre, drawn by the rasteriser (the paper's shadow maps, section 3 step 1a).
+pub struct LightMap {
+    /// The cube depth map.
+    depth: CubeDepth,
+    /// For an area light, its shape.
+    area: Option<AreaShape>,
+}
+
+/// A small planar one-sided area light drawn with one shadow map: its triangles,
+/// emitting side and radiance.
+struct AreaShape {
+    /// Its outline as one polygon when its triangles form a simple one (a quad's
+    /// four corners: the edges inside cancel in Lambert's formula), else each
+    /// triangle; corners in order [m].
+    polys: Vec<Vec<Vec3>>,
+    /// Unit normal of the emitting side.
+    normal: Vec3,
+    /// Emitted radiance [W sr^-1 m^-2 per channel].
+    le: Rgb,
+}
+
+/// Area lights of at most this many triangles get a shadow map.
+const MAPPED_AREA_TRIANGLES: usize = 64;
+
+impl LightMap {
+    /// The map of `light` at `res` x `res` texels a face, or none. Point and spot
+    /// lights: at their position. Area lights that are planar (every triangle's
+    /// normal within 0.1 degrees of the first's), one-sided, uniformly emitting and of
+    /// at most [`MAPPED_AREA_TRIANGLES`] triangles: at their area-weighted centroid
+    /// pushed 1e-3 of the scene's diagonal off the surface, so the map does not see
+    /// the light itself.
+    pub fn new(scene: &Scene, light: &pm_scene::Light, res: u32) -> Option<LightMap> {
+        use pm_scene::LightKind;
+        match &light.kind {
+            LightKind::Point { position, .. } | LightKind::Spot { position, .. } => {
+                Some(LightMap { depth: CubeDepth::new(scene, *position, res), area: None })
+            }
+            LightKind::Area { tris, emission, area_per_pick, two_sided, .. } => {
+                let t: Vec<&pm_scene::Triangle> = tris.clone().map(|i| &scene.triangles[i as usize]).collect();
+                let normal = t.first()?.ng;
+                if *two_sided
+                    || !area_per_pick.is_empty()
+                    || t.len() > MAPPED_AREA_TRIANGLES
+                    || t.iter().any(|q| q.ng.dot(normal) < 0.999_998)
+                {
+                    return None;
+                }
+                let area: f32 = t.iter().map(|q| q.area).sum();
+                let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area / 3.0)).sum::<Vec3>() / area;
+                let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
+                Some(LightMap {
+                    depth: CubeDepth::new(scene, position, res),
+                    area: Some(AreaShape { polys: outline(&t), normal, le: *emission }),
+                })
+            }
+            LightKind::Directional { .. } => None,
+        }
+    }
+}
+
+/// Most corners of a light's outline polygon.
+const OUTLINE_CORNERS: usize = 16;
+
+/// The outline of planar triangles `t` as one polygon (corners in order) when the
+/// edges that no neighbour shares form a single loop of at most
+/// [`OUTLINE_CORNERS`] corners; else each triangle on its own. Corners are matched
+/// by their exact coordinates (a mesh's shared vertices).
+fn outline(t: &[&pm_scene::Triangle]) -> Vec<Vec<Vec3>> {
+    let key = |v: Vec3| v.to_array().map(f32::to_bits);
+    let mut edges: Vec<([u32; 3], [u32; 3], Vec3)> = Vec::new();
+    for q in t {
+        for i in 0..3 {
+            edges.push((key(q.p[i]), key(q.p[(i + 1) % 3]), q.p[i]));
+        }
+    }
+    let boundary: Vec<&([u32; 3], [u32; 3], Vec3)> =
+        edges.iter().filter(|e| !edges.iter().any(|f| f.0 == e.1 && f.1 == e.0)).collect();
+    let per_triangle = || t.iter().map(|q| q.p.to_vec()).collect();
+    let Some(first) = boundary.first() else { return per_triangle() };
+    let mut poly = vec![first.2];
+    let mut at = first.1;
+    while at != first.0 {
+        let mut next = boundary.iter().filter(|e| e.0 == at);
+        let (Some(e), None) = (next.next(), next.next()) else { return per_triangle() };
+        poly.push(e.2);
+        at = e.1;
+        if poly.len() > boundary.len() {
+            return per_triangle();
+        }
+    }
+    if poly.len() != boundary.len() || poly.len() > OUTLINE_CORNERS {
+        return per_triangle();
+    }
+    vec![poly]
+}
+
+impl AreaShape {
+    /// Reflected radiance [W sr^-1 m^-2] toward `wo` from this light at `hit`, with
+    /// `visible()` the shadow map's answer for the light's centre. On a
+    /// Lambertian surface the unoccluded irradiance in closed form (Lambert's
+    /// formula, the light clipped to the surface's hemisphere) times ρ / π: no noise,
+    /// and the penumbrae of a point at the centre. Elsewhere one light sample, with
+    /// the same visibility.
+    #[allow(clippy::too_many_arguments)]
+    fn reflected(
+        &self,
+        hit: &Hit,
+        bsdf: &pm_bsdf::Bsdf,
+        wo: Vec3,
+        light: &pm_scene::Light,
+        scene: &Scene,
+        s: &mut Sampler,
+        visible: &dyn Fn() -> bool,
+    ) -> Rgb {
+        if (hit.p - self.polys[0][0]).dot(self.normal) <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+        if let pm_bsdf::Bsdf::Lambert { rho } = bsdf {
+            let mut e = 0.0;
+            for poly in &self.polys {
+                let mut rel = [Vec3::ZERO; OUTLINE_CORNERS];
+                for (r, q) in rel.iter_mut().zip(poly) {
+                    *r = *q - hit.p;
+                }
+                e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
+            }
+            if !(e > 0.0) || !visible() {
+                return Rgb::ZERO;
+            }
+            return *rho * self.le * (e / PI);
+        }
+        let u = s.next_2d();
+        let Some(ls) = light.sample_li(scene, hit.p, s.next_1d(), u) else { return Rgb::ZERO };
+        if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 || !visible() {
+            return Rgb::ZERO;
+        }
+        bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs() * ls.li / ls.pdf
     }
 }
 

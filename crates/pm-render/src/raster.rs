@@ -269,6 +269,11 @@ impl CubeDepth {
         d.length() <= stored + bias
     }
 
+    /// Where the map was drawn from [m].
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+
     /// The angle a texel subtends at the centre of a face [rad] (for biases).
     pub fn texel_angle(&self) -> f32 {
         2.0 / self.res as f32
