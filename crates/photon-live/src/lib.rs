@@ -137,6 +137,15 @@ pub fn run(cli: &Cli) -> Result<Report> {
     };
     pm_stage::init_threads(cli.threads)?;
     let scene = pm_stage::load_scene("photon-live", scene_path, cli.scene_args)?;
+    if cli.params.direct == pm_live::DirectMode::ShadowMap {
+        let without = pm_live::lights_without_shadow_maps(&scene);
+        if !without.is_empty() {
+            eprintln!(
+                "photon-live: note: --direct shadow-map: no shadow map for {} (directional, or an area light that is large, curved, two-sided or textured); every light takes shadow rays",
+                without.join(", ")
+            );
+        }
+    }
     let photon_scene = match &cli.photon_scene {
         Some(p) => Some(pm_stage::load_scene("photon-live", p, cli.scene_args)?),
         None => None,

@@ -140,3 +140,23 @@ fn refuses_bad_settings_naming_the_option() {
     }
     assert!(!out.exists());
 }
+
+/// `--direct shadow-map` says which lights it cannot map (the furnace's emitting
+/// sphere is curved) and that every light then takes shadow rays; a scene whose
+/// lights all have maps (cornell_spheres' panel) gets no note.
+#[test]
+fn shadow_maps_name_the_lights_they_cannot_draw() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, noted) in [("furnace.gltf", true), ("cornell_spheres.gltf", false)] {
+        let s = scene(name);
+        let out = dir.path().join(name);
+        let args = ["--scene", s.to_str().unwrap(), "--out", out.to_str().unwrap(), "--method", "ispm"];
+        let o = live(
+            &[&args[..], &["--frames", "1", "--width", "16", "--height", "16", "--direct", "shadow-map"]].concat(),
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert_eq!(err.contains("no shadow map for furnace_sphere"), noted, "{name}: {err}");
+        assert_eq!(err.contains("every light takes shadow rays"), noted, "{name}: {err}");
+    }
+}

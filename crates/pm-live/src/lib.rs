@@ -253,6 +253,13 @@ fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<shade::LightMap>> {
     scene.lights.iter().map(|l| shade::LightMap::new(scene, l, p.shadow_map_res)).collect()
 }
 
+/// The lights of `scene` that cannot have a shadow map (directional lights; area
+/// lights that are large, curved, two-sided or textured), by name: with any of them
+/// `--direct shadow-map` draws every light with shadow rays.
+pub fn lights_without_shadow_maps(scene: &Scene) -> Vec<String> {
+    scene.lights.iter().filter(|l| !shade::LightMap::supports(scene, l)).map(|l| l.name.clone()).collect()
+}
+
 /// The photons of `ring` the estimates read (see [`Live::tree_photons`]).
 fn tree_photons(ring: &RingBuffer, direct: DirectMode) -> Vec<FullIrrPhoton> {
     ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()

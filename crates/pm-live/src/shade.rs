@@ -223,20 +223,16 @@ impl LightMap {
     /// the light itself.
     pub fn new(scene: &Scene, light: &pm_scene::Light, res: u32) -> Option<LightMap> {
         use pm_scene::LightKind;
+        if !LightMap::supports(scene, light) {
+            return None;
+        }
         match &light.kind {
             LightKind::Point { position, .. } | LightKind::Spot { position, .. } => {
                 Some(LightMap { depth: CubeDepth::new(scene, *position, res), area: None })
             }
-            LightKind::Area { tris, emission, area_per_pick, two_sided, .. } => {
+            LightKind::Area { tris, emission, .. } => {
                 let t: Vec<&pm_scene::Triangle> = tris.clone().map(|i| &scene.triangles[i as usize]).collect();
                 let normal = t.first()?.ng;
-                if *two_sided
-                    || !area_per_pick.is_empty()
-                    || t.len() > MAPPED_AREA_TRIANGLES
-                    || t.iter().any(|q| q.ng.dot(normal) < 0.999_998)
-                {
-                    return None;
-                }
                 let area: f32 = t.iter().map(|q| q.area).sum();
                 let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area / 3.0)).sum::<Vec3>() / area;
                 let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
@@ -246,6 +242,23 @@ impl LightMap {
                 })
             }
             LightKind::Directional { .. } => None,
+        }
+    }
+
+    /// True when [`LightMap::new`] gives `light` a map (without drawing it).
+    pub fn supports(scene: &Scene, light: &pm_scene::Light) -> bool {
+        use pm_scene::LightKind;
+        match &light.kind {
+            LightKind::Point { .. } | LightKind::Spot { .. } => true,
+            LightKind::Area { tris, area_per_pick, two_sided, .. } => {
+                let mut t = tris.clone().map(|i| &scene.triangles[i as usize]);
+                let Some(normal) = t.next().map(|q| q.ng) else { return false };
+                !*two_sided
+                    && area_per_pick.is_empty()
+                    && tris.len() <= MAPPED_AREA_TRIANGLES
+                    && t.all(|q| q.ng.dot(normal) >= 0.999_998)
+            }
+            LightKind::Directional { .. } => false,
         }
     }
 }
