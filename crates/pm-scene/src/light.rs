@@ -29,6 +29,9 @@ pub enum LightKind {
         /// stands for, A_tri / p_tri [m^2] (the inverse of its area density); empty
         /// for a uniform emitter, where every pick stands for `area`.
         area_per_pick: Vec<f32>,
+        /// Per triangle its centroid and squared bounding radius about it [m, m^2],
+        /// for the solid-angle sampling decision ([`near_solid_angle`]).
+        spheres: Vec<[f32; 4]>,
         /// Both faces emit.
         two_sided: bool,
     },
@@ -118,6 +121,15 @@ impl Light {
                 acc
             })
             .collect();
+        let spheres = tris
+            .clone()
+            .map(|t| {
+                let p = triangles[t as usize].p;
+                let c = (p[0] + p[1] + p[2]) * (1.0 / 3.0);
+                let r2 = p.iter().map(|v| (*v - c).length_squared()).fold(0.0f32, f32::max);
+                [c.x, c.y, c.z, r2]
+            })
+            .collect();
         Light {
             name,
             kind: LightKind::Area {
@@ -126,6 +138,7 @@ impl Light {
                 area: acc as f32,
                 emission: material.emission,
                 area_per_pick: Vec::new(),
+                spheres,
                 two_sided: material.double_sided,
             },
             power: Rgb::ZERO,
@@ -248,13 +261,13 @@ impl Light {
 /// area sampling is cheaper (no trigonometry).
 const SOLID_ANGLE_NEAR: f32 = 0.5;
 
-/// The solid angle [sr] triangle `tri` subtends at `p`, with the unit directions
-/// to its corners, when `p` is near enough for solid-angle sampling (see
+/// The solid angle [sr] triangle `tri` (of bounding `sphere`: centroid, squared
+/// radius) subtends at `p`, with the unit directions to its corners, when `p` is
+/// near enough for solid-angle sampling (see
 /// [`SOLID_ANGLE_NEAR`]) and the solid angle is not degenerate; `None` otherwise.
 /// Sampling and its density both decide by this, so they agree.
-fn near_solid_angle(tri: &crate::Triangle, p: Vec3) -> Option<(f32, [Vec3; 3])> {
-    let c = (tri.p[0] + tri.p[1] + tri.p[2]) * (1.0 / 3.0);
-    let r2 = tri.p.iter().map(|v| (*v - c).length_squared()).fold(0.0f32, f32::max);
+fn near_solid_angle(tri: &crate::Triangle, sphere: [f32; 4], p: Vec3) -> Option<(f32, [Vec3; 3])> {
+    let (c, r2) = (Vec3::new(sphere[0], sphere[1], sphere[2]), sphere[3]);
     // Cheap first: beyond (1 + NEAR) r of the centroid the triangle is beyond NEAR r.
     let (near2, far) = (SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2, 1.0 + SOLID_ANGLE_NEAR);
     if (p - c).length_squared() >= far * far * r2 || (closest_point(tri, p) - p).length_squared() >= near2 {
@@ -370,7 +383,7 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
     let mut lights = std::mem::take(&mut scene.lights);
     for light in &mut lights {
         light.power = match &mut light.kind {
-            LightKind::Area { tris, cdf, area, emission, area_per_pick, two_sided } => {
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, two_sided, .. } => {
                 let sides = if *two_sided { 2.0 } else { 1.0 };
                 let textured = scene
                     .triangles
@@ -453,10 +466,10 @@ impl Light {
     /// cos goes to zero.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, area_per_pick, two_sided }
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided }
                 if let i = sample_cdf(cdf, u_sel)
                     && let tri = &scene.triangles[(tris.start + i as u32) as usize]
-                    && let Some((omega, v)) = near_solid_angle(tri, p) =>
+                    && let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) =>
             {
                 let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
                 let cos_l = -wi.dot(tri.ng);
@@ -528,7 +541,7 @@ impl Light {
     /// punctual lights and triangles that are not part of this light.
     pub fn pdf_li(&self, scene: &Scene, p: Vec3, wi: Vec3, dist: f32, tri: u32) -> f32 {
         match &self.kind {
-            LightKind::Area { tris, area, area_per_pick, two_sided, .. } => {
+            LightKind::Area { tris, area, area_per_pick, spheres, two_sided, .. } => {
                 if !tris.contains(&tri) {
                     return 0.0;
                 }
@@ -538,7 +551,7 @@ impl Light {
                 let area = *area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
                 if cos_l <= 0.0 {
                     0.0
-                } else if let Some((omega, _)) = near_solid_angle(t, p) {
+                } else if let Some((omega, _)) = near_solid_angle(t, spheres[(tri - tris.start) as usize], p) {
                     t.area / (area * omega)
                 } else {
                     dist * dist / (cos_l * area)
