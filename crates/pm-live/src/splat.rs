@@ -185,16 +185,6 @@ impl GBuffer {
         }
     }
 
-    /// Pixels.
-    pub fn len(&self) -> usize {
-        self.pixels.len()
-    }
-
-    /// True when it has no pixels.
-    pub fn is_empty(&self) -> bool {
-        self.pixels.is_empty()
-    }
-
     /// The G-buffer sampled every `factor` pixels of a `w` x `h` one: the pixel at
     /// the centre of each `factor` x `factor` block (clamped to the image), row by
     /// row (section 5.2).

@@ -28,7 +28,15 @@ fn gbuffer(s: &Scene, w: u32, h: u32) -> Vec<Option<Surface>> {
 /// dropped a photon or a layer mix-up fails it.
 #[test]
 fn splatting_equals_gathering() {
-    let s = scene("cornell_spheres.gltf");
+    for name in ["cornell_spheres.gltf", "materials.gltf"] {
+        splat_equals_gather_on(name);
+    }
+}
+
+/// [`splatting_equals_gathering`] on one scene (materials.gltf: glossy and textured
+/// surfaces, whose pixels the splat evaluates with the full BSDF).
+fn splat_equals_gather_on(name: &str) {
+    let s = scene(name);
     let p = LiveParams { bounce_res: 24, bounces: 3, ..LiveParams::default() };
     let (bounce, _) = ispm::bounce_maps(&s, p.bounce_res, 5, true);
     let photons = ispm::trace(&s, &bounce, p.bounces, &KernelShape::new(&p, s.bounds.diagonal()), 5);
@@ -55,8 +63,13 @@ fn splatting_equals_gathering() {
         }
         lit += usize::from(gi.max_element() > 0.0);
     }
-    eprintln!("{lit} of {} pixels lit; worst relative difference {worst:.2e}", gb.len());
+    let glossy = gb.iter().flatten().filter(|q| !matches!(q.bsdf, pm_bsdf::Bsdf::Lambert { .. })).count();
+    eprintln!(
+        "{name}: {lit} of {} pixels lit, {glossy} not Lambertian; worst relative difference {worst:.2e}",
+        gb.len()
+    );
     assert!(lit > gb.len() / 2);
+    assert!(name != "materials.gltf" || glossy > 100, "{name}: the full-BSDF path goes untested");
 }
 
 /// The bounce map carries exactly the light's power (section 4.2): in the closed
