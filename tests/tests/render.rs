@@ -5,11 +5,14 @@ use pm_tests::{against_constant, load_scene, photon_maps, render, render_params}
 
 /// Furnace: radiance is exactly 5.0 everywhere (a closed, flat-faceted sphere with
 /// albedo 0.8 and L_e = 1). `path` and `full` must both give it within 1% on average
-/// over the image. Per pixel, measured at 24 x 24: `path` (1024 paths) 0.9% RMS, 2.7%
-/// worst; `full` 1.0% RMS and 5.3% worst without the irradiance cache, 1.4% and 7%
-/// with it at a = 0.2: the noise of 256 gather rays reading per-photon estimates
-/// (each 15% noisy at k = 50), which the cache spreads over neighbouring pixels.
-/// Asserted: RMS below 2%; worst pixel below 6% (`path`) and 10% (`full`).
+/// over the image. Per pixel, measured at 24 x 24: `path` (1024 paths) 0.9% RMS, 2.8%
+/// worst; `full` 1.45% RMS and 5.5% worst: the noise of the gather rays reading
+/// per-photon estimates (each 15% noisy at k = 50), which the irradiance cache spreads
+/// over neighbouring pixels. `full`'s worst pixel was 9.8% while light samples alone
+/// gave its direct light: they choose the emitting facet by area, and the facet next
+/// to a point, which subtends a large solid angle, weighed up to 11 times the mean;
+/// inside an emitter that encloses space BSDF samples now share the work (MIS).
+/// Asserted: RMS below 2%; worst pixel below 6% (`path`) and 8% (`full`).
 #[test]
 fn furnace_renders_five_in_full_and_path_modes() {
     let scene = load_scene("furnace.gltf");
@@ -28,7 +31,7 @@ fn furnace_renders_five_in_full_and_path_modes() {
             worst * 100.0
         );
         assert!((mean / 5.0 - 1.0).abs() < 0.01, "{name}: mean {mean}");
-        let bound = if name == "full" { 0.10 } else { 0.06 };
+        let bound = if name == "full" { 0.08 } else { 0.06 };
         assert!(rms < 0.02 && worst < bound, "{name}: pixel RMS {rms}, worst {worst}");
     }
     assert_eq!(fs.nonfinite_pixels, 0);
