@@ -35,14 +35,9 @@ impl<'a> DirectLighting<'a> {
             .iter()
             .filter_map(|l| match &l.kind {
                 pm_scene::LightKind::Area { tris, .. } => {
-                    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-                    for t in tris.clone() {
-                        for q in scene.triangles[t as usize].p {
-                            (lo, hi) = (lo.min(q), hi.max(q));
-                        }
-                    }
-                    let ext = hi - lo;
-                    (ext.min_element() > 1e-3 * ext.max_element()).then_some((lo, hi))
+                    let b = pm_scene::bounds_of(&scene.triangles[tris.start as usize..tris.end as usize]);
+                    let ext = b.max - b.min;
+                    (ext.min_element() > 1e-3 * ext.max_element()).then_some((b.min, b.max))
                 }
                 _ => None,
             })

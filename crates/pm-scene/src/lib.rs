@@ -567,7 +567,7 @@ fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri
 }
 
 /// The bounds of `triangles` (zero for none).
-fn bounds_of(triangles: &[Triangle]) -> Bounds {
+pub fn bounds_of(triangles: &[Triangle]) -> Bounds {
     let mut bounds = Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
     for t in triangles {
         for p in t.p {

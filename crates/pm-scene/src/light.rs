@@ -349,11 +349,27 @@ impl Light {
         let tri = &scene.triangles[id as usize];
         let b = pm_sampling::uniform_triangle(u);
         let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
-        let (le, area) = match area_per_pick.get(i) {
-            Some(&a) => (scene.emission_at(id, [b.x, b.y, 1.0 - b.x - b.y]), a),
-            None => (*emission, *area),
-        };
+        let (le, area) = pick_radiance(scene, id, i, [b.x, b.y, 1.0 - b.x - b.y], *emission, *area, area_per_pick);
         (le != Rgb::ZERO).then_some(AreaPick { tri, p, le, area })
+    }
+}
+
+/// Emitted radiance L_e [W sr^-1 m^-2 per channel] at barycentrics `b` of an area
+/// light's triangle `id` (its `i`-th), and the area one pick there stands for,
+/// A_tri / p_tri [m^2]: the material's `emission` and the light's total `area` for a
+/// uniform emitter, per triangle (`area_per_pick`) for a textured one.
+fn pick_radiance(
+    scene: &Scene,
+    id: u32,
+    i: usize,
+    b: [f32; 3],
+    emission: Rgb,
+    area: f32,
+    area_per_pick: &[f32],
+) -> (Rgb, f32) {
+    match area_per_pick.get(i) {
+        Some(&a) => (scene.emission_at(id, b), a),
+        None => (emission, area),
     }
 }
 
@@ -482,11 +498,8 @@ impl Light {
                     return None;
                 }
                 let id = tris.start + i as u32;
-                let le = match area_per_pick.is_empty() {
-                    true => *emission,
-                    false => scene.emission_at(id, barycentrics(tri, p + wi * dist)),
-                };
-                let per_pick = area_per_pick.get(i).copied().unwrap_or(*area);
+                let b = barycentrics(tri, p + wi * dist);
+                let (le, per_pick) = pick_radiance(scene, id, i, b, *emission, *area, area_per_pick);
                 (le != Rgb::ZERO).then(|| LightSample {
                     wi,
                     dist,
