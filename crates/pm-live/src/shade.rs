@@ -121,11 +121,22 @@ impl LiveShading<'_> {
                 let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(hit.ng) / dist).abs().max(0.25);
                 map.depth.visible(hit.p, bias)
             };
-            if let Some(area) = &map.area {
-                sum += area.reflected(hit, bsdf, wo, light, scene, s, &visible);
+            if let Some(area) = &map.area
+                && let pm_bsdf::Bsdf::Lambert { rho } = bsdf
+            {
+                sum += area.lambert_reflected(hit, *rho, wo, &visible);
                 continue;
             }
-            let Some(ls) = light.sample_li(scene, hit.p, 0.5, glam::Vec2::splat(0.5)) else { continue };
+            // A point or spot light from its position; an area light (on a surface
+            // that is not Lambertian) by one light sample, with the centre's visibility.
+            let (u_sel, u) = match map.area {
+                Some(_) => {
+                    let u = s.next_2d();
+                    (s.next_1d(), u)
+                }
+                None => (0.5, glam::Vec2::splat(0.5)),
+            };
+            let Some(ls) = light.sample_li(scene, hit.p, u_sel, u) else { continue };
             if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
                 continue;
             }
@@ -300,47 +311,28 @@ fn outline(t: &[&pm_scene::Triangle]) -> Vec<Vec<Vec3>> {
 }
 
 impl AreaShape {
-    /// Reflected radiance [W sr^-1 m^-2] toward `wo` from this light at `hit`, with
-    /// `visible()` the shadow map's answer for the light's centre. On a
-    /// Lambertian surface the unoccluded irradiance in closed form (Lambert's
-    /// formula, the light clipped to the surface's hemisphere) times ρ / π: no noise,
-    /// and the penumbrae of a point at the centre. Elsewhere one light sample, with
-    /// the same visibility.
-    #[allow(clippy::too_many_arguments)]
-    fn reflected(
-        &self,
-        hit: &Hit,
-        bsdf: &pm_bsdf::Bsdf,
-        wo: Vec3,
-        light: &pm_scene::Light,
-        scene: &Scene,
-        s: &mut Sampler,
-        visible: &dyn Fn() -> bool,
-    ) -> Rgb {
+    /// Reflected radiance [W sr^-1 m^-2] toward `wo` from this light at `hit` on a
+    /// Lambertian surface of reflectance `rho`, with `visible()` the shadow map's
+    /// answer for the light's centre: the unoccluded irradiance in closed form
+    /// (Lambert's formula, the light clipped to the surface's hemisphere) times ρ / π.
+    /// No noise, and the penumbrae of a point at the centre.
+    fn lambert_reflected(&self, hit: &Hit, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
         if (hit.p - self.polys[0][0]).dot(self.normal) <= 0.0 {
             return Rgb::ZERO;
         }
         let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-        if let pm_bsdf::Bsdf::Lambert { rho } = bsdf {
-            let mut e = 0.0;
-            for poly in &self.polys {
-                let mut rel = [Vec3::ZERO; OUTLINE_CORNERS];
-                for (r, q) in rel.iter_mut().zip(poly) {
-                    *r = *q - hit.p;
-                }
-                e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
+        let mut e = 0.0;
+        for poly in &self.polys {
+            let mut rel = [Vec3::ZERO; OUTLINE_CORNERS];
+            for (r, q) in rel.iter_mut().zip(poly) {
+                *r = *q - hit.p;
             }
-            if !(e > 0.0) || !visible() {
-                return Rgb::ZERO;
-            }
-            return *rho * self.le * (e / PI);
+            e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
         }
-        let u = s.next_2d();
-        let Some(ls) = light.sample_li(scene, hit.p, s.next_1d(), u) else { return Rgb::ZERO };
-        if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 || !visible() {
+        if !(e > 0.0) || !visible() {
             return Rgb::ZERO;
         }
-        bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs() * ls.li / ls.pdf
+        rho * self.le * (e / PI)
     }
 }
 
