@@ -95,8 +95,12 @@ pub struct KernelForm {
 }
 
 impl KernelForm {
-    /// The radial coordinate t at distance `dist` from the photon, `dn` = |d·n| of
-    /// that along its normal: |d| / r_xy (1 + |cos| (r_xy - r_z) / r_z).
+    /// The kernel's normalised radial coordinate (equation 2) at distance `dist` from
+    /// the photon, `dn` = |d·n| of that along its normal: |d| / r_xy (1 + |cos| (r_xy
+    /// - r_z) / r_z), which is |d| / r_xy in the photon's surface plane and |d| / r_z
+    /// along its normal. The paper's equation prints the factor as (1 - |cos| (r_xy -
+    /// r_z) / r_z), which is negative along the normal for r_z < r_xy / 2; the sign
+    /// that gives |d| / r_z there is used.
     #[inline]
     fn t(&self, dist: f32, dn: f32) -> f32 {
         (dist + dn * self.squash) * self.inv_r_xy
@@ -209,16 +213,6 @@ impl GBuffer {
 }
 
 impl VolumePhoton {
-    /// The kernel's normalised radial coordinate of `x` (equation 2): |d| / r_xy in
-    /// the photon's surface plane, |d| / r_z along its normal. The paper's equation
-    /// prints the factor as (1 - |cos| (r_xy - r_z) / r_z), which is negative along the
-    /// normal for r_z < r_xy / 2; the sign that gives |d| / r_z there is used.
-    #[inline]
-    pub fn kernel_t(&self, x: Vec3) -> f32 {
-        let d = x - self.p;
-        self.kernel_form().t(d.length(), d.dot(self.n).abs())
-    }
-
     /// The kernel κ at `x` [m^-2]: the cone falloff 1 - t, normalised so that it
     /// integrates to one over the photon's surface plane (∫ (1 - t) dA = π r_xy² / 3).
     #[inline]

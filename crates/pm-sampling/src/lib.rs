@@ -306,21 +306,16 @@ pub fn polygon_cos_integral(verts: &[Vec3], n: Vec3) -> f32 {
     let k = verts.len().min(MAX);
     let mut clipped = [Vec3::ZERO; MAX + 2];
     let mut m = 0;
-    if verts[..k].iter().all(|v| v.dot(n) >= 0.0) {
-        clipped[..k].copy_from_slice(&verts[..k]);
-        m = k;
-    } else {
-        for i in 0..k {
-            let (a, b) = (verts[i], verts[(i + 1) % k]);
-            let (da, db) = (a.dot(n), b.dot(n));
-            if da >= 0.0 {
-                clipped[m] = a;
-                m += 1;
-            }
-            if (da >= 0.0) != (db >= 0.0) && m < clipped.len() {
-                clipped[m] = a + (b - a) * (da / (da - db));
-                m += 1;
-            }
+    for i in 0..k {
+        let (a, b) = (verts[i], verts[(i + 1) % k]);
+        let (da, db) = (a.dot(n), b.dot(n));
+        if da >= 0.0 {
+            clipped[m] = a;
+            m += 1;
+        }
+        if (da >= 0.0) != (db >= 0.0) && m < clipped.len() {
+            clipped[m] = a + (b - a) * (da / (da - db));
+            m += 1;
         }
     }
     let mut sum = 0.0f32;
