@@ -261,3 +261,93 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
     }
     assert!(bad.is_empty(), "{bad:?}");
 }
+
+/// Direct light as the photon-map renderer takes it from a planar area light:
+/// Lambert's closed form times a ratio estimate of visibility (Heitz, Hill and
+/// McGuire 2018). A 1 m square light 2 m above a floor, facing down, with a 0.6 m
+/// square blocker halfway. Where the whole light is seen, every estimate (1 or 8
+/// samples, any stream) equals the closed form computed here in f64 (within 1e-4;
+/// plain light samples scatter by several percent there). In the blocker's
+/// penumbra the mean over 4,096 streams of 8 samples agrees with plain light
+/// sampling's (unbiased) mean within 1% (measured: 0.1%; the ratio's bias falls as
+/// 1 / n; the spread there is the shadow's, about equal). In the umbra both are zero. A closed form on the wrong side or
+/// with the wrong normal fails the first; one that ignores the shadow rays, the
+/// second.
+#[test]
+fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
+    use pm_bsdf::Bsdf;
+    use pm_color::Rgb;
+    use pm_scene::{Material, Scene, Triangle};
+    let v = Vec3::new;
+    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
+        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+    };
+    let mut tris = Vec::new();
+    quad(&mut tris, [v(-4., 0., -4.), v(-4., 0., 4.), v(4., 0., 4.), v(4., 0., -4.)], 0); // floor, +y
+    let light = [v(-0.5, 2., -0.5), v(0.5, 2., -0.5), v(0.5, 2., 0.5), v(-0.5, 2., 0.5)];
+    quad(&mut tris, light, 1); // facing -y
+    quad(&mut tris, [v(-0.3, 1., -0.3), v(0.3, 1., -0.3), v(0.3, 1., 0.3), v(-0.3, 1., 0.3)], 2);
+    let rho = 0.5;
+    let mats = vec![
+        Material::new("floor", Bsdf::Lambert { rho: Rgb::splat(rho) }, Rgb::ZERO),
+        Material::new("light", Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::splat(3.0)),
+        Material::new("blocker", Bsdf::Lambert { rho: Rgb::splat(rho) }, Rgb::ZERO),
+    ];
+    let scene = Scene::from_parts(tris, mats, vec![], None);
+    assert_eq!(scene.lights.len(), 1);
+    let closed = pm_render::DirectLighting::with_closed_form(&scene).unwrap();
+    let plain = pm_render::DirectLighting::new(&scene).unwrap();
+    let at = |x: f32| {
+        let hit = scene.intersect(v(x, 0.5, 0.0), -Vec3::Y, f32::INFINITY).unwrap();
+        let bsdf = scene.bsdf(&hit);
+        (hit, bsdf)
+    };
+    // Mean and standard deviation over `m` streams of `n` light samples at x.
+    let stats = |d: &pm_render::DirectLighting, x: f32, n: u32, m: u64| {
+        let (hit, bsdf) = at(x);
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for k in 0..m {
+            let mut s = pm_sampling::Sampler::new(7, k);
+            let l = d.direct(&hit, &bsdf, Vec3::Y, &mut s, n).x as f64;
+            sum += l;
+            sum2 += l * l;
+        }
+        let mean = sum / m as f64;
+        (mean, (sum2 / m as f64 - mean * mean).max(0.0).sqrt())
+    };
+    // Unoccluded reflected radiance at (x, 0, 0) by Lambert's formula, in f64.
+    let lambert = |x: f32| {
+        let p = v(x, 0.0, 0.0).as_dvec3();
+        let mut e = 0.0f64;
+        for i in 0..4 {
+            let (a, b) = ((light[i].as_dvec3() - p).normalize(), (light[(i + 1) % 4].as_dvec3() - p).normalize());
+            e += 0.5 * a.dot(b).clamp(-1.0, 1.0).acos() * glam::DVec3::Y.dot(a.cross(b).normalize());
+        }
+        rho as f64 / std::f64::consts::PI * 3.0 * e.abs()
+    };
+    // Wholly lit: 2.5 m off-centre, outside the blocker's shadow.
+    let p = v(2.5, 0.0, 0.0);
+    let want = lambert(p.x);
+    let (hit, bsdf) = at(p.x);
+    for n in [1, 8] {
+        for k in 0..64 {
+            let mut s = pm_sampling::Sampler::new(3, k);
+            let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, n).x as f64;
+            assert!((got / want - 1.0).abs() < 1e-4, "lit, {n} samples, stream {k}: {got} against {want}");
+        }
+    }
+    let (_, plain_sd) = stats(&plain, p.x, 8, 256);
+    eprintln!("lit: closed form {want:.5}; plain light samples spread {:.2}%", 100.0 * plain_sd / want);
+    assert!(plain_sd > 0.01 * want, "the lit point should be one where plain samples are noisy");
+    // Penumbra: the blocker hides three quarters of the light.
+    let x = 0.35;
+    let want = lambert(x);
+    let (c_mean, c_sd) = stats(&closed, x, 8, 4096);
+    let (p_mean, p_sd) = stats(&plain, x, 8, 4096);
+    eprintln!("penumbra: closed form {c_mean:.5} +- {c_sd:.5}, plain {p_mean:.5} +- {p_sd:.5}");
+    assert!(c_mean > 0.1 * want && c_mean < 0.9 * want, "{x} m is not in the penumbra: {c_mean} of {want}");
+    assert!((c_mean / p_mean - 1.0).abs() < 0.01, "penumbra: {c_mean} against {p_mean}");
+    // Umbra: right under the blocker, which hides the whole light.
+    assert_eq!(stats(&closed, 0.0, 8, 64).0, 0.0);
+}

@@ -257,7 +257,7 @@ fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<shade::LightMap>> {
 /// lights that are large, curved, two-sided or textured), by name: with any of them
 /// `--direct shadow-map` draws every light with shadow rays.
 pub fn lights_without_shadow_maps(scene: &Scene) -> Vec<String> {
-    scene.lights.iter().filter(|l| !shade::LightMap::supports(scene, l)).map(|l| l.name.clone()).collect()
+    scene.lights.iter().filter(|l| !shade::LightMap::supports(l)).map(|l| l.name.clone()).collect()
 }
 
 /// The photons of `ring` the estimates read (see [`Live::tree_photons`]).

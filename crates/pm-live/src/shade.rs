@@ -74,6 +74,10 @@ impl<'a> LiveShading<'a> {
         shadow_maps: &'a [Option<LightMap>],
     ) -> Result<Self, pm_scene::LightSelectError> {
         Ok(LiveShading {
+            // Plain light samples: at one sample a pixel the closed form with a
+            // stochastic shadow (the batch renderer's) takes noise out of lit regions
+            // but cost a fifth more direct-step time (cornell_spheres, 512 x 512),
+            // and frames are timed. Shadow maps use the closed form.
             light: DirectLighting::new(scene)?,
             indirect,
             direct,
@@ -121,20 +125,19 @@ impl LiveShading<'_> {
                 let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(hit.ng) / dist).abs().max(0.25);
                 map.depth.visible(hit.p, bias)
             };
-            if let Some(area) = &map.area
+            if map.area
                 && let pm_bsdf::Bsdf::Lambert { rho } = bsdf
             {
-                sum += area.lambert_reflected(hit, *rho, wo, &visible);
+                sum += lambert_reflected(light, hit, *rho, wo, &visible);
                 continue;
             }
             // A point or spot light from its position; an area light (on a surface
             // that is not Lambertian) by one light sample, with the centre's visibility.
-            let (u_sel, u) = match map.area {
-                Some(_) => {
-                    let u = s.next_2d();
-                    (s.next_1d(), u)
-                }
-                None => (0.5, glam::Vec2::splat(0.5)),
+            let (u_sel, u) = if map.area {
+                let u = s.next_2d();
+                (s.next_1d(), u)
+            } else {
+                (0.5, glam::Vec2::splat(0.5))
             };
             let Some(ls) = light.sample_li(scene, hit.p, u_sel, u) else { continue };
             if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
@@ -205,135 +208,61 @@ impl LiveShading<'_> {
 pub struct LightMap {
     /// The cube depth map.
     depth: CubeDepth,
-    /// For an area light, its shape.
-    area: Option<AreaShape>,
+    /// True for an area light (one with [`pm_scene::Light::cos_integral`]).
+    area: bool,
 }
-
-/// A small planar one-sided area light drawn with one shadow map: its triangles,
-/// emitting side and radiance.
-struct AreaShape {
-    /// Its outline as one polygon when its triangles form a simple one (a quad's
-    /// four corners: the edges inside cancel in Lambert's formula), else each
-    /// triangle; corners in order [m].
-    polys: Vec<Vec<Vec3>>,
-    /// Unit normal of the emitting side.
-    normal: Vec3,
-    /// Emitted radiance [W sr^-1 m^-2 per channel].
-    le: Rgb,
-}
-
-/// Area lights of at most this many triangles get a shadow map.
-const MAPPED_AREA_TRIANGLES: usize = 64;
 
 impl LightMap {
     /// The map of `light` at `res` x `res` texels a face, or none. Point and spot
-    /// lights: at their position. Area lights that are planar (every triangle's
-    /// normal within 0.1 degrees of the first's), one-sided, uniformly emitting and of
-    /// at most [`MAPPED_AREA_TRIANGLES`] triangles: at their area-weighted centroid
-    /// pushed 1e-3 of the scene's diagonal off the surface, so the map does not see
-    /// the light itself.
+    /// lights: at their position. Area lights with a closed-form irradiance
+    /// ([`pm_scene::Light::cos_integral`]: planar, one-sided, uniformly emitting, of
+    /// at most [`pm_scene::OUTLINE_TRIANGLES`] triangles): at their area-weighted
+    /// centroid pushed 1e-3 of the scene's diagonal off the surface, so the map does
+    /// not see the light itself.
     pub fn new(scene: &Scene, light: &pm_scene::Light, res: u32) -> Option<LightMap> {
         use pm_scene::LightKind;
-        if !LightMap::supports(scene, light) {
+        if !LightMap::supports(light) {
             return None;
         }
         match &light.kind {
             LightKind::Point { position, .. } | LightKind::Spot { position, .. } => {
-                Some(LightMap { depth: CubeDepth::new(scene, *position, res), area: None })
+                Some(LightMap { depth: CubeDepth::new(scene, *position, res), area: false })
             }
-            LightKind::Area { tris, emission, .. } => {
+            LightKind::Area { tris, .. } => {
                 let t: Vec<&pm_scene::Triangle> = tris.clone().map(|i| &scene.triangles[i as usize]).collect();
                 let normal = t.first()?.ng;
                 let area: f32 = t.iter().map(|q| q.area).sum();
                 let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area / 3.0)).sum::<Vec3>() / area;
                 let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
-                Some(LightMap {
-                    depth: CubeDepth::new(scene, position, res),
-                    area: Some(AreaShape { polys: outline(&t), normal, le: *emission }),
-                })
+                Some(LightMap { depth: CubeDepth::new(scene, position, res), area: true })
             }
             LightKind::Directional { .. } => None,
         }
     }
 
     /// True when [`LightMap::new`] gives `light` a map (without drawing it).
-    pub fn supports(scene: &Scene, light: &pm_scene::Light) -> bool {
+    pub fn supports(light: &pm_scene::Light) -> bool {
         use pm_scene::LightKind;
         match &light.kind {
             LightKind::Point { .. } | LightKind::Spot { .. } => true,
-            LightKind::Area { tris, area_per_pick, two_sided, .. } => {
-                let mut t = tris.clone().map(|i| &scene.triangles[i as usize]);
-                let Some(normal) = t.next().map(|q| q.ng) else { return false };
-                !*two_sided
-                    && area_per_pick.is_empty()
-                    && tris.len() <= MAPPED_AREA_TRIANGLES
-                    && t.all(|q| q.ng.dot(normal) >= 0.999_998)
-            }
+            LightKind::Area { .. } => light.has_cos_integral(),
             LightKind::Directional { .. } => false,
         }
     }
 }
 
-/// Most corners of a light's outline polygon.
-const OUTLINE_CORNERS: usize = 16;
-
-/// The outline of planar triangles `t` as one polygon (corners in order) when the
-/// edges that no neighbour shares form a single loop of at most
-/// [`OUTLINE_CORNERS`] corners; else each triangle on its own. Corners are matched
-/// by their exact coordinates (a mesh's shared vertices).
-fn outline(t: &[&pm_scene::Triangle]) -> Vec<Vec<Vec3>> {
-    let key = |v: Vec3| v.to_array().map(f32::to_bits);
-    let mut edges: Vec<([u32; 3], [u32; 3], Vec3)> = Vec::new();
-    for q in t {
-        for i in 0..3 {
-            edges.push((key(q.p[i]), key(q.p[(i + 1) % 3]), q.p[i]));
-        }
+/// Reflected radiance [W sr^-1 m^-2] toward `wo` from area light `light` at `hit` on
+/// a Lambertian surface of reflectance `rho`, with `visible()` the shadow map's
+/// answer for the light's centre: the unoccluded irradiance in closed form
+/// ([`pm_scene::Light::cos_integral`]) times ρ / π. No noise, and the penumbrae of
+/// a point at the centre.
+fn lambert_reflected(light: &pm_scene::Light, hit: &Hit, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
+    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+    let Some((le, e)) = light.cos_integral(hit.p, n) else { return Rgb::ZERO };
+    if !(e > 0.0) || !visible() {
+        return Rgb::ZERO;
     }
-    let boundary: Vec<&([u32; 3], [u32; 3], Vec3)> =
-        edges.iter().filter(|e| !edges.iter().any(|f| f.0 == e.1 && f.1 == e.0)).collect();
-    let per_triangle = || t.iter().map(|q| q.p.to_vec()).collect();
-    let Some(first) = boundary.first() else { return per_triangle() };
-    let mut poly = vec![first.2];
-    let mut at = first.1;
-    while at != first.0 {
-        let mut next = boundary.iter().filter(|e| e.0 == at);
-        let (Some(e), None) = (next.next(), next.next()) else { return per_triangle() };
-        poly.push(e.2);
-        at = e.1;
-        if poly.len() > boundary.len() {
-            return per_triangle();
-        }
-    }
-    if poly.len() != boundary.len() || poly.len() > OUTLINE_CORNERS {
-        return per_triangle();
-    }
-    vec![poly]
-}
-
-impl AreaShape {
-    /// Reflected radiance [W sr^-1 m^-2] toward `wo` from this light at `hit` on a
-    /// Lambertian surface of reflectance `rho`, with `visible()` the shadow map's
-    /// answer for the light's centre: the unoccluded irradiance in closed form
-    /// (Lambert's formula, the light clipped to the surface's hemisphere) times ρ / π.
-    /// No noise, and the penumbrae of a point at the centre.
-    fn lambert_reflected(&self, hit: &Hit, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
-        if (hit.p - self.polys[0][0]).dot(self.normal) <= 0.0 {
-            return Rgb::ZERO;
-        }
-        let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-        let mut e = 0.0;
-        for poly in &self.polys {
-            let mut rel = [Vec3::ZERO; OUTLINE_CORNERS];
-            for (r, q) in rel.iter_mut().zip(poly) {
-                *r = *q - hit.p;
-            }
-            e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
-        }
-        if !(e > 0.0) || !visible() {
-            return Rgb::ZERO;
-        }
-        rho * self.le * (e / PI)
-    }
+    rho * le * (e / PI)
 }
 
 impl Integrator for LiveShading<'_> {

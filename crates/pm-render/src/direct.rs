@@ -1,12 +1,15 @@
 //! Direct illumination by next-event estimation (pbrt-v4 section 13.4), with the
 //! power heuristic between light and BSDF sampling on glossy surfaces and inside
-//! emitters that enclose space (Veach 1997).
+//! emitters that enclose space (Veach 1997), and, for the photon-map integrators,
+//! closed-form unoccluded light with stochastic shadows (Heitz, Hill and McGuire
+//! 2018).
 
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_sampling::Sampler;
 use pm_scene::{Hit, LightSelector, Scene};
+use std::f32::consts::PI;
 
 /// Direct light from the scene's lights, chosen by power: what every integrator
 /// that samples lights shares (the photon-map renderer, its secondary gathers and
@@ -21,6 +24,9 @@ pub struct DirectLighting<'a> {
     /// Bounding boxes [m] of the area lights that enclose space (positive extent on
     /// every axis: an emitting sphere, a lit room's walls). See [`Self::direct`].
     enclosing: Vec<(Vec3, Vec3)>,
+    /// Use the closed form with a ratio estimate of visibility where it exists
+    /// (see [`Self::direct`]); off for the path tracer, which must stay unbiased.
+    closed_form: bool,
 }
 
 /// Light samples per shading point that [`DirectLighting::direct`] takes from its
@@ -47,7 +53,14 @@ impl<'a> DirectLighting<'a> {
             lights: LightSelector::new(scene, &[])?,
             nets: pm_sampling::NetTable::new(NET_POINTS),
             enclosing,
+            closed_form: false,
         })
+    }
+
+    /// [`Self::new`] with closed-form unoccluded direct light where the scene's light
+    /// has one (see [`Self::direct`]): for the photon-map integrators.
+    pub fn with_closed_form(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+        Ok(DirectLighting { closed_form: true, ..Self::new(scene)? })
     }
 
     /// One light-sampling estimate of reflected direct radiance: pick a light by power,
@@ -61,28 +74,65 @@ impl<'a> DirectLighting<'a> {
     /// [`Self::light_sample`] with its random numbers given: the point on the light
     /// (u[0], u[1]), the emitting triangle (u[2]) and the light (u[3]).
     pub fn light_sample_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Rgb {
+        match self.unshadowed(hit, bsdf, wo, u, mis) {
+            Some((c, o, wi, t_max)) if !self.scene.occluded(o, wi, t_max) => c,
+            _ => Rgb::ZERO,
+        }
+    }
+
+    /// A light sample's contribution as if nothing blocked it, with its shadow ray
+    /// (origin, direction, length); `None` where it contributes nothing.
+    #[inline]
+    fn unshadowed(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Option<(Rgb, Vec3, Vec3, f32)> {
         let scene = self.scene;
         let (li, p_sel) = self.lights.pick(u[3]);
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
-        let Some(ls) = scene.lights[li].sample_li(scene, hit.p, u_tri, u) else { return Rgb::ZERO };
+        let ls = scene.lights[li].sample_li(scene, hit.p, u_tri, u)?;
         if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
-            return Rgb::ZERO;
+            return None;
         }
         let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
         if f.max_element() <= 0.0 {
-            return Rgb::ZERO;
+            return None;
         }
         let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
         // Measure the shadow ray from the offset origin: the offset can exceed a relative
         // margin in tiny scenes, and the ray would then reach the light itself (every
         // shadow ray in a 2 mm Cornell box was blocked before this).
         let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
-        if scene.occluded(o, ls.wi, t_max) {
-            return Rgb::ZERO;
-        }
         let p_l = ls.pdf * p_sel as f32;
         let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
-        f * ls.li * (w / p_l)
+        Some((f * ls.li * (w / p_l), o, ls.wi, t_max))
+    }
+
+    /// Direct light on a Lambertian surface from the scene's only light, which has a
+    /// closed-form irradiance (Heitz, Hill and McGuire 2018, "Combining analytic
+    /// direct illumination and stochastic shadows", equation 6): the `unoccluded`
+    /// radiance ρ / π L_e ∫ cos dω [W sr^-1 m^-2] in closed form
+    /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of visibility
+    /// Σ w_i V_i / Σ w_i over the `n` light samples, w_i each sample's unoccluded
+    /// contribution. Where the light is wholly seen or wholly hidden it is exact (no
+    /// noise); in penumbrae the ratio is consistent, its bias falling as 1 / n.
+    fn closed_form_direct(&self, hit: &Hit, bsdf: &Bsdf, unoccluded: Rgb, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
+        let net = (n > 1).then(|| s.net_4d());
+        let (mut seen, mut all) = (0.0f32, 0.0f32);
+        for k in 0..n {
+            let u = match &net {
+                Some(net) => net.point(&self.nets, n, k),
+                None => light_numbers(s),
+            };
+            if let Some((c, o, wi, t_max)) = self.unshadowed(hit, bsdf, wo, u, false) {
+                let w = c.element_sum();
+                all += w;
+                if !self.scene.occluded(o, wi, t_max) {
+                    seen += w;
+                }
+            }
+        }
+        if !(all > 0.0) {
+            return Rgb::ZERO;
+        }
+        unoccluded * (seen / all)
     }
 }
 
@@ -122,10 +172,26 @@ impl DirectLighting<'_> {
     /// next to a point subtend large solid angles but are chosen by their small
     /// areas: a light sample on one weighed up to 11 times the mean, and made the
     /// furnace test's worst pixel; cosine-sampled directions find those facets often.
+    /// Built [`Self::with_closed_form`], Lambertian surfaces lit by a scene's only
+    /// light, when that light has a closed-form irradiance, take the closed form
+    /// with stochastic shadows instead (see `closed_form_direct`).
     pub fn direct(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let scene = self.scene;
         let mis = !matches!(bsdf, Bsdf::Lambert { .. })
             || self.enclosing.iter().any(|(lo, hi)| hit.p.cmpgt(*lo).all() && hit.p.cmplt(*hi).all());
+        if !mis
+            && self.closed_form
+            && let Bsdf::Lambert { rho } = bsdf
+            && let [light] = scene.lights.as_slice()
+            && let Some((le, e)) = light.cos_integral(hit.p, if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns })
+        {
+            // Nothing of the light above the horizon: no shadow rays.
+            return if e > 0.0 {
+                self.closed_form_direct(hit, bsdf, *rho * le * (e / PI), wo, s, n)
+            } else {
+                Rgb::ZERO
+            };
+        }
         let side_o = wo.dot(hit.ng);
         let mut sum = Rgb::ZERO;
         // The n light samples stratified among themselves: on a Cornell box's area

@@ -182,7 +182,7 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
             scene,
             maps,
             cfg,
-            light: DirectLighting::new(scene)?,
+            light: DirectLighting::with_closed_form(scene)?,
             cache: None,
             counters: Counters::default(),
         })

@@ -26,7 +26,7 @@ pub use anim::Animation;
 pub use effects::{Decision, Effects, analyze};
 pub use geometry::{TriangleRay, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
-pub use light::{EmittedRay, Light, LightKind, LightSample, Target, spot_falloff};
+pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
 pub use select::{LightSelectError, LightSelector};
 
 use glam::{Vec2, Vec3};

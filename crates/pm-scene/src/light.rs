@@ -34,6 +34,9 @@ pub enum LightKind {
         spheres: Vec<[f32; 4]>,
         /// Both faces emit.
         two_sided: bool,
+        /// The outline of a planar one-sided light of at most [`OUTLINE_TRIANGLES`]
+        /// triangles, for its closed-form irradiance ([`Light::cos_integral`]).
+        outline: Option<Outline>,
     },
     /// Isotropic point light.
     Point {
@@ -79,6 +82,68 @@ pub struct Light {
     /// Emitted power Phi [W per channel]; for directional lights the power crossing
     /// the scene's bounding disk, E pi R^2.
     pub power: Rgb,
+}
+
+/// A planar area light's shape as polygons, for Lambert's closed-form irradiance.
+#[derive(Clone, Debug)]
+pub struct Outline {
+    /// One polygon when the triangles' unshared edges form a single loop of at most
+    /// [`OUTLINE_CORNERS`] corners (a quad's four corners: the edges inside cancel in
+    /// Lambert's formula), else each triangle; corners in order [m].
+    polys: Vec<Vec<Vec3>>,
+    /// Unit normal of the emitting side.
+    normal: Vec3,
+}
+
+/// Planar one-sided area lights of at most this many triangles get an [`Outline`].
+pub const OUTLINE_TRIANGLES: usize = 64;
+
+/// Most corners of an outline polygon.
+const OUTLINE_CORNERS: usize = 16;
+
+impl Outline {
+    /// The outline of triangles `t`, when they are planar (every normal within 0.1
+    /// degrees of the first's) and at most [`OUTLINE_TRIANGLES`].
+    fn of(t: &[&crate::Triangle]) -> Option<Outline> {
+        let normal = t.first()?.ng;
+        if t.len() > OUTLINE_TRIANGLES || !t.iter().all(|q| q.ng.dot(normal) >= 0.999_998) {
+            return None;
+        }
+        Some(Outline { polys: outline_polygons(t), normal })
+    }
+}
+
+/// The outline of planar triangles `t` as one polygon (corners in order) when the
+/// edges that no neighbour shares form a single loop of at most
+/// [`OUTLINE_CORNERS`] corners; else each triangle on its own. Corners are matched
+/// by their exact coordinates (a mesh's shared vertices).
+fn outline_polygons(t: &[&crate::Triangle]) -> Vec<Vec<Vec3>> {
+    let key = |v: Vec3| v.to_array().map(f32::to_bits);
+    let mut edges: Vec<([u32; 3], [u32; 3], Vec3)> = Vec::new();
+    for q in t {
+        for i in 0..3 {
+            edges.push((key(q.p[i]), key(q.p[(i + 1) % 3]), q.p[i]));
+        }
+    }
+    let boundary: Vec<&([u32; 3], [u32; 3], Vec3)> =
+        edges.iter().filter(|e| !edges.iter().any(|f| f.0 == e.1 && f.1 == e.0)).collect();
+    let per_triangle = || t.iter().map(|q| q.p.to_vec()).collect();
+    let Some(first) = boundary.first() else { return per_triangle() };
+    let mut poly = vec![first.2];
+    let mut at = first.1;
+    while at != first.0 {
+        let mut next = boundary.iter().filter(|e| e.0 == at);
+        let (Some(e), None) = (next.next(), next.next()) else { return per_triangle() };
+        poly.push(e.2);
+        at = e.1;
+        if poly.len() > boundary.len() {
+            return per_triangle();
+        }
+    }
+    if poly.len() != boundary.len() || poly.len() > OUTLINE_CORNERS {
+        return per_triangle();
+    }
+    vec![poly]
 }
 
 /// A ray leaving a light, with the power it carries if it were the only sample.
@@ -130,6 +195,8 @@ impl Light {
                 [c.x, c.y, c.z, r2]
             })
             .collect();
+        let t: Vec<&crate::Triangle> = tris.clone().map(|i| &triangles[i as usize]).collect();
+        let outline = if material.double_sided { None } else { Outline::of(&t) };
         Light {
             name,
             kind: LightKind::Area {
@@ -140,6 +207,7 @@ impl Light {
                 area_per_pick: Vec::new(),
                 spheres,
                 two_sided: material.double_sided,
+                outline,
             },
             power: Rgb::ZERO,
         }
@@ -326,6 +394,40 @@ fn barycentrics(tri: &crate::Triangle, q: Vec3) -> [f32; 3] {
     [1.0 - b1 - b2, b1, b2]
 }
 
+impl Light {
+    /// The light's uniform emitted radiance L_e [W sr^-1 m^-2 per channel] and
+    /// ∫ max(0, n·ω) dω [sr] over the directions from `p` to it, in closed form:
+    /// Lambert's formula over its [`Outline`] clipped to the hemisphere of `n`
+    /// ([`pm_sampling::polygon_cos_integral`]); zero behind its emitting side. L_e
+    /// times the integral is the unoccluded irradiance [W m^-2] at `p`. `None` for
+    /// lights without the closed form: punctual and directional ones, and area lights
+    /// that are curved, two-sided, textured or of more than [`OUTLINE_TRIANGLES`]
+    /// triangles.
+    pub fn cos_integral(&self, p: Vec3, n: Vec3) -> Option<(Rgb, f32)> {
+        let LightKind::Area { emission, area_per_pick, outline: Some(o), .. } = &self.kind else { return None };
+        if !area_per_pick.is_empty() {
+            return None;
+        }
+        if (p - o.polys[0][0]).dot(o.normal) <= 0.0 {
+            return Some((*emission, 0.0));
+        }
+        let mut e = 0.0;
+        for poly in &o.polys {
+            let mut rel = [Vec3::ZERO; OUTLINE_CORNERS];
+            for (r, q) in rel.iter_mut().zip(poly) {
+                *r = *q - p;
+            }
+            e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
+        }
+        Some((*emission, e))
+    }
+
+    /// True when [`Light::cos_integral`] has a closed form for this light.
+    pub fn has_cos_integral(&self) -> bool {
+        self.cos_integral(Vec3::ZERO, Vec3::Z).is_some()
+    }
+}
+
 /// A point picked on an area light (see [`Light::pick_area_point`]).
 struct AreaPick<'s> {
     /// Its triangle.
@@ -482,7 +584,7 @@ impl Light {
     /// cos goes to zero.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided }
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. }
                 if let i = sample_cdf(cdf, u_sel)
                     && let tri = &scene.triangles[(tris.start + i as u32) as usize]
                     && let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) =>
