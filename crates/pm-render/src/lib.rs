@@ -112,8 +112,9 @@ pm_params::params! {
         /// Importance threshold: where the photon map's indirect irradiance is below this
         /// fraction of the direct irradiance, use it instead of a final gather (0: always gather).
         indirect_threshold: f32 = 0.0 => at_least(0.0);
-        /// Light samples per shading point (stratified among themselves).
-        light_samples: u32 = 8 => between(1, 1 << 16);
+        /// Light samples per shading point (stratified among themselves; with a
+        /// planar light they only decide its visibility, see `DirectLighting::direct`).
+        light_samples: u32 = 4 => between(1, 1 << 16);
         /// Depth limit of specular recursion (cut paths are counted in the stats).
         max_depth: u32 = 12 => between(0, 1000);
         /// PNG exposure in stops (the PNG shows radiance x 2^exposure).
