@@ -192,11 +192,11 @@ pub fn run(cli: &Cli) -> Result<Report> {
         Some(_) => unreachable!("layouts without normals were refused above"),
         None => job.run::<pm_format::FullIrrPhoton>(None, caustic.as_ref())?,
     };
-    if let Some(image) = &image {
+    if let Some(image) = image {
         let layers = pm_image::Layers {
             width: image.width,
             height: image.height,
-            layers: image.layers.iter().map(|(n, px)| (n.to_string(), px.clone())).collect(),
+            layers: image.layers.into_iter().map(|(n, px)| (n.to_string(), px)).collect(),
         };
         let out = cli.out.as_ref().context("--out is required")?;
         // Tiles of a job plan write into a folder of their own.
@@ -219,9 +219,9 @@ pub fn run(cli: &Cli) -> Result<Report> {
         if let Some(png) = &cli.png {
             pm_image::write_png_fast(
                 png,
-                image.width,
-                image.height,
-                image.layer("total").context("no total layer")?,
+                layers.width,
+                layers.height,
+                layers.layer("total").context("no total layer")?,
                 p.exposure,
             )?;
         }
