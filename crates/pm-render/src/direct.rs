@@ -112,7 +112,10 @@ impl<'a> DirectLighting<'a> {
     /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of visibility
     /// Σ w_i V_i / Σ w_i over the `n` light samples, w_i each sample's unoccluded
     /// contribution. Where the light is wholly seen or wholly hidden it is exact (no
-    /// noise); in penumbrae the ratio is consistent, its bias falling as 1 / n.
+    /// noise); in penumbrae the ratio is consistent, its bias falling as 1 / n. One
+    /// sample gives that sample's visibility alone, whose mean weighs the light's
+    /// points by the sampling density rather than by their contribution: on
+    /// cornell_boxes, bias 4.4% against 2.0% from four samples on (trade-off study).
     fn closed_form_direct(&self, hit: &Hit, bsdf: &Bsdf, unoccluded: Rgb, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let net = (n > 1).then(|| s.net_4d());
         let (mut seen, mut all) = (0.0f32, 0.0f32);
