@@ -193,6 +193,12 @@ fn rays_at_glass_sphere_vertices_and_edges_never_slip_through() {
     assert_eq!(slipped, 0, "{slipped} of {} rays passed a point on the closed sphere", aims.len());
 }
 
+/// Two triangles of the quad q0 q1 q2 q3 (corners in order) with material `m`.
+fn quad(out: &mut Vec<pm_scene::Triangle>, q: [Vec3; 4], m: u32) {
+    out.push(pm_scene::Triangle::new([q[0], q[1], q[2]], m).unwrap());
+    out.push(pm_scene::Triangle::new([q[0], q[2], q[3]], m).unwrap());
+}
+
 /// Light samples next to an area light (a 1 m emitting panel standing on a floor):
 /// the floor's direct light at 0.1 mm to 50 cm from the panel's foot. Sampled by
 /// area, a sample's weight cos_s cos_l A / d^2 has no bound as the point nears the
@@ -207,12 +213,8 @@ fn rays_at_glass_sphere_vertices_and_edges_never_slip_through() {
 fn light_samples_next_to_an_area_light_have_bounded_weights() {
     use pm_bsdf::Bsdf;
     use pm_color::Rgb;
-    use pm_scene::{Material, Scene, Triangle};
+    use pm_scene::{Material, Scene};
     let v = Vec3::new;
-    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
-        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
-        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
-    };
     let mut tris = Vec::new();
     quad(&mut tris, [v(-2., 0., -2.), v(-2., 0., 2.), v(2., 0., 2.), v(2., 0., -2.)], 0); // floor, +y
     let panel = [v(-0.5, 0., 0.), v(0.5, 0., 0.), v(0.5, 1., 0.), v(-0.5, 1., 0.)];
@@ -277,12 +279,8 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
 fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
     use pm_bsdf::Bsdf;
     use pm_color::Rgb;
-    use pm_scene::{Material, Scene, Triangle};
+    use pm_scene::{Material, Scene};
     let v = Vec3::new;
-    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
-        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
-        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
-    };
     let mut tris = Vec::new();
     quad(&mut tris, [v(-4., 0., -4.), v(-4., 0., 4.), v(4., 0., 4.), v(4., 0., -4.)], 0); // floor, +y
     let light = [v(-0.5, 2., -0.5), v(0.5, 2., -0.5), v(0.5, 2., 0.5), v(-0.5, 2., 0.5)];
