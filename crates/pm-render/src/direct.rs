@@ -106,9 +106,9 @@ impl<'a> DirectLighting<'a> {
     }
 
     /// Direct light on a Lambertian surface from the scene's only light, which has a
-    /// closed-form irradiance (Heitz, Hill and McGuire 2018, "Combining analytic
-    /// direct illumination and stochastic shadows", equation 6): the `unoccluded`
-    /// radiance ρ / π L_e ∫ cos dω [W sr^-1 m^-2] in closed form
+    /// closed-form irradiance, by the ratio estimator of Heitz, Hill and McGuire 2018
+    /// ("Combining analytic direct illumination and stochastic shadows"): the
+    /// `unoccluded` radiance ρ / π L_e ∫ cos dω [W sr^-1 m^-2] in closed form
     /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of visibility
     /// Σ w_i V_i / Σ w_i over the `n` light samples, w_i each sample's unoccluded
     /// contribution. Where the light is wholly seen or wholly hidden it is exact (no
