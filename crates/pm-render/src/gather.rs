@@ -193,8 +193,23 @@ fn secondary_irradiance<G: PhotonRecord>(
     let mut h = *hit;
     h.ns = facing(hit.ns, n);
     let e_direct = ctx.light.direct(&h, &unit, n, s, 1);
-    let g = final_gather(ctx, hit.p, h.ns, n, ctx.cfg.secondary_rays, s, false, scratch);
+    let g = final_gather(ctx, hit.p, h.ns, n, ctx.cfg.secondary_rays, s, GatherFor::Secondary, scratch);
     e_direct + g.e
+}
+
+/// What a final gather is for: what it computes beyond the irradiance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum GatherFor {
+    /// An irradiance-cache record: secondary gathers at short rays, and the
+    /// gradients (Ward and Heckbert 1992).
+    Record,
+    /// An irradiance used once (a render's gather where no record reaches):
+    /// secondary gathers, no gradients.
+    Estimate,
+    /// A secondary gather at a short ray's end: neither (its twelve rays' gradients,
+    /// with the trigonometry of every ring and sector, were computed and dropped at
+    /// a third of the cache prepass's gathers).
+    Secondary,
 }
 
 /// A final gather at `x` with shading normal `ns` and geometric normal `ng` (both on
@@ -209,16 +224,19 @@ pub(crate) fn final_gather<G: PhotonRecord>(
     ng: Vec3,
     rays: u32,
     s: &mut Sampler,
-    secondary: bool,
+    purpose: GatherFor,
     scratch: &mut Scratch,
 ) -> Gather {
+    let secondary = purpose != GatherFor::Secondary;
     let m = ((rays as f32 / PI).sqrt().round() as usize).max(1);
     let n = ((rays as f32 / m as f32).round() as usize).max(1);
     ctx.counters.gather_rays.fetch_add((m * n) as u64, Relaxed);
     let (t, b) = basis(ns);
     let world = |l: Vec3| t * l.x + b * l.y + ns * l.z;
-    let mut l = vec![Rgb::ZERO; m * n];
-    let mut r = vec![f32::INFINITY; m * n];
+    // Each stratum's radiance and hit distance, kept for the gradients.
+    let keep = if purpose == GatherFor::Record { m * n } else { 0 };
+    let mut l = vec![Rgb::ZERO; keep];
+    let mut r = vec![f32::INFINITY; keep];
     let mut sum = Rgb::ZERO;
     let mut inv_r = 0.0f64;
     let mut grad_r = [Vec3::ZERO; 3];
@@ -230,27 +248,34 @@ pub(crate) fn final_gather<G: PhotonRecord>(
             let phi = 2.0 * PI * (k as f32 + u.y) / n as f32;
             let (sin_phi, cos_phi) = (phi.sin(), phi.cos());
             let dir = world(Vec3::new(sin_t * cos_phi, sin_t * sin_phi, cos_t));
-            let idx = j * n + k;
+            let (mut li, mut ri) = (Rgb::ZERO, f32::INFINITY);
             if dir.dot(ng) > 0.0 {
                 let o = ctx.scene.offset_origin(x, ng, dir);
-                let (lr, dist) = gather_radiance(ctx, o, dir, s, secondary, scratch);
-                l[idx] = lr;
-                r[idx] = dist;
+                (li, ri) = gather_radiance(ctx, o, dir, s, secondary, scratch);
             }
-            sum += l[idx];
-            if r[idx].is_finite() && r[idx] > 0.0 {
-                inv_r += 1.0 / r[idx] as f64;
+            sum += li;
+            if ri.is_finite() && ri > 0.0 {
+                inv_r += 1.0 / ri as f64;
             }
+            if keep == 0 {
+                continue;
+            }
+            l[j * n + k] = li;
+            r[j * n + k] = ri;
             // Rotational gradient: sum of -tan(theta) L v(phi), v the tangent direction
             // perpendicular to phi.
             let tan_t = if cos_t > 1e-6 { sin_t / cos_t } else { 0.0 };
             let v = world(Vec3::new(-sin_phi, cos_phi, 0.0)) * -tan_t;
             for c in 0..3 {
-                grad_r[c] += v * l[idx][c];
+                grad_r[c] += v * li[c];
             }
         }
     }
     let norm = PI / (m * n) as f32;
+    let r_harmonic = if inv_r > 0.0 { ((m * n) as f64 / inv_r) as f32 } else { f32::INFINITY };
+    if keep == 0 {
+        return Gather { e: sum * norm, r_harmonic, grad_t: [Vec3::ZERO; 3], grad_r };
+    }
     for g in &mut grad_r {
         *g *= norm;
     }
@@ -304,6 +329,5 @@ pub(crate) fn final_gather<G: PhotonRecord>(
             }
         }
     }
-    let r_harmonic = if inv_r > 0.0 { ((m * n) as f64 / inv_r) as f32 } else { f32::INFINITY };
     Gather { e: sum * norm, r_harmonic, grad_t, grad_r }
 }

@@ -4,7 +4,7 @@
 //! w_i = 1 / (|p - p_i| / R_i + sqrt(1 - n . n_i)); a record is used where
 //! w_i > 1 / a, a being the user's accuracy.
 
-use crate::gather::{Gather, Scratch, final_gather};
+use crate::gather::{Gather, GatherFor, Scratch, final_gather};
 use crate::integrator::{PhotonMapping, cheap_indirect, diffuse_points};
 use crate::render::{Film, pixel_seed};
 use glam::{IVec3, Vec3};
@@ -236,7 +236,8 @@ impl IrradianceCache {
                                 return None;
                             }
                         }
-                        let g = final_gather(pm, hit.p, ns, ng, cfg.gather_rays, &mut s, true, &mut scratch);
+                        let g =
+                            final_gather(pm, hit.p, ns, ng, cfg.gather_rays, &mut s, GatherFor::Record, &mut scratch);
                         Some((hit.p, ns, g))
                     })
                 })

@@ -300,7 +300,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     }
     let t = scratch.clock();
     ctx.counters.gathers.fetch_add(1, Relaxed);
-    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, true, scratch);
+    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, crate::gather::GatherFor::Estimate, scratch);
     crate::gather::add_time(&ctx.counters.ns_gather, t);
     g.e
 }
