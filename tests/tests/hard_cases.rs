@@ -264,7 +264,7 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
     assert!(bad.is_empty(), "{bad:?}");
 }
 
-/// Direct light as the photon-map renderer takes it from a planar area light:
+/// Direct light as the photon-map renderer takes it from planar area lights:
 /// Lambert's closed form times a ratio estimate of visibility (Heitz, Hill and
 /// McGuire 2018). A 1 m square light 2 m above a floor, facing down, with a 0.6 m
 /// square blocker halfway. Where the whole light is seen, every estimate (1 or 8
@@ -272,20 +272,39 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
 /// plain light samples scatter by several percent there). In the blocker's
 /// penumbra the mean over 4,096 streams of 8 samples agrees with plain light
 /// sampling's (unbiased) mean within 1% (measured: 0.1%; the ratio's bias falls as
-/// 1 / n; the spread there is the shadow's, about equal). In the umbra both are zero. A closed form on the wrong side or
-/// with the wrong normal fails the first; one that ignores the shadow rays, the
-/// second.
+/// 1 / n; the spread there is the shadow's, about equal). In the umbra both are zero.
+/// A closed form on the wrong side or with the wrong normal fails the first; one
+/// that ignores the shadow rays, the second.
 #[test]
 fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
+    closed_form_direct_light(false);
+}
+
+/// [`closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae`] with a
+/// second, smaller light 3.5 m to the side, which the blocker hides from none of the
+/// points: each light's visibility is estimated from the samples that chose it (the
+/// small one draws about one in seven), and one that no sample chose gets a sample
+/// of its own. Under the blocker the estimate is exactly the second light's closed
+/// form; a ratio pooled over both lights would give a fraction of the sum there.
+#[test]
+fn closed_form_direct_light_takes_each_light_s_visibility_apart() {
+    closed_form_direct_light(true);
+}
+
+fn closed_form_direct_light(second_light: bool) {
     use pm_bsdf::Bsdf;
     use pm_color::Rgb;
     use pm_scene::{Material, Scene};
     let v = Vec3::new;
     let mut tris = Vec::new();
     quad(&mut tris, [v(-4., 0., -4.), v(-4., 0., 4.), v(4., 0., 4.), v(4., 0., -4.)], 0); // floor, +y
-    let light = [v(-0.5, 2., -0.5), v(0.5, 2., -0.5), v(0.5, 2., 0.5), v(-0.5, 2., 0.5)];
-    quad(&mut tris, light, 1); // facing -y
+    let mut lights = vec![[v(-0.5, 2., -0.5), v(0.5, 2., -0.5), v(0.5, 2., 0.5), v(-0.5, 2., 0.5)]];
+    quad(&mut tris, lights[0], 1); // facing -y
     quad(&mut tris, [v(-0.3, 1., -0.3), v(0.3, 1., -0.3), v(0.3, 1., 0.3), v(-0.3, 1., 0.3)], 2);
+    if second_light {
+        lights.push([v(-2.7, 2.5, -0.2), v(-2.3, 2.5, -0.2), v(-2.3, 2.5, 0.2), v(-2.7, 2.5, 0.2)]);
+        quad(&mut tris, lights[1], 1);
+    }
     let rho = 0.5;
     let mats = vec![
         Material::new("floor", Bsdf::Lambert { rho: Rgb::splat(rho) }, Rgb::ZERO),
@@ -293,7 +312,7 @@ fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
         Material::new("blocker", Bsdf::Lambert { rho: Rgb::splat(rho) }, Rgb::ZERO),
     ];
     let scene = Scene::from_parts(tris, mats, vec![], None);
-    assert_eq!(scene.lights.len(), 1);
+    assert_eq!(scene.lights.len(), lights.len());
     let closed = pm_render::DirectLighting::with_closed_form(&scene).unwrap();
     let plain = pm_render::DirectLighting::new(&scene).unwrap();
     let at = |x: f32| {
@@ -314,19 +333,21 @@ fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
         let mean = sum / m as f64;
         (mean, (sum2 / m as f64 - mean * mean).max(0.0).sqrt())
     };
-    // Unoccluded reflected radiance at (x, 0, 0) by Lambert's formula, in f64.
-    let lambert = |x: f32| {
-        let p = v(x, 0.0, 0.0).as_dvec3();
+    // Unoccluded reflected radiance at (x, 0, 0) from light `l` by Lambert's formula,
+    // in f64.
+    let lambert = |l: usize, x: f32| {
+        let (p, q) = (v(x, 0.0, 0.0).as_dvec3(), lights[l].map(|c| c.as_dvec3()));
         let mut e = 0.0f64;
         for i in 0..4 {
-            let (a, b) = ((light[i].as_dvec3() - p).normalize(), (light[(i + 1) % 4].as_dvec3() - p).normalize());
+            let (a, b) = ((q[i] - p).normalize(), (q[(i + 1) % 4] - p).normalize());
             e += 0.5 * a.dot(b).clamp(-1.0, 1.0).acos() * glam::DVec3::Y.dot(a.cross(b).normalize());
         }
         rho as f64 / std::f64::consts::PI * 3.0 * e.abs()
     };
+    let all_lights = |x: f32| (0..lights.len()).map(|l| lambert(l, x)).sum::<f64>();
     // Wholly lit: 2.5 m off-centre, outside the blocker's shadow.
     let p = v(2.5, 0.0, 0.0);
-    let want = lambert(p.x);
+    let want = all_lights(p.x);
     let (hit, bsdf) = at(p.x);
     for n in [1, 8] {
         for k in 0..64 {
@@ -338,14 +359,24 @@ fn closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae() {
     let (_, plain_sd) = stats(&plain, p.x, 8, 256);
     eprintln!("lit: closed form {want:.5}; plain light samples spread {:.2}%", 100.0 * plain_sd / want);
     assert!(plain_sd > 0.01 * want, "the lit point should be one where plain samples are noisy");
-    // Penumbra: the blocker hides three quarters of the light.
+    // Penumbra: the blocker hides three quarters of the first light.
     let x = 0.35;
-    let want = lambert(x);
     let (c_mean, c_sd) = stats(&closed, x, 8, 4096);
     let (p_mean, p_sd) = stats(&plain, x, 8, 4096);
     eprintln!("penumbra: closed form {c_mean:.5} +- {c_sd:.5}, plain {p_mean:.5} +- {p_sd:.5}");
-    assert!(c_mean > 0.1 * want && c_mean < 0.9 * want, "{x} m is not in the penumbra: {c_mean} of {want}");
+    let seen_first = c_mean - if second_light { lambert(1, x) } else { 0.0 };
+    assert!(
+        seen_first > 0.1 * lambert(0, x) && seen_first < 0.9 * lambert(0, x),
+        "{x} m is not in the first light's penumbra: {seen_first} of {}",
+        lambert(0, x)
+    );
     assert!((c_mean / p_mean - 1.0).abs() < 0.01, "penumbra: {c_mean} against {p_mean}");
-    // Umbra: right under the blocker, which hides the whole light.
-    assert_eq!(stats(&closed, 0.0, 8, 64).0, 0.0);
+    // Under the blocker, which hides the whole first light: only the second's light.
+    let under = if second_light { lambert(1, 0.0) } else { 0.0 };
+    let (hit, bsdf) = at(0.0);
+    for k in 0..64 {
+        let mut s = pm_sampling::Sampler::new(5, k);
+        let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, 8).x as f64;
+        assert!((got - under).abs() <= 1e-4 * under, "under the blocker, stream {k}: {got} against {under}");
+    }
 }

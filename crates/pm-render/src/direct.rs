@@ -29,6 +29,11 @@ pub struct DirectLighting<'a> {
     closed_form: bool,
 }
 
+/// Most lights of a scene whose direct light [`DirectLighting::direct`] takes in
+/// closed form (each costs Lambert's formula at every shading point; a scene with
+/// more keeps plain light samples).
+pub const CLOSED_FORM_LIGHTS: usize = 4;
+
 /// Light samples per shading point that [`DirectLighting::direct`] takes from its
 /// precomputed net; more take an Owen-scrambled net each (slower, equally good).
 const NET_POINTS: u32 = 256;
@@ -75,17 +80,41 @@ impl<'a> DirectLighting<'a> {
     /// (u[0], u[1]), the emitting triangle (u[2]) and the light (u[3]).
     pub fn light_sample_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Rgb {
         match self.unshadowed(hit, bsdf, wo, u, mis) {
-            Some((c, o, wi, t_max)) if !self.scene.occluded(o, wi, t_max) => c,
+            Some((_, c, o, wi, t_max)) if !self.scene.occluded(o, wi, t_max) => c,
             _ => Rgb::ZERO,
         }
     }
 
-    /// A light sample's contribution as if nothing blocked it, with its shadow ray
-    /// (origin, direction, length); `None` where it contributes nothing.
+    /// A light sample's light, its contribution as if nothing blocked it, and its
+    /// shadow ray (origin, direction, length); `None` where it contributes nothing.
     #[inline]
-    fn unshadowed(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Option<(Rgb, Vec3, Vec3, f32)> {
-        let scene = self.scene;
+    fn unshadowed(
+        &self,
+        hit: &Hit,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        u: [f32; 4],
+        mis: bool,
+    ) -> Option<(usize, Rgb, Vec3, Vec3, f32)> {
         let (li, p_sel) = self.lights.pick(u[3]);
+        let (c, o, wi, t_max) = self.unshadowed_on(li, p_sel as f32, hit, bsdf, wo, u, mis)?;
+        Some((li, c, o, wi, t_max))
+    }
+
+    /// [`Self::unshadowed`] on light `li`, chosen with probability `p_sel`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn unshadowed_on(
+        &self,
+        li: usize,
+        p_sel: f32,
+        hit: &Hit,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        u: [f32; 4],
+        mis: bool,
+    ) -> Option<(Rgb, Vec3, Vec3, f32)> {
+        let scene = self.scene;
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
         let ls = scene.lights[li].sample_li(scene, hit.p, u_tri, u)?;
         if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
@@ -100,42 +129,54 @@ impl<'a> DirectLighting<'a> {
         // margin in tiny scenes, and the ray would then reach the light itself (every
         // shadow ray in a 2 mm Cornell box was blocked before this).
         let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
-        let p_l = ls.pdf * p_sel as f32;
+        let p_l = ls.pdf * p_sel;
         let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
         Some((f * ls.li * (w / p_l), o, ls.wi, t_max))
     }
 
-    /// Direct light on a Lambertian surface from the scene's only light, which has a
-    /// closed-form irradiance, by the ratio estimator of Heitz, Hill and McGuire 2018
-    /// ("Combining analytic direct illumination and stochastic shadows"): the
+    /// Direct light on a Lambertian surface from lights that all have a closed-form
+    /// irradiance, by the ratio estimator of Heitz, Hill and McGuire 2018 ("Combining
+    /// analytic direct illumination and stochastic shadows"): per light its
     /// `unoccluded` radiance ρ / π L_e ∫ cos dω [W sr^-1 m^-2] in closed form
-    /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of visibility
-    /// Σ w_i V_i / Σ w_i over the `n` light samples, w_i each sample's unoccluded
-    /// contribution. Where the light is wholly seen or wholly hidden it is exact (no
-    /// noise); in penumbrae the ratio is consistent, its bias falling as 1 / n. One
-    /// sample gives that sample's visibility alone, whose mean weighs the light's
+    /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of its visibility
+    /// Σ w_i V_i / Σ w_i over the light samples that chose it, w_i each sample's
+    /// unoccluded contribution; a light that no sample chose (of several) gets one
+    /// sample of its own. Where a light is wholly seen or wholly hidden it is exact
+    /// (no noise); in penumbrae the ratio is consistent, its bias falling as 1 / n.
+    /// One sample gives that sample's visibility alone, whose mean weighs the light's
     /// points by the sampling density rather than by their contribution: on
     /// cornell_boxes, bias 4.4% against 2.0% from four samples on (trade-off study).
-    fn closed_form_direct(&self, hit: &Hit, bsdf: &Bsdf, unoccluded: Rgb, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
+    fn closed_form_direct(&self, hit: &Hit, bsdf: &Bsdf, unoccluded: &[Rgb], wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let net = (n > 1).then(|| s.net_4d());
-        let (mut seen, mut all) = (0.0f32, 0.0f32);
+        let (mut seen, mut all) = ([0.0f32; CLOSED_FORM_LIGHTS], [0.0f32; CLOSED_FORM_LIGHTS]);
         for k in 0..n {
             let u = match &net {
                 Some(net) => net.point(&self.nets, n, k),
                 None => light_numbers(s),
             };
-            if let Some((c, o, wi, t_max)) = self.unshadowed(hit, bsdf, wo, u, false) {
+            if let Some((li, c, o, wi, t_max)) = self.unshadowed(hit, bsdf, wo, u, false) {
                 let w = c.element_sum();
-                all += w;
+                all[li] += w;
                 if !self.scene.occluded(o, wi, t_max) {
-                    seen += w;
+                    seen[li] += w;
                 }
             }
         }
-        if !(all > 0.0) {
-            return Rgb::ZERO;
+        let mut sum = Rgb::ZERO;
+        for (li, &u) in unoccluded.iter().enumerate() {
+            if all[li] > 0.0 {
+                sum += u * (seen[li] / all[li]);
+            } else if unoccluded.len() > 1 && u.max_element() > 0.0 {
+                // No sample chose this light: one of its own decides its visibility.
+                let v = self.unshadowed_on(li, 1.0, hit, bsdf, wo, light_numbers(s), false);
+                if let Some((_, o, wi, t_max)) = v
+                    && !self.scene.occluded(o, wi, t_max)
+                {
+                    sum += u;
+                }
+            }
         }
-        unoccluded * (seen / all)
+        sum
     }
 }
 
@@ -175,9 +216,9 @@ impl DirectLighting<'_> {
     /// next to a point subtend large solid angles but are chosen by their small
     /// areas: a light sample on one weighed up to 11 times the mean, and made the
     /// furnace test's worst pixel; cosine-sampled directions find those facets often.
-    /// Built [`Self::with_closed_form`], Lambertian surfaces lit by a scene's only
-    /// light, when that light has a closed-form irradiance, take the closed form
-    /// with stochastic shadows instead (see `closed_form_direct`).
+    /// Built [`Self::with_closed_form`], Lambertian surfaces in a scene of at most
+    /// [`CLOSED_FORM_LIGHTS`] lights that all have a closed-form irradiance take the
+    /// closed form with stochastic shadows instead (see `closed_form_direct`).
     pub fn direct(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let scene = self.scene;
         let mis = !matches!(bsdf, Bsdf::Lambert { .. })
@@ -185,15 +226,28 @@ impl DirectLighting<'_> {
         if !mis
             && self.closed_form
             && let Bsdf::Lambert { rho } = bsdf
-            && let [light] = scene.lights.as_slice()
-            && let Some((le, e)) = light.cos_integral(hit.p, if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns })
+            && scene.lights.len() <= CLOSED_FORM_LIGHTS
         {
-            // Nothing of the light above the horizon: no shadow rays.
-            return if e > 0.0 {
-                self.closed_form_direct(hit, bsdf, *rho * le * (e / PI), wo, s, n)
-            } else {
-                Rgb::ZERO
-            };
+            let side = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+            let mut unoccluded = [Rgb::ZERO; CLOSED_FORM_LIGHTS];
+            let (mut closed, mut lit) = (true, false);
+            for (u, light) in unoccluded.iter_mut().zip(&scene.lights) {
+                match light.cos_integral(hit.p, side) {
+                    Some((le, e)) => {
+                        *u = *rho * le * (e / PI);
+                        lit |= e > 0.0;
+                    }
+                    None => closed = false,
+                }
+            }
+            if closed {
+                // Nothing of any light above the horizon: no shadow rays.
+                return if lit {
+                    self.closed_form_direct(hit, bsdf, &unoccluded[..scene.lights.len()], wo, s, n)
+                } else {
+                    Rgb::ZERO
+                };
+            }
         }
         let side_o = wo.dot(hit.ng);
         let mut sum = Rgb::ZERO;
