@@ -24,8 +24,10 @@ pub struct DirectLighting<'a> {
     /// Bounding boxes [m] of the area lights that enclose space (positive extent on
     /// every axis: an emitting sphere, a lit room's walls). See [`Self::direct`].
     enclosing: Vec<(Vec3, Vec3)>,
-    /// Use the closed form with a ratio estimate of visibility where it exists
-    /// (see [`Self::direct`]); off for the path tracer, which must stay unbiased.
+    /// Take Lambertian surfaces' direct light in closed form with a ratio estimate
+    /// of visibility (see [`Self::direct`]): asked for by the photon-map integrators
+    /// (off for the path tracer, which must stay unbiased), and decided once for the
+    /// scene: at most [`CLOSED_FORM_LIGHTS`] lights, each with a closed form.
     closed_form: bool,
 }
 
@@ -62,10 +64,12 @@ impl<'a> DirectLighting<'a> {
         })
     }
 
-    /// [`Self::new`] with closed-form unoccluded direct light where the scene's light
-    /// has one (see [`Self::direct`]): for the photon-map integrators.
+    /// [`Self::new`] with closed-form unoccluded direct light when the scene's lights
+    /// have one (see [`Self::direct`]): for the photon-map integrators.
     pub fn with_closed_form(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
-        Ok(DirectLighting { closed_form: true, ..Self::new(scene)? })
+        let closed_form =
+            scene.lights.len() <= CLOSED_FORM_LIGHTS && scene.lights.iter().all(pm_scene::Light::has_cos_integral);
+        Ok(DirectLighting { closed_form, ..Self::new(scene)? })
     }
 
     /// One light-sampling estimate of reflected direct radiance: pick a light by power,
@@ -226,28 +230,22 @@ impl DirectLighting<'_> {
         if !mis
             && self.closed_form
             && let Bsdf::Lambert { rho } = bsdf
-            && scene.lights.len() <= CLOSED_FORM_LIGHTS
         {
-            let side = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+            let side = crate::facing(hit.ns, wo);
             let mut unoccluded = [Rgb::ZERO; CLOSED_FORM_LIGHTS];
-            let (mut closed, mut lit) = (true, false);
+            let mut lit = false;
             for (u, light) in unoccluded.iter_mut().zip(&scene.lights) {
-                match light.cos_integral(hit.p, side) {
-                    Some((le, e)) => {
-                        *u = *rho * le * (e / PI);
-                        lit |= e > 0.0;
-                    }
-                    None => closed = false,
-                }
+                // Some for every light: `closed_form` is decided by that.
+                let (le, e) = light.cos_integral(hit.p, side).unwrap_or((Rgb::ZERO, 0.0));
+                *u = *rho * le * (e / PI);
+                lit |= e > 0.0;
             }
-            if closed {
-                // Nothing of any light above the horizon: no shadow rays.
-                return if lit {
-                    self.closed_form_direct(hit, bsdf, &unoccluded[..scene.lights.len()], wo, s, n)
-                } else {
-                    Rgb::ZERO
-                };
-            }
+            // Nothing of any light above the horizon: no shadow rays.
+            return if lit {
+                self.closed_form_direct(hit, bsdf, &unoccluded[..scene.lights.len()], wo, s, n)
+            } else {
+                Rgb::ZERO
+            };
         }
         let side_o = wo.dot(hit.ng);
         let mut sum = Rgb::ZERO;

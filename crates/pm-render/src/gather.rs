@@ -290,10 +290,9 @@ pub(crate) fn final_gather<G: PhotonRecord>(
     // division by the distance), and of the boundaries between its sectors.
     let rings: Vec<(f32, Option<(f32, f32)>)> = (0..m)
         .map(|j| {
-            let th = theta_at(j as f32);
+            let (th, th_hi, th_mid) = (theta_at(j as f32), theta_at(j as f32 + 1.0), theta_at(j as f32 + 0.5));
             let inner = 2.0 * PI / n as f32 * th.sin() * th.cos() * th.cos();
-            let (th_lo, th_hi, th_mid) = (theta_at(j as f32), theta_at(j as f32 + 1.0), theta_at(j as f32 + 0.5));
-            let sectors = (th_mid.sin() > 0.0).then(|| (th_lo.cos() - th_hi.cos(), th_mid.sin()));
+            let sectors = (th_mid.sin() > 0.0).then(|| (th.cos() - th_hi.cos(), th_mid.sin()));
             (inner, sectors)
         })
         .collect();

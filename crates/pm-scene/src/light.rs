@@ -404,12 +404,9 @@ impl Light {
     /// that are curved, two-sided, textured or of more than [`OUTLINE_TRIANGLES`]
     /// triangles.
     pub fn cos_integral(&self, p: Vec3, n: Vec3) -> Option<(Rgb, f32)> {
-        let LightKind::Area { emission, area_per_pick, outline: Some(o), .. } = &self.kind else { return None };
-        if !area_per_pick.is_empty() {
-            return None;
-        }
+        let (o, emission) = self.uniform_outline()?;
         if (p - o.polys[0][0]).dot(o.normal) <= 0.0 {
-            return Some((*emission, 0.0));
+            return Some((emission, 0.0));
         }
         let mut e = 0.0;
         for poly in &o.polys {
@@ -419,12 +416,23 @@ impl Light {
             }
             e += pm_sampling::polygon_cos_integral(&rel[..poly.len()], n);
         }
-        Some((*emission, e))
+        Some((emission, e))
     }
 
     /// True when [`Light::cos_integral`] has a closed form for this light.
     pub fn has_cos_integral(&self) -> bool {
-        self.cos_integral(Vec3::ZERO, Vec3::Z).is_some()
+        self.uniform_outline().is_some()
+    }
+
+    /// The outline and uniform radiance of a light with a closed form: an area
+    /// light with an [`Outline`] that no emissive texture varies.
+    fn uniform_outline(&self) -> Option<(&Outline, Rgb)> {
+        match &self.kind {
+            LightKind::Area { emission, area_per_pick, outline: Some(o), .. } if area_per_pick.is_empty() => {
+                Some((o, *emission))
+            }
+            _ => None,
+        }
     }
 }
 
