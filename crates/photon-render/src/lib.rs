@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, bail, ensure};
 use clap::Parser;
 use pm_format::{FullPhoton, MapKind, Order, PhotonRecord, ReadExpect, with_map};
-use pm_kdtree::KdTree;
+use pm_kdtree::{Buckets, KdTree};
 use pm_render::{
     Image, Integrator, IrradianceCache, Lookup, Maps, Method, PhotonMapping, Rect, RenderParams, RenderStats,
 };
@@ -265,10 +265,14 @@ impl Job<'_> {
     ) -> Result<(Option<Image>, RenderStats, CacheReport)> {
         let records = global.map(|m| &m.records[..]);
         let irr_nodes = records.map(pm_render::irradiance_subset).unwrap_or_default();
+        // The maps searched for k nearest photons get leaf buckets; the irradiance
+        // subset answers nearest-photon lookups only, which buckets slow.
+        let global_buckets = records.map(Buckets::new).unwrap_or_default();
+        let caustic_buckets = caustic.map(|c| Buckets::new(&c.records)).unwrap_or_default();
         let maps = Maps {
-            global: records.map(KdTree::new),
+            global: records.map(|r| KdTree::with_buckets(r, &global_buckets)),
             irradiance: (!irr_nodes.is_empty()).then(|| KdTree::new(&irr_nodes[..])),
-            caustic: caustic.map(|c| KdTree::new(&c.records[..])),
+            caustic: caustic.map(|c| KdTree::with_buckets(&c.records[..], &caustic_buckets)),
         };
         let map_hash = global.map_or([0; 32], |m| m.header.payload_hash);
         let mut pm = PhotonMapping::new(self.scene, maps, &self.cli.params, self.indirect)

@@ -7,7 +7,7 @@
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use pm_format::{CompactIrrPhoton, Photon, PhotonRecord, flags};
-use pm_kdtree::{KdTree, KnnScratch, balance};
+use pm_kdtree::{Buckets, KdTree, KnnScratch, balance};
 use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
 use rayon::prelude::*;
 use std::num::NonZero;
@@ -67,9 +67,10 @@ fn best_of<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 fn main() {
     println!("threads: {}", rayon::current_num_threads());
     println!(
-        "| data | photons | build ours [s] | build kiddo [s] | build ours/kiddo | 50-NN ours [q/s] | 50-NN kiddo [q/s] | ours/kiddo | nearest-with-normal ours [q/s] | rank 1 / 2 / 3+ | brute-force 50-NN [q/s] |"
+        "| data | photons | build ours [s] | of which buckets [s] | build kiddo [s] | build ours/kiddo | 50-NN ours [q/s] | 50-NN without buckets [q/s] | 50-NN kiddo [q/s] | ours/kiddo | nearest-with-normal ours [q/s] | rank 1 / 2 / 3+ | brute-force 50-NN [q/s] |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut bucket_bytes = 0.0;
     for n in [100_000u64, 1_000_000, 4_000_000] {
         // Query points: an independent photon set (another seed) with its surface normals,
         // so queries land where a renderer's would, edges and corners included.
@@ -78,8 +79,11 @@ fn main() {
             let positions: Vec<[f32; 3]> = recs.iter().map(|r| r.position().to_array()).collect();
             let (t_ours, nodes) = best_of(3, || balance(&recs));
             let (t_kiddo, kd) = best_of(3, || ImmutableKdTree::<f32, 3>::new_from_slice(&positions).unwrap());
-            let tree = KdTree::new(&nodes);
-            assert!(tree.verify().is_ok());
+            let (t_buckets, buckets) = best_of(3, || Buckets::new(&nodes));
+            bucket_bytes = buckets.bytes() as f64 / n as f64;
+            let plain = KdTree::new(&nodes);
+            assert!(plain.verify().is_ok());
+            let tree = KdTree::with_buckets(&nodes, &buckets);
             // Queries: photon positions nudged off the surface, and their normals.
             let qs: Vec<(Vec3, Vec3)> = if name == "clustered" {
                 (0..QUERIES)
@@ -97,6 +101,16 @@ fn main() {
                         let mut s = KnnScratch::with_capacity(K);
                         c.iter()
                             .map(|(x, _)| tree.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
+                            .sum::<f64>()
+                    })
+                    .sum::<f64>()
+            });
+            let (t_plain, _) = best_of(2, || {
+                qs.par_chunks(1024)
+                    .map(|c| {
+                        let mut s = KnnScratch::with_capacity(K);
+                        c.iter()
+                            .map(|(x, _)| plain.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
                             .sum::<f64>()
                     })
                     .sum::<f64>()
@@ -153,9 +167,11 @@ fn main() {
             };
             let q = QUERIES as f64;
             println!(
-                "| {name} | {n} | {t_ours:.3} | {t_kiddo:.3} | {:.2} | {:.0} | {:.0} | {:.2} | {:.0} | {:.1}% / {:.1}% / {:.1}% | {brute} |",
-                t_ours / t_kiddo,
+                "| {name} | {n} | {:.3} | {t_buckets:.3} | {t_kiddo:.3} | {:.2} | {:.0} | {:.0} | {:.0} | {:.2} | {:.0} | {:.1}% / {:.1}% / {:.1}% | {brute} |",
+                t_ours + t_buckets,
+                (t_ours + t_buckets) / t_kiddo,
                 q / t_knn,
+                q / t_plain,
                 q / t_kiddo_q,
                 t_kiddo_q / t_knn,
                 q / t_near,
@@ -166,7 +182,8 @@ fn main() {
         }
     }
     println!(
-        "\nmemory per photon: ours {} bytes (the record; the tree adds nothing)",
-        std::mem::size_of::<CompactIrrPhoton>()
+        "\nmemory per photon: ours {} bytes (the record) and {:.1} bytes of leaf buckets (4M clustered)",
+        std::mem::size_of::<CompactIrrPhoton>(),
+        bucket_bytes
     );
 }

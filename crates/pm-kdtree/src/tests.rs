@@ -37,13 +37,17 @@ fn check_all_queries<R: PhotonRecord>(
     radii2: &[f32],
 ) -> Result<(), TestCaseError> {
     let nodes = balance(&records::<R>(pts));
-    let tree = KdTree::new(&nodes);
-    prop_assert!(tree.verify().is_ok(), "{:?}", tree.verify());
+    let buckets = Buckets::new(&nodes);
+    prop_assert!(KdTree::new(&nodes).verify().is_ok(), "{:?}", KdTree::new(&nodes).verify());
     prop_assert_eq!(nodes.len(), pts.len());
     let mut scratch = KnnScratch::default();
     let mut rejected = Vec::new();
     let direct = |r: &R| r.flags() & flags::DIRECT != 0;
-    for &x in queries {
+    // Every query searched through the leaf buckets and without them.
+    for (tree, &x) in [KdTree::new(&nodes), KdTree::with_buckets(&nodes, &buckets)]
+        .into_iter()
+        .flat_map(|t| queries.iter().map(move |x| (t, x)))
+    {
         for &k in ks {
             for &r2 in radii2 {
                 for use_filter in [false, true] {
@@ -184,12 +188,18 @@ fn unused_photons_are_skipped() {
             r.set_flags(r.flags() | flags::UNUSED);
         }
     }
-    let tree = KdTree::new(&nodes);
-    let mut s = KnnScratch::default();
-    tree.knn(Vec3::new(10.2, 0.0, 0.0), 3, f32::INFINITY, |_, _| true, &mut s);
-    let mut xs: Vec<f32> = tree.found(&s).map(|(i, _)| nodes[i as usize].position().x).collect();
-    xs.sort_by(f32::total_cmp);
-    assert_eq!(xs, vec![9.0, 11.0, 13.0]);
+    let buckets = Buckets::new(&nodes);
+    for tree in [KdTree::new(&nodes), KdTree::with_buckets(&nodes, &buckets)] {
+        let mut s = KnnScratch::default();
+        tree.knn(Vec3::new(10.2, 0.0, 0.0), 3, f32::INFINITY, |_, _| true, &mut s);
+        let mut xs: Vec<f32> = tree.found(&s).map(|(i, _)| nodes[i as usize].position().x).collect();
+        xs.sort_by(f32::total_cmp);
+        assert_eq!(xs, vec![9.0, 11.0, 13.0]);
+        let mut within = Vec::new();
+        tree.for_each_within(Vec3::new(10.2, 0.0, 0.0), 9.0, |_, r, _| within.push(r.position().x));
+        within.sort_by(f32::total_cmp);
+        assert_eq!(within, vec![9.0, 11.0, 13.0]);
+    }
 }
 
 #[test]

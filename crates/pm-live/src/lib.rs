@@ -505,7 +505,9 @@ impl Live {
                     Vec::new()
                 }
             };
-            (records, t.elapsed().as_secs_f64())
+            // The corners' k-nearest searches go through leaf buckets.
+            let buckets = pm_kdtree::Buckets::new(&records);
+            (records, buckets, t.elapsed().as_secs_f64())
         };
         let (scene, camera, fragments) = (&self.scene, &self.camera, &mut self.fragments);
         let raster = || {
@@ -515,7 +517,7 @@ impl Live {
             }
             t.elapsed().as_secs_f64()
         };
-        let ((records, balance), raster) = rayon::join(update, raster);
+        let ((records, buckets, balance), raster) = rayon::join(update, raster);
         let t = Instant::now();
         let active = self.corners.active(&self.scene, &self.camera, aspect, p.back_face_culling, p.frustum_culling);
         let mut e = match &self.grid {
@@ -525,7 +527,9 @@ impl Live {
                 let e = self.corners.irradiance(grid, &active, p.k, max_radius);
                 e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect()
             }
-            _ => self.corners.irradiance(&pm_kdtree::KdTree::new(&records), &active, p.k, max_radius),
+            _ => {
+                self.corners.irradiance(&pm_kdtree::KdTree::with_buckets(&records, &buckets), &active, p.k, max_radius)
+            }
         };
         let mut flicker = 0.0;
         if let Some((prev, was)) = &self.previous {
