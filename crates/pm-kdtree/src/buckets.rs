@@ -44,21 +44,37 @@ impl Block {
 /// bytes a photon beside the records.
 #[derive(Clone, Debug, Default)]
 pub struct Buckets {
-    /// Levels of the stem: heap nodes below `2^depth - 1` are searched as a tree,
-    /// and the node at `2^depth - 1 + b` roots bucket `b`.
-    depth: u32,
+    /// The stem nodes' splits, in heap order (the stem is the first 2^d - 1 nodes,
+    /// and the node at 2^d - 1 + b roots bucket b): the search descends the stem
+    /// reading only these (8 bytes a node, where a record is 18-23), and each
+    /// stem node's own photon is stored in the bucket its position leads to.
+    splits: Vec<Split>,
     /// Bucket b's blocks are `blocks[start[b]..start[b + 1]]`.
     start: Vec<u32>,
     blocks: Vec<Block>,
 }
 
-/// Levels of a bucket's subtree: a full one holds 2^4 - 1 = 15 photons, two blocks.
+/// A stem node's splitting plane: coordinate `axis` equals `value` [m].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Split {
+    pub(crate) value: f32,
+    pub(crate) axis: u32,
+}
+
+/// Levels of a bucket's subtree: a full one holds 2^5 - 1 = 31 photons (plus the
+/// stem photons routed to it), four blocks.
 const BUCKET_LEVELS: u32 = 5;
 
 impl Buckets {
     /// The buckets of `nodes` (heap order, as [`crate::balance`] leaves them);
     /// photons flagged [`flags::UNUSED`] are left out. Trees of less than two
     /// buckets' depth get none (their search is the plain descent).
+    ///
+    /// Each stem node's photon lies on its splitting plane, so in the closed cells
+    /// of both its subtrees; it is routed down the left one by the splits below to
+    /// a bucket whose cell contains it. A search reaches every bucket whose cell
+    /// lies within its radius, so it finds the photon there as it would have at
+    /// the stem node.
     pub fn new<R: PhotonRecord>(nodes: &[R]) -> Buckets {
         let n = nodes.len();
         let levels = usize::BITS - n.leading_zeros(); // of the whole tree
@@ -67,18 +83,49 @@ impl Buckets {
         }
         let depth = levels - BUCKET_LEVELS;
         let first = (1usize << depth) - 1;
-        let count = (n - first).min(1usize << depth);
-        // A bucket's nodes level by level: at level l below its root h, the 2^l
-        // consecutive indices from (h + 1) 2^l - 1.
-        let members = |h: usize| {
+        // Level `depth` is full (levels below it exist), so every stem node has two
+        // children and there are 2^depth buckets.
+        let count = 1usize << depth;
+        let used = |i: usize| nodes[i].flags() & flags::UNUSED == 0;
+        let splits: Vec<Split> = nodes[..first]
+            .par_iter()
+            .map(|r| {
+                let axis = (r.flags() & flags::AXIS_MASK) as u32;
+                Split { value: r.position()[axis as usize], axis }
+            })
+            .collect();
+        // The stem photons by the bucket they are routed to, in heap order.
+        let mut routed: Vec<(u32, u32)> = (0..first)
+            .into_par_iter()
+            .filter(|&i| used(i))
+            .map(|i| {
+                let p = nodes[i].position();
+                let mut j = 2 * i + 1;
+                while j < first {
+                    let s = splits[j];
+                    j = if p[s.axis as usize] <= s.value { 2 * j + 1 } else { 2 * j + 2 };
+                }
+                ((j - first) as u32, i as u32)
+            })
+            .collect();
+        routed.par_sort_unstable();
+        let routed_of = |b: usize| {
+            let lo = routed.partition_point(|&(r, _)| (r as usize) < b);
+            let hi = routed.partition_point(|&(r, _)| (r as usize) <= b);
+            routed[lo..hi].iter().map(|&(_, i)| i as usize)
+        };
+        // A bucket's subtree level by level (at level l below its root h, the 2^l
+        // consecutive indices from (h + 1) 2^l - 1), then its routed stem photons.
+        let members = |b: usize| {
+            let h = first + b;
             (0..BUCKET_LEVELS as usize)
                 .map(move |l| ((h + 1) << l) - 1..(((h + 2) << l) - 1).min(n))
                 .take_while(|r| r.start < n)
                 .flatten()
-                .filter(|&i| nodes[i].flags() & flags::UNUSED == 0)
+                .filter(|&i| used(i))
+                .chain(routed_of(b))
         };
-        let sizes: Vec<u32> =
-            (0..count).into_par_iter().map(|b| members(first + b).count().div_ceil(LANES) as u32).collect();
+        let sizes: Vec<u32> = (0..count).into_par_iter().map(|b| members(b).count().div_ceil(LANES) as u32).collect();
         let mut start = Vec::with_capacity(count + 1);
         let mut total = 0u32;
         start.push(0);
@@ -86,7 +133,8 @@ impl Buckets {
             total += s;
             start.push(total);
         }
-        let mut blocks = vec![Block::EMPTY; total as usize];
+        // Filled in parallel: tens of megabytes for millions of photons.
+        let mut blocks: Vec<Block> = (0..total).into_par_iter().map(|_| Block::EMPTY).collect();
         // Fill each bucket's blocks in parallel: split the array at the buckets' starts.
         let mut rest: &mut [Block] = &mut blocks;
         let mut parts = Vec::with_capacity(count);
@@ -96,7 +144,7 @@ impl Buckets {
             rest = tail;
         }
         parts.into_par_iter().enumerate().for_each(|(b, out)| {
-            for (k, i) in members(first + b).enumerate() {
+            for (k, i) in members(b).enumerate() {
                 let (blk, lane) = (&mut out[k / LANES], k % LANES);
                 let p = nodes[i].position();
                 blk.x[lane] = p.x;
@@ -105,25 +153,30 @@ impl Buckets {
                 blk.id[lane] = i as u32;
             }
         });
-        Buckets { depth, start, blocks }
+        Buckets { splits, start, blocks }
     }
 
-    /// Heap index of the first bucket's root (the stem is the nodes before it); 0
-    /// for no buckets.
+    /// The stem's splits in heap order.
     #[inline]
-    pub(crate) fn stem_len(&self) -> usize {
-        if self.start.is_empty() { usize::MAX } else { (1usize << self.depth) - 1 }
+    pub(crate) fn splits(&self) -> &[Split] {
+        &self.splits
     }
 
-    /// The blocks of the bucket rooted at heap node `root` (at least `stem_len`).
+    /// True for no buckets (a tree too small for them).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.start.is_empty()
+    }
+
+    /// The blocks of the bucket rooted at heap node `root` (one past the stem).
     #[inline]
     pub(crate) fn bucket(&self, root: usize) -> &[Block] {
-        let b = root - self.stem_len();
+        let b = root - self.splits.len();
         &self.blocks[self.start[b] as usize..self.start[b + 1] as usize]
     }
 
     /// Bytes the buckets hold.
     pub fn bytes(&self) -> usize {
-        self.blocks.len() * std::mem::size_of::<Block>() + self.start.len() * 4
+        self.blocks.len() * std::mem::size_of::<Block>() + self.start.len() * 4 + self.splits.len() * 8
     }
 }

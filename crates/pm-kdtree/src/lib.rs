@@ -217,8 +217,6 @@ fn dist2(a: Vec3, b: Vec3) -> f32 {
 pub struct KdTree<'a, R> {
     nodes: &'a [R],
     buckets: Option<&'a Buckets>,
-    /// Heap index where the buckets begin (`usize::MAX` without them).
-    stem_len: usize,
 }
 
 impl<R: PhotonRecord> Neighbours<R> for KdTree<'_, R> {
@@ -243,14 +241,14 @@ impl<R: PhotonRecord> Neighbours<R> for KdTree<'_, R> {
 impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// View `nodes` (heap order, as produced by [`balance`]) as a tree.
     pub fn new(nodes: &'a [R]) -> Self {
-        KdTree { nodes, buckets: None, stem_len: usize::MAX }
+        KdTree { nodes, buckets: None }
     }
 
     /// View `nodes` as a tree searched through `buckets`, which must be
     /// [`Buckets::new`] of these nodes. Same answers as [`KdTree::new`], found
     /// sooner.
     pub fn with_buckets(nodes: &'a [R], buckets: &'a Buckets) -> Self {
-        KdTree { nodes, buckets: Some(buckets), stem_len: buckets.stem_len() }
+        KdTree { nodes, buckets: Some(buckets) }
     }
 
     /// The records in heap order.
@@ -261,14 +259,66 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// Visit nodes whose subtree may hold points within `max_d2` (which the visitor
     /// may shrink), nearest side first. The visitor gets (index, record, dist2) for
     /// every used node inside the current radius and returns the new radius.
-    /// `bucketed`: scan the tree's [`Buckets`], if it has them, instead of descending
-    /// into their subtrees; right for searches that visit many photons (k nearest,
-    /// all within a radius), not for a search for one, which a bucket's 31 photons
-    /// slowed (the nearest photon with a similar normal: 0.66-0.97x the plain
-    /// descent's throughput; `cargo bench -p pm-kdtree --bench kdtree`).
+    /// `bucketed`: search through the tree's [`Buckets`], if it has them; right
+    /// for searches that visit many photons (k nearest, all within a radius), not
+    /// for a search for one: the nearest photon with a similar normal ran 0.76-0.85x
+    /// the plain descent's throughput at 1M and 4M photons, since a bucket's 31
+    /// photons are all measured (`cargo bench -p pm-kdtree --bench kdtree`).
     #[inline]
-    fn search(&self, x: Vec3, mut max_d2: f32, bucketed: bool, mut visit: impl FnMut(u32, &R, f32) -> f32) {
-        let stem_len = if bucketed { self.stem_len } else { usize::MAX };
+    fn search(&self, x: Vec3, max_d2: f32, bucketed: bool, visit: impl FnMut(u32, &R, f32) -> f32) {
+        match self.buckets {
+            Some(b) if bucketed && !b.is_empty() => self.search_buckets(b, x, max_d2, visit),
+            _ => self.search_nodes(x, max_d2, visit),
+        }
+    }
+
+    /// [`Self::search`] through `buckets`: down the stem by its splits alone, then
+    /// each bucket reached scanned whole.
+    #[inline]
+    fn search_buckets(&self, b: &Buckets, x: Vec3, mut max_d2: f32, mut visit: impl FnMut(u32, &R, f32) -> f32) {
+        if !(max_d2 >= 0.0) {
+            return;
+        }
+        let splits = b.splits();
+        let stem = splits.len();
+        let mut stack = [(0u32, 0f32); MAX_DEPTH];
+        let mut top = 0usize;
+        let mut node = 0usize;
+        loop {
+            while node < stem {
+                let s = splits[node];
+                let delta = x[s.axis as usize] - s.value;
+                let left = 2 * node + 1;
+                let (near, far) = if delta < 0.0 { (left, left + 1) } else { (left + 1, left) };
+                stack[top] = (far as u32, delta * delta);
+                top += 1;
+                node = near;
+            }
+            for blk in b.bucket(node) {
+                for (&d2, &id) in blk.dist2(x).iter().zip(&blk.id) {
+                    if d2 <= max_d2 {
+                        max_d2 = visit(id, &self.nodes[id as usize], d2);
+                    }
+                }
+            }
+            // Pop the nearest deferred subtree still within the radius.
+            loop {
+                if top == 0 {
+                    return;
+                }
+                top -= 1;
+                let (far, plane_d2) = stack[top];
+                if plane_d2 <= max_d2 {
+                    node = far as usize;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// [`Self::search`] down the records in heap order.
+    #[inline]
+    fn search_nodes(&self, x: Vec3, mut max_d2: f32, mut visit: impl FnMut(u32, &R, f32) -> f32) {
         let n = self.nodes.len();
         if n == 0 || !(max_d2 >= 0.0) {
             return;
@@ -280,19 +330,6 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         loop {
             // Descend to a leaf along the near side, deferring far sides.
             while node < n {
-                if node >= stem_len
-                    && let Some(b) = self.buckets
-                {
-                    // A bucket: its photons scanned, nearest or not.
-                    for blk in b.bucket(node) {
-                        for (&d2, &id) in blk.dist2(x).iter().zip(&blk.id) {
-                            if d2 <= max_d2 {
-                                max_d2 = visit(id, &self.nodes[id as usize], d2);
-                            }
-                        }
-                    }
-                    break;
-                }
                 // Issue the loads of the grandchildren now (they are adjacent in heap
                 // order) so their cache misses overlap with the work on this level;
                 // the search is bound by memory latency, not arithmetic.
