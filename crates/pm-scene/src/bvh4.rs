@@ -11,7 +11,7 @@ use glam::Vec3;
 /// Four children: the box of each (min x, y, z, then max x, y, z, one lane a
 /// child; an empty lane's box is inverted so that no ray hits it), and what each
 /// is: `count` 0 with `child` a node index, or a leaf of `count` triangle slots
-/// from `child`.
+/// from `child` (a multiple of four).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node4 {
@@ -158,6 +158,14 @@ impl Bvh4 {
         for (lane, &c) in lanes.iter().enumerate() {
             let cn = &bvh.nodes[c];
             let (child, count, bx) = if cn.prim_count > 0 {
+                // Leaves start at a multiple of four slots (their triangles are
+                // tested four at a time); the slots between leaves repeat the last
+                // leaf's first triangle.
+                if let Some(&pad) = self.slots.get(self.slots.len() & !3) {
+                    while !self.slots.len().is_multiple_of(4) {
+                        self.slots.push(pad);
+                    }
+                }
                 let first = self.slots.len() as u32;
                 let mut bx = [Vec3::INFINITY, Vec3::NEG_INFINITY];
                 for k in cn.first_index..cn.first_index + cn.prim_count {
@@ -185,15 +193,16 @@ impl Bvh4 {
     }
 
     /// The closest hit along the ray from `o` in direction `d` within (0, t_max):
-    /// `test(slot, t)` intersects a slot's triangle and returns its distance if below
-    /// t. Returns the slot and distance.
+    /// `test(first, count, t)` intersects the triangles of a leaf's slots `first..
+    /// first + count` and returns the slot and distance of the nearest hit below t.
+    /// Returns the slot and distance.
     #[inline]
     pub(crate) fn closest(
         &self,
         o: Vec3,
         d: Vec3,
         t_max: f32,
-        mut test: impl FnMut(u32, f32) -> Option<f32>,
+        mut test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
@@ -234,13 +243,12 @@ impl Bvh4 {
                     }
                 }
                 for &i in &order[..k] {
-                    if n.count[i] > 0 && t0[i] <= t_best * ROBUST {
-                        for s in n.child[i]..n.child[i] + n.count[i] {
-                            if let Some(t) = test(s, t_best) {
-                                t_best = t;
-                                best = Some((s, t));
-                            }
-                        }
+                    if n.count[i] > 0
+                        && t0[i] <= t_best * ROBUST
+                        && let Some((s, t)) = test(n.child[i], n.count[i], t_best)
+                    {
+                        t_best = t;
+                        best = Some((s, t));
                     }
                 }
             }
@@ -249,10 +257,11 @@ impl Bvh4 {
         best
     }
 
-    /// True when `test(slot, t_max)` finds a triangle along the ray from `o` in
-    /// direction `d` within (0, t_max) (any one: the search stops there).
+    /// True when `test(first, count, t_max)` finds a triangle among a leaf's slots
+    /// along the ray from `o` in direction `d` within (0, t_max) (any one: the
+    /// search stops there).
     #[inline]
-    pub(crate) fn any(&self, o: Vec3, d: Vec3, t_max: f32, mut test: impl FnMut(u32, f32) -> bool) -> bool {
+    pub(crate) fn any(&self, o: Vec3, d: Vec3, t_max: f32, mut test: impl FnMut(u32, u32, f32) -> bool) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -269,7 +278,7 @@ impl Bvh4 {
                         if n.count[i] == 0 {
                             stack[top] = n.child[i];
                             top += 1;
-                        } else if (n.child[i]..n.child[i] + n.count[i]).any(|s| test(s, t_max)) {
+                        } else if test(n.child[i], n.count[i], t_max) {
                             return true;
                         }
                     }

@@ -74,38 +74,81 @@ impl TriangleRay {
     /// the triangle (p0, p1, p2), if it does.
     #[inline]
     pub fn hit(&self, p: &[Vec3; 3], t_max: f32) -> Option<(f32, [f32; 3])> {
+        let mut found = None;
+        self.hit4(&Tri4::new(std::slice::from_ref(p)), 1, t_max, |_, t, b| {
+            found = Some((t, b));
+            t
+        });
+        found
+    }
+
+    /// [`Self::hit`] for the first `lanes` of four triangles: `on_hit(lane, t, b)`
+    /// for each hit, in lane order, returning the t_max for the lanes after it (the
+    /// closest-hit search passes t, an any-hit search 0 to stop). The arithmetic up
+    /// to the edge functions, which decides most misses, runs on all four lanes
+    /// together.
+    #[inline]
+    pub fn hit4(&self, tri: &Tri4, lanes: usize, t_max: f32, on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32) {
         // One copy of the test per permutation, so the axis swizzle is fixed at
         // compile time rather than indexed per vertex.
         match self.k[2] {
-            0 => self.hit_in::<1, 2, 0>(p, t_max),
-            1 => self.hit_in::<2, 0, 1>(p, t_max),
-            _ => self.hit_in::<0, 1, 2>(p, t_max),
+            0 => self.hit4_in::<1, 2, 0>(tri, lanes, t_max, on_hit),
+            1 => self.hit4_in::<2, 0, 1>(tri, lanes, t_max, on_hit),
+            _ => self.hit4_in::<0, 1, 2>(tri, lanes, t_max, on_hit),
         }
     }
 
     #[inline(always)]
-    fn hit_in<const KX: usize, const KY: usize, const KZ: usize>(
+    fn hit4_in<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
-        p: &[Vec3; 3],
-        t_max: f32,
-    ) -> Option<(f32, [f32; 3])> {
-        let (sx, sy, sz) = (self.s.x, self.s.y, self.s.z);
-        let perm = |v: Vec3| {
-            let a = v - self.o;
-            Vec3::new(a[KX], a[KY], a[KZ])
+        tri: &Tri4,
+        lanes: usize,
+        mut t_max: f32,
+        mut on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32,
+    ) {
+        use glam::Vec4;
+        let (sx, sy) = (Vec4::splat(self.s.x), Vec4::splat(self.s.y));
+        let o = self.o.to_array();
+        // The vertices translated to the ray's origin, permuted and sheared, by
+        // vertex, four lanes at a time (glam's Vec4 is an SSE register on x86-64).
+        let vert = |v: usize| {
+            let ax = Vec4::from_array(tri.v[v][KX]) - Vec4::splat(o[KX]);
+            let ay = Vec4::from_array(tri.v[v][KY]) - Vec4::splat(o[KY]);
+            let az = Vec4::from_array(tri.v[v][KZ]) - Vec4::splat(o[KZ]);
+            (ax + sx * az, ay + sy * az, az)
         };
-        let mut p0 = perm(p[0]);
-        let mut p1 = perm(p[1]);
-        let mut p2 = perm(p[2]);
-        p0.x += sx * p0.z;
-        p0.y += sy * p0.z;
-        p1.x += sx * p1.z;
-        p1.y += sy * p1.z;
-        p2.x += sx * p2.z;
-        p2.y += sy * p2.z;
-        let mut e0 = p1.x * p2.y - p1.y * p2.x;
-        let mut e1 = p2.x * p0.y - p2.y * p0.x;
-        let mut e2 = p0.x * p1.y - p0.y * p1.x;
+        let (x0, y0, z0) = vert(0);
+        let (x1, y1, z1) = vert(1);
+        let (x2, y2, z2) = vert(2);
+        let e0 = x1 * y2 - y1 * x2;
+        let e1 = x2 * y0 - y2 * x0;
+        let e2 = x0 * y1 - y0 * x1;
+        let zero = Vec4::ZERO;
+        let neg = e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero);
+        let pos = e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero);
+        let on_edge = e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero);
+        // A lane with edge functions of both signs misses (unless one is zero,
+        // which the double-precision fallback decides).
+        let mut alive = on_edge.bitmask() | !(neg & pos).bitmask();
+        let (x, y, z) = ([x0, x1, x2], [y0, y1, y2], [z0, z1, z2]);
+        let e = [e0, e1, e2];
+        alive &= (1u32 << lanes.min(4)) - 1;
+        while alive != 0 {
+            let i = alive.trailing_zeros() as usize;
+            alive &= alive - 1;
+            let p = |v: usize| Vec3::new(x[v][i], y[v][i], z[v][i]);
+            if let Some((t, b)) = self.finish(p(0), p(1), p(2), [e[0][i], e[1][i], e[2][i]], t_max) {
+                t_max = on_hit(i, t, b);
+            }
+        }
+    }
+
+    /// The rest of the test for one triangle: vertices `p0..p2` translated,
+    /// permuted and sheared (z not yet scaled), edge functions `e`.
+    #[inline(always)]
+    fn finish(&self, p0: Vec3, p1: Vec3, p2: Vec3, e: [f32; 3], t_max: f32) -> Option<(f32, [f32; 3])> {
+        let sz = self.s.z;
+        let [mut e0, mut e1, mut e2] = e;
         if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
             // Fall back to double precision on edges (pbrt-v4 does the same).
             e0 = (p1.x as f64 * p2.y as f64 - p1.y as f64 * p2.x as f64) as f32;
@@ -119,10 +162,8 @@ impl TriangleRay {
         if det == 0.0 {
             return None;
         }
-        p0.z *= sz;
-        p1.z *= sz;
-        p2.z *= sz;
-        let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
+        let (z0, z1, z2) = (p0.z * sz, p1.z * sz, p2.z * sz);
+        let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
         if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
             return None;
         }
@@ -141,7 +182,7 @@ impl TriangleRay {
             let e = n * f32::EPSILON * 0.5;
             e / (1.0 - e)
         };
-        let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
+        let max_zt = z0.abs().max(z1.abs()).max(z2.abs());
         let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
         let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
         let delta_z = gamma(3.0) * max_zt;
@@ -154,5 +195,30 @@ impl TriangleRay {
             return None;
         }
         Some((t, [e0 * inv, e1 * inv, e2 * inv]))
+    }
+}
+
+/// Four triangles by vertex, axis and lane (structure of arrays), so that one ray
+/// is tested against all four at once ([`TriangleRay::hit4`]). Lanes past a
+/// group's triangles repeat its first.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub struct Tri4 {
+    v: [[[f32; 4]; 3]; 3],
+}
+
+impl Tri4 {
+    /// `tris` (one to four) in lanes 0.., the first repeated in the lanes past them.
+    pub fn new(tris: &[[Vec3; 3]]) -> Tri4 {
+        let mut t = Tri4 { v: [[[0.0; 4]; 3]; 3] };
+        for lane in 0..4 {
+            let p = &tris[if lane < tris.len() { lane } else { 0 }];
+            for v in 0..3 {
+                for a in 0..3 {
+                    t.v[v][a][lane] = p[v][a];
+                }
+            }
+        }
+        t
     }
 }

@@ -469,11 +469,22 @@ impl obvhs::Boundable for PaddedBox {
     }
 }
 
-/// Triangle vertices in BVH order, with the id they map back to.
-#[derive(Clone, Copy, Debug)]
-struct BvhTri {
-    p: [Vec3; 3],
-    id: u32,
+/// The triangles in the BVH's slot order, four slots to a [`geometry::Tri4`] (a
+/// leaf starts at a multiple of four), and the triangle id of each slot.
+#[derive(Clone, Debug, Default)]
+struct BvhTris {
+    tri4: Vec<geometry::Tri4>,
+    id: Vec<u32>,
+}
+
+impl BvhTris {
+    /// The groups of four that slots `first..first + count` span, with the number
+    /// of the range's slots in each, and the first slot of each.
+    #[inline]
+    fn groups(&self, first: u32, count: u32) -> impl Iterator<Item = (&geometry::Tri4, usize, u32)> {
+        let end = first + count;
+        (first / 4..end.div_ceil(4)).map(move |g| (&self.tri4[g as usize], (end - 4 * g).min(4) as usize, 4 * g))
+    }
 }
 
 /// A loaded scene. Immutable while rendered, `Send + Sync`; a live renderer clones
@@ -518,7 +529,7 @@ pub struct Scene {
     any_alpha: bool,
     bvh: bvh4::Bvh4,
     /// The triangles in the BVH's slot order.
-    bvh_tris: Vec<BvhTri>,
+    bvh_tris: BvhTris,
     /// 1 / the diagonal of the BVH's bounds [m^-1] (the scale of ray-origin offsets).
     bvh_inv_scale: f32,
 }
@@ -533,9 +544,9 @@ fn point_hash(tri: u32, b: [f32; 3], salt: u64) -> f32 {
 
 /// The BVH over `triangles` (whose bounds are `bounds`), and the triangles in its
 /// slot order.
-fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri>) {
+fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, BvhTris) {
     if triangles.is_empty() {
-        return (bvh4::Bvh4::default(), Vec::new());
+        return (bvh4::Bvh4::default(), BvhTris::default());
     }
     // obvhs builds the tree (PLOC, reinsertion) over boxes in the normalised
     // coordinates (p - centre) / diagonal, where its build behaves the same at every
@@ -562,8 +573,12 @@ fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, Vec<BvhTri
     let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
     let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
     let bvh = bvh4::Bvh4::new(&bvh2, triangles, 2e-7 * diag);
-    let bvh_tris = bvh.slots().iter().map(|&i| BvhTri { p: triangles[i as usize].p, id: i }).collect();
-    (bvh, bvh_tris)
+    let id = bvh.slots().to_vec();
+    let tri4 = id
+        .chunks(4)
+        .map(|c| geometry::Tri4::new(&c.iter().map(|&i| triangles[i as usize].p).collect::<Vec<_>>()))
+        .collect();
+    (bvh, BvhTris { tri4, id })
 }
 
 /// The bounds of `triangles` (zero for none).
@@ -899,25 +914,40 @@ impl Scene {
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let mut best_b = [0.0; 3];
         let tri_ray = TriangleRay::new(o, d);
-        let (slot, t) = self.bvh.closest(o, d, t_max, |s, t_max| {
-            let bt = &self.bvh_tris[s as usize];
-            match tri_ray.hit(&bt.p, t_max) {
-                Some((t, b)) if !self.any_alpha || self.present(bt.id, b) => {
-                    best_b = b;
-                    Some(t)
-                }
-                _ => None,
+        let tris = &self.bvh_tris;
+        let (slot, t) = self.bvh.closest(o, d, t_max, |first, count, t_max| {
+            let mut best = None;
+            let mut t_best = t_max;
+            for (group, lanes, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, lanes, t_best, |lane, t, b| {
+                    let s = slot0 + lane as u32;
+                    if !self.any_alpha || self.present(tris.id[s as usize], b) {
+                        (t_best, best_b, best) = (t, b, Some((s, t)));
+                    }
+                    t_best
+                });
             }
+            best
         })?;
-        Some(self.make_hit(self.bvh_tris[slot as usize].id, t, best_b))
+        Some(self.make_hit(tris.id[slot as usize], t, best_b))
     }
 
     /// True when something blocks the segment from `o` along unit `d` before `t_max`.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
         let tri_ray = TriangleRay::new(o, d);
-        self.bvh.any(o, d, t_max, |s, t_max| {
-            let bt = &self.bvh_tris[s as usize];
-            matches!(tri_ray.hit(&bt.p, t_max), Some((_, b)) if !self.any_alpha || self.present(bt.id, b))
+        let tris = &self.bvh_tris;
+        self.bvh.any(o, d, t_max, |first, count, t_max| {
+            let mut blocked = false;
+            for (group, lanes, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, lanes, t_max, |lane, _, b| {
+                    blocked |= !self.any_alpha || self.present(tris.id[slot0 as usize + lane], b);
+                    if blocked { 0.0 } else { t_max }
+                });
+                if blocked {
+                    return true;
+                }
+            }
+            false
         })
     }
 
