@@ -2,7 +2,7 @@
 
 use crate::{Irradiance, KnnParams, irradiance};
 use pm_format::{PhotonRecord, flags};
-use pm_kdtree::{Buckets, KdTree, KnnScratch};
+use pm_kdtree::{KdTree, KnnScratch};
 use rayon::prelude::*;
 
 /// Photons per parallel work item.
@@ -43,9 +43,7 @@ pub fn precompute<R: PhotonRecord>(
     fraction: f64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
-    // k-nearest searches: through leaf buckets (pm-kdtree's `Buckets`).
-    let buckets = Buckets::new(&*nodes);
-    let tree = KdTree::with_buckets(&*nodes, &buckets);
+    let tree = KdTree::new(&*nodes);
     let done = std::sync::atomic::AtomicU64::new(0);
     let results: Vec<Vec<(u32, Irradiance)>> = (0..nodes.len())
         .step_by(CHUNK)
