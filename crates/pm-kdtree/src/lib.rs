@@ -211,6 +211,40 @@ fn dist2(a: Vec3, b: Vec3) -> f32 {
     (a - b).length_squared()
 }
 
+/// The far subtrees a search deferred, each with the squared distance to its
+/// splitting plane [m^2]; the last pushed is the nearest side of the deepest split.
+struct Deferred {
+    stack: [(u32, f32); MAX_DEPTH],
+    top: usize,
+}
+
+impl Deferred {
+    #[inline]
+    fn new() -> Deferred {
+        Deferred { stack: [(0, 0.0); MAX_DEPTH], top: 0 }
+    }
+
+    #[inline]
+    fn push(&mut self, node: usize, plane_d2: f32) {
+        self.stack[self.top] = (node as u32, plane_d2);
+        self.top += 1;
+    }
+
+    /// The most recently deferred subtree whose plane lies within `max_d2`
+    /// (the others are dropped); none when the search is done.
+    #[inline]
+    fn pop_within(&mut self, max_d2: f32) -> Option<usize> {
+        while self.top > 0 {
+            self.top -= 1;
+            let (far, plane_d2) = self.stack[self.top];
+            if plane_d2 <= max_d2 {
+                return Some(far as usize);
+            }
+        }
+        None
+    }
+}
+
 /// A read-only view of records in heap order as a kd-tree, searched through its
 /// leaf [`Buckets`] when it has them.
 #[derive(Clone, Copy, Debug)]
@@ -281,8 +315,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         }
         let splits = b.splits();
         let stem = splits.len();
-        let mut stack = [(0u32, 0f32); MAX_DEPTH];
-        let mut top = 0usize;
+        let mut deferred = Deferred::new();
         let mut node = 0usize;
         loop {
             while node < stem {
@@ -290,8 +323,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                 let delta = x[s.axis as usize] - s.value;
                 let left = 2 * node + 1;
                 let (near, far) = if delta < 0.0 { (left, left + 1) } else { (left + 1, left) };
-                stack[top] = (far as u32, delta * delta);
-                top += 1;
+                deferred.push(far, delta * delta);
                 node = near;
             }
             for blk in b.bucket(node) {
@@ -301,17 +333,10 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                     }
                 }
             }
-            // Pop the nearest deferred subtree still within the radius.
-            loop {
-                if top == 0 {
-                    return;
-                }
-                top -= 1;
-                let (far, plane_d2) = stack[top];
-                if plane_d2 <= max_d2 {
-                    node = far as usize;
-                    break;
-                }
+            // The nearest deferred subtree still within the radius.
+            match deferred.pop_within(max_d2) {
+                Some(far) => node = far,
+                None => return,
             }
         }
     }
@@ -334,9 +359,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         if n == 0 || !(max_d2 >= 0.0) {
             return;
         }
-        // Stack of far subtrees with the squared distance to their splitting plane.
-        let mut stack = [(0u32, 0f32); MAX_DEPTH];
-        let mut top = 0usize;
+        let mut deferred = Deferred::new();
         // With LEAF_FIRST, the nodes of one descent within the radius, visited
         // from the deepest up once it ends.
         let mut path = [(0u32, 0f32); MAX_DEPTH];
@@ -361,8 +384,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                     let delta = x[axis] - p[axis];
                     let (near, far) = if delta < 0.0 { (left, left + 1) } else { (left + 1, left) };
                     if far < n {
-                        stack[top] = (far as u32, delta * delta);
-                        top += 1;
+                        deferred.push(far, delta * delta);
                     }
                     near
                 } else {
@@ -386,17 +408,10 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                     max_d2 = visit(i, &self.nodes[i as usize], d2);
                 }
             }
-            // Pop the nearest deferred subtree still within the radius.
-            loop {
-                if top == 0 {
-                    return;
-                }
-                top -= 1;
-                let (far, plane_d2) = stack[top];
-                if plane_d2 <= max_d2 {
-                    node = far as usize;
-                    break;
-                }
+            // The nearest deferred subtree still within the radius.
+            match deferred.pop_within(max_d2) {
+                Some(far) => node = far,
+                None => return,
             }
         }
     }
