@@ -95,26 +95,22 @@ fn main() {
             } else {
                 probes.iter().map(|r| (r.position(), r.normal())).collect()
             };
-            let (t_knn, sum_ours) = best_of(2, || {
-                qs.par_chunks(1024)
-                    .map(|c| {
-                        let mut s = KnnScratch::with_capacity(K);
-                        c.iter()
-                            .map(|(x, _)| tree.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
-                            .sum::<f64>()
-                    })
-                    .sum::<f64>()
-            });
-            let (t_plain, _) = best_of(2, || {
-                qs.par_chunks(1024)
-                    .map(|c| {
-                        let mut s = KnnScratch::with_capacity(K);
-                        c.iter()
-                            .map(|(x, _)| plain.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
-                            .sum::<f64>()
-                    })
-                    .sum::<f64>()
-            });
+            // Best time of two passes of 50-NN queries over `t`, and the sum of the
+            // k-th distances (to check against kiddo's).
+            let knn_all = |t: &KdTree<CompactIrrPhoton>| {
+                best_of(2, || {
+                    qs.par_chunks(1024)
+                        .map(|c| {
+                            let mut s = KnnScratch::with_capacity(K);
+                            c.iter()
+                                .map(|(x, _)| t.knn(*x, K, f32::INFINITY, |_, _| true, &mut s).max_dist2 as f64)
+                                .sum::<f64>()
+                        })
+                        .sum::<f64>()
+                })
+            };
+            let (t_knn, sum_ours) = knn_all(&tree);
+            let (t_plain, _) = knn_all(&plain);
             let (t_kiddo_q, sum_kiddo) = best_of(2, || {
                 qs.par_chunks(1024)
                     .map(|c| {
