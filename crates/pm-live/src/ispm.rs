@@ -280,7 +280,7 @@ pub fn trace(
                     // tessellated curved surface the facet's own normal tilts the
                     // neighbouring facets' points out of the thin kernel (the furnace
                     // sphere lost 13% of its indirect light that way).
-                    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+                    let n = pm_render::facing(hit.ns, wo);
                     let (r_xy, r_z) = kernel.radii(density);
                     out.push(VolumePhoton {
                         p: hit.p,
@@ -356,8 +356,7 @@ fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Op
         return None;
     }
     let wo = (camera.position - hit.p).normalize_or(hit.ns);
-    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
-    Some(Surface::new(hit.p, n, wo, bsdf))
+    Some(Surface::new(hit.p, pm_render::facing(hit.ns, wo), wo, bsdf))
 }
 
 /// The image-space method's memory, kept between frames: the G-buffer and the

@@ -185,7 +185,7 @@ impl LiveShading<'_> {
                 // Splatted later where the eye sees the surface directly.
                 Indirect::Photons { .. } if depth == 0 => Rgb::ZERO,
                 Indirect::Photons { photons, index } => {
-                    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+                    let n = pm_render::facing(hit.ns, wo);
                     let surface = Surface::new(hit.p, n, wo, bsdf);
                     let (ind, caus) = crate::splat::gather(photons, index, &surface);
                     ind + caus
@@ -257,7 +257,7 @@ impl LightMap {
 /// ([`pm_scene::Light::cos_integral`]) times ρ / π. No noise, and the penumbrae of
 /// a point at the centre.
 fn lambert_reflected(light: &pm_scene::Light, hit: &Hit, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
-    let n = if wo.dot(hit.ns) >= 0.0 { hit.ns } else { -hit.ns };
+    let n = pm_render::facing(hit.ns, wo);
     let Some((le, e)) = light.cos_integral(hit.p, n) else { return Rgb::ZERO };
     if !(e > 0.0) || !visible() {
         return Rgb::ZERO;

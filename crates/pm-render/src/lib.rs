@@ -210,7 +210,7 @@ pub fn irradiance_subset<G: PhotonRecord>(global: &[G]) -> Vec<G> {
 
 /// Flip `n` to the side of `w`.
 #[inline]
-pub(crate) fn facing(n: Vec3, w: Vec3) -> Vec3 {
+pub fn facing(n: Vec3, w: Vec3) -> Vec3 {
     if n.dot(w) < 0.0 { -n } else { n }
 }
 
