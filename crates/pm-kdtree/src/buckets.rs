@@ -1,12 +1,13 @@
 //! The bottom levels of a heap-order kd-tree copied out as leaf buckets: each
-//! subtree rooted at depth [`Buckets::depth`] (its root and all its descendants,
-//! several levels) becomes one contiguous run of positions, scanned linearly
-//! instead of descended. In heap order a subtree's nodes lie far apart in memory
-//! (a node's children at twice its index), so the search paid a cache miss per
-//! node near the leaves; the stem above stays in heap order, where the top levels
-//! share the first cache lines. kiddo's immutable tree uses 32-point leaf
-//! buckets for the same reason. The records are not moved: the photon-map file
-//! stays a heap-order tree, and the buckets are built from it when it is loaded.
+//! subtree of the bottom five levels (its root and all its descendants) becomes
+//! one contiguous run of positions, scanned linearly instead of descended. In heap
+//! order a subtree's nodes lie far apart in memory (a node's children at twice its
+//! index), so the search paid a cache miss per node near the leaves. The stem
+//! above is searched by its splitting planes alone, kept in heap order in an array
+//! of their own, where the top levels share the first cache lines. kiddo's
+//! immutable tree uses 32-point leaf buckets for the same reason. The records are
+//! not moved: the photon-map file stays a heap-order tree, and the buckets are
+//! built from it when it is loaded.
 
 use glam::Vec3;
 use pm_format::{PhotonRecord, flags};
@@ -40,7 +41,7 @@ impl Block {
     }
 }
 
-/// Leaf buckets of a heap-order tree (see the module's documentation): about 16
+/// Leaf buckets of a heap-order tree (see the module's documentation): about 17
 /// bytes a photon beside the records.
 #[derive(Clone, Debug, Default)]
 pub struct Buckets {
