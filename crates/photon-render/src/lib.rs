@@ -265,9 +265,15 @@ impl Job<'_> {
     ) -> Result<(Option<Image>, RenderStats, CacheReport)> {
         let records = global.map(|m| &m.records[..]);
         let irr_nodes = records.map(pm_render::irradiance_subset).unwrap_or_default();
-        // The maps searched for k nearest photons get leaf buckets; the irradiance
-        // subset answers nearest-photon lookups only, which buckets slow.
-        let global_buckets = records.map(Buckets::new).unwrap_or_default();
+        // The maps searched for k nearest photons get leaf buckets: the caustic map,
+        // and the global map when this render makes k-nearest estimates from it (with
+        // precomputed lookups it does not, and its 400,000 photons' buckets would be
+        // built for nothing); the irradiance subset answers nearest-photon lookups
+        // only, which buckets slow.
+        let global_buckets = records
+            .filter(|_| pm_render::method_searches_global(self.mode, self.cli.params.gather_lookup))
+            .map(Buckets::new)
+            .unwrap_or_default();
         let caustic_buckets = caustic.map(|c| Buckets::new(&c.records)).unwrap_or_default();
         let maps = Maps {
             global: records.map(|r| KdTree::with_buckets(r, &global_buckets)),

@@ -243,3 +243,11 @@ pub fn render_method<G: PhotonRecord>(
 pub fn method_uses_cache(method: Method) -> bool {
     matches!(method, Method::Full | Method::Indirect)
 }
+
+/// True when `method` with final-gather lookups `lookup` makes k-nearest estimates
+/// from the global map (Figure 1b's radiance at the eye hit, or exact lookups at
+/// gather-ray hits); otherwise the global map is only searched through its
+/// precomputed-irradiance subset, for the nearest photon.
+pub fn method_searches_global(method: Method, lookup: Lookup) -> bool {
+    method == Method::Photons || (lookup == Lookup::Exact && method != Method::Path)
+}
