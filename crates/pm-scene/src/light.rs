@@ -453,8 +453,13 @@ impl Light {
     /// emitted power for a textured emitter), then a uniform point on it. `None` for
     /// other lights and where the point emits nothing.
     fn pick_area_point<'s>(&self, scene: &'s Scene, u_sel: f32, u: glam::Vec2) -> Option<AreaPick<'s>> {
-        let LightKind::Area { tris, cdf, area, emission, area_per_pick, .. } = &self.kind else { return None };
-        let i = sample_cdf(cdf, u_sel);
+        let LightKind::Area { cdf, .. } = &self.kind else { return None };
+        self.area_point(scene, sample_cdf(cdf, u_sel), u)
+    }
+
+    /// [`Self::pick_area_point`] on the light's `i`-th triangle, already chosen.
+    fn area_point<'s>(&self, scene: &'s Scene, i: usize, u: glam::Vec2) -> Option<AreaPick<'s>> {
+        let LightKind::Area { tris, area, emission, area_per_pick, .. } = &self.kind else { return None };
         let id = tris.start + i as u32;
         let tri = &scene.triangles[id as usize];
         let b = pm_sampling::uniform_triangle(u);
@@ -592,11 +597,26 @@ impl Light {
     /// cos goes to zero.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. }
-                if let i = sample_cdf(cdf, u_sel)
-                    && let tri = &scene.triangles[(tris.start + i as u32) as usize]
-                    && let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) =>
-            {
+            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. } => {
+                let i = sample_cdf(cdf, u_sel);
+                let tri = &scene.triangles[(tris.start + i as u32) as usize];
+                let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) else {
+                    // Far from the triangle: a point on it, uniform by area.
+                    let AreaPick { tri, p: q, le, area } = self.area_point(scene, i, u)?;
+                    let d = q - p;
+                    let dist2 = d.length_squared();
+                    if !(dist2 > 0.0) {
+                        return None;
+                    }
+                    let dist = dist2.sqrt();
+                    let wi = d / dist;
+                    let cos_l = -wi.dot(tri.ng);
+                    let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
+                    if cos_l <= 0.0 {
+                        return None;
+                    }
+                    return Some(LightSample { wi, dist, li: le, pdf: dist2 / (cos_l * area), delta: false });
+                };
                 let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
                 let cos_l = -wi.dot(tri.ng);
                 if !(if *two_sided { cos_l.abs() } else { cos_l } > 0.0) {
@@ -617,22 +637,6 @@ impl Light {
                     pdf: tri.area / (per_pick * omega),
                     delta: false,
                 })
-            }
-            LightKind::Area { two_sided, .. } => {
-                let AreaPick { tri, p: q, le, area } = self.pick_area_point(scene, u_sel, u)?;
-                let d = q - p;
-                let dist2 = d.length_squared();
-                if !(dist2 > 0.0) {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                let wi = d / dist;
-                let cos_l = -wi.dot(tri.ng);
-                let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                if cos_l <= 0.0 {
-                    return None;
-                }
-                Some(LightSample { wi, dist, li: le, pdf: dist2 / (cos_l * area), delta: false })
             }
             LightKind::Point { position, intensity } => {
                 let d = *position - p;
