@@ -299,8 +299,9 @@ pub fn spherical_triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
 /// half-space n·x >= 0 and Lambert's formula summed over its edges, 1/2 Σ Θ_i
 /// n·(û_i × û_{i+1}) / |û_i × û_{i+1}|, Θ_i the angle between the directions to
 /// consecutive vertices (as atan2 of the cross and dot products, which keeps its
-/// precision for nearly opposite directions; a polynomial one, to 1e-5 rad). Times L_e it is the irradiance
-/// [W m^-2] from a uniform Lambertian emitter. Up to 16 vertices are read.
+/// precision for nearly opposite directions; a polynomial one, to 2e-6 rad). Times
+/// L_e it is the irradiance [W m^-2] from a uniform Lambertian emitter. Up to 16
+/// vertices are read.
 pub fn polygon_cos_integral(verts: &[Vec3], n: Vec3) -> f32 {
     const MAX: usize = 16;
     let k = verts.len().min(MAX);

@@ -576,7 +576,13 @@ fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, BvhTris) {
     let id = bvh.slots().to_vec();
     let tri4 = id
         .chunks(4)
-        .map(|c| geometry::Tri4::new(&c.iter().map(|&i| triangles[i as usize].p).collect::<Vec<_>>()))
+        .map(|c| {
+            let mut p = [[Vec3::ZERO; 3]; 4];
+            for (q, &i) in p.iter_mut().zip(c) {
+                *q = triangles[i as usize].p;
+            }
+            geometry::Tri4::new(&p[..c.len()])
+        })
         .collect();
     (bvh, BvhTris { tri4, id })
 }
