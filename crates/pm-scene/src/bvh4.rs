@@ -6,7 +6,7 @@
 //! so a ray through an edge on a node's boundary is not lost.
 
 use crate::Triangle;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Four children: the box of each (min x, y, z, then max x, y, z, one lane a
 /// child; an empty lane's box is inverted so that no ray hits it), and what each
@@ -15,7 +15,7 @@ use glam::Vec3;
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node4 {
-    b: [[f32; 4]; 6],
+    b: [Vec4; 6],
     child: [u32; 4],
     count: [u32; 4],
 }
@@ -70,25 +70,19 @@ impl BoxRay {
     }
 
     /// Entry distances of the four children and which of them the ray meets within
-    /// (0, t_max].
+    /// (0, t_max], as a bit mask (bit i: child i).
     #[inline(always)]
-    fn test(&self, n: &Node4, t_max: f32) -> ([f32; 4], [bool; 4]) {
-        let mut t0 = [0.0f32; 4];
-        let mut t1 = [t_max; 4];
+    fn test(&self, n: &Node4, t_max: f32) -> (Vec4, u32) {
+        let mut t0 = Vec4::ZERO;
+        let mut t1 = Vec4::splat(t_max);
         for a in 0..3 {
-            let (near, far) = (&n.b[self.near[a]], &n.b[self.far[a]]);
-            for i in 0..4 {
-                let tn = (near[i] - self.o[a]) * self.inv[a];
-                let tf = (far[i] - self.o[a]) * self.inv[a];
-                t0[i] = if tn > t0[i] { tn } else { t0[i] };
-                t1[i] = if tf < t1[i] { tf } else { t1[i] };
-            }
+            let (o, inv) = (Vec4::splat(self.o[a]), Vec4::splat(self.inv[a]));
+            // No NaN arises (the rows are finite or infinite, the origin finite), so
+            // max and min pick as comparisons would, up to the sign of a zero.
+            t0 = t0.max((n.b[self.near[a]] - o) * inv);
+            t1 = t1.min((n.b[self.far[a]] - o) * inv);
         }
-        let mut hit = [false; 4];
-        for i in 0..4 {
-            hit[i] = t0[i] <= t1[i] * ROBUST;
-        }
-        (t0, hit)
+        (t0, t0.cmple(t1 * ROBUST).bitmask())
     }
 }
 
@@ -144,12 +138,12 @@ impl Bvh4 {
         let index = self.nodes.len();
         self.nodes.push(Node4 {
             b: [
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
             ],
             child: [0; 4],
             count: [0; 4],
@@ -221,20 +215,22 @@ impl Bvh4 {
                 }
                 let n = &self.nodes[node as usize];
                 let (t0, hit) = ray.test(n, t_best);
-                // Children met, nearest first: leaves are tested at once, inner nodes
-                // pushed so the nearest is popped next.
+                // Children met, nearest first (ties in lane order): leaves are tested
+                // at once, inner nodes pushed so the nearest is popped next.
+                let t0 = t0.to_array();
                 let mut order = [0usize; 4];
                 let mut k = 0;
                 for i in 0..4 {
-                    if hit[i] {
-                        let mut j = k;
-                        while j > 0 && t0[order[j - 1]] > t0[i] {
-                            order[j] = order[j - 1];
-                            j -= 1;
-                        }
-                        order[j] = i;
-                        k += 1;
+                    if hit & (1 << i) == 0 {
+                        continue;
                     }
+                    let mut j = k;
+                    while j > 0 && t0[order[j - 1]] > t0[i] {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = i;
+                    k += 1;
                 }
                 for &i in order[..k].iter().rev() {
                     if n.count[i] == 0 {
@@ -272,15 +268,15 @@ impl Bvh4 {
             while top > 0 {
                 top -= 1;
                 let n = &self.nodes[stack[top] as usize];
-                let (_, hit) = ray.test(n, t_max);
-                for i in 0..4 {
-                    if hit[i] {
-                        if n.count[i] == 0 {
-                            stack[top] = n.child[i];
-                            top += 1;
-                        } else if test(n.child[i], n.count[i], t_max) {
-                            return true;
-                        }
+                let (_, mut hit) = ray.test(n, t_max);
+                while hit != 0 {
+                    let i = hit.trailing_zeros() as usize;
+                    hit &= hit - 1;
+                    if n.count[i] == 0 {
+                        stack[top] = n.child[i];
+                        top += 1;
+                    } else if test(n.child[i], n.count[i], t_max) {
+                        return true;
                     }
                 }
             }
