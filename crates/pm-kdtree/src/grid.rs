@@ -5,7 +5,7 @@
 //! radius; a k-nearest query visits the cells around the query point nearest first
 //! and stops at the first cell farther than the k-th photon found so far.
 
-use crate::{KnnResult, KnnScratch, Neighbours, key};
+use crate::{KnnResult, KnnScratch, Neighbours, entry, entry_d2};
 use glam::{IVec3, Vec3};
 use pm_format::PhotonRecord;
 use std::collections::HashMap;
@@ -137,10 +137,10 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
         // from its position divided by the cell size).
         const SLACK: f32 = 1.0 - 1e-4;
         let heap = &mut scratch.heap;
-        let bound = |heap: &std::collections::BinaryHeap<(u32, u32)>| {
-            if heap.len() < k { max_d2 } else { heap.peek().map_or(max_d2, |t| f32::from_bits(t.0)) }
+        let bound = |heap: &std::collections::BinaryHeap<u64>| {
+            if heap.len() < k { max_d2 } else { heap.peek().map_or(max_d2, |&e| entry_d2(e)) }
         };
-        let visit = |o: IVec3, heap: &mut std::collections::BinaryHeap<(u32, u32)>| {
+        let visit = |o: IVec3, heap: &mut std::collections::BinaryHeap<u64>| {
             let kc = c + o;
             let corner = kc.as_vec3() * self.cell;
             let gap = (corner - x).max(x - (corner + Vec3::splat(self.cell))).max(Vec3::ZERO);
@@ -154,7 +154,7 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
                     continue;
                 }
                 let full = heap.len() >= k;
-                if full && heap.peek().is_some_and(|top| (key(d2), i) >= *top) {
+                if full && heap.peek().is_some_and(|&top| entry(d2, i) >= top) {
                     continue;
                 }
                 let r = self.records[i as usize].as_ref().expect("a listed id has a photon");
@@ -163,10 +163,10 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
                 }
                 if full {
                     if let Some(mut top) = heap.peek_mut() {
-                        *top = (key(d2), i);
+                        *top = entry(d2, i);
                     }
                 } else {
-                    heap.push((key(d2), i));
+                    heap.push(entry(d2, i));
                 }
             }
         };
@@ -202,7 +202,7 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
         let mut v = std::mem::take(heap).into_vec();
         v.sort_unstable();
         *heap = std::collections::BinaryHeap::from(v);
-        KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |t| f32::from_bits(t.0)) }
+        KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |&e| entry_d2(e)) }
     }
 
     fn found<'s>(&'s self, scratch: &'s KnnScratch) -> impl Iterator<Item = (u32, f32)> + 's {

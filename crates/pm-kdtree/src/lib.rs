@@ -163,13 +163,13 @@ pub fn balance<R: PhotonRecord>(records: &[R]) -> Vec<R> {
 /// Reusable scratch for k-nearest queries: a max-heap on squared distance.
 #[derive(Debug, Default, Clone)]
 pub struct KnnScratch {
-    heap: BinaryHeap<(u32, u32)>,
+    heap: BinaryHeap<u64>,
 }
 
 impl KnnScratch {
     /// The photons the last k-nearest query left here, as (id, squared distance).
     fn found(&self) -> impl Iterator<Item = (u32, f32)> + '_ {
-        self.heap.iter().map(|&(d, i)| (i, f32::from_bits(d)))
+        self.heap.iter().map(|&e| (e as u32, entry_d2(e)))
     }
 
     /// Scratch for queries of up to `k` photons (grows if needed).
@@ -199,11 +199,20 @@ pub struct Nearest {
     pub rank: u32,
 }
 
-/// Squared distances are ordered through their bit patterns (monotonic for
-/// non-negative floats), which gives `BinaryHeap` a total order.
+/// A k-nearest heap entry: the squared distance's bit pattern (monotonic for
+/// non-negative floats) above the photon id, so one integer comparison orders
+/// entries by distance, then id (as the (distance, id) pairs did, with one branch
+/// per comparison instead of two: the heap's comparisons were a fifth of the
+/// irradiance precompute).
 #[inline]
-fn key(d2: f32) -> u32 {
-    d2.to_bits()
+fn entry(d2: f32, i: u32) -> u64 {
+    (u64::from(d2.to_bits()) << 32) | u64::from(i)
+}
+
+/// The squared distance of a heap entry [m^2].
+#[inline]
+fn entry_d2(e: u64) -> f32 {
+    f32::from_bits((e >> 32) as u32)
 }
 
 #[inline]
@@ -435,20 +444,20 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         self.search(x, max_d2, true, |i, r, d2| {
             if heap.len() < k {
                 if filter(i, r) {
-                    heap.push((key(d2), i));
+                    heap.push(entry(d2, i));
                 }
-                if heap.len() == k { f32::from_bits(heap.peek().map_or(0, |t| t.0)).min(max_d2) } else { max_d2 }
+                if heap.len() == k { heap.peek().map_or(0.0, |&e| entry_d2(e)).min(max_d2) } else { max_d2 }
             } else {
                 if let Some(mut top) = heap.peek_mut()
-                    && key(d2) < top.0
+                    && d2.to_bits() < (*top >> 32) as u32
                     && filter(i, r)
                 {
-                    *top = (key(d2), i); // one sift-down when `top` drops
+                    *top = entry(d2, i); // one sift-down when `top` drops
                 }
-                f32::from_bits(heap.peek().map_or(0, |t| t.0))
+                heap.peek().map_or(0.0, |&e| entry_d2(e))
             }
         });
-        KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |t| f32::from_bits(t.0)) }
+        KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |&e| entry_d2(e)) }
     }
 
     /// The photons of the last [`KdTree::knn`] call as (heap index, squared distance).
