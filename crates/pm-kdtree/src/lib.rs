@@ -67,10 +67,27 @@ pub fn left_size(n: usize) -> usize {
     (half - 1) + last.min(half)
 }
 
+/// A point as the balance orders it: each coordinate as an integer key whose order
+/// is `f32::total_cmp`'s (one integer comparison instead of two bit twiddles and a
+/// comparison per element in the median selections), and its index.
 #[derive(Clone, Copy)]
 struct Item {
-    pos: [f32; 3],
+    key: [u32; 3],
     src: u32,
+}
+
+/// The order-preserving integer key of `v`: `f32::total_cmp(a, b)` is
+/// `sort_key(a).cmp(&sort_key(b))`.
+#[inline]
+fn sort_key(v: f32) -> u32 {
+    let b = v.to_bits();
+    if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
+}
+
+/// The float of a [`sort_key`].
+#[inline]
+fn from_sort_key(k: u32) -> f32 {
+    f32::from_bits(if k >> 31 == 1 { k & 0x7fff_ffff } else { !k })
 }
 
 /// The balancing permutation of a set of positions: `order[h]` is the index of the
@@ -78,9 +95,14 @@ struct Item {
 /// [`flags::AXIS_LEAF`]). Exposed for the real-time mode, which keeps the
 /// photon-to-slot map of Jozwowski 2002 section 4.1.2.
 pub fn balance_permutation(positions: &[Vec3]) -> (Vec<u32>, Vec<u8>) {
-    assert!(positions.len() < u32::MAX as usize, "photon maps hold fewer than 2^32 photons");
+    permutation(positions.len(), |i| positions[i])
+}
+
+/// [`balance_permutation`] of the `n` points `position(i)`.
+fn permutation(n: usize, position: impl Fn(usize) -> Vec3 + Sync) -> (Vec<u32>, Vec<u8>) {
+    assert!(n < u32::MAX as usize, "photon maps hold fewer than 2^32 photons");
     let mut items: Vec<Item> =
-        positions.par_iter().enumerate().map(|(i, p)| Item { pos: p.to_array(), src: i as u32 }).collect();
+        (0..n).into_par_iter().map(|i| Item { key: position(i).to_array().map(sort_key), src: i as u32 }).collect();
     let mut axes = vec![flags::AXIS_LEAF; items.len()];
     split(&mut items, &mut axes);
     // `items` is now in "segment order": each subtree is a contiguous segment whose
@@ -112,14 +134,16 @@ fn split(items: &mut [Item], axes: &mut [u8]) {
     if n <= 1 {
         return;
     }
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    // The box from the extreme keys (the order is the floats'), then measured in
+    // floats as before.
+    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
     for it in items.iter() {
         for k in 0..3 {
-            lo[k] = lo[k].min(it.pos[k]);
-            hi[k] = hi[k].max(it.pos[k]);
+            lo[k] = lo[k].min(it.key[k]);
+            hi[k] = hi[k].max(it.key[k]);
         }
     }
-    let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    let ext = [0, 1, 2].map(|k| from_sort_key(hi[k]) - from_sort_key(lo[k]));
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
         0
     } else if ext[1] >= ext[2] {
@@ -128,7 +152,7 @@ fn split(items: &mut [Item], axes: &mut [u8]) {
         2
     };
     let m = left_size(n);
-    items.select_nth_unstable_by(m, |a, b| a.pos[axis].total_cmp(&b.pos[axis]));
+    items.select_nth_unstable_by_key(m, |a| a.key[axis]);
     axes[m] = axis as u8;
     let (left, rest) = items.split_at_mut(m);
     let right = &mut rest[1..];
@@ -145,9 +169,7 @@ fn split(items: &mut [Item], axes: &mut [u8]) {
 /// Reorder records into a left-balanced kd-tree in heap order, writing each node's
 /// split axis into its flags.
 pub fn balance<R: PhotonRecord>(records: &[R]) -> Vec<R> {
-    let positions: Vec<Vec3> = records.par_iter().map(|r| r.position()).collect();
-    let (order, axes) = balance_permutation(&positions);
-    drop(positions);
+    let (order, axes) = permutation(records.len(), |i| records[i].position());
     // The gather is a random read per record: done in parallel, in heap order.
     order
         .par_iter()

@@ -233,6 +233,30 @@ fn pm_format_bytes<R: PhotonRecord>(r: &R) -> Vec<u8> {
 }
 
 #[test]
+fn sort_keys_order_as_total_cmp_and_invert() {
+    let v = [
+        f32::NEG_INFINITY,
+        -f32::MAX,
+        -1.5,
+        -f32::MIN_POSITIVE,
+        -1e-45,
+        -0.0,
+        0.0,
+        1e-45,
+        f32::MIN_POSITIVE,
+        0.75,
+        f32::MAX,
+        f32::INFINITY,
+    ];
+    for a in v {
+        assert_eq!(from_sort_key(sort_key(a)).to_bits(), a.to_bits());
+        for b in v {
+            assert_eq!(sort_key(a).cmp(&sort_key(b)), a.total_cmp(&b), "{a} {b}");
+        }
+    }
+}
+
+#[test]
 fn verify_catches_a_broken_tree() {
     let pts: Vec<Vec3> = (0..50).map(|i| Vec3::new((i * 37 % 50) as f32, 0.0, 0.0)).collect();
     let mut nodes = balance(&records::<FullPhoton>(&pts));
