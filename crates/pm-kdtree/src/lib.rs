@@ -242,6 +242,59 @@ fn dist2(a: Vec3, b: Vec3) -> f32 {
     (a - b).length_squared()
 }
 
+/// What a search does with each photon within its radius: `visit(heap index,
+/// record, squared distance)` returns the radius (squared) to go on with. Closures
+/// are visitors; the k-nearest heap is one of its own, whose method is always
+/// inlined into the search loops (left to the inliner's judgment, the closure it
+/// replaced was once inlined and once not, and the caustic estimates took 1.2 s or
+/// 1.5 s of the default render's thread time).
+trait Visit<R> {
+    fn visit(&mut self, i: u32, r: &R, d2: f32) -> f32;
+}
+
+/// A closure as a visitor (the bound makes its argument types, the record's
+/// lifetime included, those of a visitor).
+#[inline(always)]
+fn visiting<R, F: FnMut(u32, &R, f32) -> f32>(f: F) -> F {
+    f
+}
+
+impl<R, F: FnMut(u32, &R, f32) -> f32> Visit<R> for F {
+    #[inline]
+    fn visit(&mut self, i: u32, r: &R, d2: f32) -> f32 {
+        self(i, r, d2)
+    }
+}
+
+/// [`KdTree::knn`]'s visitor: the k nearest so far in a max-heap.
+struct KnnVisit<'s, F> {
+    heap: &'s mut BinaryHeap<u64>,
+    k: usize,
+    max_d2: f32,
+    filter: F,
+}
+
+impl<R, F: Fn(u32, &R) -> bool> Visit<R> for KnnVisit<'_, F> {
+    #[inline(always)]
+    fn visit(&mut self, i: u32, r: &R, d2: f32) -> f32 {
+        let (heap, k) = (&mut *self.heap, self.k);
+        if heap.len() < k {
+            if (self.filter)(i, r) {
+                heap.push(entry(d2, i));
+            }
+            if heap.len() == k { heap.peek().map_or(0.0, |&e| entry_d2(e)).min(self.max_d2) } else { self.max_d2 }
+        } else {
+            if let Some(mut top) = heap.peek_mut()
+                && d2.to_bits() < (*top >> 32) as u32
+                && (self.filter)(i, r)
+            {
+                *top = entry(d2, i); // one sift-down when `top` drops
+            }
+            heap.peek().map_or(0.0, |&e| entry_d2(e))
+        }
+    }
+}
+
 /// The far subtrees a search deferred, each with the squared distance to its
 /// splitting plane [m^2]; the last pushed is the nearest side of the deepest split.
 struct Deferred {
@@ -330,7 +383,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// the plain descent's throughput at 1M and 4M photons, since a bucket's 31
     /// photons are all measured (`cargo bench -p pm-kdtree --bench kdtree`).
     #[inline]
-    fn search(&self, x: Vec3, max_d2: f32, bucketed: bool, visit: impl FnMut(u32, &R, f32) -> f32) {
+    fn search(&self, x: Vec3, max_d2: f32, bucketed: bool, visit: impl Visit<R>) {
         match self.buckets {
             Some(b) if bucketed && !b.is_empty() => self.search_buckets(b, x, max_d2, visit),
             _ => self.search_nodes::<false>(x, max_d2, visit),
@@ -340,7 +393,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// [`Self::search`] through `buckets`: down the stem by its splits alone, then
     /// each bucket reached scanned whole.
     #[inline]
-    fn search_buckets(&self, b: &Buckets, x: Vec3, mut max_d2: f32, mut visit: impl FnMut(u32, &R, f32) -> f32) {
+    fn search_buckets(&self, b: &Buckets, x: Vec3, mut max_d2: f32, mut visit: impl Visit<R>) {
         if !(max_d2 >= 0.0) {
             return;
         }
@@ -360,7 +413,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
             for blk in b.bucket(node) {
                 for (&d2, &id) in blk.dist2(x).iter().zip(&blk.id) {
                     if d2 <= max_d2 {
-                        max_d2 = visit(id, &self.nodes[id as usize], d2);
+                        max_d2 = visit.visit(id, &self.nodes[id as usize], d2);
                     }
                 }
             }
@@ -380,12 +433,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// pm-kdtree --bench kdtree`; k-nearest searches, which keep everything within
     /// the radius, measured slower with a deferred visit: BENCHMARKS.md).
     #[inline]
-    fn search_nodes<const LEAF_FIRST: bool>(
-        &self,
-        x: Vec3,
-        mut max_d2: f32,
-        mut visit: impl FnMut(u32, &R, f32) -> f32,
-    ) {
+    fn search_nodes<const LEAF_FIRST: bool>(&self, x: Vec3, mut max_d2: f32, mut visit: impl Visit<R>) {
         let n = self.nodes.len();
         if n == 0 || !(max_d2 >= 0.0) {
             return;
@@ -427,7 +475,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                         path[len] = (node as u32, d2);
                         len += 1;
                     } else {
-                        max_d2 = visit(node as u32, r, d2);
+                        max_d2 = visit.visit(node as u32, r, d2);
                     }
                 }
                 node = next;
@@ -436,7 +484,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
                 len -= 1;
                 let (i, d2) = path[len];
                 if d2 <= max_d2 {
-                    max_d2 = visit(i, &self.nodes[i as usize], d2);
+                    max_d2 = visit.visit(i, &self.nodes[i as usize], d2);
                 }
             }
             // The nearest deferred subtree still within the radius.
@@ -462,23 +510,8 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         if k == 0 {
             return KnnResult { count: 0, max_dist2: 0.0 };
         }
-        let heap = &mut scratch.heap;
-        self.search(x, max_d2, true, |i, r, d2| {
-            if heap.len() < k {
-                if filter(i, r) {
-                    heap.push(entry(d2, i));
-                }
-                if heap.len() == k { heap.peek().map_or(0.0, |&e| entry_d2(e)).min(max_d2) } else { max_d2 }
-            } else {
-                if let Some(mut top) = heap.peek_mut()
-                    && d2.to_bits() < (*top >> 32) as u32
-                    && filter(i, r)
-                {
-                    *top = entry(d2, i); // one sift-down when `top` drops
-                }
-                heap.peek().map_or(0.0, |&e| entry_d2(e))
-            }
-        });
+        self.search(x, max_d2, true, KnnVisit { heap: &mut scratch.heap, k, max_d2, filter });
+        let heap = &scratch.heap;
         KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |&e| entry_d2(e)) }
     }
 
@@ -523,23 +556,27 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         loop {
             let pass_start = rejected.len();
             let mut best: Option<(u32, f32)> = None;
-            self.search_nodes::<true>(x, max_d2, |i, r, d2| {
-                let radius = best.map_or(max_d2, |b| b.1);
-                if best.is_some() && d2 >= radius {
-                    return radius;
-                }
-                if !cheap(r) {
-                    if d2 >= floor {
-                        rejected.push(d2);
+            self.search_nodes::<true>(
+                x,
+                max_d2,
+                visiting(|i, r, d2| {
+                    let radius = best.map_or(max_d2, |b| b.1);
+                    if best.is_some() && d2 >= radius {
+                        return radius;
                     }
-                    radius
-                } else if set_aside.contains(&i) {
-                    radius
-                } else {
-                    best = Some((i, d2));
-                    d2
-                }
-            });
+                    if !cheap(r) {
+                        if d2 >= floor {
+                            rejected.push(d2);
+                        }
+                        radius
+                    } else if set_aside.contains(&i) {
+                        radius
+                    } else {
+                        best = Some((i, d2));
+                        d2
+                    }
+                }),
+            );
             let (index, dist2) = best?;
             // This pass's cheap failures at or beyond its result are met again by the
             // next pass, if there is one; keep each photon counted once.
@@ -569,10 +606,15 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
 
     /// Call `f(index, record, dist2)` for every used photon within `max_d2` of `x`.
     pub fn for_each_within(&self, x: Vec3, max_d2: f32, mut f: impl FnMut(u32, &R, f32)) {
-        self.search(x, max_d2, true, |i, r, d2| {
-            f(i, r, d2);
-            max_d2
-        });
+        self.search(
+            x,
+            max_d2,
+            true,
+            visiting(|i, r, d2| {
+                f(i, r, d2);
+                max_d2
+            }),
+        );
     }
 
     /// Depth of the tree (levels; 0 for an empty tree).
