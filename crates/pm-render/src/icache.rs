@@ -7,7 +7,7 @@
 use crate::gather::{Gather, GatherFor, Scratch, final_gather};
 use crate::integrator::{PhotonMapping, cheap_indirect, diffuse_points};
 use crate::render::{Film, pixel_seed};
-use glam::{IVec3, Vec3, Vec4};
+use glam::{IVec3, Vec3};
 use pm_color::Rgb;
 use pm_format::{CacheRecord, PhotonRecord};
 use pm_sampling::{Sampler, mix64};
@@ -27,50 +27,13 @@ struct Record {
     grad_r: [Vec3; 3],
 }
 
-/// Four records as a grid cell lists them, lane by lane (an unused lane has radius
-/// 0, which no point is within): everything a lookup reads, so it evaluates four
-/// records at once and never touches the record array. Position and radius come
-/// first: a block with no record in reach is skipped after its first 64 bytes.
+/// A record as a grid cell lists it: what a lookup's first test reads, stored in the
+/// cell so that records out of reach are skipped without touching the record array.
 #[derive(Clone, Copy, Debug)]
-struct Block {
-    p: [Vec4; 3],
-    r: Vec4,
-    n: [Vec4; 3],
-    e: [Vec4; 3],
-    /// Per channel, per axis.
-    grad_t: [[Vec4; 3]; 3],
-    grad_r: [[Vec4; 3]; 3],
-}
-
-impl Block {
-    const EMPTY: Block = Block {
-        p: [Vec4::ZERO; 3],
-        r: Vec4::ZERO,
-        n: [Vec4::ZERO; 3],
-        e: [Vec4::ZERO; 3],
-        grad_t: [[Vec4::ZERO; 3]; 3],
-        grad_r: [[Vec4::ZERO; 3]; 3],
-    };
-
-    fn set(&mut self, lane: usize, rec: &Record) {
-        for a in 0..3 {
-            self.p[a][lane] = rec.p[a];
-            self.n[a][lane] = rec.n[a];
-            self.e[a][lane] = rec.e[a];
-            for c in 0..3 {
-                self.grad_t[c][a][lane] = rec.grad_t[c][a];
-                self.grad_r[c][a][lane] = rec.grad_r[c][a];
-            }
-        }
-        self.r[lane] = rec.r;
-    }
-}
-
-/// The records one grid cell lists, in insertion order, four to a block.
-#[derive(Clone, Debug, Default)]
-struct Cell {
-    blocks: Vec<Block>,
-    len: usize,
+struct Entry {
+    p: Vec3,
+    r: f32,
+    id: u32,
 }
 
 /// The most a lookup may extrapolate: rendering's slack (see [`IrradianceCache::lookup`]).
@@ -85,7 +48,7 @@ const MAX_SLACK: f32 = 2.0;
 #[derive(Clone, Debug)]
 pub struct IrradianceCache {
     records: Vec<Record>,
-    grid: HashMap<IVec3, Cell, CellHash>,
+    grid: HashMap<IVec3, Vec<Entry>, CellHash>,
     cell: f32,
     a: f32,
     spacing: (f32, f32),
@@ -179,15 +142,11 @@ impl IrradianceCache {
     fn push(&mut self, rec: Record) {
         let reach = Vec3::splat(MAX_SLACK * self.a * rec.r);
         let (lo, hi) = (self.key(rec.p - reach), self.key(rec.p + reach));
+        let entry = Entry { p: rec.p, r: rec.r, id: self.records.len() as u32 };
         for x in lo.x..=hi.x {
             for y in lo.y..=hi.y {
                 for z in lo.z..=hi.z {
-                    let cell = self.grid.entry(IVec3::new(x, y, z)).or_default();
-                    if cell.len.is_multiple_of(4) {
-                        cell.blocks.push(Block::EMPTY);
-                    }
-                    cell.blocks[cell.len / 4].set(cell.len % 4, &rec);
-                    cell.len += 1;
+                    self.grid.entry(IVec3::new(x, y, z)).or_default().push(entry);
                 }
             }
         }
@@ -302,46 +261,39 @@ impl IrradianceCache {
     pub(crate) fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
         debug_assert!(slack <= MAX_SLACK);
         let a = self.a * slack.min(MAX_SLACK);
-        let cell = self.grid.get(&self.key(p))?;
-        let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
-        let (nx, ny, nz) = (Vec4::splat(n.x), Vec4::splat(n.y), Vec4::splat(n.z));
+        let entries = self.grid.get(&self.key(p))?;
+        let mut sum = Rgb::ZERO;
+        let mut wsum = 0.0f32;
         // Most listed records are out of reach: |d| / R_i >= a alone fails Ward's
         // test. Checked squared, with a margin far above rounding, before the exact
         // test below (which the results depend on, bit for bit).
-        let reach2 = Vec4::splat(a * a * (1.0 + 1e-4));
-        // Each lane computes what one record's scalar test and weight did, operation
-        // for operation; only the sums add the lanes in another order.
-        let mut sum = [Vec4::ZERO; 3];
-        let mut wsum = Vec4::ZERO;
-        for b in &cell.blocks {
-            let d = [px - b.p[0], py - b.p[1], pz - b.p[2]];
-            let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            let near = d2.cmplt(reach2 * b.r * b.r);
-            if !near.any() {
+        let reach2 = a * a * (1.0 + 1e-4);
+        for e in entries {
+            let d = p - e.p;
+            if d.length_squared() >= reach2 * e.r * e.r {
                 continue;
             }
-            let cos = nx * b.n[0] + ny * b.n[1] + nz * b.n[2];
-            let eps = d2.sqrt() / b.r + (Vec4::ONE - cos).max(Vec4::ZERO).sqrt();
-            // Ward's test: skip records in front of the point (they see surfaces the
-            // point may not).
-            let front = (d[0] * (nx + b.n[0]) + d[1] * (ny + b.n[1]) + d[2] * (nz + b.n[2])) * 0.5;
-            let used = near & eps.cmplt(Vec4::splat(a)) & front.cmpge(Vec4::splat(-0.05) * b.r);
-            if !used.any() {
+            let r = &self.records[e.id as usize];
+            let eps = d.length() / r.r + (1.0 - n.dot(r.n)).max(0.0).sqrt();
+            if eps >= a {
                 continue;
             }
-            let w = Vec4::ONE / eps.max(Vec4::splat(1e-4));
-            // The rotation r.n x n.
-            let rot = [b.n[1] * nz - ny * b.n[2], b.n[2] * nx - nz * b.n[0], b.n[0] * ny - nx * b.n[1]];
-            for c in 0..3 {
-                let (gr, gt) = (&b.grad_r[c], &b.grad_t[c]);
-                let by_rot = rot[0] * gr[0] + rot[1] * gr[1] + rot[2] * gr[2];
-                let by_move = d[0] * gt[0] + d[1] * gt[1] + d[2] * gt[2];
-                let e = (b.e[c] + by_rot + by_move).max(Vec4::ZERO);
-                sum[c] += Vec4::select(used, e * w, Vec4::ZERO);
+            // Ward's test: skip records in front of the point (they see
+            // surfaces the point may not).
+            if d.dot(n + r.n) * 0.5 < -0.05 * r.r {
+                continue;
             }
-            wsum += Vec4::select(used, w, Vec4::ZERO);
+            let w = 1.0 / eps.max(1e-4);
+            let rot = r.n.cross(n);
+            let e = Rgb::new(
+                r.e.x + rot.dot(r.grad_r[0]) + d.dot(r.grad_t[0]),
+                r.e.y + rot.dot(r.grad_r[1]) + d.dot(r.grad_t[1]),
+                r.e.z + rot.dot(r.grad_r[2]) + d.dot(r.grad_t[2]),
+            )
+            .max(Rgb::ZERO);
+            sum += e * w;
+            wsum += w;
         }
-        let wsum = wsum.element_sum();
-        (wsum > 0.0).then(|| Rgb::new(sum[0].element_sum(), sum[1].element_sum(), sum[2].element_sum()) / wsum)
+        (wsum > 0.0).then(|| sum / wsum)
     }
 }
