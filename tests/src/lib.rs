@@ -36,7 +36,7 @@ pub fn small_pipeline(dir: &std::path::Path, scene: &str, effects: &str, spp: u3
 }
 
 /// The folder of the binaries the workspace test build made (this test's
-/// target/<profile>, from target/<profile>/deps/<test>).
+/// `target/<profile>`, from `target/<profile>/deps/<test>`).
 pub fn bin_dir() -> PathBuf {
     std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
 }

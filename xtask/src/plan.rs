@@ -22,6 +22,8 @@ pub const TASK: &str = "{TASK}";
 
 /// Options of `cargo xtask plan`.
 #[derive(clap::Args, Debug, Clone)]
+// Help texts give units as [m] and [s], not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 pub struct Args {
     /// Which pipeline, scene, output folder and image size (as `cargo xtask run`).
     #[command(flatten)]
@@ -222,7 +224,7 @@ fn without(args: &[String], flags: &[&str]) -> Vec<String> {
     kept
 }
 
-/// Wall time of one task of a run [s].
+/// Wall time of one task of a run \[s\].
 #[derive(Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct TaskTime {
     /// The step.
@@ -231,14 +233,14 @@ pub struct TaskTime {
     pub tasks: u32,
     /// This task's index.
     pub task: u32,
-    /// Its wall time [s].
+    /// Its wall time \[s\].
     pub seconds: f64,
 }
 
 /// Run the plan on this machine, step after step; an array step's tasks `workers`
 /// at a time, each with its index for [`TASK`]. A failing task stops the run with
 /// one line naming the step and task, and every earlier output stays. Returns each
-/// task's wall time and the whole run's [s].
+/// task's wall time and the whole run's \[s\].
 pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
     let start = std::time::Instant::now();
     let mut times = Vec::new();
@@ -280,7 +282,7 @@ pub fn execute_and_record(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>
     Ok((times, wall))
 }
 
-/// Predicted wall time [s] of the plan's measured `times` on `nodes` machines: the
+/// Predicted wall time \[s\] of the plan's measured `times` on `nodes` machines: the
 /// single-task steps one after another, each array step in ceil(tasks / nodes)
 /// waves of its mean task time (the model behind `cargo xtask plan --estimate`).
 pub fn estimate(times: &[TaskTime], nodes: u32) -> f64 {

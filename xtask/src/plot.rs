@@ -88,9 +88,9 @@ pub fn draw(shapes: &[Shape], w: f64, h: f64, svg_path: &Path, png_path: &Path) 
 
 /// A white raster of linear radiance that shapes and text are drawn into.
 pub struct Canvas {
-    /// Width [pixels].
+    /// Width \[pixels\].
     pub width: u32,
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub height: u32,
     /// Row-major pixels.
     pub px: Vec<glam::Vec3>,

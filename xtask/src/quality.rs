@@ -20,11 +20,11 @@ use std::path::{Path, PathBuf};
 pub struct Front {
     /// The scene it was measured on.
     pub scene: String,
-    /// Width and height of the study's images [pixels].
+    /// Width and height of the study's images \[pixels\].
     pub size: u32,
     /// Where it was measured.
     pub machine: String,
-    /// The defaults' stage times [s]: trace, sort, precompute, render.
+    /// The defaults' stage times \[s\]: trace, sort, precompute, render.
     pub defaults_s: [f64; 4],
     /// The Pareto front, fastest first.
     pub points: Vec<Point>,
@@ -35,7 +35,7 @@ pub struct Front {
 pub struct Point {
     /// The setting, e.g. "gather rays 64".
     pub label: String,
-    /// Stage times [s]: trace, sort, precompute, render.
+    /// Stage times \[s\]: trace, sort, precompute, render.
     pub times_s: [f64; 4],
     /// Expected error of one render (relative), and its bias and noise.
     pub error: f64,

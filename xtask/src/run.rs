@@ -57,7 +57,7 @@ pub struct Pipeline {
     /// are picked from the measured accuracy/time front ([`crate::quality`]).
     #[serde(default)]
     pub quality: Option<String>,
-    /// Or a time budget [s] for the whole pipeline at the file's image size.
+    /// Or a time budget \[s\] for the whole pipeline at the file's image size.
     #[serde(default)]
     pub time_budget_s: Option<f64>,
     /// What quality or time_budget_s chose (not a key of the file).
@@ -130,6 +130,8 @@ impl Pipeline {
 
 /// Options of `cargo xtask run`.
 #[derive(clap::Args, Debug, Clone, Default)]
+// Help texts give units as [m] and [s], not links, and placeholders as <name>.
+#[allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 pub struct RunArgs {
     /// Pipeline file [default: pipeline.toml at the repository root].
     pub pipeline: Option<PathBuf>,
@@ -589,6 +591,8 @@ fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
 
 /// Options of `cargo xtask live`.
 #[derive(clap::Args, Debug, Clone, Default)]
+// Help texts give placeholders as <name>, not HTML.
+#[allow(rustdoc::invalid_html_tags)]
 pub struct LiveArgs {
     /// Pipeline file [default: pipeline.toml at the repository root]; its `[live]`
     /// section and `live_scene` are used.

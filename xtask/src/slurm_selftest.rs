@@ -16,6 +16,8 @@ use std::time::{Duration, Instant};
 
 /// Options of `cargo xtask slurm-selftest`.
 #[derive(clap::Args, Debug)]
+// Help texts give units as [m] and [s], not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 pub struct Args {
     /// Tiles of the render (array tasks).
     #[arg(long, default_value_t = 4)]

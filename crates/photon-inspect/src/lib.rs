@@ -21,6 +21,8 @@ use std::path::PathBuf;
 total power in W per channel), counts by flag, for a kd-tree its depth and a check that the heap order is a valid \
 kd-tree, and for maps with precomputed irradiance how many photons carry it and its range (W m^-2)."
 )]
+// Help texts give units as [m] and [s], not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 pub struct Cli {
     /// Photon map (*.pmap).
     pub map: PathBuf,

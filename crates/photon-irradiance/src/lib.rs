@@ -28,7 +28,7 @@ pub struct Cli {
     /// Output map (global.irr.pmap).
     #[arg(long)]
     pub out: PathBuf,
-    /// The precompute settings (pipeline.toml's [irradiance] section).
+    /// The precompute settings (pipeline.toml's \[irradiance\] section).
     #[command(flatten)]
     pub params: IrradianceParams,
     /// Write statistics (count, time, radii) as JSON.
@@ -52,17 +52,17 @@ pub struct Report {
     pub empty_estimates: u64,
     /// The parameters.
     pub params: IrradianceParams,
-    /// Largest search radius used [m].
+    /// Largest search radius used \[m\].
     pub max_radius_m: f32,
-    /// The scene diagonal the relative radius refers to [m] (from the map's header).
+    /// The scene diagonal the relative radius refers to \[m\] (from the map's header).
     pub scene_diagonal_m: f32,
-    /// Estimate radii [m]: 5th, 50th, 95th percentile and largest.
+    /// Estimate radii \[m\]: 5th, 50th, 95th percentile and largest.
     pub radius_m: [f32; 4],
     /// Estimates whose radius reached the largest search radius.
     pub estimates_at_max_radius: usize,
-    /// Wall time [s].
+    /// Wall time \[s\].
     pub seconds: f64,
-    /// Wall time per estimate [us].
+    /// Wall time per estimate \[us\].
     pub microseconds_per_estimate: f64,
     /// Worker threads.
     pub threads: usize,

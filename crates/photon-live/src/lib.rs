@@ -32,6 +32,8 @@ With --frame-task K/N it renders the K-th of N runs of frames (for an animation 
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]
+// Help texts give units as [m] and [s], not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 pub struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -76,7 +78,7 @@ pub struct Cli {
     /// cargo feature and a display; without a display the frames are only written.
     #[arg(long)]
     pub window: bool,
-    /// The real-time settings (pipeline.toml's [live] section).
+    /// The real-time settings (pipeline.toml's \[live\] section).
     #[command(flatten)]
     pub params: LiveParams,
     /// How the scene files are read.
@@ -111,7 +113,7 @@ fn parse_task(s: &str) -> Result<(u32, u32), String> {
 pub struct Report {
     /// Each frame's statistics.
     pub frames: Vec<FrameStats>,
-    /// Mean frame time over the frames after the buffer filled [s].
+    /// Mean frame time over the frames after the buffer filled \[s\].
     pub mean_frame_seconds: f64,
 }
 

@@ -63,7 +63,7 @@ pub struct Cli {
     /// scenes where no diffusely reflected light reaches another diffuse surface.
     #[arg(long)]
     pub no_indirect: bool,
-    /// The render settings (pipeline.toml's [render] section).
+    /// The render settings (pipeline.toml's \[render\] section).
     #[command(flatten)]
     pub params: RenderParams,
     /// How the scene file is read.
@@ -353,11 +353,11 @@ pub struct Report {
     pub params: RenderParams,
     /// The region rendered (X0, Y0, X1, Y1), or none for the whole image.
     pub region: Option<[u32; 4]>,
-    /// Wall time: the cache prepass plus the image loop [s].
+    /// Wall time: the cache prepass plus the image loop \[s\].
     pub seconds: f64,
-    /// Wall time of the cache prepass [s] (0 when the cache was read from a file).
+    /// Wall time of the cache prepass \[s\] (0 when the cache was read from a file).
     pub prepass_seconds: f64,
-    /// Thread time per component [s] (direct, caustics, final_gather, specular, irradiance_cache).
+    /// Thread time per component \[s\] (direct, caustics, final_gather, specular, irradiance_cache).
     pub thread_seconds: std::collections::BTreeMap<String, f64>,
     /// Final gathers: the cache's records plus those done while rendering.
     pub final_gathers: u64,
@@ -391,7 +391,7 @@ pub struct Report {
     pub samples_per_pixel: f64,
     /// Supersampled pixels.
     pub supersampled_pixels: u64,
-    /// The scene diagonal relative lengths refer to [m].
+    /// The scene diagonal relative lengths refer to \[m\].
     pub scene_diagonal_m: f32,
     /// Worker threads.
     pub threads: usize,

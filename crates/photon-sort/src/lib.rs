@@ -43,7 +43,7 @@ pub struct Report {
     pub depth: u32,
     /// Bytes per record.
     pub record_bytes: usize,
-    /// Wall time [s].
+    /// Wall time \[s\].
     pub seconds: f64,
     /// Worker threads.
     pub threads: usize,

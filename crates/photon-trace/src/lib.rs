@@ -126,7 +126,7 @@ pub struct Report {
     pub global: MapReport,
     /// The caustic map.
     pub caustic: MapReport,
-    /// Wall time of the stage [s].
+    /// Wall time of the stage \[s\].
     pub seconds: f64,
 }
 
@@ -163,7 +163,7 @@ pub struct MapReport {
     pub hit_emission_cap: bool,
     /// Sum of stored photon power [W per channel].
     pub total_power_w: [f64; 3],
-    /// Wall time [s].
+    /// Wall time \[s\].
     pub seconds: f64,
     /// Photon paths per second.
     pub paths_per_second: f64,

@@ -22,12 +22,12 @@ mod albedo;
 pub enum Bsdf {
     /// Lambertian diffuse: f = rho / pi.
     Lambert {
-        /// Hemispherical reflectance rho in [0,1] per channel.
+        /// Hemispherical reflectance rho in \[0,1\] per channel.
         rho: Rgb,
     },
     /// Perfect specular reflection with reflectance `r` (glTF metallic, roughness ~ 0).
     Mirror {
-        /// Reflectance in [0,1] per channel.
+        /// Reflectance in \[0,1\] per channel.
         r: Rgb,
     },
     /// Smooth dielectric with Fresnel reflection and refraction (total internal
@@ -35,7 +35,7 @@ pub enum Bsdf {
     Glass {
         /// Index of refraction of the inside relative to the outside (n2 / n1).
         eta: f32,
-        /// Transmittance colour in [0,1] per channel (glTF base colour).
+        /// Transmittance colour in \[0,1\] per channel (glTF base colour).
         tint: Rgb,
         /// Thin-walled (no `KHR_materials_volume`): transmitted light is not bent.
         thin: bool,

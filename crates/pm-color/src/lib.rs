@@ -122,13 +122,13 @@ fn pow2(n: i32) -> f32 {
     }
 }
 
-/// sRGB transfer function (IEC 61966-2-1): linear [0,1] to encoded [0,1].
+/// sRGB transfer function (IEC 61966-2-1): linear \[0,1\] to encoded \[0,1\].
 pub fn srgb_encode(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
     if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// Inverse sRGB transfer: encoded [0,1] to linear [0,1] (glTF base-colour textures are sRGB).
+/// Inverse sRGB transfer: encoded \[0,1\] to linear \[0,1\] (glTF base-colour textures are sRGB).
 pub fn srgb_decode(v: f32) -> f32 {
     if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
 }

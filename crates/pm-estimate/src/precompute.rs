@@ -29,7 +29,7 @@ pub struct PrecomputeStats {
     pub computed: u64,
     /// Of those, estimates that found no photon on their side (irradiance 0).
     pub empty: u64,
-    /// Radius of each estimate [m], sorted ascending.
+    /// Radius of each estimate \[m\], sorted ascending.
     pub radii: Vec<f32>,
 }
 

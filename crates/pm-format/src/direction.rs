@@ -8,7 +8,7 @@
 
 use glam::{Vec2, Vec3};
 
-/// Largest angle between a unit vector and its decoded byte [rad], measured over a
+/// Largest angle between a unit vector and its decoded byte \[rad\], measured over a
 /// dense sweep of the sphere in this crate's tests (measured worst case 0.289 rad, 16.5
 /// degrees, near the octahedron's folded edges; typical error is a third of that).
 pub const DIRECTION_MAX_ERROR_RAD: f32 = 0.30;

@@ -120,9 +120,9 @@ pub struct Header {
     pub n_photons: u64,
     /// Photons emitted to fill this map.
     pub n_emitted: u64,
-    /// Bounds of the photon positions [m] (zero for an empty map).
+    /// Bounds of the photon positions \[m\] (zero for an empty map).
     pub bounds_min: [f32; 3],
-    /// Bounds of the photon positions [m].
+    /// Bounds of the photon positions \[m\].
     pub bounds_max: [f32; 3],
     /// Sum of the record powers [W per channel].
     pub total_power: [f64; 3],
@@ -130,10 +130,10 @@ pub struct Header {
     pub scene_hash: [u8; 32],
     /// blake3 of the record bytes.
     pub payload_hash: [u8; 32],
-    /// The scene's bounding-box diagonal [m]: relative radii (`max_radius_rel_diag`)
+    /// The scene's bounding-box diagonal \[m\]: relative radii (`max_radius_rel_diag`)
     /// mean this length times the fraction in every stage.
     pub scene_diagonal: f32,
-    /// World position [m] of the coordinate origin of the positions (the scene's
+    /// World position \[m\] of the coordinate origin of the positions (the scene's
     /// camera, `Scene::origin`): world = position + origin.
     pub origin: [f64; 3],
     /// Parameters that produced the map (JSON text).
@@ -169,7 +169,7 @@ impl Header {
         }
     }
 
-    /// The header with positions relative to world position `origin` [m].
+    /// The header with positions relative to world position `origin` \[m\].
     pub fn with_origin(self, origin: [f64; 3]) -> Header {
         Header { origin, ..self }
     }

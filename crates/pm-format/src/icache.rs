@@ -37,13 +37,13 @@ const FIXED_LEN: usize = 140;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct CacheRecord {
-    /// Position [m].
+    /// Position \[m\].
     pub p: [f32; 3],
     /// Unit surface normal.
     pub n: [f32; 3],
     /// Indirect irradiance E [W m^-2 per channel].
     pub e: [f32; 3],
-    /// Radius of validity R [m].
+    /// Radius of validity R \[m\].
     pub r: f32,
     /// Translational gradient dE/dx [W m^-3], x y z per channel (R, G, B).
     pub grad_t: [f32; 9],
@@ -54,9 +54,9 @@ pub struct CacheRecord {
 /// An irradiance-cache file in memory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CacheFile {
-    /// Width of the image the prepass covered [pixels].
+    /// Width of the image the prepass covered \[pixels\].
     pub width: u32,
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub height: u32,
     /// blake3 of the scene.
     pub scene_hash: [u8; 32],

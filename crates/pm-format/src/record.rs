@@ -28,7 +28,7 @@ pub mod flags {
 /// A photon with every field decoded.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Photon {
-    /// Position [m].
+    /// Position \[m\].
     pub position: Vec3,
     /// Power Phi_p [W per channel].
     pub power: Rgb,
@@ -61,7 +61,7 @@ pub trait PhotonRecord: Pod + Send + Sync + std::fmt::Debug + 'static {
             irradiance: self.irradiance(),
         }
     }
-    /// Position [m] (exact in every layout).
+    /// Position \[m\] (exact in every layout).
     fn position(&self) -> Vec3;
     /// Flags byte.
     fn flags(&self) -> u8;
@@ -83,7 +83,7 @@ pub trait PhotonRecord: Pod + Send + Sync + std::fmt::Debug + 'static {
 #[repr(C, packed)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct CompactPhoton {
-    /// Position [m], f32 x 3.
+    /// Position \[m\], f32 x 3.
     pub pos: [f32; 3],
     /// RGBE power.
     pub power: [u8; 4],
@@ -97,7 +97,7 @@ pub struct CompactPhoton {
 #[repr(C, packed)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct CompactIrrPhoton {
-    /// Position [m], f32 x 3.
+    /// Position \[m\], f32 x 3.
     pub pos: [f32; 3],
     /// RGBE power.
     pub power: [u8; 4],
@@ -115,7 +115,7 @@ pub struct CompactIrrPhoton {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FullPhoton {
-    /// Position [m].
+    /// Position \[m\].
     pub pos: [f32; 3],
     /// Power [W per channel].
     pub power: [f32; 3],
@@ -129,7 +129,7 @@ pub struct FullPhoton {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FullIrrPhoton {
-    /// Position [m].
+    /// Position \[m\].
     pub pos: [f32; 3],
     /// Power [W per channel].
     pub power: [f32; 3],

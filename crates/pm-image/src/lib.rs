@@ -11,9 +11,9 @@ use std::path::Path;
 /// A linear-radiance image with named layers; row 0 is the top row.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Layers {
-    /// Width [pixels].
+    /// Width \[pixels\].
     pub width: u32,
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub height: u32,
     /// (name, pixels); the layer named "total" is the image itself.
     pub layers: Vec<(String, Vec<Vec3>)>,
@@ -58,9 +58,9 @@ pub struct Placement {
     pub x: u32,
     /// First row (row 0 at the top).
     pub y: u32,
-    /// Width of the whole image [pixels].
+    /// Width of the whole image \[pixels\].
     pub full_width: u32,
-    /// Height of the whole image [pixels].
+    /// Height of the whole image \[pixels\].
     pub full_height: u32,
 }
 

@@ -24,7 +24,7 @@ pub struct RadiusGrid {
 const MAX_DIM: i32 = 512;
 
 impl RadiusGrid {
-    /// The grid of `points` for queries of radius up to `radius` [m].
+    /// The grid of `points` for queries of radius up to `radius` \[m\].
     pub fn new(points: &[Vec3], radius: f32) -> RadiusGrid {
         let (lo, hi) = points
             .iter()

@@ -65,7 +65,7 @@ fn offsets(reach: i32) -> Vec<(IVec3, f32)> {
 }
 
 impl<R: PhotonRecord> PhotonGrid<R> {
-    /// An empty grid for ids 0..`ids` whose queries search at most `radius` [m]
+    /// An empty grid for ids 0..`ids` whose queries search at most `radius` \[m\]
     /// (larger radii work, more slowly).
     pub fn new(radius: f32, ids: usize) -> PhotonGrid<R> {
         PhotonGrid {

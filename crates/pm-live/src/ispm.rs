@@ -27,7 +27,7 @@ const MAX_EVENTS: u32 = 32;
 /// A photon leaving its first bounce: an entry of a bounce map (Table 1).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BouncePhoton {
-    /// Where it leaves from (offset off the surface) [m].
+    /// Where it leaves from (offset off the surface) \[m\].
     pub origin: Vec3,
     /// Unit direction it travels.
     pub dir: Vec3,
@@ -219,18 +219,18 @@ pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<B
 /// thousand times the area, clamped to [r_min, r_max]; r_z = minor × r_xy.
 #[derive(Clone, Copy, Debug)]
 pub struct KernelShape {
-    /// Radius of a path of density 1 [m].
+    /// Radius of a path of density 1 \[m\].
     pub r1: f32,
-    /// Smallest radius [m].
+    /// Smallest radius \[m\].
     pub r_min: f32,
-    /// Largest radius [m].
+    /// Largest radius \[m\].
     pub r_max: f32,
     /// r_z / r_xy.
     pub minor: f32,
 }
 
 impl KernelShape {
-    /// The shape from the parameters, for a scene of diagonal `diag` [m].
+    /// The shape from the parameters, for a scene of diagonal `diag` \[m\].
     pub fn new(p: &LiveParams, diag: f32) -> KernelShape {
         let r_max = p.kernel_max_rel_diag * diag;
         KernelShape {
@@ -241,7 +241,7 @@ impl KernelShape {
         }
     }
 
-    /// (r_xy, r_z) [m] for path density `density`.
+    /// (r_xy, r_z) \[m\] for path density `density`.
     pub fn radii(&self, density: f32) -> (f32, f32) {
         let r = (self.r1 / density.max(1e-30).sqrt()).clamp(self.r_min, self.r_max);
         (r, r * self.minor)
@@ -305,7 +305,7 @@ pub fn trace(
     paths.into_iter().flatten().collect()
 }
 
-/// Wall time of each step of an image-space frame [s] (the paper's Table 2 split).
+/// Wall time of each step of an image-space frame \[s\] (the paper's Table 2 split).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct IspmTimes {
     /// The eye G-buffer (rasteriser).
@@ -327,7 +327,7 @@ pub struct IspmTimes {
 /// What one image-space frame did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct IspmStats {
-    /// Times per step [s].
+    /// Times per step \[s\].
     pub times: IspmTimes,
     /// The bounce maps' attrition and power.
     pub bounce: BounceStats,

@@ -191,7 +191,7 @@ impl LiveParams {
     }
 }
 
-/// Wall time of each step of a frame [s] (the thesis's Figures 21-27 split).
+/// Wall time of each step of a frame \[s\] (the thesis's Figures 21-27 split).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct FrameTimes {
     /// Shooting `per_frame` paths into the ring buffer.
@@ -212,7 +212,7 @@ pub struct FrameTimes {
 pub struct FrameStats {
     /// Frame number (0 first).
     pub frame: u64,
-    /// Times per step [s].
+    /// Times per step \[s\].
     pub times: FrameTimes,
     /// Paths shot this frame.
     pub paths_shot: u64,
@@ -380,7 +380,7 @@ impl Live {
         Ok(())
     }
 
-    /// Move the animated lights and camera of both scenes to time `t` [s]: nothing
+    /// Move the animated lights and camera of both scenes to time `t` \[s\]: nothing
     /// is rebuilt, and the buffer's older photons age out as paths are re-shot.
     pub fn set_time(&mut self, t: f32) {
         self.scene.lights.clone_from(&self.rest_lights.0);
@@ -419,7 +419,7 @@ impl Live {
         tree_photons(&self.ring, self.params.direct)
     }
 
-    /// Move every point and spot light by `delta` [m] from the next [`Self::set_time`]
+    /// Move every point and spot light by `delta` \[m\] from the next [`Self::set_time`]
     /// on (on top of the animation).
     pub fn move_lights(&mut self, delta: glam::Vec3) {
         self.light_offset += delta;

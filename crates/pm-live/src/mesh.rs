@@ -17,7 +17,7 @@ use std::collections::HashMap;
 /// corners of each triangle (same order as `Scene::triangles`).
 #[derive(Clone, Debug)]
 pub struct Corners {
-    /// Corner position [m].
+    /// Corner position \[m\].
     pub p: Vec<Vec3>,
     /// Unit normal at the corner (the triangle's shading normal there).
     pub n: Vec<Vec3>,
@@ -112,7 +112,7 @@ impl Corners {
     }
 
     /// Irradiance E [W m^-2 per channel] at every active corner from the k nearest
-    /// photons of `tree` (the kd-tree or the photon grid) on the corner's side within `max_radius` [m]
+    /// photons of `tree` (the kd-tree or the photon grid) on the corner's side within `max_radius` \[m\]
     /// (`pm_estimate::irradiance`, the batch pipeline's estimate); zero elsewhere.
     pub fn irradiance(
         &self,

@@ -26,7 +26,7 @@ pub const TILE: u32 = 16;
 /// A stored photon with the shape of its kernel (section 4.1, Table 1).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VolumePhoton {
-    /// Position [m].
+    /// Position \[m\].
     pub p: Vec3,
     /// Unit normal of the surface hit, on the side the photon arrived from.
     pub n: Vec3,
@@ -34,9 +34,9 @@ pub struct VolumePhoton {
     pub wi: Vec3,
     /// Power [W per channel].
     pub power: Rgb,
-    /// Kernel radius in the surface plane [m].
+    /// Kernel radius in the surface plane \[m\].
     pub r_xy: f32,
-    /// Kernel radius along `n` [m] (at most `r_xy`).
+    /// Kernel radius along `n` \[m\] (at most `r_xy`).
     pub r_z: f32,
     /// Only specular scattering since the light (the caustic layer).
     pub caustic: bool,
@@ -45,7 +45,7 @@ pub struct VolumePhoton {
 /// A shading point of the G-buffer, as the splat reads it.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
-    /// Position [m].
+    /// Position \[m\].
     pub p: Vec3,
     /// Unit shading normal, toward the viewer.
     pub n: Vec3,
@@ -375,7 +375,7 @@ pub enum SplatOutput {
 /// Splat `photons` over the surfaces of a G-buffer (row 0 at the top; `None` where
 /// nothing non-specular is seen) that samples a `full_w` x `full_h` image seen by
 /// `camera` every `factor` pixels (1: every pixel; else the pixel at the centre of
-/// each `factor` x `factor` block, the layout [`subsample`] makes): returns the
+/// each `factor` x `factor` block, the layout [`GBuffer::subsample`] makes): returns the
 /// indirect and caustic layers at the G-buffer's resolution. Photons are binned into
 /// [`TILE`]-pixel tiles in photon order and every tile sums its photons in that
 /// order, so the result does not depend on the thread count.

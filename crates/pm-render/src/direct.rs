@@ -81,7 +81,7 @@ impl<'a> DirectLighting<'a> {
     }
 
     /// [`Self::light_sample`] with its random numbers given: the point on the light
-    /// (u[0], u[1]), the emitting triangle (u[2]) and the light (u[3]).
+    /// (u\[0\], u\[1\]), the emitting triangle (u\[2\]) and the light (u\[3\]).
     pub fn light_sample_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Rgb {
         match self.unshadowed(hit, bsdf, wo, u, mis) {
             Some((_, c, o, wi, t_max)) if !self.scene.occluded(o, wi, t_max) => c,
@@ -221,7 +221,7 @@ impl DirectLighting<'_> {
     /// areas: a light sample on one weighed up to 11 times the mean, and made the
     /// furnace test's worst pixel; cosine-sampled directions find those facets often.
     /// Built [`Self::with_closed_form`], Lambertian surfaces in a scene of at most
-    /// [`CLOSED_FORM_LIGHTS`] lights that all have a closed-form irradiance take the
+    /// `CLOSED_FORM_LIGHTS` lights that all have a closed-form irradiance take the
     /// closed form with stochastic shadows instead (see `closed_form_direct`).
     pub fn direct(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let scene = self.scene;

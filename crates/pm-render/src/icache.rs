@@ -40,7 +40,7 @@ struct Entry {
 const MAX_SLACK: f32 = 2.0;
 
 /// The cache: records in insertion order, indexed by a hash grid in which every
-/// record is listed in each cell its reach (a x [`MAX_SLACK`] x R_i) overlaps, so a
+/// record is listed in each cell its reach (a x `MAX_SLACK` x R_i) overlaps, so a
 /// lookup reads the one cell it falls in (it read 27 cells, each record listed once,
 /// and lookups were 31% of rendering: BENCHMARKS.md). Made once per image by
 /// [`IrradianceCache::prepass`] (its own pipeline step, so that tiles rendered apart
@@ -176,7 +176,7 @@ impl IrradianceCache {
             .collect()
     }
 
-    /// A cache of accuracy `a` and spacing (min, max) [m] holding `records` (from
+    /// A cache of accuracy `a` and spacing (min, max) \[m\] holding `records` (from
     /// [`Self::to_records`]), in the same order: lookups give the same results.
     pub fn from_records(a: f32, spacing: (f32, f32), records: &[CacheRecord]) -> Self {
         let mut c = IrradianceCache::new(a, spacing);

@@ -67,13 +67,13 @@ impl Components {
 pub struct VisibleSurface {
     /// False where the eye ray leaves the scene (the other fields are then zero).
     pub hit: bool,
-    /// Position [m].
+    /// Position \[m\].
     pub p: Vec3,
     /// Shading normal, turned toward the camera.
     pub ns: Vec3,
     /// Geometric normal, turned toward the camera.
     pub ng: Vec3,
-    /// Distance from the camera along the eye ray [m].
+    /// Distance from the camera along the eye ray \[m\].
     pub depth: f32,
     /// Index into `Scene::objects` (`u32::MAX` for a triangle in no object).
     pub object: u32,

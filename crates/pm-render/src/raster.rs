@@ -38,14 +38,14 @@ struct ScreenTri {
 }
 
 /// What the rasteriser keeps per pixel: the nearest triangle, the barycentrics of
-/// the pixel centre on it, and the distance along the eye ray [m].
+/// the pixel centre on it, and the distance along the eye ray \[m\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Fragment {
     /// Triangle id.
     pub tri: u32,
     /// Barycentric coordinates of the pixel centre's point.
     pub b: [f32; 3],
-    /// Distance from the camera along the unit eye ray [m].
+    /// Distance from the camera along the unit eye ray \[m\].
     pub t: f32,
 }
 
@@ -216,7 +216,7 @@ pub const CUBE_FACES: [(Vec3, Vec3, Vec3); 6] = [
     (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
 ];
 
-/// A cube shadow map: the distance [m] from `position` to the nearest surface
+/// A cube shadow map: the distance \[m\] from `position` to the nearest surface
 /// through the centre of each texel of six 90-degree faces (+x, -x, +y, -y, +z, -z),
 /// drawn by the rasteriser. Direct light from a point or spot light then needs one
 /// lookup per pixel instead of a shadow ray.
@@ -244,7 +244,7 @@ impl CubeDepth {
     }
 
     /// True when nothing the map saw lies between the light and `p`, allowing
-    /// `bias` [m] (against self-shadowing from the texels' finite size).
+    /// `bias` \[m\] (against self-shadowing from the texels' finite size).
     pub fn visible(&self, p: Vec3, bias: f32) -> bool {
         let d = p - self.position;
         let a = d.abs();
@@ -269,12 +269,12 @@ impl CubeDepth {
         d.length() <= stored + bias
     }
 
-    /// Where the map was drawn from [m].
+    /// Where the map was drawn from \[m\].
     pub fn position(&self) -> Vec3 {
         self.position
     }
 
-    /// The angle a texel subtends at the centre of a face [rad] (for biases).
+    /// The angle a texel subtends at the centre of a face \[rad\] (for biases).
     pub fn texel_angle(&self) -> f32 {
         2.0 / self.res as f32
     }

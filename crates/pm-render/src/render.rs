@@ -37,9 +37,9 @@ pub struct Counters {
 /// rendered with the same per-pixel sample streams as the whole.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Film {
-    /// Width [pixels].
+    /// Width \[pixels\].
     pub width: u32,
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub height: u32,
     /// Most samples per pixel (adaptive integrators), or samples per pixel.
     pub spp: u32,
@@ -79,11 +79,11 @@ impl Rect {
         let row = |i: u32| (i as u64 * film.height as u64 / n as u64) as u32;
         Some(Rect { x0: 0, y0: row(k), x1: film.width, y1: row(k + 1) })
     }
-    /// Width [pixels].
+    /// Width \[pixels\].
     pub fn width(&self) -> u32 {
         self.x1 - self.x0
     }
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub fn height(&self) -> u32 {
         self.y1 - self.y0
     }
@@ -100,10 +100,10 @@ impl Rect {
 /// What a render did.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStats {
-    /// Wall time of the region's image loop [s].
+    /// Wall time of the region's image loop \[s\].
     pub seconds: f64,
     /// Thread time in direct lighting, caustic estimates, final gathers, specular
-    /// recursion (inclusive of what it calls) and cache lookups [s].
+    /// recursion (inclusive of what it calls) and cache lookups \[s\].
     pub thread_seconds: [(String, f64); 5],
     /// Final gathers: those of the cache's records plus those done while rendering
     /// (cache misses and uncached shading points).
@@ -169,9 +169,9 @@ impl Counters {
 pub struct Image {
     /// The region of the film this is.
     pub rect: Rect,
-    /// Width [pixels] (the region's).
+    /// Width \[pixels\] (the region's).
     pub width: u32,
-    /// Height [pixels] (the region's).
+    /// Height \[pixels\] (the region's).
     pub height: u32,
     /// ("total" | "direct" | "caustic" | "indirect" | "specular", pixels).
     pub layers: Vec<(&'static str, Vec<Rgb>)>,

@@ -282,7 +282,7 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(b0, b1)
 }
 
-/// Solid angle [sr] of the spherical triangle with unit vertices `a`, `b`, `c`:
+/// Solid angle \[sr\] of the spherical triangle with unit vertices `a`, `b`, `c`:
 /// tan(Ω / 2) = |a·(b×c)| / (1 + a·b + b·c + c·a) (Van Oosterom and Strackee 1983),
 /// which keeps its precision for small and nearly flat triangles where the sum of
 /// the angles minus π loses it. In f64: seen from a point 0.1 mm from a 1 m edge,
@@ -294,7 +294,7 @@ pub fn spherical_triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
     (2.0 * num.atan2(den)) as f32
 }
 
-/// ∫ max(0, n·ω) dω [sr] over the directions from the origin to the planar polygon
+/// ∫ max(0, n·ω) dω \[sr\] over the directions from the origin to the planar polygon
 /// `verts` (vertices relative to the point, in order): the polygon is clipped to the
 /// half-space n·x >= 0 and Lambert's formula summed over its edges, 1/2 Σ Θ_i
 /// n·(û_i × û_{i+1}) / |û_i × û_{i+1}|, Θ_i the angle between the directions to
@@ -402,7 +402,7 @@ pub fn sample_cdf(cdf: &[f64], u: f32) -> usize {
     i.min(cdf.len().saturating_sub(1))
 }
 
-/// 4 pi: the solid angle of the sphere [sr].
+/// 4 pi: the solid angle of the sphere \[sr\].
 pub const FOUR_PI: f32 = 2.0 * TAU;
 /// pi, re-exported for radiometric formulas (E = pi L for a uniform hemisphere).
 pub const PI_F32: f32 = PI;

@@ -62,7 +62,7 @@ pub struct Animation {
     pub(crate) camera: Option<usize>,
     /// Meshes below animated nodes, with their triangles in the node's space.
     pub(crate) meshes: Vec<AnimatedMesh>,
-    /// Length of the animation [s] (its last key time).
+    /// Length of the animation \[s\] (its last key time).
     pub duration: f32,
     /// World position of the scene's coordinate origin [m] (the camera's rest
     /// position: see `Scene::origin`); world transforms are moved by minus this.

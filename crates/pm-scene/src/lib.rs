@@ -58,7 +58,7 @@ pm_params::value_enum! {
 /// A triangle's shading data, in the order the file listed them (the triangle id).
 #[derive(Clone, Debug)]
 pub struct Triangle {
-    /// World-space vertices [m].
+    /// World-space vertices \[m\].
     pub p: [Vec3; 3],
     /// World-space unit vertex normals, when the file had usable ones.
     pub n: Option<[Vec3; 3]>,
@@ -355,7 +355,7 @@ impl Object {
 /// A pinhole camera (glTF perspective camera).
 #[derive(Clone, Debug)]
 pub struct Camera {
-    /// Eye position [m].
+    /// Eye position \[m\].
     pub position: Vec3,
     /// Unit viewing direction (the camera's -Z axis).
     pub forward: Vec3,
@@ -363,14 +363,14 @@ pub struct Camera {
     pub up: Vec3,
     /// Unit right vector (the camera's +X axis).
     pub right: Vec3,
-    /// Vertical field of view [rad].
+    /// Vertical field of view \[rad\].
     pub yfov: f32,
     /// Width / height from the file, if it gave one.
     pub aspect: Option<f32>,
 }
 
 impl Camera {
-    /// Unit direction of the ray through film position (sx, sy) in [0,1]^2, with
+    /// Unit direction of the ray through film position (sx, sy) in \[0,1\]^2, with
     /// (0,0) the top-left corner (row 0 is the top row) and `aspect` = width/height.
     pub fn ray_direction(&self, sx: f32, sy: f32, aspect: f32) -> Vec3 {
         self.rays(aspect).direction(sx, sy)
@@ -420,13 +420,13 @@ impl CameraRays {
 /// A ray-surface intersection.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
-    /// Distance along the (unit) ray direction [m].
+    /// Distance along the (unit) ray direction \[m\].
     pub t: f32,
     /// Triangle id (index into [`Scene::triangles`]).
     pub tri: u32,
     /// Barycentric coordinates of the hit point.
     pub b: [f32; 3],
-    /// Hit point, interpolated from the vertices [m].
+    /// Hit point, interpolated from the vertices \[m\].
     pub p: Vec3,
     /// Unit geometric normal (winding order; not flipped toward the ray).
     pub ng: Vec3,
@@ -440,7 +440,7 @@ pub struct Hit {
     pub color: glam::Vec4,
 }
 
-/// Axis-aligned bounds [m].
+/// Axis-aligned bounds \[m\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
     /// Minimum corner.
@@ -450,7 +450,7 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    /// Length of the diagonal [m]; the unit for radii "relative to the scene".
+    /// Length of the diagonal \[m\]; the unit for radii "relative to the scene".
     pub fn diagonal(&self) -> f32 {
         (self.max - self.min).length()
     }
@@ -505,7 +505,7 @@ pub struct Scene {
     pub light_of_triangle: Vec<u32>,
     /// The first camera found in the scene, if any.
     pub camera: Option<Camera>,
-    /// World position [m] of this scene's coordinate origin: positions are stored
+    /// World position \[m\] of this scene's coordinate origin: positions are stored
     /// relative to the first perspective camera's rest position snapped to a 1,024 m
     /// grid (pbrt-v4's "camera-world" space; transforms composed in f64 before the
     /// cast to f32), so a scene far from the file's origin keeps its precision and a
@@ -520,10 +520,10 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The glTF animations that move lights and the camera ([`Scene::set_time`]).
     pub animation: Animation,
-    /// What loading took [s]: reading and decoding the file (geometry, textures,
+    /// What loading took \[s\]: reading and decoding the file (geometry, textures,
     /// tangents) and building the BVH (zero for scenes built in code).
     pub load_seconds: f64,
-    /// Building the BVH [s] (part of `load_seconds` for loaded scenes).
+    /// Building the BVH \[s\] (part of `load_seconds` for loaded scenes).
     pub bvh_seconds: f64,
     /// Some material has an alpha mode: ray queries test alpha at candidate hits.
     any_alpha: bool,
@@ -692,7 +692,7 @@ impl Scene {
         !self.animation.meshes.is_empty()
     }
 
-    /// Move the animated lights, camera and meshes to time `t` [s] (animations loop
+    /// Move the animated lights, camera and meshes to time `t` \[s\] (animations loop
     /// over their length). Lights and the camera move without rebuilding anything;
     /// moved meshes are re-transformed from their rest pose and the BVH is rebuilt.
     pub fn set_time(&mut self, t: f32) {
@@ -785,7 +785,7 @@ impl Scene {
     }
 
     /// The scene with every triangle split uniformly into n^2 triangles, n the
-    /// smallest count with (longest edge / n) <= `max_edge` [m] (Jozwowski 2002
+    /// smallest count with (longest edge / n) <= `max_edge` \[m\] (Jozwowski 2002
     /// section 4.3: more vertices, so estimates at vertices resolve more detail).
     /// Positions, shading normals and texture coordinates are interpolated from the
     /// parent, so the surface and its shading are unchanged; objects, materials,

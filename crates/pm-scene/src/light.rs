@@ -18,7 +18,7 @@ pub enum LightKind {
         /// Triangle ids.
         tris: std::ops::Range<u32>,
         /// Cumulative triangle weights for picking a triangle: areas [m^2] (uniform
-        /// by area) for a uniform emitter, emitted power [W] for a textured one.
+        /// by area) for a uniform emitter, emitted power \[W\] for a textured one.
         cdf: Vec<f64>,
         /// Total area [m^2].
         area: f32,
@@ -30,7 +30,7 @@ pub enum LightKind {
         /// for a uniform emitter, where every pick stands for `area`.
         area_per_pick: Vec<f32>,
         /// Per triangle its centroid and squared bounding radius about it [m, m^2],
-        /// for the solid-angle sampling decision ([`near_solid_angle`]).
+        /// for the solid-angle sampling decision (`near_solid_angle`).
         spheres: Vec<[f32; 4]>,
         /// Both faces emit.
         two_sided: bool,
@@ -40,7 +40,7 @@ pub enum LightKind {
     },
     /// Isotropic point light.
     Point {
-        /// Position [m].
+        /// Position \[m\].
         position: Vec3,
         /// Radiant intensity I [W sr^-1 per channel].
         intensity: Rgb,
@@ -48,7 +48,7 @@ pub enum LightKind {
     /// Spot light with the glTF cone falloff: (t)^2 with t the linear ramp of
     /// cos(theta) between the outer and inner cone (KHR_lights_punctual spec).
     Spot {
-        /// Position [m].
+        /// Position \[m\].
         position: Vec3,
         /// Unit axis (the light node's -Z).
         direction: Vec3,
@@ -65,9 +65,9 @@ pub enum LightKind {
         direction: Vec3,
         /// Irradiance E on a surface facing the light [W m^-2 per channel].
         irradiance: Rgb,
-        /// Centre of the scene's bounding sphere [m].
+        /// Centre of the scene's bounding sphere \[m\].
         center: Vec3,
-        /// Radius of the scene's bounding sphere [m]: photons start on a disk this big.
+        /// Radius of the scene's bounding sphere \[m\]: photons start on a disk this big.
         radius: f32,
     },
 }
@@ -149,7 +149,7 @@ fn outline_polygons(t: &[&crate::Triangle]) -> Vec<Vec<Vec3>> {
 /// A ray leaving a light, with the power it carries if it were the only sample.
 #[derive(Clone, Copy, Debug)]
 pub struct EmittedRay {
-    /// Start point [m], already offset off an emitting surface.
+    /// Start point \[m\], already offset off an emitting surface.
     pub origin: Vec3,
     /// Unit direction.
     pub dir: Vec3,
@@ -163,9 +163,9 @@ pub struct EmittedRay {
 /// of Jensen's projection maps).
 #[derive(Clone, Copy, Debug)]
 pub struct Target {
-    /// Centre [m].
+    /// Centre \[m\].
     pub center: Vec3,
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: f32,
 }
 
@@ -396,7 +396,7 @@ fn barycentrics(tri: &crate::Triangle, q: Vec3) -> [f32; 3] {
 
 impl Light {
     /// The light's uniform emitted radiance L_e [W sr^-1 m^-2 per channel] and
-    /// ∫ max(0, n·ω) dω [sr] over the directions from `p` to it, in closed form:
+    /// ∫ max(0, n·ω) dω \[sr\] over the directions from `p` to it, in closed form:
     /// Lambert's formula over its [`Outline`] clipped to the hemisphere of `n`
     /// ([`pm_sampling::polygon_cos_integral`]); zero behind its emitting side. L_e
     /// times the integral is the unoccluded irradiance [W m^-2] at `p`. `None` for
@@ -577,7 +577,7 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
 pub struct LightSample {
     /// Unit direction from the shading point toward the light.
     pub wi: Vec3,
-    /// Distance to the sampled point [m] (infinite for directional lights).
+    /// Distance to the sampled point \[m\] (infinite for directional lights).
     pub dist: f32,
     /// Incident radiance L_i [W sr^-1 m^-2] for area lights; for punctual lights the
     /// incident irradiance on a surface facing the light, I / d^2 or E [W m^-2].
@@ -592,7 +592,7 @@ impl Light {
     /// Sample a direction toward this light from point `p` (pbrt-v4 section 12.2).
     /// Area lights: a triangle from the light's cdf, then a point on it uniform by
     /// area, converted to solid angle; or, when `p` is near the triangle (see
-    /// [`near_solid_angle`]), a direction uniform in the solid angle it subtends
+    /// `near_solid_angle`), a direction uniform in the solid angle it subtends
     /// (Arvo 1995), whose weight stays bounded where the area density's d^2 /
     /// cos goes to zero.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
