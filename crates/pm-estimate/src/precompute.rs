@@ -43,7 +43,8 @@ pub fn precompute<R: PhotonRecord>(
     fraction: f64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
-    let tree = KdTree::new(&*nodes);
+    let buckets = pm_kdtree::Buckets::new(&*nodes);
+    let tree = KdTree::with_buckets(&*nodes, &buckets);
     let done = std::sync::atomic::AtomicU64::new(0);
     let results: Vec<Vec<(u32, Irradiance)>> = (0..nodes.len())
         .step_by(CHUNK)
