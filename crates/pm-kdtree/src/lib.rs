@@ -4,8 +4,8 @@
 //! split axis lives in the record's flags byte, and the records themselves are the
 //! tree: no pointers and no memory beyond them. Searches that visit many photons
 //! (k nearest, all within a radius) can go through [`Buckets`], the bottom five
-//! levels copied out as contiguous leaf buckets (16 bytes a photon), built when a
-//! map is loaded; the file stays a heap-order tree.
+//! levels copied out as contiguous leaf buckets (about 17 bytes a photon), built
+//! when a map is loaded; the file stays a heap-order tree.
 //!
 //! [`balance`] builds it in O(n log n) by median selection on the axis of largest
 //! extent, in parallel, deterministically. [`KdTree`] answers the queries every
@@ -377,15 +377,13 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
     /// Visit nodes whose subtree may hold points within `max_d2` (which the visitor
     /// may shrink), nearest side first. The visitor gets (index, record, dist2) for
     /// every used node inside the current radius and returns the new radius.
-    /// `bucketed`: search through the tree's [`Buckets`], if it has them; right
-    /// for searches that visit many photons (k nearest, all within a radius), not
-    /// for a search for one: the nearest photon with a similar normal ran 0.76-0.85x
-    /// the plain descent's throughput at 1M and 4M photons, since a bucket's 31
-    /// photons are all measured (`cargo bench -p pm-kdtree --bench kdtree`).
+    /// Through the tree's [`Buckets`] when it has them: this is the search of the
+    /// queries that visit many photons (k nearest, all within a radius); the
+    /// nearest-photon query descends node by node ([`KdTree::nearest_where`]).
     #[inline]
-    fn search(&self, x: Vec3, max_d2: f32, bucketed: bool, visit: impl Visit<R>) {
+    fn search(&self, x: Vec3, max_d2: f32, visit: impl Visit<R>) {
         match self.buckets {
-            Some(b) if bucketed && !b.is_empty() => self.search_buckets(b, x, max_d2, visit),
+            Some(b) if !b.is_empty() => self.search_buckets(b, x, max_d2, visit),
             _ => self.search_nodes::<false>(x, max_d2, visit),
         }
     }
@@ -510,7 +508,7 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         if k == 0 {
             return KnnResult { count: 0, max_dist2: 0.0 };
         }
-        self.search(x, max_d2, true, KnnVisit { heap: &mut scratch.heap, k, max_d2, filter });
+        self.search(x, max_d2, KnnVisit { heap: &mut scratch.heap, k, max_d2, filter });
         let heap = &scratch.heap;
         KnnResult { count: heap.len(), max_dist2: heap.peek().map_or(0.0, |&e| entry_d2(e)) }
     }
@@ -556,6 +554,9 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         loop {
             let pass_start = rejected.len();
             let mut best: Option<(u32, f32)> = None;
+            // Not through the buckets, which would measure all 31 photons of each:
+            // 0.76-0.85x the plain descent's throughput at 1M and 4M photons (`cargo
+            // bench -p pm-kdtree --bench kdtree`).
             self.search_nodes::<true>(
                 x,
                 max_d2,
@@ -609,7 +610,6 @@ impl<'a, R: PhotonRecord> KdTree<'a, R> {
         self.search(
             x,
             max_d2,
-            true,
             visiting(|i, r, d2| {
                 f(i, r, d2);
                 max_d2
