@@ -56,6 +56,67 @@ impl Fragment {
     }
 }
 
+/// What a pixel of the rasteriser's z-buffer holds while triangles are drawn: the
+/// nearest surface so far, by 1 / view depth (larger is nearer).
+trait Texel: Copy + Send + Sync {
+    /// The empty pixel.
+    const EMPTY: Self;
+    /// Whether the surface's barycentrics are kept (else they are computed only
+    /// for a see-through material's presence test).
+    const BARYCENTRICS: bool;
+    /// True when triangle `tri` at 1 / view depth `iz` is to replace what is held
+    /// (nearer; at equal depth, the lower id).
+    fn closer(&self, iz: f32, tri: u32) -> bool;
+    /// Hold triangle `tri` at barycentrics `b` and 1 / view depth `iz`.
+    fn set(&mut self, tri: u32, b: [f32; 3], iz: f32);
+    /// Turn the held 1 / view depth into the distance along the ray, `len` per unit
+    /// of view depth.
+    fn finish(&mut self, len: f32);
+}
+
+impl Texel for Option<Fragment> {
+    const EMPTY: Self = None;
+    const BARYCENTRICS: bool = true;
+    #[inline]
+    fn closer(&self, iz: f32, tri: u32) -> bool {
+        match self {
+            None => true,
+            Some(f) => iz > f.t || (iz == f.t && tri < f.tri),
+        }
+    }
+    #[inline]
+    fn set(&mut self, tri: u32, b: [f32; 3], iz: f32) {
+        *self = Some(Fragment { tri, b, t: iz });
+    }
+    #[inline]
+    fn finish(&mut self, len: f32) {
+        if let Some(f) = self {
+            f.t = len / f.t;
+        }
+    }
+}
+
+/// A shadow map's pixel: 1 / view depth of the nearest surface while drawing (0:
+/// none), then its distance \[m\] (infinite: none). Which triangle it is does not
+/// matter, so no barycentrics are interpolated and 4 bytes are written instead of
+/// a fragment's 24: a cube map took twice the eye's G-buffer's time.
+impl Texel for f32 {
+    const EMPTY: Self = 0.0;
+    const BARYCENTRICS: bool = false;
+    #[inline]
+    fn closer(&self, iz: f32, _: u32) -> bool {
+        iz > *self
+    }
+    #[inline]
+    fn set(&mut self, _: u32, _: [f32; 3], iz: f32) {
+        *self = iz;
+    }
+    #[inline]
+    fn finish(&mut self, len: f32) {
+        *self = if *self > 0.0 { len / *self } else { f32::INFINITY };
+    }
+}
+
 /// The first surface at each pixel centre of `rect` (row by row), or none.
 pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Fragment>> {
     let mut out = Vec::new();
@@ -65,6 +126,23 @@ pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Ve
 
 /// [`first_hits`] into `out`, reusing its memory (frames of a live view).
 pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<Option<Fragment>>) {
+    out.clear();
+    out.resize(rect.area(), None);
+    draw(scene, camera, film, rect, out);
+}
+
+/// The distance \[m\] along the ray through each pixel centre of `rect` to the
+/// first surface (infinite where none), appended to `out`: [`first_hits`]'s `t`
+/// without the fragments.
+pub fn depths_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<f32>) {
+    let start = out.len();
+    out.resize(start + rect.area(), f32::EMPTY);
+    draw(scene, camera, film, rect, &mut out[start..]);
+}
+
+/// Draw `rect` of `scene` seen by `camera` into `out` (empty texels, one a pixel,
+/// row by row).
+fn draw<T: Texel>(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut [T]) {
     let (w, h) = (film.width as f32, film.height as f32);
     let aspect = w / h;
     let tan_y = (0.5 * camera.yfov).tan();
@@ -107,21 +185,17 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
     // view depth (u, v: the centre on the image plane at depth 1), split by column and row.
     let plane = |i: u32, n: f32, tan: f32| ((2.0 * (i as f32 + 0.5) / n - 1.0) * tan).powi(2);
     let col2: Vec<f32> = (rect.x0..rect.x1).map(|x| plane(x, w, tan_x)).collect();
-    out.clear();
-    out.resize(rect.area(), None);
     out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
         let by0 = rect.y0 + band as u32 * BAND;
         let by1 = (by0 + BAND).min(rect.y1);
-        // While drawing, a fragment's `t` holds 1 / view depth of the surface.
+        // While drawing, a texel holds 1 / view depth of the surface.
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
             raster_tri(scene, st, rect, by0, by1, chunk);
         }
         for (row, y) in chunk.chunks_mut(rw).zip(by0..by1) {
             let row2 = plane(y, h, tan_y);
             for (slot, c2) in row.iter_mut().zip(&col2) {
-                if let Some(f) = slot {
-                    f.t = (1.0 + c2 + row2).sqrt() / f.t;
-                }
+                slot.finish((1.0 + c2 + row2).sqrt());
             }
         }
     });
@@ -130,7 +204,7 @@ pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, 
 /// Rasterise one screen triangle into the band [by0, by1) of rows: keep, per pixel
 /// centre, the nearest surface (largest 1 / view depth, held in the fragment's `t`
 /// while drawing; ties to the lower triangle id) that is there ([`Scene::present`]).
-fn raster_tri(scene: &Scene, st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [Option<Fragment>]) {
+fn raster_tri<T: Texel>(scene: &Scene, st: &ScreenTri, rect: Rect, by0: u32, by1: u32, band: &mut [T]) {
     let [a, b, c] = st.s;
     let area = (b - a).perp_dot(c - a);
     if !(area.abs() > 0.0) || !area.is_finite() {
@@ -162,17 +236,16 @@ fn raster_tri(scene: &Scene, st: &ScreenTri, rect: Rect, by0: u32, by1: u32, ban
                 continue;
             }
             let slot = &mut band[row + (x - rect.x0) as usize];
-            let closer = match slot {
-                None => true,
-                Some(f) => iz > f.t || (iz == f.t && st.tri < f.tri),
-            };
-            if closer {
-                let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) / iz;
-                let bc = (st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z).to_array();
-                if st.alpha && !scene.present(st.tri, bc) {
-                    continue;
+            if slot.closer(iz, st.tri) {
+                let mut bc = [0.0; 3];
+                if T::BARYCENTRICS || st.alpha {
+                    let wts = Vec3::new(l0 * st.inv_z[0], l1 * st.inv_z[1], l2 * st.inv_z[2]) / iz;
+                    bc = (st.b[0] * wts.x + st.b[1] * wts.y + st.b[2] * wts.z).to_array();
+                    if st.alpha && !scene.present(st.tri, bc) {
+                        continue;
+                    }
                 }
-                *slot = Some(Fragment { tri: st.tri, b: bc, t: iz });
+                slot.set(st.tri, bc, iz);
             }
         }
     }
@@ -234,11 +307,9 @@ impl CubeDepth {
         let faces = CUBE_FACES;
         let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
         let mut depth = Vec::with_capacity(6 * (res * res) as usize);
-        let mut frags = Vec::new();
         for &(forward, right, up) in &faces {
             let cam = Camera { position, forward, up, right, yfov: std::f32::consts::FRAC_PI_2, aspect: Some(1.0) };
-            first_hits_into(scene, &cam, &film, Rect::full(&film), &mut frags);
-            depth.extend(frags.iter().map(|f| f.map_or(f32::INFINITY, |f| f.t)));
+            depths_into(scene, &cam, &film, Rect::full(&film), &mut depth);
         }
         CubeDepth { position, res, faces, depth }
     }
