@@ -154,7 +154,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             for v in world_of(origin, p.to_array()) {
                 bytes.extend_from_slice(&v.to_le_bytes());
             }
-            bytes.extend((0..3).map(|k| (pm_color::srgb_encode(c[k]) * 255.0 + 0.5) as u8));
+            bytes.extend((0..3).map(|k| pm_color::srgb8(c[k])));
         }
         pm_format::write_atomically(ply, |w| w.write_all(&bytes))
             .with_context(|| format!("{}: cannot write", ply.display()))?;

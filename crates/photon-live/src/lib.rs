@@ -188,7 +188,8 @@ pub fn run(cli: &Cli) -> Result<Report> {
         let s = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let image = live.frame_layers();
         let total = image.layer("total").context("no total layer")?;
-        pm_image::write_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, total, cli.params.exposure)?;
+        let bytes = pm_image::srgb8(total, cli.params.exposure);
+        pm_image::write_srgb8_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, &bytes)?;
         if cli.exr {
             let layers = pm_image::Layers {
                 width: w,
@@ -200,7 +201,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         if cli.dump_frame == Some(f as u64) {
             dump(&live, content_hash, diagonal, origin, &out.join(format!("buffer-{f}.pmap")))?;
         }
-        apng.push(pm_image::srgb8(total, cli.params.exposure));
+        apng.push(bytes);
         stats.push(s);
         progress.set(f as u64 + 1);
         if let Some(v) = view.as_mut() {

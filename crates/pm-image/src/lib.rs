@@ -6,6 +6,7 @@
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// A linear-radiance image with named layers; row 0 is the top row.
@@ -222,14 +223,28 @@ pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure
 /// 8-bit sRGB bytes (R, G, B per pixel) of linear radiance times 2^exposure.
 pub fn srgb8(pixels: &[Vec3], exposure: f32) -> Vec<u8> {
     let scale = 2f32.powf(exposure);
-    pixels.iter().flat_map(|p| (0..3).map(move |c| (pm_color::srgb_encode(p[c] * scale) * 255.0 + 0.5) as u8)).collect()
+    let mut bytes = vec![0u8; 3 * pixels.len()];
+    bytes.par_chunks_mut(3 * 4096).zip(pixels.par_chunks(4096)).for_each(|(out, px)| {
+        for (o, p) in out.chunks_exact_mut(3).zip(px) {
+            for c in 0..3 {
+                o[c] = pm_color::srgb8(p[c] * scale);
+            }
+        }
+    });
+    bytes
 }
 
 /// [`write_png`] with fast compression (fdeflate), for frames written many per
 /// second and previews of a render's EXR: about 20% larger files, 8x less encoding
 /// time (0.04 against 0.28 s at 1024 x 1024).
 pub fn write_png_fast(path: &Path, width: u32, height: u32, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    write_frames(path, width, height, &[srgb8(pixels, exposure)], None, png::Compression::Fast)
+    write_srgb8_png_fast(path, width, height, &srgb8(pixels, exposure))
+}
+
+/// [`write_png_fast`] of bytes [`srgb8`] made already (a live run keeps each frame's
+/// bytes for the animated PNG too).
+pub fn write_srgb8_png_fast(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
+    write_frames(path, width, height, &[bytes], None, png::Compression::Fast)
 }
 
 /// Write an animated PNG of `frames` (each [`srgb8`] bytes of `width` x `height`),
@@ -262,7 +277,7 @@ fn write_frames(
     path: &Path,
     width: u32,
     height: u32,
-    frames: &[Vec<u8>],
+    frames: &[impl AsRef<[u8]>],
     fps: Option<f32>,
     compression: png::Compression,
 ) -> Result<()> {
@@ -279,7 +294,7 @@ fn write_frames(
         }
         let mut w = enc.write_header()?;
         for f in frames {
-            w.write_image_data(f)?;
+            w.write_image_data(f.as_ref())?;
         }
         w.finish()?;
         Ok(buf)
