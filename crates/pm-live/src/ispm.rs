@@ -9,7 +9,7 @@
 //!
 //! Units: power W per RGB channel, radiance W sr^-1 m^-2, lengths m.
 
-use crate::splat::{self, GBuffer, PhotonIndex, SplatOutput, Surface, VolumePhoton};
+use crate::splat::{self, GBuffer, PhotonIndex, Seen, SplatOutput, Surface, VolumePhoton};
 use crate::{LiveParams, LiveShading};
 use glam::Vec3;
 use pm_color::Rgb;
@@ -18,6 +18,7 @@ use pm_render::{Film, FrameBuffers, Rect, Visibility};
 use pm_sampling::Sampler;
 use pm_scene::{Camera, LightKind, Scene};
 use rayon::prelude::*;
+use std::f32::consts::PI;
 use std::time::Instant;
 
 /// Scattering events a photon path may take after its first bounce before it is cut
@@ -346,7 +347,19 @@ pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) 
 /// G-buffer is tens of megabytes; faulting it back in every frame showed in the
 /// profile).
 pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut GBuffer) {
-    out.fill(fragments.len(), |j| surface_at(scene, &fragments[j], camera));
+    out.fill(fragments.len(), |j| {
+        let Some(f) = &fragments[j] else { return Seen::Nothing };
+        // Most pixels see a plain Lambertian surface: the point, its normal and
+        // albedo are all the splat reads, and building the hit record and BSDF for
+        // them took most of this pass (the full path gives the same values).
+        match scene.plain_lambert(f.tri, f.b) {
+            Some((p, ns, rho)) => {
+                let wo = (camera.position - p).normalize_or(ns);
+                Seen::Lambert { p, n: pm_render::facing(ns, wo), albedo_pi: rho / PI }
+            }
+            None => surface_at(scene, &fragments[j], camera).into(),
+        }
+    });
 }
 
 fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Option<Surface> {

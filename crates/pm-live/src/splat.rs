@@ -138,10 +138,11 @@ const LAMBERT: u32 = u32::MAX - 1;
 impl Pixel {
     const NONE: Pixel = Pixel { p: Vec3::ZERO, n: Vec3::ZERO, albedo_pi: Rgb::ZERO, kind: EMPTY };
 
-    fn of(s: &Option<Surface>) -> Pixel {
-        match s {
-            None => Pixel::NONE,
-            Some(s) => Pixel {
+    fn of(s: &Seen) -> Pixel {
+        match *s {
+            Seen::Nothing => Pixel::NONE,
+            Seen::Lambert { p, n, albedo_pi } => Pixel { p, n, albedo_pi, kind: LAMBERT },
+            Seen::Surface(s) => Pixel {
                 p: s.p,
                 n: s.n,
                 albedo_pi: s.lambert.unwrap_or_else(|| s.bsdf.diffuse_albedo() / PI),
@@ -151,17 +152,42 @@ impl Pixel {
     }
 }
 
+/// What the splat sees at a pixel, as a G-buffer's maker gives it.
+#[derive(Clone, Copy, Debug)]
+pub enum Seen {
+    /// No surface photons can be splatted on (nothing seen, or a mirror or glass).
+    Nothing,
+    /// A Lambertian point (what [`Seen::Surface`] of a Lambertian surface keeps,
+    /// without its BSDF and view direction).
+    Lambert {
+        /// Position \[m\].
+        p: Vec3,
+        /// Unit shading normal toward the viewer.
+        n: Vec3,
+        /// Albedo / π \[sr^-1\].
+        albedo_pi: Rgb,
+    },
+    /// Any surface.
+    Surface(Surface),
+}
+
+impl From<Option<Surface>> for Seen {
+    fn from(s: Option<Surface>) -> Seen {
+        s.map_or(Seen::Nothing, Seen::Surface)
+    }
+}
+
 impl GBuffer {
     /// The G-buffer of `surfaces`.
     pub fn from_surfaces(surfaces: &[Option<Surface>]) -> GBuffer {
         let mut g = GBuffer::default();
-        g.fill(surfaces.len(), |j| surfaces[j]);
+        g.fill(surfaces.len(), |j| surfaces[j].into());
         g
     }
 
-    /// Refill with `n` pixels, pixel j's surface being `surface(j)` (in parallel,
+    /// Refill with `n` pixels, what pixel j sees being `seen(j)` (in parallel,
     /// reusing the memory).
-    pub fn fill(&mut self, n: usize, surface: impl Fn(usize) -> Option<Surface> + Sync) {
+    pub fn fill(&mut self, n: usize, seen: impl Fn(usize) -> Seen + Sync) {
         const CHUNK: usize = 4096;
         self.pixels.resize(n, Pixel::NONE);
         let others: Vec<Vec<(usize, Surface)>> = self
@@ -171,9 +197,9 @@ impl GBuffer {
             .map(|(c, chunk)| {
                 let mut others = Vec::new();
                 for (i, px) in chunk.iter_mut().enumerate() {
-                    let s = surface(c * CHUNK + i);
+                    let s = seen(c * CHUNK + i);
                     *px = Pixel::of(&s);
-                    if let Some(s) = s
+                    if let Seen::Surface(s) = s
                         && px.kind == 0
                     {
                         others.push((c * CHUNK + i, s));

@@ -424,3 +424,67 @@ fn instanced_meshes_load_once_and_place_every_instance() {
         assert!(ta.tangent.is_some() && ta.uv.is_some(), "normal-mapped meshes carry tangents");
     }
 }
+
+/// Every point `Scene::plain_lambert` answers for gets exactly the hit record's
+/// position and shading normal and the BSDF's reflectance there; a surface it
+/// declines must not be plain (constant Lambertian, no vertex colours, no normal
+/// map). Returns how many points it answered for and how many it declined.
+fn check_plain_lambert(s: &pm_scene::Scene, name: &str) -> (usize, usize) {
+    let (mut plain, mut other) = (0, 0);
+    for tri in 0..s.triangles.len() as u32 {
+        for b in [[1.0 / 3.0; 3], [0.7, 0.2, 0.1], [0.05, 0.05, 0.9]] {
+            let hit = s.make_hit(tri, 1.0, b);
+            let bsdf = s.bsdf(&hit);
+            match s.plain_lambert(tri, b) {
+                Some((p, ns, rho)) => {
+                    plain += 1;
+                    assert_eq!((p, ns), (hit.p, hit.ns), "{name} triangle {tri}");
+                    assert!(matches!(bsdf, pm_bsdf::Bsdf::Lambert { rho: r } if r == rho), "{name} {tri}: {bsdf:?}");
+                }
+                None => {
+                    other += 1;
+                    let t = &s.triangles[tri as usize];
+                    let m = &s.materials[t.material as usize];
+                    let plain_material = matches!(m.bsdf, pm_bsdf::Bsdf::Lambert { .. })
+                        && m.base_texture.is_none()
+                        && t.color.is_none()
+                        && m.normal_texture.is_none();
+                    assert!(!plain_material, "{name} triangle {tri} is plain Lambertian but was declined");
+                }
+            }
+        }
+    }
+    (plain, other)
+}
+
+/// `Scene::plain_lambert`, the G-buffer's shortcut, on scenes as written and on one
+/// whose Lambertian surfaces are given vertex colours and normal maps (which it must
+/// decline: both change the hit record or the BSDF).
+#[test]
+fn plain_lambert_equals_the_hit_record_and_bsdf() {
+    let scenes = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let (mut plain, mut other) = (0, 0);
+    for name in ["cornell_dense.gltf", "materials.gltf", "jozwowski_room_64.gltf"] {
+        let s = load(&scenes.join(name)).unwrap_or_else(|e| panic!("{e}"));
+        let (p, o) = check_plain_lambert(&s, name);
+        (plain, other) = (plain + p, other + o);
+    }
+    assert!(plain > 1000 && other > 1000, "{plain} plain, {other} other");
+    // Vertex colours on every other triangle, a normal map (tangents) on the rest.
+    let mut s = load(&scenes.join("cornell_dense.gltf")).unwrap_or_else(|e| panic!("{e}"));
+    s.textures.push(pm_scene::Texture::new(1, 1, vec![[200, 128, 255, 255]], false));
+    let bumps =
+        pm_scene::TextureRef { texture: s.textures.len() as u32 - 1, uv_set: 0, transform: glam::Affine2::IDENTITY };
+    for m in &mut s.materials {
+        m.normal_texture = Some(bumps);
+    }
+    for (i, t) in s.triangles.iter_mut().enumerate() {
+        if i % 2 == 0 {
+            t.color = Some([glam::Vec4::new(0.5, 0.7, 0.9, 1.0); 3]);
+        } else {
+            t.tangent = Some([(t.p[1] - t.p[0]).normalize().extend(1.0); 3]);
+        }
+    }
+    let (p, o) = check_plain_lambert(&s, "cornell_dense, coloured and normal-mapped");
+    assert!(p == 0 && o > 1000, "{p} plain, {o} other");
+}
