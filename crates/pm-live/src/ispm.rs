@@ -382,6 +382,8 @@ pub struct IspmScratch {
     full: splat::SplatScratch,
     /// The subsampled splat of the soft indirect photons.
     low: splat::SplatScratch,
+    /// The G-buffer it is splatted over.
+    low_gbuffer: GBuffer,
     /// Its upsampled radiance.
     up: Vec<Rgb>,
 }
@@ -428,7 +430,7 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let IspmScratch { gbuffer, full, low, up } = scratch;
+    let IspmScratch { gbuffer, full, low, low_gbuffer, up } = scratch;
     gbuffer_into(scene, fragments, camera, gbuffer);
     let gbuffer = &*gbuffer;
     let (w, h, f) = (p.width, p.height, p.subsample);
@@ -445,11 +447,12 @@ pub fn frame(
         // were 130% off at f = 2 (`cargo bench -p pm-live --bench ispm`).
         let (caustic_photons, soft): (Vec<VolumePhoton>, Vec<VolumePhoton>) = photons.iter().partition(|q| q.caustic);
         splat::splat_into(&caustic_photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
-        let low_gb = gbuffer.subsample(w, h, f);
-        splat::splat_into(&soft, &low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
+        gbuffer.subsample_into(w, h, f, low_gbuffer);
+        let low_gb = &*low_gbuffer;
+        splat::splat_into(&soft, low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        splat::upsample_into(&low.indirect, &low_gb, gbuffer, camera.position, (w, h, f), true, up);
+        splat::upsample_into(&low.indirect, low_gb, gbuffer, camera.position, (w, h, f), true, up);
         buffers.add_to_layer("indirect", up);
         (t_splat, t.elapsed().as_secs_f64())
     };

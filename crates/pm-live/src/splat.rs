@@ -219,22 +219,29 @@ impl GBuffer {
     /// the centre of each `factor` x `factor` block (clamped to the image), row by
     /// row (section 5.2).
     pub fn subsample(&self, w: u32, h: u32, factor: u32) -> GBuffer {
+        let mut out = GBuffer::default();
+        self.subsample_into(w, h, factor, &mut out);
+        out
+    }
+
+    /// [`GBuffer::subsample`] into `out`, reusing its memory (rows in parallel).
+    pub fn subsample_into(&self, w: u32, h: u32, factor: u32, out: &mut GBuffer) {
         let f = factor.max(1);
         let (lw, lh) = (w.div_ceil(f), h.div_ceil(f));
-        let mut out = GBuffer::default();
-        out.pixels = (0..lw * lh)
-            .map(|j| {
-                let x = ((j % lw) * f + f / 2).min(w - 1);
-                let y = ((j / lw) * f + f / 2).min(h - 1);
-                let mut px = self.pixels[(y * w + x) as usize];
-                if px.kind < LAMBERT {
-                    out.others.push(self.others[px.kind as usize]);
-                    px.kind = out.others.len() as u32 - 1;
-                }
-                px
-            })
-            .collect();
-        out
+        out.pixels.resize((lw * lh) as usize, Pixel::NONE);
+        out.pixels.par_chunks_mut(lw as usize).enumerate().for_each(|(ly, row)| {
+            let y = (ly as u32 * f + f / 2).min(h - 1);
+            for (lx, px) in row.iter_mut().enumerate() {
+                let x = (lx as u32 * f + f / 2).min(w - 1);
+                *px = self.pixels[(y * w + x) as usize];
+            }
+        });
+        // The few non-Lambertian samples, renumbered in pixel order.
+        out.others.clear();
+        for px in out.pixels.iter_mut().filter(|px| px.kind < LAMBERT) {
+            out.others.push(self.others[px.kind as usize]);
+            px.kind = out.others.len() as u32 - 1;
+        }
     }
 }
 
@@ -485,9 +492,15 @@ pub fn splat_into(
     indirect.par_chunks_mut(band).zip(caustic.par_chunks_mut(band)).enumerate().for_each(|(ty, (ind, cau))| {
         let ty = ty as u32;
         let (py0, py1) = (ty * TILE, ((ty + 1) * TILE).min(h));
+        let tiles = &bins[(ty * tw) as usize..((ty + 1) * tw) as usize];
+        if tiles.iter().all(Vec::is_empty) {
+            // No photon reaches this band: its rows stay zero (most bands of a
+            // full-resolution caustic splat, which then need no reflectance pass).
+            return;
+        }
         for tx in 0..tw {
             let (px0, px1) = (tx * TILE, ((tx + 1) * TILE).min(w));
-            for &i in &bins[(ty * tw + tx) as usize] {
+            for &i in &tiles[tx as usize] {
                 let ph = &photons[i as usize];
                 let form = ph.kernel_form();
                 let [x0, y0, x1, y1] = rects[i as usize].expect("binned photons have a rectangle");
