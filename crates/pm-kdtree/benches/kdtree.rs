@@ -2,7 +2,7 @@
 //! (ImmutableKdTree) and brute force, on photon maps traced in cornell_spheres and
 //! on clustered synthetic points. Prints a markdown table for BENCHMARKS.md.
 //!
-//! Run: `cargo bench -p pm-kdtree --bench kdtree`
+//! Run: `cargo bench -p pm-kdtree --bench kdtree` (`-- build`: build times only)
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -64,7 +64,43 @@ fn best_of<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     (best, out.unwrap())
 }
 
+/// `-- build`: build times alone, ours and kiddo's alternated `REPS` times on each
+/// set (both take milliseconds, and one timing of either varies by a third).
+fn builds_only() {
+    const REPS: usize = 15;
+    println!("threads: {}", rayon::current_num_threads());
+    println!(
+        "| data | photons | build ours, median (best) [ms] | build kiddo, median (best) [ms] | ours/kiddo, medians |"
+    );
+    println!("|---|---|---|---|---|");
+    for n in [100_000u64, 1_000_000, 4_000_000] {
+        for (name, recs) in [("cornell_spheres", real_photons(n, 1)), ("clustered", clustered(n))] {
+            let positions: Vec<[f32; 3]> = recs.iter().map(|r| r.position().to_array()).collect();
+            let (mut ours, mut kiddo) = (Vec::new(), Vec::new());
+            for _ in 0..REPS {
+                ours.push(best_of(1, || balance(&recs)).0);
+                kiddo.push(best_of(1, || ImmutableKdTree::<f32, 3>::new_from_slice(&positions).unwrap()).0);
+            }
+            for v in [&mut ours, &mut kiddo] {
+                v.sort_by(f64::total_cmp);
+            }
+            let (mo, mk) = (ours[REPS / 2], kiddo[REPS / 2]);
+            println!(
+                "| {name} | {n} | {:.2} ({:.2}) | {:.2} ({:.2}) | {:.2} |",
+                1e3 * mo,
+                1e3 * ours[0],
+                1e3 * mk,
+                1e3 * kiddo[0],
+                mo / mk
+            );
+        }
+    }
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "build") {
+        return builds_only();
+    }
     println!("threads: {}", rayon::current_num_threads());
     println!(
         "| data | photons | build ours [s] | of which buckets [s] | build kiddo [s] | build ours/kiddo | 50-NN ours [q/s] | 50-NN without buckets [q/s] | 50-NN kiddo [q/s] | ours/kiddo | nearest-with-normal ours [q/s] | rank 1 / 2 / 3+ | brute-force 50-NN [q/s] |"
