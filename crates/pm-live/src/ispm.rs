@@ -351,7 +351,11 @@ pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Came
         let Some(f) = &fragments[j] else { return Seen::Nothing };
         // Most pixels see a plain Lambertian surface: the point, its normal and
         // albedo are all the splat reads, and building the hit record and BSDF for
-        // them took most of this pass (the full path gives the same values).
+        // them took most of this pass (the full path gives the same values). Mirror
+        // and glass pixels are known from the material alone.
+        if scene.uniform_bsdf(f.tri).is_some_and(|b| b.is_specular()) {
+            return Seen::Nothing;
+        }
         match scene.plain_lambert(f.tri, f.b) {
             Some((p, ns, rho)) => {
                 let wo = (camera.position - p).normalize_or(ns);

@@ -1007,13 +1007,22 @@ impl Scene {
     #[inline]
     pub fn plain_lambert(&self, tri: u32, b: [f32; 3]) -> Option<(Vec3, Vec3, Rgb)> {
         let tr = &self.triangles[tri as usize];
-        let m = &self.materials[tr.material as usize];
-        let Bsdf::Lambert { rho } = m.bsdf else { return None };
-        if m.varies() || tr.color.is_some() || (m.normal_texture.is_some() && tr.tangent.is_some()) {
+        let Some(Bsdf::Lambert { rho }) = self.uniform_bsdf(tri) else { return None };
+        if self.materials[tr.material as usize].normal_texture.is_some() && tr.tangent.is_some() {
             return None;
         }
         let (p, ns) = tr.point_normal(b);
         Some((p, if ns.dot(tr.ng) < 0.0 { -ns } else { ns }, rho))
+    }
+
+    /// The BSDF at every point of triangle `tri` when it is the same everywhere (a
+    /// material without textures or partial transmission, and no vertex colours):
+    /// what [`Scene::bsdf`] gives at any hit on it, without a hit record.
+    #[inline]
+    pub fn uniform_bsdf(&self, tri: u32) -> Option<Bsdf> {
+        let tr = &self.triangles[tri as usize];
+        let m = &self.materials[tr.material as usize];
+        (!m.varies() && tr.color.is_none()).then_some(m.bsdf)
     }
 
     /// Alpha at barycentrics `b` of triangle `tri`: baseColorFactor's alpha times the

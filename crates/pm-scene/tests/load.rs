@@ -426,8 +426,9 @@ fn instanced_meshes_load_once_and_place_every_instance() {
 }
 
 /// Every point `Scene::plain_lambert` answers for gets exactly the hit record's
-/// position and shading normal and the BSDF's reflectance there; a surface it
-/// declines must not be plain (constant Lambertian, no vertex colours, no normal
+/// position and shading normal and the BSDF's reflectance there, and every
+/// triangle `Scene::uniform_bsdf` answers for the BSDF at its hits; a surface
+/// `plain_lambert` declines must not be plain (constant Lambertian, no vertex colours, no normal
 /// map). Returns how many points it answered for and how many it declined.
 fn check_plain_lambert(s: &pm_scene::Scene, name: &str) -> (usize, usize) {
     let (mut plain, mut other) = (0, 0);
@@ -435,6 +436,9 @@ fn check_plain_lambert(s: &pm_scene::Scene, name: &str) -> (usize, usize) {
         for b in [[1.0 / 3.0; 3], [0.7, 0.2, 0.1], [0.05, 0.05, 0.9]] {
             let hit = s.make_hit(tri, 1.0, b);
             let bsdf = s.bsdf(&hit);
+            if let Some(u) = s.uniform_bsdf(tri) {
+                assert_eq!(u, bsdf, "{name} triangle {tri}: uniform BSDF");
+            }
             match s.plain_lambert(tri, b) {
                 Some((p, ns, rho)) => {
                     plain += 1;
