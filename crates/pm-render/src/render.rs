@@ -266,9 +266,13 @@ impl FrameBuffers {
                 .into_par_iter()
                 .for_each(|(t, l, v)| {
                     for ((t, l), v) in t.iter_mut().zip(l).zip(v) {
-                        let v = clean(v);
-                        *t += v;
-                        *l += v;
+                        // Most of a layer of caustics is zero: those pixels' cache
+                        // lines of the two layers are then neither read nor written.
+                        if *v != Rgb::ZERO {
+                            let v = clean(v);
+                            *t += v;
+                            *l += v;
+                        }
                     }
                 });
         }
