@@ -388,8 +388,6 @@ pub struct IspmScratch {
     low: splat::SplatScratch,
     /// The G-buffer it is splatted over.
     low_gbuffer: GBuffer,
-    /// Its upsampled radiance.
-    up: Vec<Rgb>,
 }
 
 /// Draw one image-space frame of `scene` seen by `camera` into `buffers` (layers
@@ -434,7 +432,7 @@ pub fn frame(
     )?;
     let t_direct = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let IspmScratch { gbuffer, full, low, low_gbuffer, up } = scratch;
+    let IspmScratch { gbuffer, full, low, low_gbuffer } = scratch;
     gbuffer_into(scene, fragments, camera, gbuffer);
     let gbuffer = &*gbuffer;
     let (w, h, f) = (p.width, p.height, p.subsample);
@@ -456,8 +454,8 @@ pub fn frame(
         splat::splat_into(&soft, low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        splat::upsample_into(&low.indirect, low_gb, gbuffer, camera.position, (w, h, f), true, up);
-        buffers.add_to_layer("indirect", up);
+        let up = splat::Upsample::new(&low.indirect, low_gb, gbuffer, camera.position, (w, h, f), true);
+        buffers.add_rows_to_layer("indirect", w as usize, |y, row| up.row(y, row));
         (t_splat, t.elapsed().as_secs_f64())
     };
     buffers.add_to_layer("caustic", &full.caustic);

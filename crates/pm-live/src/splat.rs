@@ -338,35 +338,69 @@ impl VolumePhoton {
 /// (max(0, n·n')^8) and depth agreement (1 / (1 + (Δd / 0.05 d)^2)), normalised;
 /// with no usable sample around it takes none (zero). With `reflect`, the result is
 /// multiplied by the pixel's diffuse albedo / π (irradiance in, Lambertian radiance
-/// out). Written into `out`, reusing its memory.
-pub fn upsample_into(
-    low: &[Rgb],
-    low_gbuffer: &GBuffer,
-    gbuffer: &GBuffer,
+/// out). Made row by row ([`Upsample::row`]), so a frame adds each row to its
+/// layers as it is made instead of writing and reading back a full-resolution
+/// image (25 MB at 1920 x 1080).
+pub struct Upsample<'a> {
+    low: &'a [Rgb],
+    low_px: &'a [Pixel],
+    px: &'a [Pixel],
+    /// Distance of each low-resolution sample from the camera \[m\].
+    low_depth: Vec<f32>,
     camera_position: Vec3,
-    (w, h, factor): (u32, u32, u32),
+    /// Full-resolution width, low-resolution width and height, and the factor.
+    w: u32,
+    lw: u32,
+    lh: u32,
+    f: u32,
     reflect: bool,
-    out: &mut Vec<Rgb>,
-) {
-    let f = factor.max(1);
-    let (lw, lh) = (w.div_ceil(f), h.div_ceil(f));
-    let (low_px, px) = (&low_gbuffer.pixels, &gbuffer.pixels);
-    let low_depth: Vec<f32> = low_px.iter().map(|q| (q.p - camera_position).length()).collect();
-    out.resize((w * h) as usize, Rgb::ZERO);
-    out.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+}
+
+impl<'a> Upsample<'a> {
+    /// The upsampling of `low` (over `low_gbuffer`, [`GBuffer::subsample`] of
+    /// `gbuffer` by `factor`) to the `w` x `h` pixels of `gbuffer` seen from
+    /// `camera_position`.
+    pub fn new(
+        low: &'a [Rgb],
+        low_gbuffer: &'a GBuffer,
+        gbuffer: &'a GBuffer,
+        camera_position: Vec3,
+        (w, h, factor): (u32, u32, u32),
+        reflect: bool,
+    ) -> Upsample<'a> {
+        let f = factor.max(1);
+        let low_px = &low_gbuffer.pixels;
+        let low_depth = low_px.par_iter().map(|q| (q.p - camera_position).length()).collect();
+        Upsample {
+            low,
+            low_px,
+            px: &gbuffer.pixels,
+            low_depth,
+            camera_position,
+            w,
+            lw: w.div_ceil(f),
+            lh: h.div_ceil(f),
+            f,
+            reflect,
+        }
+    }
+
+    /// Row `y` (`w` values) into `row`.
+    pub fn row(&self, y: usize, row: &mut [Rgb]) {
+        let (f, w, lw, lh) = (self.f, self.w, self.lw, self.lh);
         let fy = (y as f32 - (f / 2) as f32) / f as f32;
         let iy = fy.floor();
         let ay = fy - iy;
         for (x, o) in row.iter_mut().enumerate() {
             *o = Rgb::ZERO;
-            let s = &px[y * w as usize + x];
+            let s = &self.px[y * w as usize + x];
             if s.kind == EMPTY {
                 continue;
             }
             let fx = (x as f32 - (f / 2) as f32) / f as f32;
             let ix = fx.floor();
             let ax = fx - ix;
-            let depth = (s.p - camera_position).length();
+            let depth = (s.p - self.camera_position).length();
             let inv_sigma = 1.0 / (0.05 * depth).max(1e-6);
             let mut sum = Rgb::ZERO;
             let mut wsum = 0.0f32;
@@ -378,21 +412,28 @@ pub fn upsample_into(
                     continue;
                 }
                 let k = (sy as u32 * lw + sx as u32) as usize;
-                let q = &low_px[k];
+                let q = &self.low_px[k];
                 if q.kind == EMPTY {
                     continue;
                 }
                 let c = s.n.dot(q.n).max(0.0);
-                let (c2, r) = (c * c, (low_depth[k] - depth) * inv_sigma);
+                let (c2, r) = (c * c, (self.low_depth[k] - depth) * inv_sigma);
                 let wgt = wb.max(1e-4) * (c2 * c2) * (c2 * c2) / (1.0 + r * r);
-                sum += low[k] * wgt;
+                sum += self.low[k] * wgt;
                 wsum += wgt;
             }
             if wsum > 1e-8 {
-                *o = if reflect { sum * s.albedo_pi / wsum } else { sum / wsum };
+                *o = if self.reflect { sum * s.albedo_pi / wsum } else { sum / wsum };
             }
         }
-    });
+    }
+
+    /// The whole image, row 0 at the top.
+    pub fn image(&self, h: u32) -> Vec<Rgb> {
+        let mut out = vec![Rgb::ZERO; (self.w * h) as usize];
+        out.par_chunks_mut(self.w as usize).enumerate().for_each(|(y, row)| self.row(y, row));
+        out
+    }
 }
 
 /// What the splat adds up per pixel.

@@ -330,3 +330,46 @@ fn area_light_shadow_maps_agree_with_shadow_rays() {
         }
     }
 }
+
+/// Joint bilateral upsampling (section 5.2) keeps a depth edge: a near plane (1 m)
+/// and a far one (3 m) side by side, each plane's subsampled values constant (1 and
+/// 5). Every full-resolution pixel takes its own plane's value within 1%; bilinear
+/// weights alone would give 3 at the edge. Where a pixel's four samples all lie on
+/// its plane the value is exact, and an empty pixel stays zero.
+#[test]
+fn upsampling_keeps_depth_edges() {
+    let (w, h, f) = (16u32, 8u32, 2u32);
+    let camera = glam::Vec3::ZERO;
+    let near = |x: u32| x < 7;
+    let surfaces: Vec<Option<Surface>> = (0..w * h)
+        .map(|j| {
+            let (x, y) = (j % w, j / w);
+            if (x, y) == (3, 3) {
+                return None;
+            }
+            let z = if near(x) { -1.0 } else { -3.0 };
+            let p = glam::Vec3::new(x as f32 * 0.01, y as f32 * 0.01, z);
+            Some(Surface::new(p, glam::Vec3::Z, -p.normalize(), pm_bsdf::Bsdf::Lambert { rho: Rgb::splat(0.5) }))
+        })
+        .collect();
+    let gb = splat::GBuffer::from_surfaces(&surfaces);
+    let low_gb = gb.subsample(w, h, f);
+    // The low samples sit at the centre of each 2 x 2 block: column 2 lx + 1.
+    let (lw, lh) = (w / f, h / f);
+    let low: Vec<Rgb> = (0..lw * lh).map(|k| Rgb::splat(if near((k % lw) * f + f / 2) { 1.0 } else { 5.0 })).collect();
+    let up = splat::Upsample::new(&low, &low_gb, &gb, camera, (w, h, f), false).image(h);
+    for y in 0..h {
+        for x in 0..w {
+            let v = up[(y * w + x) as usize];
+            if (x, y) == (3, 3) {
+                assert_eq!(v, Rgb::ZERO, "the empty pixel");
+                continue;
+            }
+            let want = if near(x) { 1.0 } else { 5.0 };
+            assert!((v.x - want).abs() <= 0.01 * want, "pixel ({x}, {y}): {v} against {want}");
+            if (2..5).contains(&x) || (9..14).contains(&x) {
+                assert!((v.x - want).abs() <= 1e-6 * want, "pixel ({x}, {y}) inside a plane: {v}");
+            }
+        }
+    }
+}

@@ -239,6 +239,26 @@ pub struct FrameBuffers {
     layers: [Vec<Rgb>; 5],
 }
 
+/// A value as a layer takes it: not finite or negative adds nothing.
+#[inline]
+fn clean(v: Rgb) -> Rgb {
+    if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO }
+}
+
+/// Add `values` to a layer `l` and to the total `t`. Most of a layer of caustics
+/// is zero: those pixels' cache lines of the two layers are neither read nor
+/// written.
+#[inline]
+fn add_to_both(t: &mut [Rgb], l: &mut [Rgb], values: &[Rgb]) {
+    for ((t, l), v) in t.iter_mut().zip(l).zip(values) {
+        if *v != Rgb::ZERO {
+            let v = clean(*v);
+            *t += v;
+            *l += v;
+        }
+    }
+}
+
 impl FrameBuffers {
     /// The layer called `name` of the last region rendered into these buffers.
     pub fn layer(&self, name: &str) -> Option<&[Rgb]> {
@@ -252,30 +272,37 @@ impl FrameBuffers {
         let Some(k) = LAYERS.iter().position(|&n| n == name) else { return };
         let [total, rest @ ..] = &mut self.layers;
         let n = total.len().min(values.len());
-        let clean = |v: &Rgb| if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO };
         // In parallel: a 1920 x 1080 frame's layers are 25 MB each.
         const CHUNK: usize = 1 << 14;
         let values = &values[..n];
         if k == 0 {
             total[..n].par_chunks_mut(CHUNK).zip(values.par_chunks(CHUNK)).for_each(|(t, v)| {
-                t.iter_mut().zip(v).for_each(|(t, v)| *t += clean(v));
+                t.iter_mut().zip(v).for_each(|(t, v)| *t += clean(*v));
             });
         } else {
             let layer = &mut rest[k - 1][..n];
             (total[..n].par_chunks_mut(CHUNK), layer.par_chunks_mut(CHUNK), values.par_chunks(CHUNK))
                 .into_par_iter()
-                .for_each(|(t, l, v)| {
-                    for ((t, l), v) in t.iter_mut().zip(l).zip(v) {
-                        // Most of a layer of caustics is zero: those pixels' cache
-                        // lines of the two layers are then neither read nor written.
-                        if *v != Rgb::ZERO {
-                            let v = clean(v);
-                            *t += v;
-                            *l += v;
-                        }
-                    }
-                });
+                .for_each(|(t, l, v)| add_to_both(t, l, v));
         }
+    }
+
+    /// [`FrameBuffers::add_to_layer`] of values made a row at a time: `row(y, out)`
+    /// writes row y's `width` values into `out`, for every row of the last region,
+    /// in parallel. `name` is a layer other than "total".
+    pub fn add_rows_to_layer(&mut self, name: &str, width: usize, row: impl Fn(usize, &mut [Rgb]) + Sync) {
+        let Some(k) = LAYERS.iter().position(|&n| n == name).filter(|&k| k > 0) else { return };
+        let [total, rest @ ..] = &mut self.layers;
+        if width == 0 || total.len() % width != 0 || rest[k - 1].len() != total.len() {
+            return;
+        }
+        (total.par_chunks_mut(width), rest[k - 1].par_chunks_mut(width)).into_par_iter().enumerate().for_each_init(
+            || vec![Rgb::ZERO; width],
+            |out, (y, (t, l))| {
+                row(y, out);
+                add_to_both(t, l, out);
+            },
+        );
     }
 
     /// All layers, named, of the last region rendered.
