@@ -373,3 +373,39 @@ fn upsampling_keeps_depth_edges() {
         }
     }
 }
+
+/// A splat's scratch kept between frames clears only the bands the last splat
+/// wrote: splatting all photons, then a cluster of them (a few bands), then all
+/// again into the same scratch gives bit for bit what fresh splats give. A band
+/// left with the last frame's light, or cleared while it holds this frame's, fails.
+#[test]
+fn splats_into_kept_scratch_equal_fresh_ones() {
+    let s = scene("cornell_spheres.gltf");
+    let p = LiveParams { bounce_res: 24, bounces: 3, ..LiveParams::default() };
+    let (bounce, _) = ispm::bounce_maps(&s, p.bounce_res, 5, true);
+    let all = ispm::trace(&s, &bounce, p.bounces, &KernelShape::new(&p, s.bounds.diagonal()), 5);
+    // A cluster of photons round one of them: they reach a few bands.
+    let centre = all[all.len() / 2].p;
+    let cluster: Vec<_> =
+        all.iter().filter(|q| (q.p - centre).length() < 0.05 * s.bounds.diagonal()).copied().collect();
+    assert!(!cluster.is_empty() && cluster.len() < all.len() / 10, "{} of {}", cluster.len(), all.len());
+    // Twelve bands of 16 rows.
+    let (w, h) = (128, 192);
+    let gb = splat::GBuffer::from_surfaces(&gbuffer(&s, w, h));
+    let camera = s.camera.clone().unwrap();
+    let bands = |ps: &[splat::VolumePhoton]| {
+        let mut b: Vec<u32> =
+            ps.iter().flat_map(|q| q.screen_rect(&camera, w, h)).flat_map(|r| r[1] / 16..r[3].div_ceil(16)).collect();
+        b.sort();
+        b.dedup();
+        b.len()
+    };
+    // The cluster must leave bands the last splat of all photons wrote.
+    assert!(bands(&cluster) < bands(&all), "{} and {} bands", bands(&cluster), bands(&all));
+    let mut scratch = splat::SplatScratch::default();
+    for photons in [&all, &cluster, &all, &cluster] {
+        splat::splat_into(photons, &gb, &camera, (w, h, 1), SplatOutput::Radiance, &mut scratch);
+        let fresh = splat::splat(photons, &gb, &camera, (w, h, 1), SplatOutput::Radiance);
+        assert!(scratch.indirect == fresh.0 && scratch.caustic == fresh.1, "{} photons", photons.len());
+    }
+}
