@@ -78,3 +78,23 @@ fn cube_shadow_maps_agree_with_shadow_rays_away_from_shadow_edges() {
     assert!(shadowed > total / 20, "the scene casts shadows: {shadowed}");
     assert!(differ * 50 < total, "{differ} of {total}");
 }
+
+/// A fragment buffer reused for another view (a live frame's) holds exactly what a
+/// fresh one does: every texel is cleared before drawing, including where the new
+/// view sees nothing (the camera turned half away from the box).
+#[test]
+fn reused_fragment_buffers_equal_fresh_ones() {
+    let scene = load_scene("cornell_spheres.gltf");
+    let camera = scene.camera.clone().unwrap();
+    let mut turned = camera.clone();
+    turned.forward = (camera.forward + camera.right).normalize();
+    turned.right = turned.forward.cross(camera.up).normalize();
+    let film = Film { width: 64, height: 48, spp: 1, contrast: 0.0, seed: 1 };
+    let mut buffer = Vec::new();
+    for (k, view) in [&camera, &turned, &camera, &turned].into_iter().enumerate() {
+        pm_render::raster::first_hits_into(&scene, view, &film, Rect::full(&film), &mut buffer);
+        let fresh = pm_render::raster::first_hits(&scene, view, &film, Rect::full(&film));
+        assert!(k % 2 == 0 || fresh.iter().any(Option::is_none), "the turned view must see past the box");
+        assert_eq!(format!("{buffer:?}"), format!("{fresh:?}"));
+    }
+}

@@ -126,7 +126,8 @@ pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Ve
 
 /// [`first_hits`] into `out`, reusing its memory (frames of a live view).
 pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<Option<Fragment>>) {
-    out.clear();
+    // Cleared band by band as it is drawn (clearing 48 MB of a 1920 x 1080 frame's
+    // fragments on one thread took a fifth of this step).
     out.resize(rect.area(), None);
     draw(scene, camera, film, rect, out);
 }
@@ -140,8 +141,8 @@ pub fn depths_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out:
     draw(scene, camera, film, rect, &mut out[start..]);
 }
 
-/// Draw `rect` of `scene` seen by `camera` into `out` (empty texels, one a pixel,
-/// row by row).
+/// Draw `rect` of `scene` seen by `camera` into `out` (one texel a pixel, row by
+/// row; what it held before is cleared first).
 fn draw<T: Texel>(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut [T]) {
     let (w, h) = (film.width as f32, film.height as f32);
     let aspect = w / h;
@@ -188,6 +189,7 @@ fn draw<T: Texel>(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: 
     out.par_chunks_mut(rw * BAND as usize).enumerate().for_each(|(band, chunk)| {
         let by0 = rect.y0 + band as u32 * BAND;
         let by1 = (by0 + BAND).min(rect.y1);
+        chunk.fill(T::EMPTY);
         // While drawing, a texel holds 1 / view depth of the surface.
         for st in tris.iter().take_while(|t| t.y0 < by1).filter(|t| t.y1 > by0) {
             raster_tri(scene, st, rect, by0, by1, chunk);
