@@ -353,16 +353,14 @@ pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Came
         // albedo are all the splat reads, and building the hit record and BSDF for
         // them took most of this pass (the full path gives the same values). Mirror
         // and glass pixels are known from the material alone.
+        if let Some((p, ns, rho)) = scene.plain_lambert(f.tri, f.b) {
+            let wo = (camera.position - p).normalize_or(ns);
+            return Seen::Lambert { p, n: pm_render::facing(ns, wo), albedo_pi: rho / PI };
+        }
         if scene.uniform_bsdf(f.tri).is_some_and(|b| b.is_specular()) {
             return Seen::Nothing;
         }
-        match scene.plain_lambert(f.tri, f.b) {
-            Some((p, ns, rho)) => {
-                let wo = (camera.position - p).normalize_or(ns);
-                Seen::Lambert { p, n: pm_render::facing(ns, wo), albedo_pi: rho / PI }
-            }
-            None => surface_at(scene, &fragments[j], camera).into(),
-        }
+        surface_at(scene, &fragments[j], camera).into()
     });
 }
 

@@ -530,11 +530,8 @@ pub fn splat_into(
     // Outputs of another size start as zero; otherwise each band is cleared below
     // only if the last splat wrote to it (a full-resolution caustic splat writes a
     // few bands: clearing both 25 MB layers of a 1920 x 1080 frame took 6 ms).
-    if *width != w
-        || indirect.len() != (w * h) as usize
-        || caustic.len() != indirect.len()
-        || dirty.len() != th as usize
-    {
+    // (The two outputs and the band flags are only ever resized together here.)
+    if *width != w || indirect.len() != (w * h) as usize {
         *width = w;
         for layer in [&mut *indirect, &mut *caustic] {
             layer.clear();
