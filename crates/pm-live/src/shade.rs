@@ -11,7 +11,7 @@ use crate::splat::{PhotonIndex, Surface, VolumePhoton};
 use crate::{Corners, DirectMode, LiveParams};
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_render::raster::CubeDepth;
+use pm_render::raster::{CubeDepth, Fragment};
 use pm_render::{Components, Counters, DirectLighting, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
@@ -104,31 +104,28 @@ impl<'a> LiveShading<'a> {
 }
 
 impl LiveShading<'_> {
-    /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps: every light at
-    /// every pixel, visibility from its cube map with a bias of two texels at the
-    /// point's distance over the cosine of incidence. Point and spot lights: f I cos
-    /// / d^2. Area lights: see [`LightMap`]. A scene with lights that have no map
-    /// (directional, large or curved area lights) keeps shadow rays for all of them.
-    fn mapped_direct(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
+    /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps at point `at`
+    /// (the caller checks that every light has one): every light at every pixel,
+    /// visibility from its cube map with a bias of two texels at the point's
+    /// distance over the cosine of incidence. Point and spot lights: f I cos / d^2.
+    /// Area lights: see [`LightMap`].
+    fn mapped_direct(&self, at: LitPoint, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
-        if !self.all_mapped {
-            return self.light.direct(hit, bsdf, wo, s, self.light_samples);
-        }
         let mut sum = Rgb::ZERO;
         for (light, map) in scene.lights.iter().zip(self.shadow_maps.iter().flatten()) {
             // Whether the map's centre sees the point.
             let visible = || {
-                let d = map.depth.position() - hit.p;
+                let d = map.depth.position() - at.p;
                 let dist = d.length();
                 // Two texels at the point's distance, more at grazing light where one
                 // texel spans a longer stretch of the surface (shadow acne otherwise).
-                let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(hit.ng) / dist).abs().max(0.25);
-                map.depth.visible(hit.p, bias)
+                let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(at.ng) / dist).abs().max(0.25);
+                map.depth.visible(at.p, bias)
             };
             if map.area
                 && let pm_bsdf::Bsdf::Lambert { rho } = bsdf
             {
-                sum += lambert_reflected(light, hit, *rho, wo, &visible);
+                sum += lambert_reflected(light, at, *rho, wo, &visible);
                 continue;
             }
             // A point or spot light from its position; an area light (on a surface
@@ -139,15 +136,32 @@ impl LiveShading<'_> {
             } else {
                 (0.5, glam::Vec2::splat(0.5))
             };
-            let Some(ls) = light.sample_li(scene, hit.p, u_sel, u) else { continue };
-            if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+            let Some(ls) = light.sample_li(scene, at.p, u_sel, u) else { continue };
+            if ls.wi.dot(at.ng) * wo.dot(at.ng) <= 0.0 {
                 continue;
             }
             if visible() {
-                sum += bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs() * ls.li / ls.pdf;
+                sum += bsdf.f(wo, ls.wi, at.ns) * ls.wi.dot(at.ns).abs() * ls.li / ls.pdf;
             }
         }
         sum
+    }
+
+    /// Direct light at the eye's first surface `f` seen along `d`, from the fragment
+    /// alone, when that surface is plainly Lambertian and emits nothing and every
+    /// light has a shadow map: what [`Self::shade`] gives there (the same point,
+    /// normals and reflectance, [`Scene::plain_lambert`]), without building the hit
+    /// record and BSDF, or looking up emission and media. Most of an image-space
+    /// frame's pixels are such walls and floors: this is deferred shading over the
+    /// rasterised G-buffer, as the paper's direct-light pass is (section 3, step 1).
+    fn lambert_first(&self, f: &Fragment, d: Vec3, s: &mut Sampler) -> Option<Rgb> {
+        let scene = self.light.scene;
+        let (p, ns, rho) = scene.plain_lambert(f.tri, f.b)?;
+        let tr = &scene.triangles[f.tri as usize];
+        if scene.materials[tr.material as usize].emission != Rgb::ZERO {
+            return None;
+        }
+        Some(self.mapped_direct(LitPoint { p, ng: tr.ng, ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
     }
 
     /// The components seen along direction `d` whose first hit is `first`.
@@ -177,7 +191,8 @@ impl LiveShading<'_> {
             }
             let direct = match self.direct {
                 DirectMode::Rays => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
-                DirectMode::ShadowMap => self.mapped_direct(&hit, &bsdf, wo, s),
+                DirectMode::ShadowMap if self.all_mapped => self.mapped_direct(LitPoint::of(&hit), &bsdf, wo, s),
+                DirectMode::ShadowMap => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
                 DirectMode::Photons => Rgb::ZERO,
             };
             let indirect = match self.indirect {
@@ -200,6 +215,23 @@ impl LiveShading<'_> {
             return Components { specular: beta * (le + direct + indirect), ..Default::default() };
         }
         Components::default()
+    }
+}
+
+/// What direct light by shadow maps reads of a surface point.
+#[derive(Clone, Copy)]
+struct LitPoint {
+    /// The point [m].
+    p: Vec3,
+    /// Unit geometric normal.
+    ng: Vec3,
+    /// Unit shading normal, on the geometric normal's side.
+    ns: Vec3,
+}
+
+impl LitPoint {
+    fn of(hit: &Hit) -> LitPoint {
+        LitPoint { p: hit.p, ng: hit.ng, ns: hit.ns }
     }
 }
 
@@ -251,14 +283,14 @@ impl LightMap {
     }
 }
 
-/// Reflected radiance [W sr^-1 m^-2] toward `wo` from area light `light` at `hit` on
+/// Reflected radiance [W sr^-1 m^-2] toward `wo` from area light `light` at `at` on
 /// a Lambertian surface of reflectance `rho`, with `visible()` the shadow map's
 /// answer for the light's centre: the unoccluded irradiance in closed form
 /// ([`pm_scene::Light::cos_integral`]) times ρ / π. No noise, and the penumbrae of
 /// a point at the centre.
-fn lambert_reflected(light: &pm_scene::Light, hit: &Hit, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
-    let n = pm_render::facing(hit.ns, wo);
-    let Some((le, e)) = light.cos_integral(hit.p, n) else { return Rgb::ZERO };
+fn lambert_reflected(light: &pm_scene::Light, at: LitPoint, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
+    let n = pm_render::facing(at.ns, wo);
+    let Some((le, e)) = light.cos_integral(at.p, n) else { return Rgb::ZERO };
     if !(e > 0.0) || !visible() {
         return Rgb::ZERO;
     }
@@ -284,11 +316,84 @@ impl Integrator for LiveShading<'_> {
         self.shade(hit, d, s, vs)
     }
 
+    fn li_fragment(
+        &self,
+        scene: &Scene,
+        o: Vec3,
+        d: Vec3,
+        fragment: Option<&Fragment>,
+        s: &mut Sampler,
+        scratch: &mut (),
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        // Deferred shading of plain Lambertian pixels (image-space frames: their
+        // indirect light is splatted afterwards, so direct light is all they take).
+        if vs.is_none()
+            && self.direct == DirectMode::ShadowMap
+            && self.all_mapped
+            && matches!(self.indirect, Indirect::Photons { .. })
+            && let Some(f) = fragment
+            && let Some(direct) = self.lambert_first(f, d, s)
+        {
+            return Components { direct, ..Default::default() };
+        }
+        self.li_hit(o, d, fragment.map(|f| f.hit(scene)), s, scratch, vs)
+    }
+
     fn adaptive(&self) -> bool {
         !self.light.scene.has_stochastic_surfaces()
     }
 
     fn counters(&self) -> &Counters {
         &self.counters
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::splat::PhotonIndex;
+    use pm_render::{Film, Rect, raster};
+    use std::path::PathBuf;
+
+    /// The deferred path of image-space frames gives, at every pixel it takes,
+    /// exactly what shading the full hit record gives: area lights over Lambertian
+    /// walls, an emitter seen directly, mirrors and glass (which it leaves to the
+    /// full path), and point lights. A point or reflectance off by a rounding, or
+    /// an emitter taken for a plain wall, fails it (these scenes' walls are flat:
+    /// a geometric normal taken for the shading one would pass).
+    #[test]
+    fn deferred_lambert_pixels_equal_the_full_path() {
+        for name in ["cornell_spheres.gltf", "cornell_boxes.gltf", "caustic_ring.gltf", "jozwowski_room_16.gltf"] {
+            let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+            let scene = pm_scene::load(&dir.join(name)).unwrap();
+            let p = LiveParams { direct: DirectMode::ShadowMap, ..LiveParams::default() };
+            let maps = crate::shadow_maps(&scene, &p);
+            let index = PhotonIndex::new(&[]);
+            let shading = LiveShading::splatted(&scene, &[], &index, &p, &maps).unwrap();
+            assert!(shading.all_mapped, "{name}");
+            let camera = scene.camera.clone().unwrap();
+            let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 3 };
+            let fragments = raster::first_hits(&scene, &camera, &film, Rect::full(&film));
+            let (mut deferred, mut lit) = (0, 0);
+            for (j, f) in fragments.iter().enumerate() {
+                let Some(f) = f else { continue };
+                let hit = f.hit(&scene);
+                let d = (hit.p - camera.position).normalize();
+                let seeded = || Sampler::hashed(11, j as u64);
+                let full = shading.li_hit(camera.position, d, Some(hit), &mut seeded(), &mut (), None);
+                let got = shading.li_fragment(&scene, camera.position, d, Some(f), &mut seeded(), &mut (), None);
+                let bits = |c: &Components| {
+                    [c.direct, c.caustic, c.indirect, c.specular].map(|v| v.to_array().map(f32::to_bits))
+                };
+                assert_eq!(bits(&got), bits(&full), "{name}, pixel {j}");
+                if shading.lambert_first(f, d, &mut seeded()).is_some() {
+                    deferred += 1;
+                    lit += (full.direct.max_element() > 0.0) as usize;
+                }
+            }
+            let seen = fragments.iter().flatten().count();
+            assert!(deferred * 2 > seen && lit * 2 > deferred, "{name}: {deferred} of {seen} deferred, {lit} lit");
+        }
     }
 }

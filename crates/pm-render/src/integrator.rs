@@ -139,6 +139,25 @@ pub trait Integrator: Sync {
         self.li(o, d, s, scratch, vs)
     }
 
+    /// [`Self::li_hit`] for an eye ray through a pixel centre whose first surface
+    /// on `scene` the rasteriser found: `fragment`. The default builds the hit
+    /// record; an integrator that shades some surfaces from the fragment alone (a
+    /// deferred pass over the G-buffer) overrides it, and must give what `li_hit`
+    /// would.
+    #[allow(clippy::too_many_arguments)]
+    fn li_fragment(
+        &self,
+        scene: &Scene,
+        o: Vec3,
+        d: Vec3,
+        fragment: Option<&crate::raster::Fragment>,
+        s: &mut Sampler,
+        scratch: &mut Self::Scratch,
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        self.li_hit(o, d, fragment.map(|f| f.hit(scene)), s, scratch, vs)
+    }
+
     /// True: the image loop takes one sample at each pixel centre and supersamples
     /// where neighbours differ. False: every pixel takes all samples, jittered.
     /// Integrators of scenes with stochastic surfaces (blended alpha, partial

@@ -392,8 +392,7 @@ pub fn render_into<I: Integrator>(
         match &first {
             Some((scene, hits)) if k == 0 && centre_first => {
                 let (px, py) = (x - pass1.x0 as usize, y - pass1.y0 as usize);
-                let hit = hits[py * p1w + px].map(|f| f.hit(scene));
-                integ.li_hit(camera.position, d, hit, &mut s, scratch, vs)
+                integ.li_fragment(scene, camera.position, d, hits[py * p1w + px].as_ref(), &mut s, scratch, vs)
             }
             _ => integ.li(camera.position, d, &mut s, scratch, vs),
         }
