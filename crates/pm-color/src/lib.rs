@@ -248,9 +248,9 @@ mod tests {
 
     /// The table's buckets: each starts at its least float's code and holds at most
     /// two thresholds (the most steps [`srgb8`] takes), and the first and last float
-    /// of every bucket, and a million others spread over [0, 1) and beyond, get the
-    /// formula's code. A bucket index off by one, or a table of the wrong codes,
-    /// fails it.
+    /// of every bucket, and a million others spread over the bit patterns of [0, 4),
+    /// get the formula's code. A bucket index off by one, or a table of the wrong
+    /// codes, fails it.
     #[test]
     fn srgb8_buckets_hold_few_thresholds() {
         let Srgb8Tables { thresholds: t, buckets } = &*SRGB8_TABLES;
