@@ -18,8 +18,12 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// (bounce_res, bounces, subsample, frame ms, median block error) of each row.
-fn rows(text: &str) -> Vec<(u32, u32, u32, f64, f64)> {
+/// A row of the bench's table against the path tracer: bounce_res, bounces,
+/// subsample, frame time [ms], median block error.
+type Row = (u32, u32, u32, f64, f64);
+
+/// The rows of the bench's table against the path tracer.
+fn rows(text: &str) -> Vec<Row> {
     let start = text.find("Against the path tracer").map_or(text.len(), |i| i);
     text[start..]
         .lines()
@@ -40,7 +44,7 @@ pub fn run(args: &Args) -> Result<()> {
         .with_context(|| format!("{}: cannot read", args.bench_output.display()))?;
     let r = rows(&text);
     ensure!(!r.is_empty(), "{}: no table against the path tracer in it", args.bench_output.display());
-    let series = |name: &str, keep: &dyn Fn(&(u32, u32, u32, f64, f64)) -> bool| {
+    let series = |name: &str, keep: &dyn Fn(&Row) -> bool| {
         let mut pts: Vec<(f64, f64)> = r.iter().filter(|x| keep(x)).map(|x| (x.3, x.4)).collect();
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
         (name.to_string(), pts)

@@ -678,6 +678,10 @@ mod tests {
         assert_ne!(rebuilt, first, "a rebuilt binary");
         std::fs::write(&input, b"other photons").unwrap();
         assert_ne!(key(), rebuilt, "a changed input");
-        assert_ne!(step_key(&bin, &["--k".into(), "60".into()], &[input.clone()]), key(), "other arguments");
+        assert_ne!(
+            step_key(&bin, &["--k".into(), "60".into()], std::slice::from_ref(&input)),
+            key(),
+            "other arguments"
+        );
     }
 }

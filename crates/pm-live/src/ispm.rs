@@ -392,6 +392,7 @@ pub struct IspmScratch {
 /// "total", "direct", "caustic", "indirect", "specular"). `fragments` and
 /// `scratch` keep the rasteriser's, the G-buffer's and the splats' memory between
 /// frames.
+#[allow(clippy::too_many_arguments)]
 pub fn frame(
     scene: &Scene,
     camera: &Camera,

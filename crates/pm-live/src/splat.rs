@@ -96,11 +96,11 @@ pub struct KernelForm {
 
 impl KernelForm {
     /// The kernel's normalised radial coordinate (equation 2) at distance `dist` from
-    /// the photon, `dn` = |d·n| of that along its normal: |d| / r_xy (1 + |cos| (r_xy
-    /// - r_z) / r_z), which is |d| / r_xy in the photon's surface plane and |d| / r_z
-    /// along its normal. The paper's equation prints the factor as (1 - |cos| (r_xy -
-    /// r_z) / r_z), which is negative along the normal for r_z < r_xy / 2; the sign
-    /// that gives |d| / r_z there is used.
+    /// the photon, `dn` = |d·n| of that along its normal:
+    /// |d| / r_xy (1 + |cos| (r_xy - r_z) / r_z), which is |d| / r_xy in the photon's
+    /// surface plane and |d| / r_z along its normal. The paper's equation prints the
+    /// factor as (1 - |cos| (r_xy - r_z) / r_z), which is negative along the normal
+    /// for r_z < r_xy / 2; the sign that gives |d| / r_z there is used.
     #[inline]
     fn t(&self, dist: f32, dn: f32) -> f32 {
         (dist + dn * self.squash) * self.inv_r_xy
@@ -328,7 +328,7 @@ impl VolumePhoton {
         let y0 = (lo.y - 0.5).ceil().max(0.0);
         let x1 = ((hi.x - 0.5).floor() + 1.0).min(w as f32);
         let y1 = ((hi.y - 0.5).floor() + 1.0).min(h as f32);
-        (x0 < x1 && y0 < y1).then(|| [x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+        (x0 < x1 && y0 < y1).then_some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
     }
 }
 

@@ -271,11 +271,7 @@ mod tests {
         let from_file: P = toml::from_str("").unwrap();
         assert_eq!(from_cli, P::default());
         assert_eq!(from_file, P::default());
-        let mut p = P::default();
-        p.k = 7;
-        p.radius_m = 0.1f32 + 1e-7;
-        p.on = false;
-        p.pick = Pick::First;
+        let p = P { k: 7, radius_m: 0.1f32 + 1e-7, on: false, pick: Pick::First, ..P::default() };
         let args: Vec<String> = std::iter::once("x".to_string()).chain(p.to_args()).collect();
         assert_eq!(Cli::try_parse_from(&args).unwrap().p, p, "{args:?}");
         let text = format!("k = 7\nradius_m = {}\non = false\npick = \"first\"", p.radius_m);

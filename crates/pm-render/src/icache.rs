@@ -130,10 +130,10 @@ impl IrradianceCache {
         // down so that extrapolating across the record's reach changes E by at most
         // E itself (near corners, gather rays of length ~0 make 1/r gradients huge).
         let mut grad_t = g.grad_t;
-        for c in 0..3 {
-            let gl = grad_t[c].length();
-            if gl * r > g.e[c] {
-                grad_t[c] *= if gl > 0.0 { g.e[c] / (gl * r) } else { 0.0 };
+        for (gc, e) in grad_t.iter_mut().zip(g.e.to_array()) {
+            let gl = gc.length();
+            if gl * r > e {
+                *gc *= if gl > 0.0 { e / (gl * r) } else { 0.0 };
             }
         }
         self.push(Record { p, n, e: g.e, r, grad_t, grad_r: g.grad_r });

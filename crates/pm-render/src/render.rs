@@ -403,7 +403,7 @@ pub fn render_into<I: Integrator>(
     // Pass 1: every pixel of the region (and the apron, when supersampling).
     let pixel_of = |j: usize| (pass1.x0 as usize + j % p1w, pass1.y0 as usize + j / p1w);
     let count = |j: usize| {
-        if (j + 1) % 256 == 0 {
+        if (j + 1).is_multiple_of(256) {
             let n = done.fetch_add(256, Relaxed) + 256;
             progress(n, total);
         }

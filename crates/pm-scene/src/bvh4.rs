@@ -177,9 +177,9 @@ impl Bvh4 {
             let n = &mut self.nodes[index];
             n.child[lane] = child;
             n.count[lane] = count;
-            for a in 0..3 {
-                n.b[a][lane] = bx[0][a];
-                n.b[a + 3][lane] = bx[1][a];
+            for (a, (lo, hi)) in bx[0].to_array().into_iter().zip(bx[1].to_array()).enumerate() {
+                n.b[a][lane] = lo;
+                n.b[a + 3][lane] = hi;
             }
             whole = [whole[0].min(bx[0]), whole[1].max(bx[1])];
         }

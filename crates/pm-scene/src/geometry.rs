@@ -213,9 +213,9 @@ impl Tri4 {
         let mut t = Tri4 { v: [[[0.0; 4]; 3]; 3] };
         for lane in 0..4 {
             let p = &tris[if lane < tris.len() { lane } else { 0 }];
-            for v in 0..3 {
-                for a in 0..3 {
-                    t.v[v][a][lane] = p[v][a];
+            for (tv, pv) in t.v.iter_mut().zip(p) {
+                for (ta, pa) in tv.iter_mut().zip(pv.to_array()) {
+                    ta[lane] = pa;
                 }
             }
         }

@@ -38,6 +38,9 @@ use pm_color::Rgb;
 /// P-watt point lamp in its default "Standard" lighting mode).
 pub const LUMINOUS_EFFICACY: f32 = 683.0;
 
+// By hand: `value_enum!` passes only doc attributes to the variants, so no
+// `#[default]`.
+#[allow(clippy::derivable_impls)]
 impl Default for LightUnits {
     fn default() -> Self {
         LightUnits::Photometric
@@ -612,6 +615,7 @@ pub fn bounds_of(triangles: &[Triangle]) -> Bounds {
 impl Scene {
     /// Build the acceleration structure over `triangles` (degenerate ones must
     /// already be removed).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn build(
         triangles: Vec<Triangle>,
         materials: Vec<Material>,

@@ -224,8 +224,8 @@ fn animated_meshes_move_and_are_hit_where_they_are() {
         for (i, (a, b)) in rest.triangles.iter().zip(&s.triangles).enumerate() {
             let moved = s.objects[boxes].tris.contains(&(i as u32));
             let want = if moved { a.p.map(|p| p + offset) } else { a.p };
-            for k in 0..3 {
-                assert!((b.p[k] - want[k]).length() < 1e-5, "t {t}, triangle {i}");
+            for (got, want) in b.p.iter().zip(want) {
+                assert!((*got - want).length() < 1e-5, "t {t}, triangle {i}");
             }
         }
         // A ray nearly straight down onto the moved tall box's top (1.4 m high at rest,

@@ -96,10 +96,13 @@ fn assert_one_line_naming(err: &str, path: &Path, what: &str) {
     assert!(err.to_lowercase().contains(what), "error does not say '{what}': {err}");
 }
 
+/// Makes a malformed file from a valid one's text and path.
+type Corrupt = Box<dyn FnOnce(&str, &Path) -> String>;
+
 #[test]
 fn malformed_files_are_rejected_with_one_line_errors() {
     let uri_start = "data:application/octet-stream;base64,";
-    let cases: Vec<(&str, Box<dyn FnOnce(&str, &Path) -> String>)> = vec![
+    let cases: Vec<(&str, Corrupt)> = vec![
         ("not a valid gltf", Box::new(|t, _| t[..t.len() / 2].to_owned())),
         ("not a valid gltf", Box::new(|_, _| String::new())),
         ("not a valid gltf", Box::new(|_, _| "\u{1}\u{2}garbage".into())),
