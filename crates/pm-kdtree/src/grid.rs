@@ -5,7 +5,7 @@
 //! radius; a k-nearest query visits the cells around the query point nearest first
 //! and stops at the first cell farther than the k-th photon found so far.
 
-use crate::{KnnResult, KnnScratch, Neighbours, entry, entry_d2};
+use crate::{KnnResult, KnnScratch, Neighbours, entry_d2, offer};
 use glam::{IVec3, Vec3};
 use pm_format::PhotonRecord;
 use std::collections::HashMap;
@@ -153,21 +153,9 @@ impl<R: PhotonRecord> Neighbours<R> for PhotonGrid<R> {
                 if d2 > max_d2 {
                     continue;
                 }
-                let full = heap.len() >= k;
-                if full && heap.peek().is_some_and(|&top| entry(d2, i) >= top) {
-                    continue;
-                }
-                let r = self.records[i as usize].as_ref().expect("a listed id has a photon");
-                if !filter(i, r) {
-                    continue;
-                }
-                if full {
-                    if let Some(mut top) = heap.peek_mut() {
-                        *top = entry(d2, i);
-                    }
-                } else {
-                    heap.push(entry(d2, i));
-                }
+                offer(heap, k, d2, i, || {
+                    filter(i, self.records[i as usize].as_ref().expect("a listed id has a photon"))
+                });
             }
         };
         // The near cells nearest first, then shells of cells farther out.

@@ -231,6 +231,27 @@ fn entry(d2: f32, i: u32) -> u64 {
     (u64::from(d2.to_bits()) << 32) | u64::from(i)
 }
 
+/// Offer photon `i` at squared distance `d2` to a k-nearest max-heap of
+/// [`entry`]s: it is kept when the heap has room, or in place of the farthest when
+/// it comes before it (nearer, or as near with a lower id), and `accept()` (the
+/// caller's filter, asked only then) says yes. The one rule every k-nearest search
+/// keeps its photons by, so the kd-tree and the grid find the same set, ties
+/// included, whatever order they meet the photons in.
+#[inline(always)]
+fn offer(heap: &mut BinaryHeap<u64>, k: usize, d2: f32, i: u32, accept: impl FnOnce() -> bool) {
+    let e = entry(d2, i);
+    if heap.len() < k {
+        if accept() {
+            heap.push(e);
+        }
+    } else if let Some(mut top) = heap.peek_mut()
+        && e < *top
+        && accept()
+    {
+        *top = e; // one sift-down when `top` drops
+    }
+}
+
 /// The squared distance of a heap entry [m^2].
 #[inline]
 fn entry_d2(e: u64) -> f32 {
@@ -278,20 +299,10 @@ impl<R, F: Fn(u32, &R) -> bool> Visit<R> for KnnVisit<'_, F> {
     #[inline(always)]
     fn visit(&mut self, i: u32, r: &R, d2: f32) -> f32 {
         let (heap, k) = (&mut *self.heap, self.k);
-        if heap.len() < k {
-            if (self.filter)(i, r) {
-                heap.push(entry(d2, i));
-            }
-            if heap.len() == k { heap.peek().map_or(0.0, |&e| entry_d2(e)).min(self.max_d2) } else { self.max_d2 }
-        } else {
-            if let Some(mut top) = heap.peek_mut()
-                && d2.to_bits() < (*top >> 32) as u32
-                && (self.filter)(i, r)
-            {
-                *top = entry(d2, i); // one sift-down when `top` drops
-            }
-            heap.peek().map_or(0.0, |&e| entry_d2(e))
-        }
+        offer(heap, k, d2, i, || (self.filter)(i, r));
+        // The search visits photons within the radius only: a full heap's farthest
+        // is inside it.
+        if heap.len() < k { self.max_d2 } else { heap.peek().map_or(0.0, |&e| entry_d2(e)) }
     }
 }
 

@@ -374,3 +374,40 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    /// The kd-tree and the grid keep photons by one rule (nearer first, then the
+    /// lower id), so over the same photons under the same ids they find the same
+    /// photons, ties included, though they meet them in different orders. The
+    /// lattice of points has many photons at equal distances; a search that kept
+    /// whichever tied photon it met first fails it.
+    #[test]
+    fn kd_tree_and_grid_find_the_same_photons(
+        pts in arb_points(),
+        qs in proptest::collection::vec((-1.5f32..3.5, -1f32..1.5, -1f32..2.0), 1..4),
+        k in 1usize..60,
+        r in 0f32..2.0,
+    ) {
+        let nodes = balance(&records::<FullPhoton>(&pts));
+        let tree = KdTree::new(&nodes);
+        let mut grid = PhotonGrid::new(0.3, nodes.len() + 1);
+        for (i, n) in nodes.iter().enumerate() {
+            grid.set(i as u32, Some(*n));
+        }
+        let (mut a, mut b) = (KnnScratch::default(), KnnScratch::default());
+        for (x, y, z) in qs {
+            let x = Vec3::new(x, y, z);
+            for r2 in [r * r, f32::INFINITY] {
+                tree.knn(x, k, r2, |_, _| true, &mut a);
+                grid.knn(x, k, r2, |_, _| true, &mut b);
+                let ids = |found: &mut dyn Iterator<Item = (u32, f32)>| {
+                    let mut v: Vec<u32> = found.map(|(i, _)| i).collect();
+                    v.sort_unstable();
+                    v
+                };
+                prop_assert_eq!(ids(&mut tree.found(&a)), ids(&mut grid.found(&b)), "k={} r2={} at {}", k, r2, x);
+            }
+        }
+    }
+}
