@@ -39,7 +39,6 @@ pub use render::{
     Counters, Film, FrameBuffers, Image, Rect, RenderStats, Visibility, render_into, render_region, render_region_with,
 };
 
-use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
 
@@ -208,11 +207,7 @@ pub fn irradiance_subset<G: PhotonRecord>(global: &[G]) -> Vec<G> {
     pm_kdtree::balance(&with)
 }
 
-/// Flip `n` to the side of `w`.
-#[inline]
-pub fn facing(n: Vec3, w: Vec3) -> Vec3 {
-    if n.dot(w) < 0.0 { -n } else { n }
-}
+pub use pm_scene::facing;
 
 /// Render `rect` of `film` with the integrator `method` names, over the photon maps
 /// (and cache) of `pm`; [`Method::Path`] uses only its scene. The one place a method

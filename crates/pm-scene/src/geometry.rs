@@ -38,6 +38,13 @@ pub fn intersect_triangle(o: Vec3, d: Vec3, p: &[Vec3; 3], t_max: f32) -> Option
     TriangleRay::new(o, d).hit(p, t_max)
 }
 
+/// Flip `n` to the side of `w` (a shading normal to its geometric normal's side, a
+/// normal toward the viewer).
+#[inline]
+pub fn facing(n: Vec3, w: Vec3) -> Vec3 {
+    if n.dot(w) < 0.0 { -n } else { n }
+}
+
 /// A ray prepared for many triangle tests: the axis permutation that makes the
 /// direction's largest component z, and the shear that maps the direction onto +z,
 /// computed once per ray as Woop, Benthin and Wald (2013, section 3) intend rather

@@ -24,7 +24,7 @@ mod select;
 
 pub use anim::Animation;
 pub use effects::{Decision, Effects, analyze};
-pub use geometry::{TriangleRay, intersect_triangle, offset_ray_origin};
+pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
 pub use select::{LightSelectError, LightSelector};
@@ -995,9 +995,7 @@ impl Scene {
                 hit.ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
             }
         }
-        if hit.ns.dot(ng) < 0.0 {
-            hit.ns = -hit.ns;
-        }
+        hit.ns = facing(hit.ns, ng);
         hit
     }
 
@@ -1016,7 +1014,7 @@ impl Scene {
             return None;
         }
         let (p, ns) = tr.point_normal(b);
-        Some((p, if ns.dot(tr.ng) < 0.0 { -ns } else { ns }, rho))
+        Some((p, facing(ns, tr.ng), rho))
     }
 
     /// The BSDF at every point of triangle `tri` when it is the same everywhere (a
