@@ -153,7 +153,7 @@ impl LiveShading<'_> {
     /// normals and reflectance, [`Scene::plain_lambert`]), without building the hit
     /// record and BSDF, or looking up emission and media. Most of an image-space
     /// frame's pixels are such walls and floors: this is deferred shading over the
-    /// rasterised G-buffer, as the paper's direct-light pass is (section 3, step 1).
+    /// rasterised G-buffer, as the paper's direct-light pass is (section 3, step 3).
     fn lambert_first(&self, f: &Fragment, d: Vec3, s: &mut Sampler) -> Option<Rgb> {
         let scene = self.light.scene;
         let (p, ns, rho) = scene.plain_lambert(f.tri, f.b)?;
