@@ -17,10 +17,10 @@ use xtask::stages::{self, Bins};
 pub struct Args {
     /// Output folder [default: out/figure1].
     #[arg(long)]
-    out: Option<PathBuf>,
+    pub out: Option<PathBuf>,
     /// Image width and height [pixels] (the paper: 1024).
     #[arg(long, default_value_t = 1024)]
-    size: u32,
+    pub size: u32,
 }
 
 /// Run a stage quietly (its messages are kept for the error if it fails) and read

@@ -4,6 +4,7 @@
 use xtask::{assemble, gen_scenes, plan, run, slurm_selftest};
 
 mod figure1;
+mod golden;
 mod ispm_plot;
 mod live_study;
 mod scale;
@@ -54,6 +55,10 @@ enum Task {
     /// Christensen's Figure 1 (a)-(g), a contact sheet and the section 3 table beside
     /// the paper's numbers.
     Figure1(figure1::Args),
+    /// Record or check the hashes of every output a restructuring must leave
+    /// byte-identical (the default run, tiles and trace slices, photon-live with
+    /// both methods, figure1).
+    Golden(golden::Args),
     /// Image-space photon mapping's error against its frame time, drawn from the
     /// output of `cargo bench -p pm-live --bench ispm`.
     IspmPlot(ispm_plot::Args),
@@ -110,6 +115,7 @@ fn main() -> std::process::ExitCode {
         Task::SlurmSelftest(a) => slurm_selftest::run(&a, &root),
         Task::Tradeoff(a) => tradeoff::run(&a, &root),
         Task::Figure1(a) => figure1::run(&a, &root),
+        Task::Golden(a) => golden::run(&a, &root),
         Task::IspmPlot(a) => ispm_plot::run(&a),
         Task::Scale(a) => scale::run(&a, &root),
         Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),

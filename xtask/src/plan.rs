@@ -451,6 +451,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             frames: args.frames,
             frame_tasks: args.frame_tasks,
             workers: 1,
+            method: None,
         };
         live_plan(&live, root, &bins)?
     } else {

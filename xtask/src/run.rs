@@ -603,6 +603,9 @@ pub struct LiveArgs {
     /// Output folder [default: out/live/<scene name>].
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// The real-time method instead of the pipeline file's `live.method`.
+    #[arg(long)]
+    pub method: Option<pm_live::Method>,
     /// Frames to render.
     #[arg(long, default_value_t = 120)]
     pub frames: u32,
@@ -618,15 +621,20 @@ pub struct LiveArgs {
 
 /// What `cargo xtask live` runs: the scene, the output folder and photon-live's
 /// arguments (but for --frame-task) from the pipeline file's `[live]` section.
-pub(crate) struct LiveSetup {
-    pub(crate) out: PathBuf,
-    pub(crate) args: Vec<String>,
-    pub(crate) fps: f32,
+pub struct LiveSetup {
+    /// The output folder.
+    pub out: PathBuf,
+    /// photon-live's arguments.
+    pub args: Vec<String>,
+    /// Frames per second of animation time [1/s].
+    pub fps: f32,
 }
 
-pub(crate) fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
+/// photon-live's arguments for `cargo xtask live` with `args`.
+pub fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
-    let cfg = Pipeline::load(&pipeline)?;
+    let mut cfg = Pipeline::load(&pipeline)?;
+    cfg.live.method = args.method.unwrap_or(cfg.live.method);
     let base = pipeline.parent().unwrap_or(Path::new("."));
     let scene = args.scene.clone().unwrap_or_else(|| base.join(cfg.live_scene.as_ref().unwrap_or(&cfg.scene)));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
