@@ -127,7 +127,7 @@ pub fn render(
     let camera = scene.camera.as_ref().expect("test scenes have a camera");
     let film = p.film(1);
     with_photon_mapping(scene, maps, p, |pm| {
-        pm_render::render_method(p.mode, pm, camera, &film, pm_render::Rect::full(&film), false, &|_, _| {}).unwrap()
+        pm_render::render_method(p.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
     })
 }
 

@@ -230,7 +230,7 @@ fn masked_alpha_lets_rays_through_in_every_query() {
         aspect: Some(1.0),
     };
     let film = pm_render::Film { width: 32, height: 32, spp: 1, contrast: 0.0, seed: 0 };
-    let frags = pm_render::raster::first_hits(&s, &camera, &film, pm_render::Rect::full(&film));
+    let frags = pm_raster::first_hits(&s, &camera, film.size(), film.rect());
     let (mut seen, mut checked) = (0, 0);
     for (i, f) in frags.iter().enumerate() {
         let (x, y) = ((i % 32) as f32 + 0.5, (i / 32) as f32 + 0.5);

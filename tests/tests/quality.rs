@@ -87,16 +87,8 @@ fn furnace_split_finds_an_unbiased_path_tracer_unbiased() {
         .map(|seed| {
             let film = p.film(seed);
             pm_tests::with_photon_mapping(&scene, &maps, &p, |pm| {
-                let (img, _) = pm_render::render_method(
-                    p.mode,
-                    pm,
-                    camera,
-                    &film,
-                    pm_render::Rect::full(&film),
-                    false,
-                    &|_, _| {},
-                )
-                .unwrap();
+                let (img, _) =
+                    pm_render::render_method(p.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap();
                 img.layer("total").unwrap().to_vec()
             })
         })

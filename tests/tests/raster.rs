@@ -1,7 +1,7 @@
 //! The rasteriser against eye rays: at every pixel centre the same surface point,
 //! except where the centre lies on an object's silhouette or a triangle edge.
 
-use pm_render::{Film, Rect};
+use pm_render::Film;
 use pm_tests::load_scene;
 
 #[test]
@@ -12,7 +12,7 @@ fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
         let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 1 };
         let (w, h) = (96usize, 72usize);
         let aspect = w as f32 / h as f32;
-        let raster = pm_render::raster::first_hits(&scene, &camera, &film, Rect::full(&film));
+        let raster = pm_raster::first_hits(&scene, &camera, film.size(), film.rect());
         let rays: Vec<_> = (0..w * h)
             .map(|i| {
                 let d =
@@ -58,7 +58,7 @@ fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
 fn cube_shadow_maps_agree_with_shadow_rays_away_from_shadow_edges() {
     let scene = load_scene("jozwowski_room_256.gltf");
     let pm_scene::LightKind::Point { position, .. } = scene.lights[0].kind else { panic!("a point light") };
-    let map = pm_render::raster::CubeDepth::new(&scene, position, 256);
+    let map = pm_raster::CubeDepth::new(&scene, position, 256);
     let camera = scene.camera.clone().unwrap();
     let (w, h) = (64usize, 64usize);
     let (mut differ, mut shadowed, mut total) = (0, 0, 0);
@@ -92,8 +92,8 @@ fn reused_fragment_buffers_equal_fresh_ones() {
     let film = Film { width: 64, height: 48, spp: 1, contrast: 0.0, seed: 1 };
     let mut buffer = Vec::new();
     for (k, view) in [&camera, &turned, &camera, &turned].into_iter().enumerate() {
-        pm_render::raster::first_hits_into(&scene, view, &film, Rect::full(&film), &mut buffer);
-        let fresh = pm_render::raster::first_hits(&scene, view, &film, Rect::full(&film));
+        pm_raster::first_hits_into(&scene, view, film.size(), film.rect(), &mut buffer);
+        let fresh = pm_raster::first_hits(&scene, view, film.size(), film.rect());
         assert!(k % 2 == 0 || fresh.iter().any(Option::is_none), "the turned view must see past the box");
         assert_eq!(format!("{buffer:?}"), format!("{fresh:?}"));
     }

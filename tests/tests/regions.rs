@@ -33,7 +33,7 @@ fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
 }
 
 fn assert_tiles_equal_whole<I: Integrator>(name: &str, camera: &pm_scene::Camera, film: &Film, integ: &I) -> Image {
-    let (whole, stats) = render_region(camera, film, Rect::full(film), integ, false, &|_, _| {}).unwrap();
+    let (whole, stats) = render_region(camera, film, film.rect(), integ, false, &|_, _| {}).unwrap();
     // Tiles of one pixel row, square tiles that do not divide the image, and columns.
     for (tw, th) in [(film.width, 1), (8, 8), (13, 7), (1, film.height)] {
         let t = tiled(camera, film, integ, tw, th);

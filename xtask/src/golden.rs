@@ -88,11 +88,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     }
     if let Some(path) = &args.check {
         let want = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        let want: BTreeMap<String, String> = want
-            .lines()
-            .filter_map(|l| l.split_once(' '))
-            .map(|(f, h)| (f.to_string(), h.to_string()))
-            .collect();
+        let want: BTreeMap<String, String> =
+            want.lines().filter_map(|l| l.split_once(' ')).map(|(f, h)| (f.to_string(), h.to_string())).collect();
         let mut bad = Vec::new();
         for (file, h) in &want {
             match hashes.get(file) {

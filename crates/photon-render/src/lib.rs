@@ -90,7 +90,7 @@ fn requested_region(cli: &Cli, film: &pm_render::Film) -> Result<Option<[u32; 4]
         (Some([x0, y0, x1, y1]), _) => {
             let r = Rect { x0, y0, x1, y1 };
             ensure!(
-                r.is_valid_in(film),
+                film.contains(r),
                 "--region {x0},{y0},{x1},{y1} is outside the {}x{} image",
                 film.width,
                 film.height
@@ -98,7 +98,7 @@ fn requested_region(cli: &Cli, film: &pm_render::Film) -> Result<Option<[u32; 4]
             Some([x0, y0, x1, y1])
         }
         (None, Some((k, n))) => {
-            let r = Rect::band(film, k, n).with_context(|| {
+            let r = film.band(k, n).with_context(|| {
                 format!("--tile {k}/{n}: needs K below N and N at most the image's {} rows", film.height)
             })?;
             Some([r.x0, r.y0, r.x1, r.y1])
@@ -133,7 +133,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let region = requested_region(cli, &film)?;
     let rect = match region {
         Some([x0, y0, x1, y1]) => Rect { x0, y0, x1, y1 },
-        None => Rect::full(&film),
+        None => film.rect(),
     };
     // The cache prepass is the indirect view's work without the image.
     let mode = if cli.icache_out.is_some() { Method::Indirect } else { p.mode };

@@ -11,7 +11,8 @@ use pm_color::Rgb;
 use pm_live::ispm::{self, KernelShape};
 use pm_live::splat::{self, PhotonIndex, SplatOutput};
 use pm_live::{DirectMode, Live, LiveParams, Method};
-use pm_render::{Film, Rect, raster};
+use pm_raster as raster;
+use pm_render::Film;
 use pm_scene::Scene;
 use std::time::Instant;
 
@@ -139,7 +140,7 @@ fn run() {
         let photons = ispm::trace(s, &b, 1, &KernelShape::new(&p, s.bounds.diagonal()), 1);
         let camera = s.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
-        let gb = ispm::surfaces(s, &raster::first_hits(s, &camera, &film, Rect::full(&film)), &camera);
+        let gb = ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera);
         let packed = splat::GBuffer::from_surfaces(&gb);
         let t = Instant::now();
         let (si, _) = splat::splat(&photons, &packed, &camera, (512, 512, 1), SplatOutput::Radiance);
@@ -187,7 +188,7 @@ fn run() {
     let film = Film { width: w, height: h, spp: 64, contrast: 0.0, seed: 11 };
     let t = Instant::now();
     let pt = pm_render::PathTracer::new(s).unwrap();
-    let (path, _) = pm_render::render_region(&camera, &film, Rect::full(&film), &pt, false, &|_, _| {}).unwrap();
+    let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
     let t_path = t.elapsed().as_secs_f64();
     let blocks = |px: &[Rgb]| -> Vec<Rgb> {
         (0..(w / 4) * (h / 4))
@@ -222,7 +223,7 @@ fn run() {
     let measure = |img: &[Rgb]| measure_against(img, &reference);
     // The reference's own noise: a second path-traced image with another seed.
     let film2 = Film { seed: 12, ..film };
-    let (path2, _) = pm_render::render_region(&camera, &film2, Rect::full(&film2), &pt, false, &|_, _| {}).unwrap();
+    let (path2, _) = pm_render::render_region(&camera, &film2, film2.rect(), &pt, false, &|_, _| {}).unwrap();
     let (rr, rb, rm, r9) = measure(&blocks(path2.layer("total").unwrap()));
     println!(
         "\nAgainst the path tracer (cornell_spheres, 512 x 512, 64 spp in {t_path:.0} s; 4 x 4 block means, the light's blocks left out)"

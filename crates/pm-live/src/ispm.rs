@@ -13,8 +13,8 @@ use crate::splat::{self, GBuffer, PhotonIndex, Seen, SplatOutput, Surface, Volum
 use crate::{LiveParams, LiveShading};
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_render::raster::{self, Fragment};
-use pm_render::{Film, FrameBuffers, Rect, Visibility};
+use pm_raster::{self, Fragment};
+use pm_render::{Film, FrameBuffers, Visibility};
 use pm_sampling::Sampler;
 use pm_scene::{Camera, LightKind, Scene};
 use rayon::prelude::*;
@@ -146,9 +146,9 @@ fn cube_arrivals(scene: &Scene, position: Vec3, res: u32, intensity: impl Fn(Vec
             rect_solid_angle(u0, u0 + step, v1 - step, v1)
         })
         .collect();
-    for &(forward, right, up) in &raster::CUBE_FACES {
+    for &(forward, right, up) in &pm_raster::CUBE_FACES {
         let cam = Camera { position, forward, up, right, yfov: std::f32::consts::FRAC_PI_2, aspect: Some(1.0) };
-        raster::first_hits_into(scene, &cam, &film, Rect::full(&film), &mut frags);
+        pm_raster::first_hits_into(scene, &cam, film.size(), film.rect(), &mut frags);
         out.par_extend(frags.par_iter().enumerate().with_min_len(256).map(|(j, f)| {
             let (x, y) = ((j as u32 % res) as f32, (j as u32 / res) as f32);
             let (u0, v1) = (x * step - 1.0, 1.0 - y * step);
@@ -414,7 +414,7 @@ pub fn frame(
     let index = PhotonIndex::new(&photons);
     let t_trace = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    raster::first_hits_into(scene, camera, &film, Rect::full(&film), fragments);
+    pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), fragments);
     let t_gbuffer = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let maps = crate::shadow_maps(scene, p);
@@ -422,7 +422,7 @@ pub fn frame(
     pm_render::render_into(
         camera,
         &film,
-        Rect::full(&film),
+        film.rect(),
         &shading,
         false,
         Visibility::Fragments(scene, fragments),

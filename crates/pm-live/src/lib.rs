@@ -28,7 +28,7 @@ use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_params::{Any, above, above_up_to, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
-use pm_render::{Film, FrameBuffers, Rect, RenderStats, Visibility};
+use pm_render::{Film, FrameBuffers, RenderStats, Visibility};
 use pm_scene::{Camera, LightSelector, Scene, Target};
 use std::time::Instant;
 
@@ -312,7 +312,7 @@ pub struct Live {
     /// with the paths' unscaled power.
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
     /// The frame's rasterised first hits.
-    fragments: Vec<Option<pm_render::raster::Fragment>>,
+    fragments: Vec<Option<pm_raster::Fragment>>,
     /// The image-space method's G-buffer and splat memory.
     ispm: ispm::IspmScratch,
     /// Whether caustic paths are traced (the image-space method asks the scene
@@ -513,7 +513,7 @@ impl Live {
         let raster = || {
             let t = Instant::now();
             if draw && p.draw == DrawMode::Raster {
-                pm_render::raster::first_hits_into(scene, camera, &film, Rect::full(&film), fragments);
+                pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), fragments);
             }
             t.elapsed().as_secs_f64()
         };
@@ -561,7 +561,7 @@ impl Live {
         let (_, rs): (_, RenderStats) = pm_render::render_into(
             &self.camera,
             &film,
-            Rect::full(&film),
+            film.rect(),
             &shading,
             false,
             visibility,

@@ -11,7 +11,7 @@ use crate::splat::{PhotonIndex, Surface, VolumePhoton};
 use crate::{Corners, DirectMode, LiveParams};
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_render::raster::{CubeDepth, Fragment};
+use pm_raster::{CubeDepth, Fragment};
 use pm_render::{Components, Counters, DirectLighting, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
@@ -353,7 +353,8 @@ impl Integrator for LiveShading<'_> {
 mod tests {
     use super::*;
     use crate::splat::PhotonIndex;
-    use pm_render::{Film, Rect, raster};
+    use pm_raster as raster;
+    use pm_render::Film;
     use std::path::PathBuf;
 
     /// The deferred path of image-space frames gives, at every pixel it takes,
@@ -374,7 +375,7 @@ mod tests {
             assert!(shading.all_mapped, "{name}");
             let camera = scene.camera.clone().unwrap();
             let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 3 };
-            let fragments = raster::first_hits(&scene, &camera, &film, Rect::full(&film));
+            let fragments = raster::first_hits(&scene, &camera, film.size(), film.rect());
             let (mut deferred, mut lit) = (0, 0);
             for (j, f) in fragments.iter().enumerate() {
                 let Some(f) = f else { continue };

@@ -5,7 +5,8 @@ use pm_color::Rgb;
 use pm_live::ispm::{self, KernelShape};
 use pm_live::splat::{self, PhotonIndex, SplatOutput, Surface};
 use pm_live::{Live, LiveParams, Method};
-use pm_render::{Film, Rect, raster};
+use pm_raster as raster;
+use pm_render::Film;
 use pm_scene::Scene;
 use std::path::PathBuf;
 
@@ -17,7 +18,7 @@ fn scene(name: &str) -> Scene {
 fn gbuffer(s: &Scene, w: u32, h: u32) -> Vec<Option<Surface>> {
     let camera = s.camera.clone().unwrap();
     let film = Film { width: w, height: h, spp: 1, contrast: 0.0, seed: 0 };
-    ispm::surfaces(s, &raster::first_hits(s, &camera, &film, Rect::full(&film)), &camera)
+    ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera)
 }
 
 /// Scatter equals gather (section 5: "mathematically identical"): splatting the
@@ -203,7 +204,7 @@ fn layers_agree_with_the_path_tracer() {
         let camera = s.camera.clone().unwrap();
         let film = Film { width: w, height: h, spp: 1024, contrast: 0.0, seed: 7 };
         let pt = pm_render::PathTracer::new(&s).unwrap();
-        let (path, _) = pm_render::render_region(&camera, &film, Rect::full(&film), &pt, false, &|_, _| {}).unwrap();
+        let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
         let (it, pt_total) = (ispm.layer("total").unwrap(), path.layer("total").unwrap());
         let bright = |j: usize| it[j].max_element() > 4.0 || pt_total[j].max_element() > 4.0;
         let keep: Vec<bool> = (0..(w * h) as usize)
@@ -306,7 +307,7 @@ fn area_light_shadow_maps_agree_with_shadow_rays() {
         let (mapped, rays) = (frame(pm_live::DirectMode::ShadowMap, 1), frame(pm_live::DirectMode::Rays, 1024));
         // The pixels that see the floor (its two triangles come first).
         let film = Film { width: 48, height: 48, spp: 1, contrast: 0.0, seed: 0 };
-        let hits = raster::first_hits(&s, s.camera.as_ref().unwrap(), &film, Rect::full(&film));
+        let hits = raster::first_hits(&s, s.camera.as_ref().unwrap(), film.size(), film.rect());
         let floor: Vec<(Rgb, Rgb)> =
             (0..hits.len()).filter(|&j| hits[j].is_some_and(|f| f.tri < 2)).map(|j| (mapped[j], rays[j])).collect();
         assert!(floor.len() > 1000);

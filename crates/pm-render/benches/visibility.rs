@@ -8,7 +8,8 @@
 //!
 //! Run: `cargo bench -p pm-render --bench visibility`
 
-use pm_render::{Film, Rect, raster};
+use pm_raster as raster;
+use pm_render::Film;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -32,7 +33,7 @@ fn main() {
         let scene = pm_scene::load(&dir.join(format!("{name}.gltf"))).unwrap();
         let camera = scene.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
-        let rect = Rect::full(&film);
+        let rect = film.rect();
         let light = match scene.lights[0].kind {
             pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => position,
             pm_scene::LightKind::Area { ref tris, .. } => {
@@ -46,7 +47,7 @@ fn main() {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| {
                 let mut frags = Vec::new();
-                let t_raster = best_of(10, || raster::first_hits_into(&scene, &camera, &film, rect, &mut frags));
+                let t_raster = best_of(10, || raster::first_hits_into(&scene, &camera, film.size(), rect, &mut frags));
                 let rays = camera.rays(1.0);
                 let mut hits = Vec::new();
                 let t_rays = best_of(10, || {
@@ -153,7 +154,7 @@ fn image_loop(scene: &pm_scene::Scene, camera: &pm_scene::Camera, film: &Film) -
         pm_render::render_into(
             camera,
             film,
-            Rect::full(film),
+            film.rect(),
             &flat,
             false,
             pm_render::Visibility::Raster(scene),

@@ -150,7 +150,7 @@ pub trait Integrator: Sync {
         scene: &Scene,
         o: Vec3,
         d: Vec3,
-        fragment: Option<&crate::raster::Fragment>,
+        fragment: Option<&pm_raster::Fragment>,
         s: &mut Sampler,
         scratch: &mut Self::Scratch,
         vs: Option<&mut VisibleSurface>,

@@ -27,7 +27,6 @@ mod gather;
 mod icache;
 mod integrator;
 mod path;
-pub mod raster;
 mod render;
 
 pub use direct::DirectLighting;
@@ -35,8 +34,9 @@ pub use gather::Scratch;
 pub use icache::IrradianceCache;
 pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};
 pub use path::PathTracer;
+pub use pm_raster::Rect;
 pub use render::{
-    Counters, Film, FrameBuffers, Image, Rect, RenderStats, Visibility, render_into, render_region, render_region_with,
+    Counters, Film, FrameBuffers, Image, RenderStats, Visibility, render_into, render_region, render_region_with,
 };
 
 use pm_format::{FullPhoton, PhotonRecord, flags};

@@ -6,6 +6,7 @@
 use crate::integrator::{Components, Integrator, VisibleSurface};
 use glam::Vec2;
 use pm_color::Rgb;
+use pm_raster::{Fragment, Rect};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::Camera;
 use rayon::prelude::*;
@@ -50,50 +51,25 @@ pub struct Film {
     pub seed: u64,
 }
 
-/// A rectangle of pixels [x0, x1) x [y0, y1); row 0 is the top row.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Rect {
-    /// First column.
-    pub x0: u32,
-    /// First row.
-    pub y0: u32,
-    /// One past the last column.
-    pub x1: u32,
-    /// One past the last row.
-    pub y1: u32,
-}
-
-impl Rect {
-    /// The whole image of `film`.
-    pub fn full(film: &Film) -> Rect {
-        Rect { x0: 0, y0: 0, x1: film.width, y1: film.height }
+impl Film {
+    /// (width, height) \[pixels\], as the rasteriser takes the image's size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
-    /// Tile `k` of `n` of `film`: the image cut into `n` bands of whole rows, as
-    /// equal as rows allow, top first (the job plan's tiles). None when `k >= n` or
-    /// there are more tiles than rows.
-    pub fn band(film: &Film, k: u32, n: u32) -> Option<Rect> {
-        if k >= n || n > film.height {
-            return None;
-        }
-        let row = |i: u32| (i as u64 * film.height as u64 / n as u64) as u32;
-        Some(Rect { x0: 0, y0: row(k), x1: film.width, y1: row(k + 1) })
+    /// The whole image.
+    pub fn rect(&self) -> Rect {
+        Rect::full(self.width, self.height)
     }
-    /// Width \[pixels\].
-    pub fn width(&self) -> u32 {
-        self.x1 - self.x0
+
+    /// Tile `k` of `n` ([`Rect::band`]).
+    pub fn band(&self, k: u32, n: u32) -> Option<Rect> {
+        Rect::band(self.width, self.height, k, n)
     }
-    /// Height \[pixels\].
-    pub fn height(&self) -> u32 {
-        self.y1 - self.y0
-    }
-    /// Pixel count.
-    pub fn area(&self) -> usize {
-        self.width() as usize * self.height() as usize
-    }
-    /// True when the rectangle is non-empty and inside `film`.
-    pub fn is_valid_in(&self, film: &Film) -> bool {
-        self.x0 < self.x1 && self.y0 < self.y1 && self.x1 <= film.width && self.y1 <= film.height
+
+    /// True when `rect` is non-empty and inside the image.
+    pub fn contains(&self, rect: Rect) -> bool {
+        rect.is_valid_in(self.width, self.height)
     }
 }
 
@@ -204,13 +180,13 @@ fn pixel_salt(i: usize) -> u64 {
 pub enum Visibility<'s> {
     /// Eye rays through the BVH.
     Rays,
-    /// The rasteriser ([`crate::raster::first_hits`]) for the first sample of each
+    /// The rasteriser ([`pm_raster::first_hits`]) for the first sample of each
     /// pixel (the centre), which the integrator gets through
     /// [`Integrator::li_hit`]; supersamples still cast rays.
     Raster(&'s pm_scene::Scene),
-    /// First hits the caller already rasterised ([`crate::raster::first_hits_into`])
+    /// First hits the caller already rasterised ([`pm_raster::first_hits_into`])
     /// for this film and region: a live frame draws them while it updates its photons.
-    Fragments(&'s pm_scene::Scene, &'s [Option<crate::raster::Fragment>]),
+    Fragments(&'s pm_scene::Scene, &'s [Option<Fragment>]),
 }
 
 /// Render the pixels of `rect` of `film` seen by `camera`. Deterministic, and a
@@ -232,7 +208,7 @@ pub fn render_region<I: Integrator>(
 /// cost a third of a live frame).
 #[derive(Default)]
 pub struct FrameBuffers {
-    fragments: Vec<Option<crate::raster::Fragment>>,
+    fragments: Vec<Option<Fragment>>,
     pixels: Vec<(Components, u32)>,
     in_region: Vec<usize>,
     /// The rendered layers ("total", "direct", "caustic", "indirect", "specular").
@@ -340,7 +316,7 @@ pub fn render_into<I: Integrator>(
     bufs: &mut FrameBuffers,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Option<Vec<VisibleSurface>>, RenderStats), String> {
-    if !rect.is_valid_in(film) {
+    if !film.contains(rect) {
         return Err(format!("region {rect:?} is empty or outside the {}x{} image", film.width, film.height));
     }
     let (w, h) = (film.width as usize, film.height as usize);
@@ -362,9 +338,9 @@ pub fn render_into<I: Integrator>(
     let p1w = pass1.width() as usize;
 
     // Rasterised first hits at the centres of pass 1's pixels (its first samples).
-    let first: Option<(&pm_scene::Scene, &[Option<crate::raster::Fragment>])> = match visibility {
+    let first: Option<(&pm_scene::Scene, &[Option<Fragment>])> = match visibility {
         Visibility::Raster(scene) => {
-            crate::raster::first_hits_into(scene, camera, film, pass1, &mut bufs.fragments);
+            pm_raster::first_hits_into(scene, camera, film.size(), pass1, &mut bufs.fragments);
             Some((scene, &bufs.fragments))
         }
         Visibility::Fragments(scene, frags) => {

@@ -2,13 +2,65 @@
 //! found by projecting triangles instead of casting eye rays (a z-buffer over
 //! triangles clipped to the near plane, perspective-correct barycentrics). The
 //! result is the same [`Hit`] a pinhole eye ray through the pixel centre finds,
-//! except where a pixel centre lies exactly on an edge or silhouette; the real-time
-//! and image-space modes draw from it.
+//! except where a pixel centre lies exactly on an edge or silhouette. The image
+//! loop (`pm-render`) takes its [`Fragment`]s as first hits; the real-time and
+//! image-space methods draw their G-buffers, shadow maps ([`CubeDepth`]) and bounce
+//! maps ([`CUBE_FACES`]) with it.
+//!
+//! It knows scenes and cameras, not integrators, lights or images: what is seen,
+//! not what it looks like. It does no I/O.
 
-use crate::render::{Film, Rect};
 use glam::{Vec2, Vec3};
 use pm_scene::{Camera, Hit, Scene};
 use rayon::prelude::*;
+
+/// A rectangle of pixels [x0, x1) x [y0, y1) of an image; row 0 is the top row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl Rect {
+    /// The whole of an image of `width` x `height` pixels.
+    pub fn full(width: u32, height: u32) -> Rect {
+        Rect { x0: 0, y0: 0, x1: width, y1: height }
+    }
+
+    /// Tile `k` of `n` of an image of `width` x `height` pixels: the image cut into
+    /// `n` bands of whole rows, as equal as rows allow, top first (the job plan's
+    /// tiles). None when `k >= n` or there are more tiles than rows.
+    pub fn band(width: u32, height: u32, k: u32, n: u32) -> Option<Rect> {
+        if k >= n || n > height {
+            return None;
+        }
+        let row = |i: u32| (i as u64 * height as u64 / n as u64) as u32;
+        Some(Rect { x0: 0, y0: row(k), x1: width, y1: row(k + 1) })
+    }
+    /// Width \[pixels\].
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    /// Height \[pixels\].
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    /// Pixel count.
+    pub fn area(&self) -> usize {
+        self.width() as usize * self.height() as usize
+    }
+    /// True when the rectangle is non-empty and inside an image of `width` x
+    /// `height` pixels.
+    pub fn is_valid_in(&self, width: u32, height: u32) -> bool {
+        self.x0 < self.x1 && self.y0 < self.y1 && self.x1 <= width && self.y1 <= height
+    }
+}
 
 /// Rows per parallel band.
 const BAND: u32 = 16;
@@ -117,34 +169,35 @@ impl Texel for f32 {
     }
 }
 
-/// The first surface at each pixel centre of `rect` (row by row), or none.
-pub fn first_hits(scene: &Scene, camera: &Camera, film: &Film, rect: Rect) -> Vec<Option<Fragment>> {
+/// The first surface at each pixel centre of `rect` (row by row) of an image of
+/// `size` = (width, height) pixels seen by `camera`, or none.
+pub fn first_hits(scene: &Scene, camera: &Camera, size: (u32, u32), rect: Rect) -> Vec<Option<Fragment>> {
     let mut out = Vec::new();
-    first_hits_into(scene, camera, film, rect, &mut out);
+    first_hits_into(scene, camera, size, rect, &mut out);
     out
 }
 
 /// [`first_hits`] into `out`, reusing its memory (frames of a live view).
-pub fn first_hits_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<Option<Fragment>>) {
+pub fn first_hits_into(scene: &Scene, camera: &Camera, size: (u32, u32), rect: Rect, out: &mut Vec<Option<Fragment>>) {
     // Cleared band by band as it is drawn (clearing 48 MB of a 1920 x 1080 frame's
     // fragments on one thread took a fifth of this step).
     out.resize(rect.area(), None);
-    draw(scene, camera, film, rect, out);
+    draw(scene, camera, size, rect, out);
 }
 
 /// The distance \[m\] along the ray through each pixel centre of `rect` to the
 /// first surface (infinite where none), appended to `out`: [`first_hits`]'s `t`
 /// without the fragments.
-pub fn depths_into(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut Vec<f32>) {
+pub fn depths_into(scene: &Scene, camera: &Camera, size: (u32, u32), rect: Rect, out: &mut Vec<f32>) {
     let start = out.len();
     out.resize(start + rect.area(), f32::EMPTY);
-    draw(scene, camera, film, rect, &mut out[start..]);
+    draw(scene, camera, size, rect, &mut out[start..]);
 }
 
 /// Draw `rect` of `scene` seen by `camera` into `out` (one texel a pixel, row by
 /// row; what it held before is cleared first).
-fn draw<T: Texel>(scene: &Scene, camera: &Camera, film: &Film, rect: Rect, out: &mut [T]) {
-    let (w, h) = (film.width as f32, film.height as f32);
+fn draw<T: Texel>(scene: &Scene, camera: &Camera, size: (u32, u32), rect: Rect, out: &mut [T]) {
+    let (w, h) = (size.0 as f32, size.1 as f32);
     let aspect = w / h;
     let tan_y = (0.5 * camera.yfov).tan();
     let tan_x = tan_y * aspect;
@@ -307,11 +360,10 @@ impl CubeDepth {
     /// The shadow map of `scene` seen from `position`, `res` x `res` texels a face.
     pub fn new(scene: &Scene, position: Vec3, res: u32) -> CubeDepth {
         let faces = CUBE_FACES;
-        let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
         let mut depth = Vec::with_capacity(6 * (res * res) as usize);
         for &(forward, right, up) in &faces {
             let cam = Camera { position, forward, up, right, yfov: std::f32::consts::FRAC_PI_2, aspect: Some(1.0) };
-            depths_into(scene, &cam, &film, Rect::full(&film), &mut depth);
+            depths_into(scene, &cam, (res, res), Rect::full(res, res), &mut depth);
         }
         CubeDepth { position, res, faces, depth }
     }
