@@ -4,7 +4,8 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_scene::{Material, Scene, Triangle, analyze};
+use pm_light::analyze;
+use pm_scene::{Material, Scene, Triangle};
 use pm_tests::load_scene;
 use std::path::{Path, PathBuf};
 
@@ -163,7 +164,7 @@ fn spot_and_sun_in_candela_and_lux_give_the_analytic_direct_light() {
         let path = dir.path().join("plane_point.gltf");
         std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
         let scene = pm_scene::load(&path).unwrap();
-        let direct = pm_render::DirectLighting::new(&scene).unwrap();
+        let direct = pm_light::DirectLighting::new(&scene).unwrap();
         let (mut worst, mut lit) = (0f32, 0);
         for i in 0..25 {
             let p = Vec3::new((i % 5) as f32 * 0.3 - 0.6, 0.0, (i / 5) as f32 * 0.3 - 0.6);

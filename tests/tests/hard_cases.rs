@@ -225,7 +225,7 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
         Material::new("panel", Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::ONE),
     ];
     let scene = Scene::from_parts(tris, mats, vec![], None);
-    let light = pm_render::DirectLighting::new(&scene).unwrap();
+    let light = pm_light::DirectLighting::new(&scene).unwrap();
     let mut bad = Vec::new();
     for z in [1e-4f32, 1e-3, 1e-2, 0.1, 0.5] {
         let p = v(0.1, 0.0, z);
@@ -313,15 +313,15 @@ fn closed_form_direct_light(second_light: bool) {
     ];
     let scene = Scene::from_parts(tris, mats, vec![], None);
     assert_eq!(scene.lights.len(), lights.len());
-    let closed = pm_render::DirectLighting::with_closed_form(&scene).unwrap();
-    let plain = pm_render::DirectLighting::new(&scene).unwrap();
+    let closed = pm_light::DirectLighting::with_closed_form(&scene).unwrap();
+    let plain = pm_light::DirectLighting::new(&scene).unwrap();
     let at = |x: f32| {
         let hit = scene.intersect(v(x, 0.5, 0.0), -Vec3::Y, f32::INFINITY).unwrap();
         let bsdf = scene.bsdf(&hit);
         (hit, bsdf)
     };
     // Mean and standard deviation over `m` streams of `n` light samples at x.
-    let stats = |d: &pm_render::DirectLighting, x: f32, n: u32, m: u64| {
+    let stats = |d: &pm_light::DirectLighting, x: f32, n: u32, m: u64| {
         let (hit, bsdf) = at(x);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for k in 0..m {

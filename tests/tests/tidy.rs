@@ -9,10 +9,10 @@ use std::path::PathBuf;
 /// layers (or, below the stage binaries, its own layer).
 /// 0 vocabulary (colour, sampling, parameters, BSDFs); 1 data (the photon-map
 /// file, the scene, the kd-tree); 2 the pieces every renderer shares (photon
-/// tracing, estimates, the rasteriser, images); 3 the image loop and integrators
+/// tracing, estimates, the rasteriser, light sampling, images); 3 the image loop and integrators
 /// (pm-render: nothing below it may depend on it); 4 the real-time methods;
 /// 5 the stage shell; 6 stage binaries (never on each other); 7 the test crate.
-const LAYERS: [(&str, u8); 21] = [
+const LAYERS: [(&str, u8); 22] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -23,6 +23,7 @@ const LAYERS: [(&str, u8); 21] = [
     ("pm-photon", 2),
     ("pm-estimate", 2),
     ("pm-raster", 2),
+    ("pm-light", 2),
     ("pm-image", 2),
     ("pm-render", 3),
     ("pm-live", 4),
@@ -40,7 +41,7 @@ const LAYERS: [(&str, u8); 21] = [
 const STAGE: u8 = 6;
 
 /// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
-const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 12] = [
+const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 13] = [
     ("pm-params", &["pm-color", "pm-sampling", "pm-bsdf"]),
     ("pm-sampling", &["pm-color", "pm-bsdf", "pm-scene"]),
     ("pm-bsdf", &["pm-scene", "pm-format", "pm-photon"]),
@@ -50,6 +51,7 @@ const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 12] = [
     ("pm-photon", &["pm-kdtree", "pm-estimate", "pm-render", "pm-image"]),
     ("pm-estimate", &["pm-scene", "pm-photon", "pm-render", "pm-image"]),
     ("pm-raster", &["pm-bsdf", "pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-image"]),
+    ("pm-light", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render", "pm-image"]),
     ("pm-render", &["pm-photon", "pm-image"]),
     ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
     ("pm-live", &["pm-image"]),

@@ -347,7 +347,7 @@ pub(crate) struct Setup {
     pub(crate) cfg: Pipeline,
     pub(crate) scene: PathBuf,
     pub(crate) out: PathBuf,
-    pub(crate) analysis: pm_scene::Effects,
+    pub(crate) analysis: pm_light::Effects,
     pub(crate) caustics: bool,
     pub(crate) indirect: bool,
 }
@@ -368,7 +368,7 @@ pub(crate) fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     bins.check()?;
 
     // Which effects to simulate: the scene analysis, or the list pipeline.toml forces.
-    let analysis: pm_scene::Effects = {
+    let analysis: pm_light::Effects = {
         let o = std::process::Command::new(bins.path("photon-trace"))
             .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
             .args(["--light-units".to_string(), cfg.light_units.to_string()])

@@ -200,7 +200,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
     let start = Instant::now();
     let scene = pm_stage::load_scene("photon-trace", scene_path, args.scene_args)?;
     if args.analyze {
-        println!("{}", serde_json::to_string_pretty(&pm_scene::analyze(&scene))?);
+        println!("{}", serde_json::to_string_pretty(&pm_light::analyze(&scene))?);
         return Ok(None);
     }
     let selector = LightSelector::new(&scene, &args.light_shares).with_context(|| scene_path.display().to_string())?;

@@ -166,12 +166,14 @@ fn cube_arrivals(scene: &Scene, position: Vec3, res: u32, intensity: impl Fn(Vec
 /// stream, so a static light gives the same bounce map every frame, as the paper's
 /// seeding by light position and texel does).
 pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<BouncePhoton>, BounceStats) {
-    let total = scene.total_power().element_sum().max(f32::MIN_POSITIVE);
     let mut out = Vec::new();
     let mut stats = BounceStats::default();
+    // Nothing emits: no bounce map.
+    let Ok(selector) = pm_light::LightSelector::new(scene, &[]) else { return (out, stats) };
     for li in 0..scene.lights.len() {
-        // Texels in proportion to the light's share of the power (section 4.2).
-        let share = scene.lights[li].power.element_sum() / total;
+        // Texels in proportion to the light's share of the power (section 4.2), the
+        // share the photon tracer and light sampling also use.
+        let share = selector.probs[li] as f32;
         if !(share > 0.0) {
             continue;
         }
@@ -418,7 +420,7 @@ pub fn frame(
     let t_gbuffer = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let maps = crate::shadow_maps(scene, p);
-    let shading = LiveShading::splatted(scene, &photons, &index, p, &maps).map_err(|e| e.to_string())?;
+    let shading = LiveShading::splatted(scene, &photons, &index, p, maps.as_ref()).map_err(|e| e.to_string())?;
     pm_render::render_into(
         camera,
         &film,

@@ -26,10 +26,11 @@ pub use shade::LiveShading;
 
 use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
+use pm_light::LightSelector;
 use pm_params::{Any, above, above_up_to, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
 use pm_render::{Film, FrameBuffers, RenderStats, Visibility};
-use pm_scene::{Camera, LightSelector, Scene, Target};
+use pm_scene::{Camera, Scene, Target};
 use std::time::Instant;
 
 pm_params::value_enum! {
@@ -244,20 +245,19 @@ fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
 }
 
 /// The shadow maps of `scene`'s lights when direct light comes from shadow maps
-/// (none otherwise): point and spot lights, and small planar one-sided area lights
-/// ([`shade::LightMap`]); none for the others.
-fn shadow_maps(scene: &Scene, p: &LiveParams) -> Vec<Option<shade::LightMap>> {
+/// and every light can have one (see [`pm_light::ShadowMaps`]); none otherwise.
+fn shadow_maps(scene: &Scene, p: &LiveParams) -> Option<pm_light::ShadowMaps> {
     if p.direct != DirectMode::ShadowMap {
-        return Vec::new();
+        return None;
     }
-    scene.lights.iter().map(|l| shade::LightMap::new(scene, l, p.shadow_map_res)).collect()
+    pm_light::ShadowMaps::new(scene, p.shadow_map_res)
 }
 
 /// The lights of `scene` that cannot have a shadow map (directional lights; area
 /// lights that are large, curved, two-sided or textured), by name: with any of them
 /// `--direct shadow-map` draws every light with shadow rays.
 pub fn lights_without_shadow_maps(scene: &Scene) -> Vec<String> {
-    scene.lights.iter().filter(|l| !shade::LightMap::supports(l)).map(|l| l.name.clone()).collect()
+    scene.lights.iter().filter(|l| !pm_light::ShadowMaps::supports(l)).map(|l| l.name.clone()).collect()
 }
 
 /// The photons of `ring` the estimates read (see [`Live::tree_photons`]).
@@ -332,7 +332,7 @@ impl Live {
         let trace = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(params.total as u64), seed, selector };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(&scene, params.cornering);
-        let caustics = params.method == Method::Ispm && pm_scene::analyze(&scene).caustics.yes;
+        let caustics = params.method == Method::Ispm && pm_light::analyze(&scene).caustics.yes;
         let rest_lights = (scene.lights.clone(), photon_scene.as_ref().map(|p| p.lights.clone()));
         Ok(Live {
             scene,
@@ -553,7 +553,7 @@ impl Live {
         }
         let t = Instant::now();
         let maps = shadow_maps(&self.scene, p);
-        let shading = LiveShading::new(&self.scene, &self.corners, &e, p, &maps).map_err(|e| e.to_string())?;
+        let shading = LiveShading::new(&self.scene, &self.corners, &e, p, maps.as_ref()).map_err(|e| e.to_string())?;
         let visibility = match p.draw {
             DrawMode::Raster => Visibility::Fragments(&self.scene, &self.fragments),
             DrawMode::Rays => Visibility::Rays,

@@ -11,8 +11,9 @@ use crate::splat::{PhotonIndex, Surface, VolumePhoton};
 use crate::{Corners, DirectMode, LiveParams};
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_raster::{CubeDepth, Fragment};
-use pm_render::{Components, Counters, DirectLighting, Integrator, VisibleSurface};
+use pm_light::{DirectLighting, LitPoint, ShadowMaps};
+use pm_raster::Fragment;
+use pm_render::{Components, Counters, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
@@ -33,10 +34,9 @@ pub struct LiveShading<'a> {
     direct: DirectMode,
     light_samples: u32,
     max_depth: u32,
-    /// A shadow map per light (see [`LightMap`]; none for lights without one).
-    shadow_maps: &'a [Option<LightMap>],
-    /// True when every light has a shadow map (else shadow rays serve all lights).
-    all_mapped: bool,
+    /// A shadow map per light, when every light has one (else shadow rays serve
+    /// all lights).
+    shadow_maps: Option<&'a ShadowMaps>,
     counters: Counters,
 }
 
@@ -47,8 +47,8 @@ impl<'a> LiveShading<'a> {
         corners: &'a Corners,
         e: &'a [Rgb],
         p: &LiveParams,
-        shadow_maps: &'a [Option<LightMap>],
-    ) -> Result<Self, pm_scene::LightSelectError> {
+        shadow_maps: Option<&'a ShadowMaps>,
+    ) -> Result<Self, pm_light::LightSelectError> {
         Self::with(scene, Indirect::Corners { corners, e }, p.direct, p, shadow_maps)
     }
 
@@ -60,8 +60,8 @@ impl<'a> LiveShading<'a> {
         photons: &'a [VolumePhoton],
         index: &'a PhotonIndex,
         p: &LiveParams,
-        shadow_maps: &'a [Option<LightMap>],
-    ) -> Result<Self, pm_scene::LightSelectError> {
+        shadow_maps: Option<&'a ShadowMaps>,
+    ) -> Result<Self, pm_light::LightSelectError> {
         let direct = if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct };
         Self::with(scene, Indirect::Photons { photons, index }, direct, p, shadow_maps)
     }
@@ -71,8 +71,8 @@ impl<'a> LiveShading<'a> {
         indirect: Indirect<'a>,
         direct: DirectMode,
         p: &LiveParams,
-        shadow_maps: &'a [Option<LightMap>],
-    ) -> Result<Self, pm_scene::LightSelectError> {
+        shadow_maps: Option<&'a ShadowMaps>,
+    ) -> Result<Self, pm_light::LightSelectError> {
         Ok(LiveShading {
             // Plain light samples: at one sample a pixel the closed form with a
             // stochastic shadow (the batch renderer's) takes noise out of lit regions
@@ -84,7 +84,6 @@ impl<'a> LiveShading<'a> {
             light_samples: p.light_samples,
             max_depth: p.max_depth,
             shadow_maps,
-            all_mapped: shadow_maps.len() == scene.lights.len() && shadow_maps.iter().all(Option::is_some),
             counters: Counters::default(),
         })
     }
@@ -104,49 +103,6 @@ impl<'a> LiveShading<'a> {
 }
 
 impl LiveShading<'_> {
-    /// Reflected direct radiance [W sr^-1 m^-2] with shadow maps at point `at`
-    /// (the caller checks that every light has one): every light at every pixel,
-    /// visibility from its cube map with a bias of two texels at the point's
-    /// distance over the cosine of incidence. Point and spot lights: f I cos / d^2.
-    /// Area lights: see [`LightMap`].
-    fn mapped_direct(&self, at: LitPoint, bsdf: &pm_bsdf::Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
-        let scene = self.light.scene;
-        let mut sum = Rgb::ZERO;
-        for (light, map) in scene.lights.iter().zip(self.shadow_maps.iter().flatten()) {
-            // Whether the map's centre sees the point.
-            let visible = || {
-                let d = map.depth.position() - at.p;
-                let dist = d.length();
-                // Two texels at the point's distance, more at grazing light where one
-                // texel spans a longer stretch of the surface (shadow acne otherwise).
-                let bias = 2.0 * map.depth.texel_angle() * dist / (d.dot(at.ng) / dist).abs().max(0.25);
-                map.depth.visible(at.p, bias)
-            };
-            if map.area
-                && let pm_bsdf::Bsdf::Lambert { rho } = bsdf
-            {
-                sum += lambert_reflected(light, at, *rho, wo, &visible);
-                continue;
-            }
-            // A point or spot light from its position; an area light (on a surface
-            // that is not Lambertian) by one light sample, with the centre's visibility.
-            let (u_sel, u) = if map.area {
-                let u = s.next_2d();
-                (s.next_1d(), u)
-            } else {
-                (0.5, glam::Vec2::splat(0.5))
-            };
-            let Some(ls) = light.sample_li(scene, at.p, u_sel, u) else { continue };
-            if ls.wi.dot(at.ng) * wo.dot(at.ng) <= 0.0 {
-                continue;
-            }
-            if visible() {
-                sum += bsdf.f(wo, ls.wi, at.ns) * ls.wi.dot(at.ns).abs() * ls.li / ls.pdf;
-            }
-        }
-        sum
-    }
-
     /// Direct light at the eye's first surface `f` seen along `d`, from the fragment
     /// alone, when that surface is plainly Lambertian and emits nothing and every
     /// light has a shadow map: what [`Self::shade`] gives there (the same point,
@@ -161,7 +117,8 @@ impl LiveShading<'_> {
         if scene.materials[tr.material as usize].emission != Rgb::ZERO {
             return None;
         }
-        Some(self.mapped_direct(LitPoint { p, ng: tr.ng, ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
+        let maps = self.shadow_maps?;
+        Some(maps.direct(scene, LitPoint { p, ng: tr.ng, ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
     }
 
     /// The components seen along direction `d` whose first hit is `first`.
@@ -191,8 +148,10 @@ impl LiveShading<'_> {
             }
             let direct = match self.direct {
                 DirectMode::Rays => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
-                DirectMode::ShadowMap if self.all_mapped => self.mapped_direct(LitPoint::of(&hit), &bsdf, wo, s),
-                DirectMode::ShadowMap => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
+                DirectMode::ShadowMap => match self.shadow_maps {
+                    Some(maps) => maps.direct(scene, LitPoint::of(&hit), &bsdf, wo, s),
+                    None => self.light.direct(&hit, &bsdf, wo, s, self.light_samples),
+                },
                 DirectMode::Photons => Rgb::ZERO,
             };
             let indirect = match self.indirect {
@@ -216,85 +175,6 @@ impl LiveShading<'_> {
         }
         Components::default()
     }
-}
-
-/// What direct light by shadow maps reads of a surface point.
-#[derive(Clone, Copy)]
-struct LitPoint {
-    /// The point [m].
-    p: Vec3,
-    /// Unit geometric normal.
-    ng: Vec3,
-    /// Unit shading normal, on the geometric normal's side.
-    ns: Vec3,
-}
-
-impl LitPoint {
-    fn of(hit: &Hit) -> LitPoint {
-        LitPoint { p: hit.p, ng: hit.ng, ns: hit.ns }
-    }
-}
-
-/// A light's shadow map for [`crate::DirectMode::ShadowMap`]: depth seen from its
-/// centre, drawn by the rasteriser (the paper's shadow maps, section 3 step 1a).
-pub struct LightMap {
-    /// The cube depth map.
-    depth: CubeDepth,
-    /// True for an area light (one with [`pm_scene::Light::cos_integral`]).
-    area: bool,
-}
-
-impl LightMap {
-    /// The map of `light` at `res` x `res` texels a face, or none. Point and spot
-    /// lights: at their position. Area lights with a closed-form irradiance
-    /// ([`pm_scene::Light::cos_integral`]: planar, one-sided, uniformly emitting, of
-    /// at most [`pm_scene::OUTLINE_TRIANGLES`] triangles): at their area-weighted
-    /// centroid pushed 1e-3 of the scene's diagonal off the surface, so the map does
-    /// not see the light itself.
-    pub fn new(scene: &Scene, light: &pm_scene::Light, res: u32) -> Option<LightMap> {
-        use pm_scene::LightKind;
-        if !LightMap::supports(light) {
-            return None;
-        }
-        match &light.kind {
-            LightKind::Point { position, .. } | LightKind::Spot { position, .. } => {
-                Some(LightMap { depth: CubeDepth::new(scene, *position, res), area: false })
-            }
-            LightKind::Area { tris, .. } => {
-                let t: Vec<&pm_scene::Triangle> = tris.clone().map(|i| &scene.triangles[i as usize]).collect();
-                let normal = t.first()?.ng;
-                let area: f32 = t.iter().map(|q| q.area).sum();
-                let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area / 3.0)).sum::<Vec3>() / area;
-                let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
-                Some(LightMap { depth: CubeDepth::new(scene, position, res), area: true })
-            }
-            LightKind::Directional { .. } => None,
-        }
-    }
-
-    /// True when [`LightMap::new`] gives `light` a map (without drawing it).
-    pub fn supports(light: &pm_scene::Light) -> bool {
-        use pm_scene::LightKind;
-        match &light.kind {
-            LightKind::Point { .. } | LightKind::Spot { .. } => true,
-            LightKind::Area { .. } => light.has_cos_integral(),
-            LightKind::Directional { .. } => false,
-        }
-    }
-}
-
-/// Reflected radiance [W sr^-1 m^-2] toward `wo` from area light `light` at `at` on
-/// a Lambertian surface of reflectance `rho`, with `visible()` the shadow map's
-/// answer for the light's centre: the unoccluded irradiance in closed form
-/// ([`pm_scene::Light::cos_integral`]) times ρ / π. No noise, and the penumbrae of
-/// a point at the centre.
-fn lambert_reflected(light: &pm_scene::Light, at: LitPoint, rho: Rgb, wo: Vec3, visible: &dyn Fn() -> bool) -> Rgb {
-    let n = pm_render::facing(at.ns, wo);
-    let Some((le, e)) = light.cos_integral(at.p, n) else { return Rgb::ZERO };
-    if !(e > 0.0) || !visible() {
-        return Rgb::ZERO;
-    }
-    rho * le * (e / PI)
 }
 
 impl Integrator for LiveShading<'_> {
@@ -330,7 +210,7 @@ impl Integrator for LiveShading<'_> {
         // indirect light is splatted afterwards, so direct light is all they take).
         if vs.is_none()
             && self.direct == DirectMode::ShadowMap
-            && self.all_mapped
+            && self.shadow_maps.is_some()
             && matches!(self.indirect, Indirect::Photons { .. })
             && let Some(f) = fragment
             && let Some(direct) = self.lambert_first(f, d, s)
@@ -371,8 +251,8 @@ mod tests {
             let p = LiveParams { direct: DirectMode::ShadowMap, ..LiveParams::default() };
             let maps = crate::shadow_maps(&scene, &p);
             let index = PhotonIndex::new(&[]);
-            let shading = LiveShading::splatted(&scene, &[], &index, &p, &maps).unwrap();
-            assert!(shading.all_mapped, "{name}");
+            assert!(maps.is_some(), "{name}");
+            let shading = LiveShading::splatted(&scene, &[], &index, &p, maps.as_ref()).unwrap();
             let camera = scene.camera.clone().unwrap();
             let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 3 };
             let fragments = raster::first_hits(&scene, &camera, film.size(), film.rect());

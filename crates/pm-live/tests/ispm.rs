@@ -239,7 +239,7 @@ fn layers_agree_with_the_path_tracer() {
 fn caustic_paths_are_traced_only_where_the_analysis_finds_them() {
     for (name, caustics) in [("cornell_boxes.gltf", false), ("cornell_spheres.gltf", true)] {
         let s = scene(name);
-        assert_eq!(pm_scene::analyze(&s).caustics.yes, caustics, "{name}");
+        assert_eq!(pm_light::analyze(&s).caustics.yes, caustics, "{name}");
         let p = LiveParams { method: Method::Ispm, width: 32, height: 32, bounce_res: 24, ..LiveParams::default() };
         let mut live = Live::new(s, None, p, 2).unwrap();
         live.step().unwrap();

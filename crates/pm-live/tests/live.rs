@@ -2,9 +2,10 @@
 
 use glam::Vec3;
 use pm_format::{FullIrrPhoton, Photon, PhotonRecord, flags};
+use pm_light::LightSelector;
 use pm_live::{DirectMode, Distribution, Live, LiveParams, PhotonSearch, RingBuffer};
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
-use pm_scene::{LightKind, LightSelector, Scene};
+use pm_scene::{LightKind, Scene};
 use std::path::PathBuf;
 
 fn scene(name: &str) -> Scene {

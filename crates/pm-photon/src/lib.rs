@@ -17,8 +17,8 @@ use glam::Vec3;
 use pm_bsdf::BsdfSample;
 use pm_color::Rgb;
 use pm_format::{Photon, flags};
+pub use pm_light::{LightSelectError, LightSelector};
 use pm_sampling::{Sampler, mix64};
-pub use pm_scene::{LightSelectError, LightSelector};
 use pm_scene::{Scene, Target};
 use rayon::prelude::*;
 

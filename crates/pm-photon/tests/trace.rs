@@ -222,7 +222,7 @@ fn scenes_that_cannot_be_traced_are_refused() {
         vec![],
         None,
     );
-    assert!(matches!(LightSelector::new(&dark, &[]), Err(pm_scene::LightSelectError::NoLights)));
+    assert!(matches!(LightSelector::new(&dark, &[]), Err(pm_light::LightSelectError::NoLights)));
     let zero = Scene::from_parts(
         vec![Triangle::new([Vec3::ZERO, Vec3::X, Vec3::Y], 0).unwrap()],
         vec![material("m", Bsdf::Lambert { rho: Rgb::ONE }, Rgb::ZERO)],
@@ -233,7 +233,7 @@ fn scenes_that_cannot_be_traced_are_refused() {
         }],
         None,
     );
-    assert!(matches!(LightSelector::new(&zero, &[]), Err(pm_scene::LightSelectError::NoLights)));
+    assert!(matches!(LightSelector::new(&zero, &[]), Err(pm_light::LightSelectError::NoLights)));
     let empty = Scene::from_parts(
         vec![],
         vec![],
@@ -250,11 +250,11 @@ fn scenes_that_cannot_be_traced_are_refused() {
     let box_scene = closed_box_two_lights();
     assert!(matches!(
         LightSelector::new(&box_scene, &[("nope".into(), 0.5)]),
-        Err(pm_scene::LightSelectError::UnknownLight(..))
+        Err(pm_light::LightSelectError::UnknownLight(..))
     ));
     assert!(matches!(
         LightSelector::new(&box_scene, &[("object #1 (dim)".into(), 1.5)]),
-        Err(pm_scene::LightSelectError::BadShares(_))
+        Err(pm_light::LightSelectError::BadShares(_))
     ));
 }
 

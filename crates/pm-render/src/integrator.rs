@@ -3,7 +3,6 @@
 //! recursive specular reflection and refraction), and the inspection views of
 //! Figure 1 as their own small integrators over the same specular recursion.
 
-use crate::direct::DirectLighting;
 use crate::gather::{Scratch, final_gather, lookup_irradiance};
 use crate::icache::IrradianceCache;
 use crate::render::{Counters, Film};
@@ -13,6 +12,7 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
+use pm_light::DirectLighting;
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
@@ -195,7 +195,7 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
         maps: Maps<'a, G>,
         params: &RenderParams,
         indirect: bool,
-    ) -> Result<Self, pm_scene::LightSelectError> {
+    ) -> Result<Self, pm_light::LightSelectError> {
         let cfg = Settings::new(params, scene.bounds.diagonal(), indirect);
         Ok(PhotonMapping {
             scene,

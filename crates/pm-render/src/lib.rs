@@ -22,14 +22,12 @@
 //! Radiance everywhere is W sr^-1 m^-2 per RGB channel. This crate does no I/O: it
 //! returns in-memory images with component layers, statistics, and cache records.
 
-mod direct;
 mod gather;
 mod icache;
 mod integrator;
 mod path;
 mod render;
 
-pub use direct::DirectLighting;
 pub use gather::Scratch;
 pub use icache::IrradianceCache;
 pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};

@@ -2,11 +2,11 @@
 //! power heuristic against BSDF sampling, and Russian roulette. The reference and
 //! speed baseline for the photon-map renderer, over the same scene and BSDFs.
 
-use crate::direct::{DirectLighting, power_heuristic};
 use crate::integrator::{Components, Integrator, VisibleSurface};
 use crate::render::Counters;
 use glam::Vec3;
 use pm_color::Rgb;
+use pm_light::{DirectLighting, power_heuristic};
 use pm_sampling::Sampler;
 use pm_scene::Scene;
 use std::sync::atomic::Ordering::Relaxed;
@@ -19,7 +19,7 @@ pub struct PathTracer<'a> {
 
 impl<'a> PathTracer<'a> {
     /// A path tracer for `scene`; fails when nothing in it emits.
-    pub fn new(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+    pub fn new(scene: &'a Scene) -> Result<Self, pm_light::LightSelectError> {
         Ok(PathTracer { light: DirectLighting::new(scene)?, counters: Counters::default() })
     }
 }

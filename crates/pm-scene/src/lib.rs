@@ -16,18 +16,14 @@
 
 mod anim;
 mod bvh4;
-mod effects;
 mod geometry;
 mod gltf_load;
 mod light;
-mod select;
 
 pub use anim::Animation;
-pub use effects::{Decision, Effects, analyze};
 pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
-pub use select::{LightSelectError, LightSelector};
 
 use glam::{Vec2, Vec3};
 use pm_bsdf::{Bsdf, Pbr};

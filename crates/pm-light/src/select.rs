@@ -1,7 +1,7 @@
 //! Choosing a light: by emitted power, or by shares the user gives.
 
-use crate::Scene;
 use pm_sampling::sample_cdf;
+use pm_scene::Scene;
 
 /// Why lights cannot be chosen from.
 #[derive(Debug, thiserror::Error)]

@@ -4,11 +4,12 @@
 //! closed-form unoccluded light with stochastic shadows (Heitz, Hill and McGuire
 //! 2018).
 
+use crate::LightSelector;
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_sampling::Sampler;
-use pm_scene::{Hit, LightSelector, Scene};
+use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 
 /// Direct light from the scene's lights, chosen by power: what every integrator
@@ -42,7 +43,7 @@ const NET_POINTS: u32 = 256;
 
 impl<'a> DirectLighting<'a> {
     /// Direct lighting of `scene`; fails when nothing in it emits.
-    pub fn new(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+    pub fn new(scene: &'a Scene) -> Result<Self, crate::LightSelectError> {
         let enclosing = scene
             .lights
             .iter()
@@ -66,7 +67,7 @@ impl<'a> DirectLighting<'a> {
 
     /// [`Self::new`] with closed-form unoccluded direct light when the scene's lights
     /// have one (see [`Self::direct`]): for the photon-map integrators.
-    pub fn with_closed_form(scene: &'a Scene) -> Result<Self, pm_scene::LightSelectError> {
+    pub fn with_closed_form(scene: &'a Scene) -> Result<Self, crate::LightSelectError> {
         let closed_form =
             scene.lights.len() <= CLOSED_FORM_LIGHTS && scene.lights.iter().all(pm_scene::Light::has_cos_integral);
         Ok(DirectLighting { closed_form, ..Self::new(scene)? })
@@ -194,9 +195,22 @@ fn light_numbers(s: &mut Sampler) -> [f32; 4] {
     [u.x, u.y, u_tri, pick]
 }
 
+/// Reflected radiance [W sr^-1 m^-2] from `light` at point `p` with unit normal
+/// `n` (on the side the reflected light leaves) of a Lambertian surface of
+/// reflectance `rho`, as if nothing blocked the light: ρ / π L_e ∫ cos dω, with
+/// the integral in closed form ([`pm_scene::Light::cos_integral`], Lambert's
+/// formula for a planar polygon); and the integral itself \[sr\] (0 for a light
+/// without a closed form, or wholly below the horizon). The one home of the
+/// closed-form term: stochastic shadows ([`DirectLighting::direct`]) and shadow
+/// maps ([`crate::ShadowMaps`]) both scale it by a visibility.
+pub(crate) fn lambert_unoccluded(light: &pm_scene::Light, p: Vec3, n: Vec3, rho: Rgb) -> (Rgb, f32) {
+    let (le, e) = light.cos_integral(p, n).unwrap_or((Rgb::ZERO, 0.0));
+    (rho * le * (e / PI), e)
+}
+
 /// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.
 #[inline]
-pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
 }
@@ -231,13 +245,13 @@ impl DirectLighting<'_> {
             && self.closed_form
             && let Bsdf::Lambert { rho } = bsdf
         {
-            let side = crate::facing(hit.ns, wo);
+            let side = pm_scene::facing(hit.ns, wo);
             let mut unoccluded = [Rgb::ZERO; CLOSED_FORM_LIGHTS];
             let mut lit = false;
             for (u, light) in unoccluded.iter_mut().zip(&scene.lights) {
                 // Some for every light: `closed_form` is decided by that.
-                let (le, e) = light.cos_integral(hit.p, side).unwrap_or((Rgb::ZERO, 0.0));
-                *u = *rho * le * (e / PI);
+                let e;
+                (*u, e) = lambert_unoccluded(light, hit.p, side, *rho);
                 lit |= e > 0.0;
             }
             // Nothing of any light above the horizon: no shadow rays.

@@ -2,9 +2,9 @@
 //! "simulate only the effects a scene calls for". Each decision is made by shooting
 //! a fixed set of probe rays (deterministic), so it is cheap and repeatable.
 
-use crate::{LightKind, Scene, Target};
 use pm_bsdf::Bsdf;
 use pm_sampling::{Sampler, cosine_hemisphere, to_world};
+use pm_scene::{LightKind, Scene, Target};
 
 /// A yes/no decision with the reason in words.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
