@@ -188,12 +188,21 @@ pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
 /// specular 8%, total 3% (the tolerances `components_agree_with_the_path_tracers_
 /// components` justifies). Prints each, naming `scene`.
 pub fn assert_components_agree(scene: &str, full: &pm_render::Image, path: &pm_render::Image) {
-    let mean = |img: &pm_render::Image, layer: &str| {
-        let px = img.layer(layer).unwrap();
+    use pm_color::Layer;
+    let mean = |img: &pm_render::Image, layer: Option<Layer>| {
+        let px = layer.map_or(img.total(), |l| img.layer(l));
         px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
     };
-    for (layer, tol) in [("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)] {
-        let (f, p) = (mean(full, layer), mean(path, layer));
+    let tolerances = [
+        (Some(Layer::Direct), 0.03),
+        (Some(Layer::Caustic), 0.15),
+        (Some(Layer::Indirect), 0.08),
+        (Some(Layer::Specular), 0.08),
+        (None, 0.03),
+    ];
+    for (which, tol) in tolerances {
+        let layer = which.map_or(pm_color::TOTAL, Layer::name);
+        let (f, p) = (mean(full, which), mean(path, which));
         eprintln!("{scene} {layer}: full {f:.5}, path {p:.5} ({:+.2}%)", 100.0 * (f / p - 1.0));
         assert!((f / p - 1.0).abs() < tol, "{scene} {layer}: full {f} vs path {p}");
     }

@@ -103,7 +103,7 @@ fn a_lone_plane_needs_no_photon_map_and_matches_the_analytic_direct_light() {
     let scene = load_scene("plane_point.gltf");
     let cam = scene.camera.as_ref().unwrap();
     let mut worst = 0f32;
-    for (i, px) in img.layer("total").unwrap().iter().enumerate() {
+    for (i, px) in img.total().unwrap().iter().enumerate() {
         let (x, y) = ((i % 24) as f32 + 0.5, (i / 24) as f32 + 0.5);
         let d = cam.ray_direction(x / 24.0, y / 24.0, 1.0);
         let Some(h) = scene.intersect(cam.position, d, f32::INFINITY) else {

@@ -49,7 +49,7 @@ fn scaled_and_translated_scenes_render_alike() {
         cfg.gather_rays = 128;
         let (img, stats) = render(&scene, &maps, &cfg);
         assert_eq!(stats.nonfinite_pixels, 0);
-        img.layer("total").unwrap().to_vec()
+        img.total().to_vec()
     };
     let base = render_at(&scene_path("cornell_spheres.gltf"));
     for scale in [1e-3f32, 1e4] {
@@ -92,7 +92,7 @@ fn furnace_with_albedo_0_99_stays_finite_and_near_one_hundred() {
     cfg.spp = 1024;
     let (path, ps) = render(&scene, &maps, &cfg);
     for (name, img, tol) in [("full", &full, 0.05), ("path", &path, 0.03)] {
-        let px = img.layer("total").unwrap();
+        let px = img.total();
         assert!(px.iter().all(|p| p.is_finite()));
         let (mean, _, _) = pm_tests::against_constant(px, 100.0);
         eprintln!("albedo 0.99 furnace {name}: mean radiance {mean:.2} (exact 100)");

@@ -121,7 +121,7 @@ fn degenerate_geometry_renders_finite_and_agrees_with_the_path_tracer() {
         assert_eq!((fs.nonfinite_pixels, ps.nonfinite_pixels), (0, 0));
         // Leave out pixels that see the area light or touch one that does: their error
         // is the sample coverage of a bright edge (16 samples against 512).
-        let (f, q) = (full.layer("total").unwrap(), pt.layer("total").unwrap());
+        let (f, q) = (full.total(), pt.total());
         let bright = |x: i32, y: i32| {
             (0..32).contains(&x) && (0..32).contains(&y) && q[(y * 32 + x) as usize].max_element() > 1.0
         };

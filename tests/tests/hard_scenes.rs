@@ -41,7 +41,7 @@ fn no_light_leaks_into_a_closed_dark_room() {
         let cfg = render_params(Method::Full, 24, 24);
         let (img, s) = render(&scene, &maps, &cfg);
         assert_eq!(s.nonfinite_pixels, 0);
-        totals.push(img.layer("total").unwrap().iter().map(|p| p.element_sum() as f64).sum::<f64>());
+        totals.push(img.total().iter().map(|p| p.element_sum() as f64).sum::<f64>());
     }
     eprintln!("lit room {:.4}, dark room {:.3e} (sum of pixel radiance)", totals[0], totals[1]);
     assert!(totals[0] > 1.0);
@@ -79,7 +79,7 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
     // stop after 4 specular bounces and lost 12%.
     let (full, fs) = render(&scene, &maps, &cfg);
     for (name, img, max, tol) in [("path", &path, 5.5, 0.02), ("full", &full, 6.0, 0.05)] {
-        let px = img.layer("total").unwrap();
+        let px = img.total();
         let (mean, _, _) = pm_tests::against_constant(px, 5.0);
         let brightest = px.iter().map(|p| p.max_element()).fold(0.0, f32::max);
         eprintln!("glass furnace {name}: mean {mean:.3}, brightest {brightest:.3}");
@@ -99,7 +99,7 @@ fn rendering_with_empty_photon_maps_falls_back_to_direct_light() {
     let cfg = render_params(Method::Full, 16, 16);
     let (img, s) = render(&scene, &empty, &cfg);
     assert_eq!(s.nonfinite_pixels, 0);
-    let indirect: f32 = img.layer("indirect").unwrap().iter().map(|p| p.element_sum()).sum();
-    let direct: f32 = img.layer("direct").unwrap().iter().map(|p| p.element_sum()).sum();
+    let indirect: f32 = img.layer(pm_color::Layer::Indirect).iter().map(|p| p.element_sum()).sum();
+    let direct: f32 = img.layer(pm_color::Layer::Direct).iter().map(|p| p.element_sum()).sum();
     assert!(direct > 0.0 && indirect >= 0.0 && indirect < 0.1 * direct, "direct {direct}, indirect {indirect}");
 }

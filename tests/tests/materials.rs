@@ -458,7 +458,7 @@ fn mean_seen(s: &Scene, path_spp: u32, full_spp: u32) -> [(pm_render::Method, Rg
         let mut cfg = pm_tests::render_params(method, 8, 8);
         cfg.spp = spp;
         let (img, _) = pm_tests::render(s, &maps, &cfg);
-        let px = img.layer("total").unwrap();
+        let px = img.total();
         (method, px.iter().copied().sum::<Rgb>() / px.len() as f32)
     })
 }
@@ -629,7 +629,7 @@ fn normal_mapped_furnace_creates_no_energy() {
     let (full, _) = render(&s, &maps, &cfg);
     let mut means = vec![];
     for (name, img) in [("path", &path), ("full", &full)] {
-        let px = img.layer("total").unwrap();
+        let px = img.total();
         let (mean, _, _) = pm_tests::against_constant(px, 5.0);
         let brightest = px.iter().map(|p| p.max_element()).fold(0.0, f32::max);
         eprintln!("normal-mapped furnace {name}: mean {mean:.3}, brightest {brightest:.3}");

@@ -89,7 +89,7 @@ fn furnace_split_finds_an_unbiased_path_tracer_unbiased() {
             pm_tests::with_photon_mapping(&scene, &maps, &p, |pm| {
                 let (img, _) =
                     pm_render::render_method(p.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap();
-                img.layer("total").unwrap().to_vec()
+                img.total().to_vec()
             })
         })
         .collect();

@@ -17,7 +17,7 @@ fn tiled<I: Integrator>(camera: &pm_scene::Camera, film: &Film, integ: &I, tw: u
             let rect = Rect { x0, y0, x1: (x0 + tw).min(w), y1: (y0 + th).min(h) };
             let (img, _) = render_region(camera, film, rect, integ, false, &|_, _| {}).unwrap();
             assert_eq!((img.width, img.height), (rect.width(), rect.height()));
-            for (l, (_, px)) in img.layers.iter().enumerate() {
+            for (l, (_, px)) in img.named().enumerate() {
                 for (j, v) in px.iter().enumerate() {
                     let (x, y) = (x0 + j as u32 % rect.width(), y0 + j as u32 / rect.width());
                     layers[l][(y * w + x) as usize] = *v;
@@ -37,7 +37,7 @@ fn assert_tiles_equal_whole<I: Integrator>(name: &str, camera: &pm_scene::Camera
     // Tiles of one pixel row, square tiles that do not divide the image, and columns.
     for (tw, th) in [(film.width, 1), (8, 8), (13, 7), (1, film.height)] {
         let t = tiled(camera, film, integ, tw, th);
-        for (l, (layer, px)) in whole.layers.iter().enumerate() {
+        for (l, (layer, px)) in whole.named().enumerate() {
             assert!(bits(px) == bits(&t[l]), "{name}: {tw}x{th} tiles differ from the whole image in layer {layer}");
         }
     }
@@ -60,7 +60,7 @@ fn tiles_equal_the_whole_image_for_every_integrator() {
     with_photon_mapping(&scene, &maps, &p, |pm| {
         assert!(pm.cache().is_some_and(|c| !c.is_empty()), "the shared cache is in use");
         let img = assert_tiles_equal_whole("full", &camera, &film, &pm);
-        assert!(img.layer("caustic").unwrap().iter().any(|v| v.max_element() > 0.0));
+        assert!(img.layer(pm_color::Layer::Caustic).iter().any(|v| v.max_element() > 0.0));
         let v = pm_render::PhotonsView(pm);
         assert_tiles_equal_whole("photons", &camera, &film, &v);
         let v = pm_render::RadianceView(v.0);

@@ -24,7 +24,7 @@ fn furnace_renders_five_in_full_and_path_modes() {
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     for (name, img) in [("full", &full), ("path", &path)] {
-        let (mean, rms, worst) = against_constant(img.layer("total").unwrap(), 5.0);
+        let (mean, rms, worst) = against_constant(img.total(), 5.0);
         eprintln!(
             "furnace {name}: mean {mean:.4}, pixel RMS error {:.2}%, worst pixel {:.2}%",
             rms * 100.0,
@@ -52,7 +52,7 @@ fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
     cfg.mode = Method::Path;
     cfg.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
-    let (f, p) = (full.layer("total").unwrap(), path.layer("total").unwrap());
+    let (f, p) = (full.total(), path.total());
     let e = pm_image::compare(f, p, 1.0);
     let (rmse, bias) = (e.rel_rmse, e.rel_bias);
     let maxpos = |v: &[glam::Vec3]| {
@@ -79,7 +79,7 @@ fn exact_and_precomputed_lookups_agree_on_cornell_spheres() {
     let (pre, ps) = render(&scene, &maps, &cfg);
     cfg.gather_lookup = Lookup::Exact;
     let (exact, es) = render(&scene, &maps, &cfg);
-    let e = pm_image::compare(pre.layer("total").unwrap(), exact.layer("total").unwrap(), f32::INFINITY);
+    let e = pm_image::compare(pre.total(), exact.total(), f32::INFINITY);
     let (rmse, bias) = (e.rel_rmse, e.rel_bias);
     eprintln!(
         "precomputed vs exact: relative RMSE {rmse:.4}, bias {bias:+.4}; lookups {} vs {}; ranks {:?}",
@@ -100,10 +100,10 @@ fn no_nan_or_inf_in_any_layer() {
             cfg.gather_rays = 64;
             let (img, stats) = render(&scene, &maps, &cfg);
             assert_eq!(stats.nonfinite_pixels, 0, "{name} {mode:?}");
-            for (layer, px) in &img.layers {
+            for (layer, px) in img.named() {
                 assert!(px.iter().all(|p| p.is_finite() && p.min_element() >= 0.0), "{name} {mode:?} {layer}");
             }
-            let total: f32 = img.layer("total").unwrap().iter().map(|p| p.x).sum();
+            let total: f32 = img.total().iter().map(|p| p.x).sum();
             assert!(total > 0.0, "{name} {mode:?} rendered black");
         }
     }
@@ -119,7 +119,7 @@ fn full_render_is_identical_for_any_thread_count() {
     let run =
         |t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap().install(|| render(&scene, &maps, &cfg).0);
     let (a, b) = (run(1), run(2));
-    for ((name, x), (_, y)) in a.layers.iter().zip(&b.layers) {
+    for ((name, x), (_, y)) in a.named().zip(b.named()) {
         let bits = |v: &[glam::Vec3]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
         assert_eq!(bits(x), bits(y), "layer {name}");
     }
@@ -141,7 +141,7 @@ fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
     eprintln!("final gathers {} -> {}, thinned shading points {}", gs.final_gathers, ts.final_gathers, ts.thinned);
     assert!(ts.final_gathers * 10 < gs.final_gathers * 6, "at least 40% fewer final gathers");
     assert!(ts.thinned > 0);
-    let e = pm_image::compare(thinned.layer("total").unwrap(), gathered.layer("total").unwrap(), 1.0);
+    let e = pm_image::compare(thinned.total(), gathered.total(), 1.0);
     eprintln!("all indirect from the photon map vs gathered: relative RMSE {:.4}, bias {:+.4}", e.rel_rmse, e.rel_bias);
     assert!(e.rel_bias.abs() < 0.05, "{e:?}");
 }

@@ -59,7 +59,7 @@ fn runner_runs_every_stage_then_only_what_changed() {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
-    assert!(img.layer("total").unwrap().iter().any(|p| p.max_element() > 0.0));
+    assert!(img.total().unwrap().iter().any(|p| p.max_element() > 0.0));
     // Nothing changed: nothing runs.
     let second = run(&pipeline(dir.path(), 4), &out).unwrap();
     assert!(ran(&second).is_empty(), "{second:?}");

@@ -126,7 +126,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     };
     xtask::run::run_with(&run_args, root, &bins)?;
     let reference = pm_image::read_exr(&reference_dir.join("image.exr"))?;
-    let reference = reference.layer("total").context("reference has no total layer")?.to_vec();
+    let reference = reference.total().context("reference has no total layer")?.to_vec();
     println!("accuracy (static light):");
     for dist in ["same-over-total", "same-per-frame", "random"] {
         for total in [5_000u32, 20_000, 40_000] {
@@ -137,7 +137,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             let (ms, flicker) = run_live(&bins, &dir, &a, 10)?;
             let last = dir.join(format!("frames/{:04}.exr", args.frames - 1));
             let img = pm_image::read_exr(&last)?;
-            let e = pm_image::compare(img.layer("total").context("no total layer")?, &reference, f32::INFINITY);
+            let e = pm_image::compare(img.total().context("no total layer")?, &reference, f32::INFINITY);
             println!(
                 "  {label:<24} {:>7.2} ms  flicker {flicker:.4}  relative RMSE {:.4}  bias {:+.4}",
                 ms[4], e.rel_rmse, e.rel_bias
@@ -153,7 +153,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         a.extend([s(&"--max-level"), s(&ml), s(&"--time"), s(&0.0), s(&"--exr")]);
         let (ms, flicker) = run_live(&bins, &dir, &a, 10)?;
         let img = pm_image::read_exr(&dir.join(format!("frames/{:04}.exr", args.frames - 1)))?;
-        let e = pm_image::compare(img.layer("total").context("no total layer")?, &reference, f32::INFINITY);
+        let e = pm_image::compare(img.total().context("no total layer")?, &reference, f32::INFINITY);
         println!("  {label:<24} {:>7.2} ms  relative RMSE {:.4}  bias {:+.4}", ms[4], e.rel_rmse, e.rel_bias);
         rows.push(Row { sweep: "bias", label, x: ml as f64, ms, flicker, error: Some(e.rel_rmse) });
     }

@@ -96,9 +96,10 @@ struct CompareArgs {
     /// (the light's own pixels).
     #[arg(long, default_value_t = f32::INFINITY)]
     mask_above: f32,
-    /// The layer to compare (total, direct, caustic, indirect, specular).
-    #[arg(long, default_value = "total")]
-    layer: String,
+    /// The layer to compare (direct, caustic, indirect, specular) [default: the
+    /// image, the total of the layers].
+    #[arg(long, value_parser = parse_layer)]
+    layer: Option<pm_color::Layer>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -146,6 +147,12 @@ fn emit_plan(run: run::RunArgs, emit: &[String], root: &std::path::Path) -> Resu
     plan::run(&args, root)
 }
 
+/// A layer named on the command line.
+fn parse_layer(name: &str) -> Result<pm_color::Layer, String> {
+    pm_color::Layer::from_name(name)
+        .ok_or_else(|| format!("expected direct, caustic, indirect or specular, got {name}"))
+}
+
 /// The repository root (the parent of this crate's folder).
 fn workspace_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives one level below the root").to_owned()
@@ -165,7 +172,8 @@ fn compare(a: &CompareArgs) -> Result<()> {
         );
     }
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
-        i.layer(&a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {}", p.display(), a.layer))
+        let name = a.layer.map_or(pm_color::TOTAL, pm_color::Layer::name);
+        i.total_or_layer(a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))
     };
     let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);
     let e = pm_image::compare(&la, &lb, a.mask_above);

@@ -11,6 +11,7 @@
 //! layers (per-layer panels) as SVG and PNG, and error_map.png.
 
 use anyhow::{Context, Result, bail};
+use pm_color::Layer;
 use pm_estimate::IrradianceParams;
 use pm_photon::{RecordLayout, TraceParams};
 use pm_render::{Lookup, Method, RenderParams};
@@ -76,8 +77,9 @@ impl Setting {
     }
 }
 
-/// The layers compared, the image first.
-const LAYERS: [&str; 5] = ["total", "direct", "caustic", "indirect", "specular"];
+/// What is compared: the image (the total, `None`) first, then each layer.
+const LAYERS: [Option<Layer>; 5] =
+    [None, Some(Layer::Direct), Some(Layer::Caustic), Some(Layer::Indirect), Some(Layer::Specular)];
 
 /// One setting's measurements.
 struct Row {
@@ -249,8 +251,9 @@ fn reference_halves(
     Ok([pm_image::read_exr(a)?, pm_image::read_exr(b)?])
 }
 
-fn layer(i: &pm_image::Layers, n: &str) -> Vec<glam::Vec3> {
-    i.layer(n).map(<[_]>::to_vec).unwrap_or_else(|| vec![glam::Vec3::ZERO; (i.width * i.height) as usize])
+/// The total (`None`) or a layer of `i`; zero where the file has none.
+fn layer(i: &pm_image::Layers, l: Option<Layer>) -> Vec<glam::Vec3> {
+    i.total_or_layer(l).map(<[_]>::to_vec).unwrap_or_else(|| vec![glam::Vec3::ZERO; (i.width * i.height) as usize])
 }
 
 /// Run the trade-off study.
@@ -268,12 +271,14 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
 
     let [half_a, half_b] = reference_halves(&bins, &base, &scene, &out, size, args.reference_spp)?;
     let n = (size * size) as usize;
-    let total = |h: &pm_image::Layers| layer(h, "total");
+    let total = |h: &pm_image::Layers| layer(h, None);
     let (a, b) = (total(&half_a), total(&half_b));
     let mean: Vec<glam::Vec3> = a.iter().zip(&b).map(|(a, b)| (*a + *b) * 0.5).collect();
     let keep = accuracy::keep_mask(&mean, size as usize, size as usize);
-    let references: Vec<(Vec<glam::Vec3>, f64)> =
-        LAYERS.iter().map(|l| accuracy::reference_from_halves(&layer(&half_a, l), &layer(&half_b, l), &keep)).collect();
+    let references: Vec<(Vec<glam::Vec3>, f64)> = LAYERS
+        .iter()
+        .map(|l| accuracy::reference_from_halves(&layer(&half_a, *l), &layer(&half_b, *l), &keep))
+        .collect();
     println!(
         "reference: {} spp in two halves; {} of {n} pixels compared; its own noise {:.2}% (relative RMS)",
         args.reference_spp,
@@ -295,7 +300,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     }
     if args.replot {
         rows = read_rows(&out.join("results.csv"), &settings)?;
-        default_image = Some(layer(&pm_image::read_exr(&out.join("defaults-s1.exr"))?, "total"));
+        default_image = Some(layer(&pm_image::read_exr(&out.join("defaults-s1.exr"))?, None));
     }
     for st in settings.into_iter().filter(|_| !args.replot) {
         let mut times = [0.0f64; 4];
@@ -358,7 +363,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             let refs: Vec<&[glam::Vec3]> = layers.iter().map(Vec::as_slice).collect();
             accuracy::split(&refs, &references[k].0, references[k].1, &keep)
         });
-        let ssim = pm_image::ssim(&layer(&images[0], "total"), &references[0].0, size as usize, size as usize);
+        let ssim = pm_image::ssim(&layer(&images[0], None), &references[0].0, size as usize, size as usize);
         let row = Row { setting: st, times, splits, ssim };
         let t = &row.splits[0];
         println!(
@@ -371,7 +376,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             t.measured
         );
         if row.setting.axis == "default" {
-            default_image = Some(layer(&images[0], "total"));
+            default_image = Some(layer(&images[0], None));
         }
         rows.push(row);
     }
@@ -477,7 +482,7 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
     let mut csv = String::from(
         "axis,setting,seeds,trace_s,sort_s,irradiance_s,render_s,total_s,error,bias,noise,reference_noise,mean_bias,measured_rmse,ssim",
     );
-    for l in &LAYERS[1..] {
+    for l in Layer::ALL {
         write!(csv, ",{l}_error,{l}_bias,{l}_noise,{l}_reference_noise")?;
     }
     csv.push('\n');
@@ -810,7 +815,7 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
 
     // Per layer.
     let mut s = Vec::new();
-    for (k, name) in LAYERS[1..].iter().enumerate() {
+    for (k, name) in Layer::ALL.iter().enumerate() {
         let (px, py) = ((k % 2) as f64 * 480.0, (k / 2) as f64 * 340.0);
         let f = pareto(rows, |r| r.splits[k + 1].error);
         panel(

@@ -187,14 +187,14 @@ pub fn run(cli: &Cli) -> Result<Report> {
         }
         let s = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let image = live.frame_layers();
-        let total = image.layer("total").context("no total layer")?;
+        let total = image.total();
         let bytes = pm_image::srgb8(total, cli.params.exposure);
         pm_image::write_srgb8_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, &bytes)?;
         if cli.exr {
             let layers = pm_image::Layers {
                 width: w,
                 height: h,
-                layers: image.layers().map(|(n, px)| (n.to_string(), px.to_vec())).collect(),
+                layers: image.named().map(|(n, px)| (n.to_string(), px.to_vec())).collect(),
             };
             pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
         }

@@ -58,8 +58,8 @@ fn frames_preview_and_timings_are_written_and_identical_for_any_thread_count() {
     let map = pm_format::read(&a.join("buffer-2.pmap"), &pm_format::ReadExpect::default()).unwrap();
     assert_eq!(map.header().n_emitted, 1500);
     let img = pm_image::read_exr(&a.join("frames/0003.exr")).unwrap();
-    assert!(img.layer("total").unwrap().iter().all(|p| p.is_finite()));
-    assert!(img.layer("indirect").unwrap().iter().any(|p| p.max_element() > 0.0));
+    assert!(img.total().unwrap().iter().all(|p| p.is_finite()));
+    assert!(img.layer(pm_color::Layer::Indirect).unwrap().iter().any(|p| p.max_element() > 0.0));
 }
 
 /// An animation split into three runs of frames (7 frames: 2, 2 and 3), each

@@ -196,7 +196,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         let layers = pm_image::Layers {
             width: image.width,
             height: image.height,
-            layers: image.layers.into_iter().map(|(n, px)| (n.to_string(), px)).collect(),
+            layers: image.into_named().map(|(n, px)| (n.to_string(), px)).collect(),
         };
         let out = cli.out.as_ref().context("--out is required")?;
         // Tiles of a job plan write into a folder of their own.
@@ -221,7 +221,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
                 png,
                 layers.width,
                 layers.height,
-                layers.layer("total").context("no total layer")?,
+                layers.total().context("no total layer")?,
                 p.exposure,
             )?;
         }

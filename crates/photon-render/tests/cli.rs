@@ -52,7 +52,7 @@ fn path_mode_images_are_identical_for_any_thread_count_and_readable() {
     for want in ["total", "direct", "caustic", "indirect", "specular"] {
         assert!(names.contains(&want), "{names:?}");
     }
-    assert!(img.layer("total").unwrap().iter().all(|p| p.is_finite()));
+    assert!(img.total().unwrap().iter().all(|p| p.is_finite()));
 }
 
 #[test]
@@ -117,8 +117,8 @@ fn an_empty_global_map_renders_and_says_so() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("the global photon map holds no photons"), "{err}");
     let img = pm_image::read_exr(&out).unwrap();
-    assert!(img.layer("total").unwrap().iter().all(|p| p.is_finite()));
-    assert!(img.layer("direct").unwrap().iter().any(|p| p.max_element() > 0.0));
+    assert!(img.total().unwrap().iter().all(|p| p.is_finite()));
+    assert!(img.layer(pm_color::Layer::Direct).unwrap().iter().any(|p| p.max_element() > 0.0));
 }
 
 /// Stages 1-3 in memory (pm-tests), written as the kd-tree map files stage 4 reads.
@@ -187,7 +187,7 @@ fn a_cache_file_and_regions_reproduce_the_whole_render() {
         let r: Vec<u32> = region.split(',').map(|v| v.parse().unwrap()).collect();
         assert_eq!((img.width, img.height), (r[2] - r[0], r[3] - r[1]));
         for (name, px) in &img.layers {
-            let all = whole_img.layer(name).unwrap();
+            let all = whole_img.by_name(name).unwrap();
             for (j, v) in px.iter().enumerate() {
                 let (x, y) = (r[0] + j as u32 % img.width, r[1] + j as u32 / img.width);
                 assert_eq!(v.to_array().map(f32::to_bits), all[(y * 37 + x) as usize].to_array().map(f32::to_bits));

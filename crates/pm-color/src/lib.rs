@@ -5,11 +5,68 @@
 //! channel: power in W, irradiance in W m^-2, radiance in W sr^-1 m^-2, reflectance
 //! unitless. This crate knows nothing about which of those a triple holds; the field
 //! names and doc comments of the users say so.
+//!
+//! It also names the component layers every image is split into ([`Layer`]), the
+//! one vocabulary of the integrators, the film, the EXR files and the studies.
 
 use glam::Vec3;
 
 /// A linear RGB triple. The unit is the caller's (see the crate doc).
 pub type Rgb = Vec3;
+
+/// A component layer of an image: the radiance [W sr^-1 m^-2] a pixel receives,
+/// split the way Christensen 1999 (section 1.3) splits the rendering equation. The
+/// four layers sum to the image ("total", which is not a layer). The batch
+/// renderer, the path tracer (which classifies each path the same way) and both
+/// real-time methods fill them; the EXR files name their channels after them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Layer {
+    /// Emission seen directly, plus direct light at the first non-specular surface.
+    Direct,
+    /// Light reaching the first non-specular surface through specular bounces only
+    /// (the caustic map's, or the path tracer's L S+ D paths).
+    Caustic,
+    /// Soft indirect light at the first non-specular surface (final gathering, the
+    /// irradiance cache, corner estimates or splatted photons).
+    Indirect,
+    /// Everything seen through one or more mirror or glass bounces from the eye.
+    Specular,
+}
+
+impl Layer {
+    /// Every layer, in file order.
+    pub const ALL: [Layer; 4] = [Layer::Direct, Layer::Caustic, Layer::Indirect, Layer::Specular];
+
+    /// The name of the layer in files and on the command line (`direct`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Layer::Direct => "direct",
+            Layer::Caustic => "caustic",
+            Layer::Indirect => "indirect",
+            Layer::Specular => "specular",
+        }
+    }
+
+    /// The layer called `name`, if any (the file and command-line boundary).
+    pub fn from_name(name: &str) -> Option<Layer> {
+        Layer::ALL.into_iter().find(|l| l.name() == name)
+    }
+
+    /// Position in [`Layer::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl std::fmt::Display for Layer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The name of the image itself (the sum of the layers) in files: its channels
+/// are plain R, G, B.
+pub const TOTAL: &str = "total";
 
 /// Mean of the three channels: the scalar used for power-proportional choices and
 /// Russian roulette (Jensen's photon maps use the channel average, not luminance,

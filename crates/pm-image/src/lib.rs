@@ -6,6 +6,7 @@
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
+use pm_color::{Layer, TOTAL};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -16,18 +17,37 @@ pub struct Layers {
     pub width: u32,
     /// Height \[pixels\].
     pub height: u32,
-    /// (name, pixels); the layer named "total" is the image itself.
+    /// (name, pixels) as in the file: [`pm_color::TOTAL`] is the image itself, the
+    /// others are [`Layer`]s by their names (a file from elsewhere may have others).
     pub layers: Vec<(String, Vec<Vec3>)>,
 }
 
 impl Layers {
-    /// The layer called `name`.
-    pub fn layer(&self, name: &str) -> Option<&[Vec3]> {
+    /// The image itself (R, G, B), when the file has it.
+    pub fn total(&self) -> Option<&[Vec3]> {
+        self.by_name(TOTAL)
+    }
+
+    /// The pixels of `layer`, when the file has it.
+    pub fn layer(&self, layer: Layer) -> Option<&[Vec3]> {
+        self.by_name(layer.name())
+    }
+
+    /// The total (`None`) or a layer, when the file has it.
+    pub fn total_or_layer(&self, layer: Option<Layer>) -> Option<&[Vec3]> {
+        match layer {
+            Some(l) => self.layer(l),
+            None => self.total(),
+        }
+    }
+
+    /// The layer called `name` in the file (the total is [`TOTAL`]).
+    pub fn by_name(&self, name: &str) -> Option<&[Vec3]> {
         self.layers.iter().find(|l| l.0 == name).map(|l| l.1.as_slice())
     }
 }
 
-/// Write OpenEXR, 32-bit float: the "total" layer as R, G, B and every other layer
+/// Write OpenEXR, 32-bit float: the total as R, G, B and every other layer
 /// as `<layer>.R`, `.G`, `.B` in the same part.
 pub fn write_exr(path: &Path, img: &Layers) -> Result<()> {
     write_exr_file(path, img, None)
@@ -95,7 +115,7 @@ fn encode_exr_into(
             return Err(format!("layer {name} has {} pixels, expected {}", px.len(), w * h));
         }
         for (c, comp) in ["R", "G", "B"].iter().enumerate() {
-            let full = if name == "total" { comp.to_string() } else { format!("{name}.{comp}") };
+            let full = if name == TOTAL { comp.to_string() } else { format!("{name}.{comp}") };
             channels.push(AnyChannel::new(full.as_str(), FlatSamples::F32(px.iter().map(|p| p[c]).collect())));
         }
     }
@@ -185,7 +205,7 @@ pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {
         let name = ch.name.to_string();
         let (layer, comp) = match name.rsplit_once('.') {
             Some((l, c)) => (l.to_owned(), c.to_owned()),
-            None => ("total".to_owned(), name.clone()),
+            None => (TOTAL.to_owned(), name.clone()),
         };
         let idx = match comp.as_str() {
             "R" => 0,
@@ -201,8 +221,8 @@ pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {
         let (Some(r), Some(g), Some(b)) = (r, g, b) else { continue };
         layers.push((name, r.iter().zip(&g).zip(&b).map(|((r, g), b)| Vec3::new(*r, *g, *b)).collect()));
     }
-    layers.sort_by_key(|l| l.0 != "total");
-    if layers.first().is_none_or(|l| l.0 != "total") {
+    layers.sort_by_key(|l| l.0 != TOTAL);
+    if layers.first().is_none_or(|l| l.0 != TOTAL) {
         bail!("{}: no R, G, B channels", path.display());
     }
     let (pos, display) = (image.layer_data.attributes.layer_position, image.attributes.display_window);

@@ -48,7 +48,7 @@ fn frames(s: &Scene, p: &LiveParams, n: usize) -> ([f64; 7], ispm::IspmStats, Ve
     ];
     let indirect: Vec<Rgb> = {
         let l = live.frame_layers();
-        l.layer("indirect").unwrap().iter().zip(l.layer("caustic").unwrap()).map(|(a, b)| *a + *b).collect()
+        l.layer(pm_color::Layer::Indirect).iter().zip(l.layer(pm_color::Layer::Caustic)).map(|(a, b)| *a + *b).collect()
     };
     (split, last.unwrap(), indirect)
 }
@@ -204,8 +204,8 @@ fn run() {
             })
             .collect()
     };
-    let reference = blocks(path.layer("total").unwrap());
-    let reference_direct = blocks(path.layer("direct").unwrap());
+    let reference = blocks(path.total());
+    let reference_direct = blocks(path.layer(pm_color::Layer::Direct));
     // Error measures over the blocks that do not see the light: relative RMSE and
     // bias of the image, and the median and 90th percentile of the blocks'
     // relative errors (the RMSE is ruled by a few caustic blocks).
@@ -224,7 +224,7 @@ fn run() {
     // The reference's own noise: a second path-traced image with another seed.
     let film2 = Film { seed: 12, ..film };
     let (path2, _) = pm_render::render_region(&camera, &film2, film2.rect(), &pt, false, &|_, _| {}).unwrap();
-    let (rr, rb, rm, r9) = measure(&blocks(path2.layer("total").unwrap()));
+    let (rr, rb, rm, r9) = measure(&blocks(path2.total()));
     println!(
         "\nAgainst the path tracer (cornell_spheres, 512 x 512, 64 spp in {t_path:.0} s; 4 x 4 block means, the light's blocks left out)"
     );
@@ -246,7 +246,7 @@ fn run() {
         };
         let mut live = Live::new(s.clone(), None, p.clone(), 1).unwrap();
         live.step().unwrap();
-        let (er, eb, em, e9) = measure(&blocks(live.frame_layers().layer("total").unwrap()));
+        let (er, eb, em, e9) = measure(&blocks(live.frame_layers().total()));
         // Frame time at the default light_samples = 1 (the error uses 4 to keep the
         // direct light's noise out of the comparison).
         let mut timed = Live::new(s.clone(), None, LiveParams { light_samples: 1, ..p }, 1).unwrap();
@@ -283,8 +283,8 @@ fn run() {
             step = step.min(st.ispm.map_or(f64::INFINITY, |i| i.times.direct));
         }
         let layers = live.frame_layers();
-        let (dr, db, dm, _) = measure_against(&blocks(layers.layer("direct").unwrap()), &reference_direct);
-        let (_, _, tm, _) = measure(&blocks(layers.layer("total").unwrap()));
+        let (dr, db, dm, _) = measure_against(&blocks(layers.layer(pm_color::Layer::Direct)), &reference_direct);
+        let (_, _, tm, _) = measure(&blocks(layers.total()));
         println!(
             "| {direct:?} | {light_samples} | {:.1} | {:.1} | {dr:.4} | {db:+.4} | {dm:.4} | {tm:.4} |",
             wall * 1e3,

@@ -439,7 +439,7 @@ pub fn frame(
     let (w, h, f) = (p.width, p.height, p.subsample);
     let (t_splat, t_upsample) = if f <= 1 {
         splat::splat_into(&photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
-        buffers.add_to_layer("indirect", &full.indirect);
+        buffers.add_to_layer(pm_color::Layer::Indirect, &full.indirect);
         (t.elapsed().as_secs_f64(), 0.0)
     } else {
         // Section 5.2: the soft indirect light's irradiance splatted at 1/f
@@ -456,10 +456,10 @@ pub fn frame(
         let t_splat = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let up = splat::Upsample::new(&low.indirect, low_gb, gbuffer, camera.position, (w, h, f), true);
-        buffers.add_rows_to_layer("indirect", w as usize, |y, row| up.row(y, row));
+        buffers.add_rows_to_layer(pm_color::Layer::Indirect, w as usize, |y, row| up.row(y, row));
         (t_splat, t.elapsed().as_secs_f64())
     };
-    buffers.add_to_layer("caustic", &full.caustic);
+    buffers.add_to_layer(pm_color::Layer::Caustic, &full.caustic);
     Ok(IspmStats {
         times: IspmTimes {
             gbuffer: t_gbuffer,

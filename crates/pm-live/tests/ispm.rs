@@ -1,6 +1,7 @@
 //! Image-space photon mapping (McGuire and Luebke 2009) against its own gather form,
 //! conservation of power and the furnace.
 
+use pm_color::Layer;
 use pm_color::Rgb;
 use pm_live::ispm::{self, KernelShape};
 use pm_live::splat::{self, PhotonIndex, SplatOutput, Surface};
@@ -131,11 +132,9 @@ fn the_furnace_glows_at_le_over_one_minus_rho() {
     let mut live = Live::new(s, None, p, 3).unwrap();
     let st = live.step().unwrap();
     let layers = live.frame_layers();
-    let mean = |name: &str| {
-        let l = layers.layer(name).unwrap();
-        l.iter().map(|v| pm_color::mean(*v) as f64).sum::<f64>() / l.len() as f64
-    };
-    let (total, direct, indirect) = (mean("total"), mean("direct"), mean("indirect"));
+    let mean = |l: &[Rgb]| l.iter().map(|v| pm_color::mean(*v) as f64).sum::<f64>() / l.len() as f64;
+    let (total, direct, indirect) =
+        (mean(layers.total()), mean(layers.layer(Layer::Direct)), mean(layers.layer(Layer::Indirect)));
     eprintln!("total {total:.4} (direct {direct:.4}, indirect {indirect:.4}); {} photons", st.photons_in_tree);
     assert!((direct - 1.8).abs() < 0.02 * 1.8, "direct {direct}");
     assert!((total - 5.0).abs() < 0.02 * 5.0, "total {total}");
@@ -158,12 +157,7 @@ fn frames_are_identical_for_one_and_two_threads() {
         pool.install(|| {
             let mut live = Live::new(s.clone(), None, p.clone(), 9).unwrap();
             live.step().unwrap();
-            live.frame_layers()
-                .layer("total")
-                .unwrap()
-                .iter()
-                .map(|v| v.to_array().map(f32::to_bits))
-                .collect::<Vec<_>>()
+            live.frame_layers().total().iter().map(|v| v.to_array().map(f32::to_bits)).collect::<Vec<_>>()
         })
     };
     assert_eq!(frame(1), frame(2));
@@ -181,10 +175,16 @@ fn frames_are_identical_for_one_and_two_threads() {
 #[test]
 fn layers_agree_with_the_path_tracer() {
     for (name, layers) in [
-        ("cornell_boxes.gltf", &[("direct", 0.03), ("indirect", 0.08), ("total", 0.03)][..]),
+        ("cornell_boxes.gltf", &[(Some(Layer::Direct), 0.03), (Some(Layer::Indirect), 0.08), (None, 0.03)][..]),
         (
             "cornell_spheres.gltf",
-            &[("direct", 0.03), ("caustic", 0.15), ("indirect", 0.08), ("specular", 0.08), ("total", 0.03)][..],
+            &[
+                (Some(Layer::Direct), 0.03),
+                (Some(Layer::Caustic), 0.15),
+                (Some(Layer::Indirect), 0.08),
+                (Some(Layer::Specular), 0.08),
+                (None, 0.03),
+            ][..],
         ),
     ] {
         let s = scene(name);
@@ -205,7 +205,7 @@ fn layers_agree_with_the_path_tracer() {
         let film = Film { width: w, height: h, spp: 1024, contrast: 0.0, seed: 7 };
         let pt = pm_render::PathTracer::new(&s).unwrap();
         let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
-        let (it, pt_total) = (ispm.layer("total").unwrap(), path.layer("total").unwrap());
+        let (it, pt_total) = (ispm.total(), path.total());
         let bright = |j: usize| it[j].max_element() > 4.0 || pt_total[j].max_element() > 4.0;
         let keep: Vec<bool> = (0..(w * h) as usize)
             .map(|j| {
@@ -222,8 +222,12 @@ fn layers_agree_with_the_path_tracer() {
             let kept = px.iter().zip(&keep).filter(|(_, k)| **k);
             kept.clone().map(|(p, _)| p.element_sum() as f64).sum::<f64>() / (3 * kept.count()) as f64
         };
-        for &(layer, tol) in layers {
-            let (a, b) = (mean(ispm.layer(layer).unwrap()), mean(path.layer(layer).unwrap()));
+        for &(which, tol) in layers {
+            let layer = which.map_or(pm_color::TOTAL, Layer::name);
+            let (a, b) = match which {
+                Some(l) => (mean(ispm.layer(l)), mean(path.layer(l))),
+                None => (mean(ispm.total()), mean(path.total())),
+            };
             eprintln!("{name} {layer}: ispm {a:.5}, path {b:.5} ({:+.2}%)", 100.0 * (a / b - 1.0));
             assert!((a / b - 1.0).abs() < tol, "{name} {layer}: ispm {a} vs path {b}");
         }
@@ -243,7 +247,7 @@ fn caustic_paths_are_traced_only_where_the_analysis_finds_them() {
         let p = LiveParams { method: Method::Ispm, width: 32, height: 32, bounce_res: 24, ..LiveParams::default() };
         let mut live = Live::new(s, None, p, 2).unwrap();
         live.step().unwrap();
-        let lit = live.frame_layers().layer("caustic").unwrap().iter().any(|v| v.max_element() > 0.0);
+        let lit = live.frame_layers().layer(pm_color::Layer::Caustic).iter().any(|v| v.max_element() > 0.0);
         assert_eq!(lit, caustics, "{name}");
     }
     let s = scene("cornell_spheres.gltf");
@@ -302,7 +306,7 @@ fn area_light_shadow_maps_agree_with_shadow_rays() {
             };
             let mut live = Live::new(s.clone(), None, p, 1).unwrap();
             live.step().unwrap();
-            live.frame_layers().layer("direct").unwrap().to_vec()
+            live.frame_layers().layer(pm_color::Layer::Direct).to_vec()
         };
         let (mapped, rays) = (frame(pm_live::DirectMode::ShadowMap, 1), frame(pm_live::DirectMode::Rays, 1024));
         // The pixels that see the floor (its two triangles come first).

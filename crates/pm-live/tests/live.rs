@@ -197,7 +197,7 @@ fn frames_repeat_exactly_for_the_same_inputs() {
         (0..3)
             .map(|_| {
                 live.step().unwrap();
-                live.frame_layers().layer("total").unwrap().to_vec()
+                live.frame_layers().total().to_vec()
             })
             .collect::<Vec<_>>()
     };
@@ -290,7 +290,7 @@ fn shadow_map_direct_light_matches_shadow_rays() {
         let mut live = Live::new(s.clone(), None, params, 4).unwrap();
         live.set_time(0.0);
         live.step().unwrap();
-        live.frame_layers().layer("direct").unwrap().to_vec()
+        live.frame_layers().layer(pm_color::Layer::Direct).to_vec()
     };
     let (mapped, rays) = (frame(DirectMode::ShadowMap), frame(DirectMode::Rays));
     let e = pm_image::compare(&mapped, &rays, f32::INFINITY);
@@ -338,7 +338,7 @@ fn the_photon_grid_gives_the_rebuilds_estimates() {
             .map(|f| {
                 live.set_time(f as f32 * 0.25);
                 live.step().unwrap();
-                live.frame_layers().layer("indirect").unwrap().to_vec()
+                live.frame_layers().layer(pm_color::Layer::Indirect).to_vec()
             })
             .collect::<Vec<_>>()
     };

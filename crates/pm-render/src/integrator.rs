@@ -9,7 +9,7 @@ use crate::render::{Counters, Film};
 use crate::{Maps, RenderParams, Settings, facing};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
-use pm_color::Rgb;
+use pm_color::{Layer, Rgb};
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_light::DirectLighting;
@@ -22,7 +22,7 @@ use std::sync::atomic::Ordering::Relaxed;
 /// by Fresnel); deeper ones pick one by Fresnel probability.
 const SPLIT_DEPTH: u32 = 3;
 
-/// Radiance components of one eye sample [W sr^-1 m^-2].
+/// Radiance components of one eye sample [W sr^-1 m^-2], one per [`Layer`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Components {
     /// Emission seen directly plus direct light at the first non-specular hit.
@@ -48,6 +48,26 @@ impl Components {
             caustic: self.caustic * w,
             indirect: self.indirect * w,
             specular: self.specular * w,
+        }
+    }
+
+    /// The component of `layer`.
+    pub fn get(&self, layer: Layer) -> Rgb {
+        match layer {
+            Layer::Direct => self.direct,
+            Layer::Caustic => self.caustic,
+            Layer::Indirect => self.indirect,
+            Layer::Specular => self.specular,
+        }
+    }
+
+    /// Add `v` to the component of `layer`.
+    pub fn add_to(&mut self, layer: Layer, v: Rgb) {
+        match layer {
+            Layer::Direct => self.direct += v,
+            Layer::Caustic => self.caustic += v,
+            Layer::Indirect => self.indirect += v,
+            Layer::Specular => self.specular += v,
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::integrator::{Components, Integrator, VisibleSurface};
 use crate::render::Counters;
 use glam::Vec3;
-use pm_color::Rgb;
+use pm_color::{Layer, Rgb};
 use pm_light::{DirectLighting, power_heuristic};
 use pm_sampling::Sampler;
 use pm_scene::Scene;
@@ -45,28 +45,12 @@ impl Integrator for PathTracer<'_> {
 /// scenes. Paths cut here are counted.
 const MAX_PATH: u32 = 1000;
 
-/// The renderer's component a contribution belongs to, decided along the path the
-/// way the photon-map renderer splits its image: everything seen through a specular
-/// chain from the eye is "specular"; otherwise, at the first non-specular vertex D1,
-/// emission seen directly and light arriving at D1 straight from a light are
-/// "direct", light arriving at D1 through specular bounces only is "caustic", and
-/// anything that has been diffusely reflected twice is "indirect".
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum Layer {
-    Specular,
-    Direct,
-    Caustic,
-    Indirect,
-}
-
-fn add(c: &mut Components, layer: Layer, v: Rgb) {
-    match layer {
-        Layer::Specular => c.specular += v,
-        Layer::Direct => c.direct += v,
-        Layer::Caustic => c.caustic += v,
-        Layer::Indirect => c.indirect += v,
-    }
-}
+// The layer a contribution belongs to is decided along the path the way the
+// photon-map renderer splits its image: everything seen through a specular chain
+// from the eye is specular; otherwise, at the first non-specular vertex D1,
+// emission seen directly and light arriving at D1 straight from a light are
+// direct, light arriving at D1 through specular bounces only is caustic, and
+// anything that has been diffusely reflected twice is indirect.
 
 /// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2], split into the
 /// renderer's component layers.
@@ -97,9 +81,9 @@ fn path_radiance(
         let le = scene.emitted(&hit, wo);
         if le.max_element() > 0.0 {
             if prev_specular {
-                add(&mut l, emission_layer, beta * le);
+                l.add_to(emission_layer, beta * le);
             } else if let Some(p_l) = light.pdf_emitter(prev_p, hit.tri, d, hit.t) {
-                add(&mut l, emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
+                l.add_to(emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
             }
         }
         let bsdf = scene.bsdf(&hit);
@@ -124,7 +108,7 @@ fn path_radiance(
                 Layer::Indirect
             };
             let nee = beta * light.light_sample(&hit, &bsdf, wo, s, true);
-            add(&mut l, nee_layer, nee);
+            l.add_to(nee_layer, nee);
             if depth == 0
                 && let Some(v) = vs.as_deref_mut()
             {

@@ -5,7 +5,7 @@
 
 use crate::integrator::{Components, Integrator, VisibleSurface};
 use glam::Vec2;
-use pm_color::Rgb;
+use pm_color::{Layer, Rgb};
 use pm_raster::{Fragment, Rect};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::Camera;
@@ -149,20 +149,42 @@ pub struct Image {
     pub width: u32,
     /// Height \[pixels\] (the region's).
     pub height: u32,
-    /// ("total" | "direct" | "caustic" | "indirect" | "specular", pixels).
-    pub layers: Vec<(&'static str, Vec<Rgb>)>,
+    /// The image: the sum of the layers.
+    pub total: Vec<Rgb>,
+    /// Each [`Layer`], in [`Layer::ALL`]'s order.
+    pub layers: [Vec<Rgb>; 4],
     /// First-hit G-buffer, one entry per pixel (its first sample).
     pub gbuffer: Option<Vec<VisibleSurface>>,
 }
 
 impl Image {
-    /// The layer called `name`.
-    pub fn layer(&self, name: &str) -> Option<&[Rgb]> {
-        self.layers.iter().find(|l| l.0 == name).map(|l| l.1.as_slice())
+    /// The image: the sum of the layers.
+    pub fn total(&self) -> &[Rgb] {
+        &self.total
+    }
+
+    /// The pixels of `layer`.
+    pub fn layer(&self, layer: Layer) -> &[Rgb] {
+        &self.layers[layer.index()]
+    }
+
+    /// The total and every layer, by their names in files, moved out (the EXR
+    /// writer's input).
+    pub fn into_named(self) -> impl Iterator<Item = (&'static str, Vec<Rgb>)> {
+        std::iter::once((pm_color::TOTAL, self.total)).chain(Layer::ALL.into_iter().map(Layer::name).zip(self.layers))
+    }
+
+    /// The total and every layer, by their names in files (the EXR writer's input).
+    pub fn named(&self) -> impl Iterator<Item = (&'static str, &[Rgb])> {
+        named(&self.total, &self.layers)
     }
 }
 
-const LAYERS: [&str; 5] = ["total", "direct", "caustic", "indirect", "specular"];
+/// `total` and `layers` by their names in files.
+fn named<'a>(total: &'a [Rgb], layers: &'a [Vec<Rgb>; 4]) -> impl Iterator<Item = (&'static str, &'a [Rgb])> {
+    std::iter::once((pm_color::TOTAL, total))
+        .chain(Layer::ALL.into_iter().map(|l| (l.name(), layers[l.index()].as_slice())))
+}
 
 /// The seed of pixel `i` (row-major index in the whole image): every sample's
 /// random numbers are keyed by (seed, pixel, sample index), never by thread or tile.
@@ -211,7 +233,7 @@ pub struct FrameBuffers {
     fragments: Vec<Option<Fragment>>,
     pixels: Vec<(Components, u32)>,
     in_region: Vec<usize>,
-    /// The rendered layers ("total", "direct", "caustic", "indirect", "specular").
+    /// The rendered image (the total) and its layers in [`Layer::ALL`]'s order.
     layers: [Vec<Rgb>; 5],
 }
 
@@ -236,43 +258,42 @@ fn add_to_both(t: &mut [Rgb], l: &mut [Rgb], values: &[Rgb]) {
 }
 
 impl FrameBuffers {
-    /// The layer called `name` of the last region rendered into these buffers.
-    pub fn layer(&self, name: &str) -> Option<&[Rgb]> {
-        LAYERS.iter().position(|&n| n == name).map(|k| self.layers[k].as_slice())
+    /// The image (the total of the layers) of the last region rendered into these
+    /// buffers.
+    pub fn total(&self) -> &[Rgb] {
+        &self.layers[0]
     }
 
-    /// Add `values` (one per pixel of the last region) to the layer called `name`
-    /// and to "total" (image-space photon mapping splats its indirect layers after
-    /// drawing). Values that are not finite or negative add nothing.
-    pub fn add_to_layer(&mut self, name: &str, values: &[Rgb]) {
-        let Some(k) = LAYERS.iter().position(|&n| n == name) else { return };
+    /// The pixels of `layer` of the last region rendered into these buffers.
+    pub fn layer(&self, layer: Layer) -> &[Rgb] {
+        &self.layers[1 + layer.index()]
+    }
+
+    /// Add `values` (one per pixel of the last region) to `layer` and to the total
+    /// (image-space photon mapping splats its indirect layers after drawing).
+    /// Values that are not finite or negative add nothing.
+    pub fn add_to_layer(&mut self, layer: Layer, values: &[Rgb]) {
         let [total, rest @ ..] = &mut self.layers;
         let n = total.len().min(values.len());
         // In parallel: a 1920 x 1080 frame's layers are 25 MB each.
         const CHUNK: usize = 1 << 14;
         let values = &values[..n];
-        if k == 0 {
-            total[..n].par_chunks_mut(CHUNK).zip(values.par_chunks(CHUNK)).for_each(|(t, v)| {
-                t.iter_mut().zip(v).for_each(|(t, v)| *t += clean(*v));
-            });
-        } else {
-            let layer = &mut rest[k - 1][..n];
-            (total[..n].par_chunks_mut(CHUNK), layer.par_chunks_mut(CHUNK), values.par_chunks(CHUNK))
-                .into_par_iter()
-                .for_each(|(t, l, v)| add_to_both(t, l, v));
-        }
+        let layer = &mut rest[layer.index()][..n];
+        (total[..n].par_chunks_mut(CHUNK), layer.par_chunks_mut(CHUNK), values.par_chunks(CHUNK))
+            .into_par_iter()
+            .for_each(|(t, l, v)| add_to_both(t, l, v));
     }
 
     /// [`FrameBuffers::add_to_layer`] of values made a row at a time: `row(y, out)`
     /// writes row y's `width` values into `out`, for every row of the last region,
-    /// in parallel. `name` is a layer other than "total".
-    pub fn add_rows_to_layer(&mut self, name: &str, width: usize, row: impl Fn(usize, &mut [Rgb]) + Sync) {
-        let Some(k) = LAYERS.iter().position(|&n| n == name).filter(|&k| k > 0) else { return };
+    /// in parallel.
+    pub fn add_rows_to_layer(&mut self, layer: Layer, width: usize, row: impl Fn(usize, &mut [Rgb]) + Sync) {
         let [total, rest @ ..] = &mut self.layers;
-        if width == 0 || total.len() % width != 0 || rest[k - 1].len() != total.len() {
+        let layer = &mut rest[layer.index()];
+        if width == 0 || total.len() % width != 0 || layer.len() != total.len() {
             return;
         }
-        (total.par_chunks_mut(width), rest[k - 1].par_chunks_mut(width)).into_par_iter().enumerate().for_each_init(
+        (total.par_chunks_mut(width), layer.par_chunks_mut(width)).into_par_iter().enumerate().for_each_init(
             || vec![Rgb::ZERO; width],
             |out, (y, (t, l))| {
                 row(y, out);
@@ -281,9 +302,11 @@ impl FrameBuffers {
         );
     }
 
-    /// All layers, named, of the last region rendered.
-    pub fn layers(&self) -> impl Iterator<Item = (&'static str, &[Rgb])> {
-        LAYERS.iter().copied().zip(self.layers.iter().map(Vec::as_slice))
+    /// The total and every layer of the last region rendered, by their names in
+    /// files (the EXR writer's input).
+    pub fn named(&self) -> impl Iterator<Item = (&'static str, &[Rgb])> {
+        let [total, layers @ ..] = &self.layers;
+        named(total, layers)
     }
 }
 
@@ -299,8 +322,8 @@ pub fn render_region_with<I: Integrator>(
 ) -> Result<(Image, RenderStats), String> {
     let mut bufs = FrameBuffers::default();
     let (gb, stats) = render_into(camera, film, rect, integ, gbuffer, visibility, &mut bufs, progress)?;
-    let layers = LAYERS.iter().copied().zip(std::mem::take(&mut bufs.layers)).collect();
-    Ok((Image { rect, width: rect.width(), height: rect.height(), layers, gbuffer: gb }, stats))
+    let [total, layers @ ..] = std::mem::take(&mut bufs.layers);
+    Ok((Image { rect, width: rect.width(), height: rect.height(), total, layers, gbuffer: gb }, stats))
 }
 
 /// The region loop into `bufs` (its layers hold the result), reusing their memory;
