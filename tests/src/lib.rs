@@ -190,7 +190,7 @@ pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
 pub fn assert_components_agree(scene: &str, full: &pm_render::Image, path: &pm_render::Image) {
     use pm_color::Layer;
     let mean = |img: &pm_render::Image, layer: Option<Layer>| {
-        let px = layer.map_or(img.total(), |l| img.layer(l));
+        let px = img.total_or_layer(layer);
         px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
     };
     let tolerances = [
@@ -201,7 +201,7 @@ pub fn assert_components_agree(scene: &str, full: &pm_render::Image, path: &pm_r
         (None, 0.03),
     ];
     for (which, tol) in tolerances {
-        let layer = which.map_or(pm_color::TOTAL, Layer::name);
+        let layer = pm_color::layer_name(which);
         let (f, p) = (mean(full, which), mean(path, which));
         eprintln!("{scene} {layer}: full {f:.5}, path {p:.5} ({:+.2}%)", 100.0 * (f / p - 1.0));
         assert!((f / p - 1.0).abs() < tol, "{scene} {layer}: full {f} vs path {p}");

@@ -172,7 +172,7 @@ fn compare(a: &CompareArgs) -> Result<()> {
         );
     }
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
-        let name = a.layer.map_or(pm_color::TOTAL, pm_color::Layer::name);
+        let name = pm_color::layer_name(a.layer);
         i.total_or_layer(a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))
     };
     let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);

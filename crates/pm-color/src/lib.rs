@@ -68,6 +68,12 @@ impl std::fmt::Display for Layer {
 /// are plain R, G, B.
 pub const TOTAL: &str = "total";
 
+/// The name in files of `layer`, or of the image itself ([`TOTAL`]) for `None`:
+/// what the studies and comparisons that take either call it.
+pub fn layer_name(layer: Option<Layer>) -> &'static str {
+    layer.map_or(TOTAL, Layer::name)
+}
+
 /// Mean of the three channels: the scalar used for power-proportional choices and
 /// Russian roulette (Jensen's photon maps use the channel average, not luminance,
 /// so that a photon's expected power is preserved per channel).

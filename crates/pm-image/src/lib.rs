@@ -35,10 +35,7 @@ impl Layers {
 
     /// The total (`None`) or a layer, when the file has it.
     pub fn total_or_layer(&self, layer: Option<Layer>) -> Option<&[Vec3]> {
-        match layer {
-            Some(l) => self.layer(l),
-            None => self.total(),
-        }
+        self.by_name(pm_color::layer_name(layer))
     }
 
     /// The layer called `name` in the file (the total is [`TOTAL`]).

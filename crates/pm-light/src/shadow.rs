@@ -85,6 +85,10 @@ impl ShadowMaps {
     /// when some light cannot have one ([`Self::supports`]): shadow rays then serve
     /// every light.
     pub fn new(scene: &Scene, res: u32) -> Option<ShadowMaps> {
+        // Asked first, so no map is drawn for a scene that cannot have all of them.
+        if !scene.lights.iter().all(Self::supports) {
+            return None;
+        }
         let maps = scene.lights.iter().map(|l| LightMap::new(scene, l, res)).collect::<Option<Vec<_>>>()?;
         Some(ShadowMaps { maps })
     }

@@ -223,11 +223,8 @@ fn layers_agree_with_the_path_tracer() {
             kept.clone().map(|(p, _)| p.element_sum() as f64).sum::<f64>() / (3 * kept.count()) as f64
         };
         for &(which, tol) in layers {
-            let layer = which.map_or(pm_color::TOTAL, Layer::name);
-            let (a, b) = match which {
-                Some(l) => (mean(ispm.layer(l)), mean(path.layer(l))),
-                None => (mean(ispm.total()), mean(path.total())),
-            };
+            let layer = pm_color::layer_name(which);
+            let (a, b) = (mean(ispm.total_or_layer(which)), mean(path.total_or_layer(which)));
             eprintln!("{name} {layer}: ispm {a:.5}, path {b:.5} ({:+.2}%)", 100.0 * (a / b - 1.0));
             assert!((a / b - 1.0).abs() < tol, "{name} {layer}: ispm {a} vs path {b}");
         }

@@ -168,6 +168,11 @@ impl Image {
         &self.layers[layer.index()]
     }
 
+    /// The total (`None`) or a layer.
+    pub fn total_or_layer(&self, layer: Option<Layer>) -> &[Rgb] {
+        layer.map_or(self.total(), |l| self.layer(l))
+    }
+
     /// The total and every layer, by their names in files, moved out (the EXR
     /// writer's input).
     pub fn into_named(self) -> impl Iterator<Item = (&'static str, Vec<Rgb>)> {
@@ -267,6 +272,11 @@ impl FrameBuffers {
     /// The pixels of `layer` of the last region rendered into these buffers.
     pub fn layer(&self, layer: Layer) -> &[Rgb] {
         &self.layers[1 + layer.index()]
+    }
+
+    /// The total (`None`) or a layer of the last region rendered.
+    pub fn total_or_layer(&self, layer: Option<Layer>) -> &[Rgb] {
+        layer.map_or(self.total(), |l| self.layer(l))
     }
 
     /// Add `values` (one per pixel of the last region) to `layer` and to the total
