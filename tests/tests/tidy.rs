@@ -10,9 +10,11 @@ use std::path::PathBuf;
 /// 0 vocabulary (colour, sampling, parameters, BSDFs); 1 data (the photon-map
 /// file, the scene, the kd-tree); 2 the pieces every renderer shares (photon
 /// tracing, estimates, the rasteriser, light sampling, images); 3 the image loop and integrators
-/// (pm-render: nothing below it may depend on it); 4 the real-time methods;
-/// 5 the stage shell; 6 stage binaries (never on each other); 7 the test crate.
-const LAYERS: [(&str, u8); 22] = [
+/// (pm-render: nothing below it may depend on it); 4 what the real-time methods
+/// share (pm-live: the frame loop and shading); 5 the real-time methods (never on
+/// each other); 6 the stage shell; 7 stage binaries (never on each other); 8 the
+/// test crate.
+const LAYERS: [(&str, u8); 24] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -27,21 +29,23 @@ const LAYERS: [(&str, u8); 22] = [
     ("pm-image", 2),
     ("pm-render", 3),
     ("pm-live", 4),
-    ("pm-stage", 5),
+    ("pm-vertex", 5),
+    ("pm-ispm", 5),
+    ("pm-stage", 6),
     ("photon-trace", STAGE),
     ("photon-sort", STAGE),
     ("photon-irradiance", STAGE),
     ("photon-render", STAGE),
     ("photon-inspect", STAGE),
     ("photon-live", STAGE),
-    ("pm-tests", 7),
+    ("pm-tests", 8),
 ];
 
 /// The layer of the stage binaries.
-const STAGE: u8 = 6;
+const STAGE: u8 = 7;
 
 /// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
-const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 13] = [
+const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 15] = [
     ("pm-params", &["pm-color", "pm-sampling", "pm-bsdf"]),
     ("pm-sampling", &["pm-color", "pm-bsdf", "pm-scene"]),
     ("pm-bsdf", &["pm-scene", "pm-format", "pm-photon"]),
@@ -54,7 +58,9 @@ const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 13] = [
     ("pm-light", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render", "pm-image"]),
     ("pm-render", &["pm-photon", "pm-image"]),
     ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
-    ("pm-live", &["pm-image"]),
+    ("pm-live", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-image"]),
+    ("pm-vertex", &["pm-ispm", "pm-image"]),
+    ("pm-ispm", &["pm-vertex", "pm-format", "pm-estimate", "pm-image"]),
 ];
 
 /// Each workspace crate and the workspace crates in its `[dependencies]`.

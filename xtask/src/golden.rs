@@ -56,7 +56,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     };
     batch("run-default", 1, 1)?;
     batch("run-tiles4-slices3", 4, 3)?;
-    for method in [pm_live::Method::Vertex, pm_live::Method::Ispm] {
+    for method in [photon_live::Method::Vertex, photon_live::Method::Ispm] {
         for (label, scene) in [("room", None), ("spheres", Some(root.join("scenes/cornell_spheres.gltf")))] {
             let name = format!("live-{method}-{label}");
             println!("golden: {name}");

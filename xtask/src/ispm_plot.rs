@@ -1,5 +1,5 @@
 //! `cargo xtask ispm-plot`: the image-space method's accuracy against its frame time,
-//! drawn from the output of `cargo bench -p pm-live --bench ispm` (its table against
+//! drawn from the output of `cargo bench -p pm-ispm --bench ispm` (its table against
 //! the path tracer): median block error against milliseconds per frame, one line
 //! through the bounce counts, one through the bounce-map sizes, one through the
 //! subsampling factors.
@@ -11,7 +11,7 @@ use xtask::plot;
 /// Options of `cargo xtask ispm-plot`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The bench's printed output (`cargo bench -p pm-live --bench ispm > FILE`).
+    /// The bench's printed output (`cargo bench -p pm-ispm --bench ispm > FILE`).
     pub bench_output: PathBuf,
     /// The plot to write (SVG; a PNG beside it).
     #[arg(long, default_value = "docs/ispm_accuracy.svg")]

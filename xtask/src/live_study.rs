@@ -45,12 +45,14 @@ fn run_live(bins: &Bins, dir: &Path, args: &[String], warmup: usize) -> Result<(
     stages::run(bins, "photon-live", &a, "photon-live", true)?;
     let csv =
         std::fs::read_to_string(dir.join("frames.csv")).with_context(|| format!("{}: frames.csv", dir.display()))?;
-    let rows: Vec<Vec<f64>> =
-        csv.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap_or(0.0)).collect()).collect();
-    let kept: Vec<&Vec<f64>> = rows.iter().skip(warmup.min(rows.len().saturating_sub(1))).collect();
+    let rows = pm_live::rows_from_csv::<pm_vertex::VertexFrame>(&csv)
+        .map_err(|e| anyhow::anyhow!("{}: frames.csv: {e}", dir.display()))?;
+    let kept = &rows[warmup.min(rows.len().saturating_sub(1))..];
     let n = kept.len().max(1) as f64;
-    let mean = |c: usize| kept.iter().map(|r| r[c]).sum::<f64>() / n;
-    Ok(([1e3 * mean(1), 1e3 * mean(2), 1e3 * mean(3), 1e3 * mean(4), 1e3 * mean(5)], mean(13)))
+    let mean = |f: fn(&pm_vertex::VertexFrame) -> f64| kept.iter().map(f).sum::<f64>() / n;
+    let ms =
+        [mean(|r| r.shoot_s), mean(|r| r.balance_s), mean(|r| r.estimate_s), mean(|r| r.draw_s), mean(|r| r.total_s)];
+    Ok((ms.map(|v| 1e3 * v), mean(|r| r.flicker)))
 }
 
 /// Run the study.

@@ -60,7 +60,7 @@ enum Task {
     /// both methods, figure1).
     Golden(golden::Args),
     /// Image-space photon mapping's error against its frame time, drawn from the
-    /// output of `cargo bench -p pm-live --bench ispm`.
+    /// output of `cargo bench -p pm-ispm --bench ispm`.
     IspmPlot(ispm_plot::Args),
     /// What input at scale costs: each pipeline step under GNU time, with its wall
     /// time, peak memory, scene load and BVH build time (BENCHMARKS.md, with

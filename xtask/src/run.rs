@@ -52,7 +52,7 @@ pub struct Pipeline {
     pub live_scene: Option<PathBuf>,
     /// The real-time mode (`photon-live`, `cargo xtask live`).
     #[serde(default)]
-    pub live: pm_live::LiveParams,
+    pub live: photon_live::LiveParams,
     /// "preview", "balanced" or "final": the trace, irradiance and render settings
     /// are picked from the measured accuracy/time front ([`crate::quality`]).
     #[serde(default)]
@@ -605,7 +605,7 @@ pub struct LiveArgs {
     pub out: Option<PathBuf>,
     /// The real-time method instead of the pipeline file's `live.method`.
     #[arg(long)]
-    pub method: Option<pm_live::Method>,
+    pub method: Option<photon_live::Method>,
     /// Frames to render.
     #[arg(long, default_value_t = 120)]
     pub frames: u32,
@@ -643,7 +643,7 @@ pub fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
     a.extend(["--frames".into(), args.frames.to_string(), "--seed".into(), cfg.seed.to_string()]);
     a.extend(["--light-units".into(), cfg.light_units.to_string()]);
     a.extend(cfg.live.to_args());
-    Ok(LiveSetup { out, args: a, fps: cfg.live.fps })
+    Ok(LiveSetup { out, args: a, fps: cfg.live.frame.fps })
 }
 
 /// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline

@@ -65,7 +65,7 @@ struct Setting {
     render: RenderParams,
     /// A real-time row instead: photon-live's settings (its frame of the scene's
     /// camera after the buffer filled, timed as its mean frame time).
-    live: Option<pm_live::LiveParams>,
+    live: Option<photon_live::LiveParams>,
 }
 
 impl Setting {
@@ -157,10 +157,15 @@ fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Sett
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
     // (paths in the buffer) and image-space photon mapping (subsampling).
-    let live = |method: pm_live::Method| pm_live::LiveParams { method, width: size, height: size, ..base.live.clone() };
+    let live = |method: photon_live::Method| {
+        let frame = pm_live::FrameParams { width: size, height: size, ..base.live.frame.clone() };
+        photon_live::LiveParams { method, frame, ..base.live.clone() }
+    };
     for total in [5_000u32, 20_000, 80_000] {
         v.push(with("live vertex", format!("vertex total {total}"), &|s| {
-            s.live = Some(pm_live::LiveParams { total, per_frame: total / 10, ..live(pm_live::Method::Vertex) })
+            let mut p = live(photon_live::Method::Vertex);
+            (p.vertex.total, p.vertex.per_frame) = (total, total / 10);
+            s.live = Some(p)
         }));
     }
     // Corner estimates need corners: the mesh split to edges of at most this
@@ -168,12 +173,16 @@ fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Sett
     let diagonal = base_diagonal;
     for f in [0.05f32, 0.02] {
         v.push(with("live vertex", format!("vertex subdivide {f} diag"), &|s| {
-            s.live = Some(pm_live::LiveParams { subdivide: f * diagonal, ..live(pm_live::Method::Vertex) })
+            let mut p = live(photon_live::Method::Vertex);
+            p.vertex.subdivide = f * diagonal;
+            s.live = Some(p)
         }));
     }
     for f in [1u32, 2, 4] {
         v.push(with("live ispm", format!("ispm subsample {f}"), &|s| {
-            s.live = Some(pm_live::LiveParams { subsample: f, ..live(pm_live::Method::Ispm) })
+            let mut p = live(photon_live::Method::Ispm);
+            p.ispm.subsample = f;
+            s.live = Some(p)
         }));
     }
     v
@@ -185,21 +194,19 @@ fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Sett
 fn live_frame(
     bins: &Bins,
     scene: &str,
-    p: &pm_live::LiveParams,
+    p: &photon_live::LiveParams,
     seed: u64,
     dir: &Path,
 ) -> Result<(pm_image::Layers, f64)> {
-    let frames = (p.total / p.per_frame.max(1)).max(1) + 3;
+    let frames = (p.vertex.total / p.vertex.per_frame.max(1)).max(1) + 3;
     let mut a = vec!["--scene".to_string(), scene.into(), "--out".into(), dir.display().to_string()];
     a.extend(["--frames".into(), frames.to_string(), "--exr".into(), "--seed".into(), seed.to_string()]);
     a.extend(p.to_args());
     stages::run(bins, "photon-live", &a, "photon-live", true)?;
     let csv =
         std::fs::read_to_string(dir.join("frames.csv")).with_context(|| format!("{}: no frames.csv", dir.display()))?;
-    let header: Vec<&str> = csv.lines().next().unwrap_or_default().split(',').collect();
-    let col = header.iter().position(|h| *h == "total_s").context("frames.csv has no total_s")?;
-    let warm = (frames - 2) as usize;
-    let times: Vec<f64> = csv.lines().skip(1 + warm).filter_map(|l| l.split(',').nth(col)?.parse().ok()).collect();
+    let walls = photon_live::frame_seconds(p.method, &csv).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+    let times = &walls[walls.len().min((frames - 2) as usize)..];
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
     let exr = dir.join(format!("frames/{:04}.exr", frames - 1));
     Ok((pm_image::read_exr(&exr)?, mean))

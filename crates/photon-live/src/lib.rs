@@ -1,16 +1,114 @@
-//! `photon-live`: real-time photon mapping (Jozwowski 2002, sections 4 and 5) as a
-//! program that writes files: every frame re-shoots part of a ring buffer of photon
-//! paths, rebalances the kd-tree, estimates irradiance at the mesh's corners and
-//! draws the mesh. Writes `frames/NNNN.png` (and linear `frames/NNNN.exr` with
+//! `photon-live`: real-time photon mapping as a program that writes files, by
+//! either method: vertex estimates from a ring buffer of photon paths (Jozwowski
+//! 2002, `pm-vertex`) or image-space photon mapping (McGuire and Luebke 2009,
+//! `pm-ispm`). Writes `frames/NNNN.png` (and linear `frames/NNNN.exr` with
 //! `--exr`), an animated preview `live.apng`, and `frames.csv` with each frame's
-//! time split into shoot, balance, estimate and draw. A thin layer over `pm-live`.
+//! time split into the method's steps. A thin layer over `pm-live`, which runs
+//! either method's frames.
 
 use anyhow::{Context, Result, ensure};
 use clap::Parser;
-use pm_live::{FrameStats, Live, LiveParams};
+use pm_ispm::{Ispm, IspmParams};
+use pm_live::{FrameParams, FrameRow, Live, World};
+use pm_params::Naming;
 use pm_stage::Progress;
-use std::fmt::Write as _;
+use pm_vertex::{Vertex, VertexParams};
 use std::path::PathBuf;
+
+pm_params::value_enum! {
+    /// Which real-time method draws the frames.
+    pub enum Method {
+        /// Jozwowski 2002: a ring buffer of photon paths, estimates at mesh vertices.
+        Vertex,
+        /// McGuire and Luebke 2009: bounce maps and photon volumes splatted over the
+        /// eye's G-buffer.
+        Ispm,
+    }
+}
+
+/// The real-time settings: the method, what every method's frames share, and each
+/// method's own parameters. One flat set of options (`--per-frame`,
+/// `--bounce-res`, ...) and one flat `[live]` section of pipeline.toml; a key no
+/// part knows is refused.
+#[derive(Clone, Debug, PartialEq, clap::Args, serde::Serialize)]
+pub struct LiveParams {
+    /// The method: vertex estimates (Jozwowski 2002) or image-space photon
+    /// mapping (McGuire and Luebke 2009).
+    #[arg(long, default_value_t = Method::Vertex)]
+    pub method: Method,
+    /// Frame size, clock, exposure and direct light (both methods).
+    #[command(flatten, next_help_heading = "Frames (both methods)")]
+    #[serde(flatten)]
+    pub frame: FrameParams,
+    /// The vertex method's parameters.
+    #[command(flatten, next_help_heading = "Vertex method (--method vertex)")]
+    #[serde(flatten)]
+    pub vertex: VertexParams,
+    /// The image-space method's parameters.
+    #[command(flatten, next_help_heading = "Image-space method (--method ispm)")]
+    #[serde(flatten)]
+    pub ispm: IspmParams,
+}
+
+impl Default for LiveParams {
+    fn default() -> Self {
+        LiveParams {
+            method: Method::Vertex,
+            frame: FrameParams::default(),
+            vertex: VertexParams::default(),
+            ispm: IspmParams::default(),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for LiveParams {
+    /// The flat section split among its parts by their field names; a key none of
+    /// them has is refused, like a `deny_unknown_fields` struct's.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error;
+        let mut table = toml::Table::deserialize(d)?;
+        let method = match table.remove("method") {
+            Some(v) => Method::deserialize(v).map_err(Error::custom)?,
+            None => Method::Vertex,
+        };
+        let mut part = |fields: &[&str]| -> toml::Value {
+            toml::Value::Table(fields.iter().filter_map(|f| table.remove_entry(*f)).collect())
+        };
+        let frame = FrameParams::deserialize(part(FrameParams::FIELDS)).map_err(Error::custom)?;
+        let vertex = VertexParams::deserialize(part(VertexParams::FIELDS)).map_err(Error::custom)?;
+        let ispm = IspmParams::deserialize(part(IspmParams::FIELDS)).map_err(Error::custom)?;
+        if let Some(key) = table.keys().next() {
+            let known = LiveParams::fields().map(|f| format!("`{f}`")).collect::<Vec<_>>().join(", ");
+            return Err(Error::custom(format!("unknown field `{key}`, expected one of {known}")));
+        }
+        Ok(LiveParams { method, frame, vertex, ispm })
+    }
+}
+
+impl LiveParams {
+    /// Every key of the section.
+    fn fields() -> impl Iterator<Item = &'static str> {
+        std::iter::once("method")
+            .chain(FrameParams::FIELDS.iter().chain(VertexParams::FIELDS).chain(IspmParams::FIELDS).copied())
+    }
+
+    /// Refuse a value outside its range or two that contradict each other, naming
+    /// the option or key.
+    pub fn check(&self, naming: Naming) -> std::result::Result<(), String> {
+        self.frame.validate(naming)?;
+        self.vertex.check(naming)?;
+        self.ispm.validate(naming)
+    }
+
+    /// The command-line arguments that give every field its value.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut v = vec!["--method".to_string(), self.method.to_string()];
+        v.extend(self.frame.to_args());
+        v.extend(self.vertex.to_args());
+        v.extend(self.ispm.to_args());
+        v
+    }
+}
 
 /// Command line of `photon-live`.
 #[derive(Parser, Debug)]
@@ -108,38 +206,37 @@ fn parse_task(s: &str) -> Result<(u32, u32), String> {
     pm_stage::parse_part(s, "run")
 }
 
-/// What a run did.
-#[derive(Debug, serde::Serialize)]
-pub struct Report {
-    /// Each frame's statistics.
-    pub frames: Vec<FrameStats>,
-    /// Mean frame time over the frames after the buffer filled \[s\].
-    pub mean_frame_seconds: f64,
-}
-
 /// Run it (or its subcommand).
 pub fn main(cli: &Cli) -> Result<()> {
     match &cli.command {
         Some(Command::Assemble { out, frames, fps }) => assemble(out, *frames, *fps),
-        None => run(cli).map(|_| ()),
+        None => run(cli),
     }
 }
 
-/// Render the frames.
-pub fn run(cli: &Cli) -> Result<Report> {
+/// Render the frames by the method chosen.
+pub fn run(cli: &Cli) -> Result<()> {
     let (Some(scene_path), Some(out)) = (&cli.scene, &cli.out) else {
         anyhow::bail!("--scene and --out are required");
     };
-    cli.params.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    let p = &cli.params;
+    p.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     ensure!(cli.frames >= 1, "--frames must be at least 1");
     ensure!(!(cli.window && cli.frame_task.is_some()), "--window shows one whole run; it cannot be a --frame-task");
+    if p.method == Method::Ispm {
+        ensure!(
+            cli.dump_frame.is_none(),
+            "--dump-frame writes the vertex method's ring buffer; --method ispm has none"
+        );
+        ensure!(cli.photon_scene.is_none(), "--photon-scene: --method ispm traces its photons in the scene drawn");
+    }
     let frames = match cli.frame_task {
         Some((k, n)) => pm_live::task_frames(k, n, cli.frames),
         None => 0..cli.frames,
     };
     pm_stage::init_threads(cli.threads)?;
     let scene = pm_stage::load_scene("photon-live", scene_path, cli.scene_args)?;
-    if cli.params.direct == pm_live::DirectMode::ShadowMap {
+    if p.frame.direct == pm_live::DirectMode::ShadowMap {
         let without = pm_live::lights_without_shadow_maps(&scene);
         if !without.is_empty() {
             eprintln!(
@@ -148,62 +245,84 @@ pub fn run(cli: &Cli) -> Result<Report> {
             );
         }
     }
-    let photon_scene = match &cli.photon_scene {
-        Some(p) => Some(pm_stage::load_scene("photon-live", p, cli.scene_args)?),
-        None => None,
-    };
-    // Photons are traced in the scene as given (or the --photon-scene); only the
-    // drawn mesh is subdivided.
-    let photon_scene = match cli.params.photon_proxy {
-        pm_live::PhotonProxy::Boxes => Some(photon_scene.as_ref().unwrap_or(&scene).bounding_box_proxy()),
-        pm_live::PhotonProxy::None => photon_scene,
-    };
-    let content_hash = scene.content_hash;
-    let origin = scene.origin.to_array();
-    let diagonal = scene.bounds.diagonal();
-    let (drawn, photon_scene) = if cli.params.subdivide > 0.0 {
-        let sub = scene.subdivided(cli.params.subdivide);
-        (sub, Some(photon_scene.unwrap_or(scene)))
-    } else {
-        (scene, photon_scene)
-    };
-    let mut live = Live::new(drawn, photon_scene, cli.params.clone(), cli.seed)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
+    let at_scene = |e: String| anyhow::anyhow!("{}: {e}", scene_path.display());
+    match p.method {
+        Method::Vertex => {
+            let photon_scene = match &cli.photon_scene {
+                Some(path) => Some(pm_stage::load_scene("photon-live", path, cli.scene_args)?),
+                None => None,
+            };
+            // Photons are traced in the scene as given (or the --photon-scene); only
+            // the drawn mesh is subdivided.
+            let photon_scene = match p.vertex.photon_proxy {
+                pm_vertex::PhotonProxy::Boxes => Some(photon_scene.as_ref().unwrap_or(&scene).bounding_box_proxy()),
+                pm_vertex::PhotonProxy::None => photon_scene,
+            };
+            let (hash, origin, diagonal) = (scene.content_hash, scene.origin.to_array(), scene.bounds.diagonal());
+            let (drawn, photon_scene) = if p.vertex.subdivide > 0.0 {
+                let sub = scene.subdivided(p.vertex.subdivide);
+                (sub, Some(photon_scene.unwrap_or(scene)))
+            } else {
+                (scene, photon_scene)
+            };
+            let world = World::new(drawn, photon_scene).map_err(at_scene)?;
+            let method = Vertex::new(&world, p.frame.clone(), p.vertex.clone(), cli.seed).map_err(at_scene)?;
+            let dump = |live: &Live<Vertex>, path: &std::path::Path| dump(live, hash, diagonal, origin, path);
+            run_frames(cli, out, Live::new(world, method), frames, dump)
+        }
+        Method::Ispm => {
+            let world = World::new(scene, None).map_err(at_scene)?;
+            let method = Ispm::new(&world, p.frame.clone(), p.ispm.clone(), cli.seed).map_err(at_scene)?;
+            run_frames(cli, out, Live::new(world, method), frames, |_, _| Ok(()))
+        }
+    }
+}
+
+/// Draw `frames` (simulating the ones before them) and write them, the preview and
+/// frames.csv (or this task's part of it) into `out`; `dump` writes the method's
+/// photons after the frame `--dump-frame` names.
+fn run_frames<M: pm_live::Method>(
+    cli: &Cli,
+    out: &std::path::Path,
+    mut live: Live<M>,
+    frames: std::ops::Range<u32>,
+    dump: impl Fn(&Live<M>, &std::path::Path) -> Result<()>,
+) -> Result<()> {
+    let f = &cli.params.frame;
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
-    let (w, h) = (cli.params.width, cli.params.height);
+    let (w, h) = (f.width, f.height);
     let mut view = if cli.window { window::View::open(w, h)? } else { None };
     let progress = Progress::new("frames", frames.end as u64);
-    let mut stats = Vec::new();
+    let mut rows: Vec<M::Row> = Vec::new();
     let mut apng = Vec::new();
-    for f in 0..frames.end {
-        // Frame f shows time f / fps: animated lights and camera move there.
-        live.set_time(cli.time.unwrap_or(f as f32 / cli.params.fps));
-        if f < frames.start {
+    for i in 0..frames.end {
+        // Frame i shows time i / fps: animated lights and camera move there.
+        live.set_time(cli.time.unwrap_or(i as f32 / f.fps));
+        if i < frames.start {
             // Another task draws it; this one needs only the state it leaves.
             live.skip().map_err(|e| anyhow::anyhow!(e))?;
-            progress.set(f as u64 + 1);
+            progress.set(i as u64 + 1);
             continue;
         }
-        let s = live.step().map_err(|e| anyhow::anyhow!(e))?;
+        let row = live.step().map_err(|e| anyhow::anyhow!(e))?;
         let image = live.frame_layers();
-        let total = image.total();
-        let bytes = pm_image::srgb8(total, cli.params.exposure);
-        pm_image::write_srgb8_png_fast(&frames_dir.join(format!("{f:04}.png")), w, h, &bytes)?;
+        let bytes = pm_image::srgb8(image.total(), f.exposure);
+        pm_image::write_srgb8_png_fast(&frames_dir.join(format!("{i:04}.png")), w, h, &bytes)?;
         if cli.exr {
             let layers = pm_image::Layers {
                 width: w,
                 height: h,
                 layers: image.named().map(|(n, px)| (n.to_string(), px.to_vec())).collect(),
             };
-            pm_image::write_exr(&frames_dir.join(format!("{f:04}.exr")), &layers)?;
+            pm_image::write_exr(&frames_dir.join(format!("{i:04}.exr")), &layers)?;
         }
-        if cli.dump_frame == Some(f as u64) {
-            dump(&live, content_hash, diagonal, origin, &out.join(format!("buffer-{f}.pmap")))?;
+        if cli.dump_frame == Some(i as u64) {
+            dump(&live, &out.join(format!("buffer-{i}.pmap")))?;
         }
         apng.push(bytes);
-        stats.push(s);
-        progress.set(f as u64 + 1);
+        rows.push(row);
+        progress.set(i as u64 + 1);
         if let Some(v) = view.as_mut() {
             match v.show(apng.last().expect("pushed above"), w, h) {
                 Some(delta) => live.move_lights(delta),
@@ -212,30 +331,33 @@ pub fn run(cli: &Cli) -> Result<Report> {
         }
     }
     progress.finish();
-    let csv = frames_csv(&stats)?;
+    let csv = pm_live::rows_to_csv(&rows).map_err(|e| anyhow::anyhow!("frames.csv: {e}"))?;
     let csv_path = if cli.frame_task.is_some() {
         frames_dir.join(pm_live::frames_part_file(&frames))
     } else {
-        pm_image::write_apng(&out.join("live.apng"), w, h, &apng, cli.params.fps)?;
+        pm_image::write_apng(&out.join("live.apng"), w, h, &apng, f.fps)?;
         out.join("frames.csv")
     };
     pm_stage::write_text(&csv_path, &csv)?;
-    // The vertex method's buffer fills over total / per_frame frames; the
-    // image-space method has no warm-up beyond its first frame.
-    let full = match cli.params.method {
-        pm_live::Method::Vertex => (cli.params.total / cli.params.per_frame) as usize,
-        pm_live::Method::Ispm => 1,
-    };
-    let warm: Vec<&FrameStats> = stats.iter().filter(|s| s.frame >= full as u64).collect();
-    let secs = |s: &FrameStats| s.times.wall;
-    let mean = if warm.is_empty() { 0.0 } else { warm.iter().map(|s| secs(s)).sum::<f64>() / warm.len() as f64 };
+    let mean = pm_live::mean_frame_seconds(&rows, live.method().warm_up());
     eprintln!(
         "photon-live: {} frames of {w}x{h}; mean frame time after warm-up {:.2} ms ({:.1} fps)",
         frames.len(),
         1e3 * mean,
         if mean > 0.0 { 1.0 / mean } else { 0.0 }
     );
-    Ok(Report { frames: stats, mean_frame_seconds: mean })
+    Ok(())
+}
+
+/// Each frame's wall time \[s\] from the frames.csv a run by `method` wrote.
+pub fn frame_seconds(method: Method, csv: &str) -> std::result::Result<Vec<f64>, String> {
+    fn walls<R: FrameRow>(csv: &str) -> std::result::Result<Vec<f64>, String> {
+        Ok(pm_live::rows_from_csv::<R>(csv)?.iter().map(R::wall_seconds).collect())
+    }
+    match method {
+        Method::Vertex => walls::<pm_vertex::VertexFrame>(csv),
+        Method::Ispm => walls::<pm_ispm::IspmFrame>(csv),
+    }
 }
 
 /// `photon-live assemble`: live.apng from frames/NNNN.png and frames.csv from the
@@ -290,68 +412,22 @@ fn assemble(out: &std::path::Path, frames: u32, fps: f32) -> Result<()> {
     Ok(())
 }
 
-/// frames.csv: per frame the times of its steps [s] and its counts; the columns
-/// follow the method (the image-space method's are the paper's Table 2 split).
-fn frames_csv(stats: &[FrameStats]) -> Result<String> {
-    let ispm = stats.first().is_some_and(|s| s.ispm.is_some());
-    let mut csv = String::from(if ispm {
-        "frame,gbuffer_s,direct_s,bounce_s,trace_s,splat_s,upsample_s,total_s,texels,texel_hits,survived,photons\n"
-    } else {
-        "frame,shoot_s,balance_s,estimate_s,draw_s,total_s,paths_shot,photon_rays,paths_held,photons_in_tree,estimates,corners,samples,flicker\n"
-    });
-    for s in stats {
-        if let Some(i) = &s.ispm {
-            let t = &i.times;
-            writeln!(
-                csv,
-                "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{}",
-                s.frame,
-                t.gbuffer,
-                t.direct,
-                t.bounce,
-                t.trace,
-                t.splat,
-                t.upsample,
-                t.wall,
-                i.bounce.texels,
-                i.bounce.hits,
-                i.bounce.survived,
-                i.photons
-            )?;
-            continue;
-        }
-        let t = &s.times;
-        writeln!(
-            csv,
-            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{},{},{},{},{:.6}",
-            s.frame,
-            t.shoot,
-            t.balance,
-            t.estimate,
-            t.draw,
-            t.wall,
-            s.paths_shot,
-            s.photon_rays,
-            s.paths_held,
-            s.photons_in_tree,
-            s.estimates,
-            s.corners,
-            s.samples,
-            s.flicker
-        )?;
-    }
-    Ok(csv)
-}
-
 /// The ring buffer's used slots as a global photon map (full records, unsorted).
-fn dump(live: &Live, scene_hash: [u8; 32], diagonal: f32, origin: [f64; 3], path: &std::path::Path) -> Result<()> {
+fn dump(
+    live: &Live<Vertex>,
+    scene_hash: [u8; 32],
+    diagonal: f32,
+    origin: [f64; 3],
+    path: &std::path::Path,
+) -> Result<()> {
     use pm_format::{FullIrrPhoton, Header, Layout, MapKind, Order, PhotonMap, PhotonRecord};
-    let photons = live.ring().photons();
+    let ring = live.method().ring();
+    let photons = ring.photons();
     let header = Header::new(
         MapKind::Global,
         Order::Unsorted,
         Layout::FullIrradiance,
-        live.ring().filled() as u64,
+        ring.filled() as u64,
         scene_hash,
         diagonal,
         serde_json::json!({"photon-live frame": live.frame() - 1}).to_string(),
@@ -440,5 +516,31 @@ mod window {
         pub fn show(&mut self, _: &[u8], _: u32, _: u32) -> Option<glam::Vec3> {
             None
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The flat `[live]` section fills each part from its own keys, refuses a key
+    /// no part has (naming it), and the arguments the runner passes give the same
+    /// settings back on the command line.
+    #[test]
+    fn one_flat_section_and_one_set_of_options_fill_every_part() {
+        let text = "method = \"ispm\"\nwidth = 64\nper_frame = 100\ntotal = 400\nsubsample = 2\nfps = 24";
+        let p: LiveParams = toml::from_str(text).unwrap();
+        assert_eq!(p.method, Method::Ispm);
+        assert_eq!((p.frame.width, p.frame.fps), (64, 24.0));
+        assert_eq!((p.vertex.per_frame, p.vertex.total), (100, 400));
+        assert_eq!(p.ispm.subsample, 2);
+        assert_eq!(toml::from_str::<LiveParams>("").unwrap(), LiveParams::default());
+        let e = toml::from_str::<LiveParams>("bounce_res = 8\nbogus_key = 1").unwrap_err().to_string();
+        assert!(e.contains("unknown field `bogus_key`") && e.contains("`bounce_res`"), "{e}");
+        let e = toml::from_str::<LiveParams>("method = \"photons\"").unwrap_err().to_string();
+        assert!(e.contains("photons"), "{e}");
+        let args = ["photon-live", "--scene", "s.gltf", "--out", "o"].map(String::from);
+        let cli = Cli::try_parse_from(args.into_iter().chain(p.to_args())).unwrap();
+        assert_eq!(cli.params, p);
     }
 }

@@ -1,36 +1,40 @@
-//! Drawing a frame: the mesh with corner radiance interpolated across each
-//! triangle (Gouraud shading, Jozwowski 2002 section 4.1.3) times the reflectance at
-//! the pixel, direct light by shadow rays, shadow maps or from the photons, and
-//! mirrors and glass by ray tracing. The image-space method (McGuire and Luebke
-//! 2009) draws with the same integrator: its indirect light at the eye's surfaces is
-//! splatted afterwards, and what mirrors and glass show gathers the same photons. An
+//! Drawing a frame: direct light by shadow rays, shadow maps or from the photons,
+//! mirrors and glass by ray tracing, and indirect light from the method's
+//! [`IndirectLight`]: the vertex method's corner irradiance interpolated across
+//! each triangle (Gouraud shading, Jozwowski 2002 section 4.1.3), or the
+//! image-space method's photon volumes, splatted over the eye's surfaces after
+//! drawing (McGuire and Luebke 2009) and gathered where mirrors and glass lead. An
 //! [`Integrator`] over `pm-render`'s region loop, so frames get its deterministic
 //! per-pixel streams and G-buffer.
 
-use crate::splat::{PhotonIndex, Surface, VolumePhoton};
-use crate::{Corners, DirectMode, LiveParams};
+use crate::{DirectMode, FrameParams};
 use glam::Vec3;
+use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_light::{DirectLighting, LitPoint, ShadowMaps};
 use pm_raster::Fragment;
 use pm_render::{Components, Counters, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
-use std::f32::consts::PI;
 
-/// Where a frame's indirect light comes from.
-enum Indirect<'a> {
-    /// Irradiance at each corner [W m^-2 per channel], interpolated (the thesis).
-    Corners { corners: &'a Corners, e: &'a [Rgb] },
-    /// Photon volumes: splatted over the eye's surfaces after drawing, gathered
-    /// where mirrors and glass lead (image-space photon mapping).
-    Photons { photons: &'a [VolumePhoton], index: &'a PhotonIndex },
+/// Where a real-time method's indirect light comes from.
+pub trait IndirectLight: Sync {
+    /// True when the indirect light at the eye's first surfaces is added after
+    /// drawing (splatted): those surfaces take direct light and emission only, and
+    /// plainly Lambertian ones are shaded from the rasterised fragment alone
+    /// (deferred shading).
+    const SPLATTED: bool;
+
+    /// Indirect radiance [W sr^-1 m^-2 per channel] that `bsdf` at `hit` reflects
+    /// towards `wo`. Asked at the eye's first surface (unless [`Self::SPLATTED`])
+    /// and where mirrors and glass lead.
+    fn radiance(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3) -> Rgb;
 }
 
-/// The per-pixel work of a live frame.
-pub struct LiveShading<'a> {
+/// The per-pixel work of a real-time frame, with indirect light from `I`.
+pub struct LiveShading<'a, I> {
     light: DirectLighting<'a>,
-    indirect: Indirect<'a>,
+    indirect: I,
     direct: DirectMode,
     light_samples: u32,
     max_depth: u32,
@@ -40,37 +44,14 @@ pub struct LiveShading<'a> {
     counters: Counters,
 }
 
-impl<'a> LiveShading<'a> {
-    /// Shading of `scene` with irradiance `e` at `corners`.
+impl<'a, I: IndirectLight> LiveShading<'a, I> {
+    /// Shading of `scene` with indirect light from `indirect` and direct light as
+    /// `direct` says (`p` gives the light samples, the recursion depth).
     pub fn new(
         scene: &'a Scene,
-        corners: &'a Corners,
-        e: &'a [Rgb],
-        p: &LiveParams,
-        shadow_maps: Option<&'a ShadowMaps>,
-    ) -> Result<Self, pm_light::LightSelectError> {
-        Self::with(scene, Indirect::Corners { corners, e }, p.direct, p, shadow_maps)
-    }
-
-    /// Shading of `scene` for image-space photon mapping: indirect light from
-    /// `photons` (with their `index`), splatted at the eye's surfaces by the caller.
-    /// Direct light from photons is not a choice there: it is taken by shadow rays.
-    pub fn splatted(
-        scene: &'a Scene,
-        photons: &'a [VolumePhoton],
-        index: &'a PhotonIndex,
-        p: &LiveParams,
-        shadow_maps: Option<&'a ShadowMaps>,
-    ) -> Result<Self, pm_light::LightSelectError> {
-        let direct = if p.direct == DirectMode::Photons { DirectMode::Rays } else { p.direct };
-        Self::with(scene, Indirect::Photons { photons, index }, direct, p, shadow_maps)
-    }
-
-    fn with(
-        scene: &'a Scene,
-        indirect: Indirect<'a>,
+        indirect: I,
         direct: DirectMode,
-        p: &LiveParams,
+        p: &FrameParams,
         shadow_maps: Option<&'a ShadowMaps>,
     ) -> Result<Self, pm_light::LightSelectError> {
         Ok(LiveShading {
@@ -87,22 +68,9 @@ impl<'a> LiveShading<'a> {
             counters: Counters::default(),
         })
     }
-
-    /// Irradiance at barycentrics `b` of triangle `tri`: the corners' values
-    /// interpolated linearly (Gouraud; perspective-correct, since eye rays give
-    /// true barycentrics). Zero for the image-space method.
-    pub fn irradiance_at(&self, tri: u32, b: [f32; 3]) -> Rgb {
-        match self.indirect {
-            Indirect::Corners { corners, e } => {
-                let c = corners.tri[tri as usize];
-                e[c[0] as usize] * b[0] + e[c[1] as usize] * b[1] + e[c[2] as usize] * b[2]
-            }
-            Indirect::Photons { .. } => Rgb::ZERO,
-        }
-    }
 }
 
-impl LiveShading<'_> {
+impl<I: IndirectLight> LiveShading<'_, I> {
     /// Direct light at the eye's first surface `f` seen along `d`, from the fragment
     /// alone, when that surface is plainly Lambertian and emits nothing and every
     /// light has a shadow map: what [`Self::shade`] gives there (the same point,
@@ -154,17 +122,8 @@ impl LiveShading<'_> {
                 },
                 DirectMode::Photons => Rgb::ZERO,
             };
-            let indirect = match self.indirect {
-                Indirect::Corners { .. } => bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI,
-                // Splatted later where the eye sees the surface directly.
-                Indirect::Photons { .. } if depth == 0 => Rgb::ZERO,
-                Indirect::Photons { photons, index } => {
-                    let n = pm_render::facing(hit.ns, wo);
-                    let surface = Surface::new(hit.p, n, wo, bsdf);
-                    let (ind, caus) = crate::splat::gather(photons, index, &surface);
-                    ind + caus
-                }
-            };
+            // A splatted method adds its light later where the eye sees the surface directly.
+            let indirect = if I::SPLATTED && depth == 0 { Rgb::ZERO } else { self.indirect.radiance(&hit, &bsdf, wo) };
             if depth == 0 {
                 if let Some(v) = vs {
                     v.direct = direct;
@@ -177,7 +136,7 @@ impl LiveShading<'_> {
     }
 }
 
-impl Integrator for LiveShading<'_> {
+impl<I: IndirectLight> Integrator for LiveShading<'_, I> {
     type Scratch = ();
 
     fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
@@ -211,7 +170,7 @@ impl Integrator for LiveShading<'_> {
         if vs.is_none()
             && self.direct == DirectMode::ShadowMap
             && self.shadow_maps.is_some()
-            && matches!(self.indirect, Indirect::Photons { .. })
+            && I::SPLATTED
             && let Some(f) = fragment
             && let Some(direct) = self.lambert_first(f, d, s)
         {
@@ -232,7 +191,6 @@ impl Integrator for LiveShading<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::splat::PhotonIndex;
     use pm_raster as raster;
     use pm_render::Film;
     use std::path::PathBuf;
@@ -243,16 +201,26 @@ mod tests {
     /// full path), and point lights. A point or reflectance off by a rounding, or
     /// an emitter taken for a plain wall, fails it (these scenes' walls are flat:
     /// a geometric normal taken for the shading one would pass).
+    /// Indirect light splatted after drawing, and none where mirrors lead (the
+    /// image-space method with no photons).
+    struct Splatted;
+
+    impl IndirectLight for Splatted {
+        const SPLATTED: bool = true;
+        fn radiance(&self, _: &Hit, _: &Bsdf, _: Vec3) -> Rgb {
+            Rgb::ZERO
+        }
+    }
+
     #[test]
     fn deferred_lambert_pixels_equal_the_full_path() {
         for name in ["cornell_spheres.gltf", "cornell_boxes.gltf", "caustic_ring.gltf", "jozwowski_room_16.gltf"] {
             let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
             let scene = pm_scene::load(&dir.join(name)).unwrap();
-            let p = LiveParams { direct: DirectMode::ShadowMap, ..LiveParams::default() };
-            let maps = crate::shadow_maps(&scene, &p);
-            let index = PhotonIndex::new(&[]);
+            let p = FrameParams { direct: DirectMode::ShadowMap, ..FrameParams::default() };
+            let maps = p.shadow_maps(&scene);
             assert!(maps.is_some(), "{name}");
-            let shading = LiveShading::splatted(&scene, &[], &index, &p, maps.as_ref()).unwrap();
+            let shading = LiveShading::new(&scene, Splatted, p.direct, &p, maps.as_ref()).unwrap();
             let camera = scene.camera.clone().unwrap();
             let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 3 };
             let fragments = raster::first_hits(&scene, &camera, film.size(), film.rect());

@@ -135,8 +135,8 @@ impl fmt::Display for Any {
 /// `/// doc with unit` `name: Type = default => check;` where `check` is an
 /// [`Accepts`] (for example `at_least(1)`, `between(0.0, 1.0)`, `Any`). Generates
 /// the struct (clap `Args` with `--kebab-name` options taking a value each, serde
-/// with `deny_unknown_fields` and defaults), `Default`, `validate(Naming)` and
-/// `to_args()`. Types must implement `Display` and `FromStr` the way clap and
+/// with `deny_unknown_fields` and defaults), `Default`, `FIELDS`, `validate(Naming)`
+/// and `to_args()`. Types must implement `Display` and `FromStr` the way clap and
 /// `to_args` agree on (numbers, `bool` as `true`/`false`, [`value_enum!`]s).
 #[macro_export]
 macro_rules! params {
@@ -167,6 +167,9 @@ macro_rules! params {
         }
 
         impl $name {
+            /// The fields' names, which are also the keys of its file section.
+            pub const FIELDS: &'static [&'static str] = &[$(stringify!($field)),*];
+
             /// Refuse a value outside its range, naming the option or key.
             pub fn validate(&self, naming: $crate::Naming) -> Result<(), String> {
                 $(
@@ -278,6 +281,7 @@ mod tests {
         let file: P = toml::from_str(&text).unwrap();
         assert_eq!(file, p);
         assert!(toml::from_str::<P>("bogus = 1").is_err());
+        assert_eq!(P::FIELDS, ["k", "radius_m", "fraction", "on", "pick"]);
     }
 
     #[test]

@@ -5,16 +5,25 @@
 //! subsampling and the bounce count cost in error against the path tracer and
 //! against their time (section 5.2); photon attrition (Figure 10).
 //!
-//! Run: `cargo bench -p pm-live --bench ispm`
+//! Run: `cargo bench -p pm-ispm --bench ispm`
 
 use pm_color::Rgb;
-use pm_live::ispm::{self, KernelShape};
-use pm_live::splat::{self, PhotonIndex, SplatOutput};
-use pm_live::{DirectMode, Live, LiveParams, Method};
+use pm_ispm::KernelShape;
+use pm_ispm::splat::{self, PhotonIndex, SplatOutput};
+use pm_ispm::{Ispm, IspmFrame, IspmParams};
+use pm_live::{DirectMode, FrameParams, Live};
 use pm_raster as raster;
 use pm_render::Film;
 use pm_scene::Scene;
 use std::time::Instant;
+
+/// Frame and image-space parameters of a run.
+#[derive(Clone, Default)]
+struct Params(FrameParams, IspmParams);
+
+fn start(s: Scene, _: Option<Scene>, p: Params, seed: u64) -> Result<Live<Ispm>, String> {
+    pm_ispm::live(s, p.0, p.1, seed)
+}
 
 fn scene(name: &str) -> Scene {
     pm_scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../scenes/{name}.gltf"))).unwrap()
@@ -26,25 +35,20 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Frames of `p` (the first is a warm-up); the median split and the last frame's stats.
-fn frames(s: &Scene, p: &LiveParams, n: usize) -> ([f64; 7], ispm::IspmStats, Vec<Rgb>) {
-    let mut live = Live::new(s.clone(), None, p.clone(), 1).unwrap();
-    let mut rows = Vec::new();
-    let mut last = None;
-    for _ in 0..n {
-        let st = live.step().unwrap().ispm.unwrap();
-        rows.push(st.times);
-        last = Some(st);
-    }
+fn frames(s: &Scene, p: &Params, n: usize) -> ([f64; 7], IspmFrame, Vec<Rgb>) {
+    let mut live = start(s.clone(), None, p.clone(), 1).unwrap();
+    let rows: Vec<IspmFrame> = (0..n).map(|_| live.step().unwrap()).collect();
+    let last = rows.last().cloned();
     let rows = &rows[1..];
-    let m = |f: fn(&ispm::IspmTimes) -> f64| median(rows.iter().map(f).collect()) * 1e3;
+    let m = |f: fn(&IspmFrame) -> f64| median(rows.iter().map(f).collect()) * 1e3;
     let split = [
-        m(|t| t.gbuffer),
-        m(|t| t.direct),
-        m(|t| t.bounce),
-        m(|t| t.trace),
-        m(|t| t.splat),
-        m(|t| t.upsample),
-        m(|t| t.wall),
+        m(|t| t.gbuffer_s),
+        m(|t| t.direct_s),
+        m(|t| t.bounce_s),
+        m(|t| t.trace_s),
+        m(|t| t.splat_s),
+        m(|t| t.upsample_s),
+        m(|t| t.total_s),
     ];
     let indirect: Vec<Rgb> = {
         let l = live.frame_layers();
@@ -80,16 +84,10 @@ fn run() {
         for &(name, direct, bounces, subsample) in &rows {
             let s = find(name);
             let bounce_res = if name == "caustic_ring" { 128 } else { 48 };
-            let p = LiveParams {
-                method: Method::Ispm,
-                width: w,
-                height: h,
-                direct,
-                bounces,
-                subsample,
-                bounce_res,
-                ..LiveParams::default()
-            };
+            let p = Params(
+                FrameParams { width: w, height: h, direct, ..Default::default() },
+                IspmParams { bounces, subsample, bounce_res, ..Default::default() },
+            );
             let (t, st, _) = frames(s, &p, 5);
             println!(
                 "| {name} | {w}x{h} | {direct:?} | {bounces} | {subsample} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
@@ -101,7 +99,7 @@ fn run() {
                 t[5],
                 t[6],
                 1e3 / t[6],
-                st.bounce.texels,
+                st.texels,
                 st.photons
             );
         }
@@ -114,9 +112,9 @@ fn run() {
     println!("|---|---|---|---|---|---|");
     for (name, s) in &scenes {
         let res = if *name == "caustic_ring" { 128 } else { 48 };
-        let (b, st) = ispm::bounce_maps(s, res, 1, true);
-        let p = LiveParams { bounces: 3, ..LiveParams::default() };
-        let photons = ispm::trace(s, &b, 3, &KernelShape::new(&p, s.bounds.diagonal()), 1);
+        let (b, st) = pm_ispm::bounce_maps(s, res, 1, true);
+        let p = Params(FrameParams { ..Default::default() }, IspmParams { bounces: 3, ..Default::default() });
+        let photons = pm_ispm::trace(s, &b, 3, &KernelShape::new(&p.1, s.bounds.diagonal()), 1);
         println!(
             "| {name} | {} | {} ({:.0}%) | {} ({:.0}%) | {} | {:.2} |",
             st.texels,
@@ -135,12 +133,15 @@ fn run() {
     println!("|---|---|---|---|---|");
     let s = find("cornell_spheres");
     for res in [32u32, 48, 96] {
-        let p = LiveParams { bounces: 1, bounce_res: res, ..LiveParams::default() };
-        let (b, _) = ispm::bounce_maps(s, res, 1, true);
-        let photons = ispm::trace(s, &b, 1, &KernelShape::new(&p, s.bounds.diagonal()), 1);
+        let p = Params(
+            FrameParams { ..Default::default() },
+            IspmParams { bounces: 1, bounce_res: res, ..Default::default() },
+        );
+        let (b, _) = pm_ispm::bounce_maps(s, res, 1, true);
+        let photons = pm_ispm::trace(s, &b, 1, &KernelShape::new(&p.1, s.bounds.diagonal()), 1);
         let camera = s.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
-        let gb = ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera);
+        let gb = pm_ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera);
         let packed = splat::GBuffer::from_surfaces(&gb);
         let t = Instant::now();
         let (si, _) = splat::splat(&photons, &packed, &camera, (512, 512, 1), SplatOutput::Radiance);
@@ -172,10 +173,14 @@ fn run() {
     println!("\nSubsampling (cornell_spheres, 512 x 512, 1 bounce): indirect + caustic against full resolution");
     println!("| subsample | frame [ms] | splat + upsample [ms] | relative RMSE | mean bias |");
     println!("|---|---|---|---|---|");
-    let base = LiveParams { method: Method::Ispm, bounces: 1, ..LiveParams::default() };
+    let base = Params(FrameParams { ..Default::default() }, IspmParams { bounces: 1, ..Default::default() });
     let (_, _, full) = frames(s, &base, 3);
     for f in [1u32, 2, 4, 8, 16] {
-        let (t, _, ind) = frames(s, &LiveParams { subsample: f, ..base.clone() }, 4);
+        let (t, _, ind) = frames(
+            s,
+            &Params(FrameParams { ..Default::default() }, IspmParams { subsample: f, ..Default::default() }),
+            4,
+        );
         let e = pm_image::compare(&ind, &full, 1.0);
         println!("| {f} | {:.1} | {:.1} | {:.4} | {:+.4} |", t[6], t[4] + t[5], e.rel_rmse, e.rel_bias);
     }
@@ -236,21 +241,23 @@ fn run() {
     for (bounce_res, bounces, subsample) in
         [(48u32, 1u32, 1u32), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)]
     {
-        let p = LiveParams {
-            method: Method::Ispm,
-            bounce_res,
-            bounces,
-            subsample,
-            light_samples: 4,
-            ..LiveParams::default()
-        };
-        let mut live = Live::new(s.clone(), None, p.clone(), 1).unwrap();
+        let p = Params(
+            FrameParams { light_samples: 4, ..Default::default() },
+            IspmParams { bounce_res, bounces, subsample, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, p.clone(), 1).unwrap();
         live.step().unwrap();
         let (er, eb, em, e9) = measure(&blocks(live.frame_layers().total()));
         // Frame time at the default light_samples = 1 (the error uses 4 to keep the
         // direct light's noise out of the comparison).
-        let mut timed = Live::new(s.clone(), None, LiveParams { light_samples: 1, ..p }, 1).unwrap();
-        let wall = (0..3).map(|_| timed.step().unwrap().times.wall).fold(f64::INFINITY, f64::min);
+        let mut timed = start(
+            s.clone(),
+            None,
+            Params(FrameParams { light_samples: 1, ..Default::default() }, IspmParams { ..Default::default() }),
+            1,
+        )
+        .unwrap();
+        let wall = (0..3).map(|_| timed.step().unwrap().total_s).fold(f64::INFINITY, f64::min);
         println!(
             "| {bounce_res} | {bounces} | {subsample} | {:.1} | {er:.4} | {eb:+.4} | {em:.4} | {e9:.4} |",
             wall * 1e3
@@ -266,21 +273,16 @@ fn run() {
     );
     println!("|---|---|---|---|---|---|---|---|");
     for (direct, light_samples) in [(DirectMode::Rays, 1), (DirectMode::Rays, 4), (DirectMode::ShadowMap, 1)] {
-        let p = LiveParams {
-            method: Method::Ispm,
-            bounce_res: 48,
-            bounces: 8,
-            subsample: 4,
-            direct,
-            light_samples,
-            ..LiveParams::default()
-        };
-        let mut live = Live::new(s.clone(), None, p, 1).unwrap();
+        let p = Params(
+            FrameParams { direct, light_samples, ..Default::default() },
+            IspmParams { bounce_res: 48, bounces: 8, subsample: 4, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, p, 1).unwrap();
         let (mut wall, mut step) = (f64::INFINITY, f64::INFINITY);
         for _ in 0..4 {
             let st = live.step().unwrap();
-            wall = wall.min(st.times.wall);
-            step = step.min(st.ispm.map_or(f64::INFINITY, |i| i.times.direct));
+            wall = wall.min(st.total_s);
+            step = step.min(st.direct_s);
         }
         let layers = live.frame_layers();
         let (dr, db, dm, _) = measure_against(&blocks(layers.layer(pm_color::Layer::Direct)), &reference_direct);

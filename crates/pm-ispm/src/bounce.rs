@@ -1,25 +1,21 @@
-//! Image-space photon mapping (McGuire and Luebke 2009) on the CPU: per light a
+//! The photons of an image-space frame (McGuire and Luebke 2009): per light a
 //! *bounce map* (section 4.2: the first bounce of a regular grid of directions,
 //! found by the rasteriser from the light's point of view like the paper's
 //! light-space G-buffer, scattered by BSDF importance sampling and Russian roulette
-//! per texel), the remaining bounces traced (section 4.3, storing photons with the
-//! kernel shape their path density gives), the eye G-buffer with direct light by
-//! shadow rays or shadow maps, and indirect light by splatting photon volumes over
-//! it (section 5, [`crate::splat`]).
+//! per texel), then the remaining bounces traced (section 4.3, storing photons with
+//! the kernel shape their path density gives).
 //!
 //! Units: power W per RGB channel, radiance W sr^-1 m^-2, lengths m.
 
-use crate::splat::{self, GBuffer, PhotonIndex, Seen, SplatOutput, Surface, VolumePhoton};
-use crate::{LiveParams, LiveShading};
+use crate::IspmParams;
+use crate::splat::VolumePhoton;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_raster::{self, Fragment};
-use pm_render::{Film, FrameBuffers, Visibility};
+use pm_render::Film;
 use pm_sampling::Sampler;
 use pm_scene::{Camera, LightKind, Scene};
 use rayon::prelude::*;
-use std::f32::consts::PI;
-use std::time::Instant;
 
 /// Scattering events a photon path may take after its first bounce before it is cut
 /// (specular chains store nothing, so they need a bound of their own).
@@ -234,7 +230,7 @@ pub struct KernelShape {
 
 impl KernelShape {
     /// The shape from the parameters, for a scene of diagonal `diag` \[m\].
-    pub fn new(p: &LiveParams, diag: f32) -> KernelShape {
+    pub fn new(p: &IspmParams, diag: f32) -> KernelShape {
         let r_max = p.kernel_max_rel_diag * diag;
         KernelShape {
             r1: p.kernel_radius_rel_diag * diag,
@@ -306,171 +302,4 @@ pub fn trace(
         })
         .collect();
     paths.into_iter().flatten().collect()
-}
-
-/// Wall time of each step of an image-space frame \[s\] (the paper's Table 2 split).
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
-pub struct IspmTimes {
-    /// The eye G-buffer (rasteriser).
-    pub gbuffer: f64,
-    /// Direct light, emission and mirrors and glass over the G-buffer.
-    pub direct: f64,
-    /// The bounce maps.
-    pub bounce: f64,
-    /// Tracing the remaining bounces.
-    pub trace: f64,
-    /// Splatting photon volumes.
-    pub splat: f64,
-    /// Bilateral upsampling of a subsampled splat.
-    pub upsample: f64,
-    /// The whole frame.
-    pub wall: f64,
-}
-
-/// What one image-space frame did.
-#[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct IspmStats {
-    /// Times per step \[s\].
-    pub times: IspmTimes,
-    /// The bounce maps' attrition and power.
-    pub bounce: BounceStats,
-    /// Photons stored for splatting.
-    pub photons: usize,
-}
-
-/// The surface the splat sees at each pixel of the rasterised first hits: none
-/// where nothing is seen or a mirror or glass is (photons cannot be splatted there;
-/// the paper's section 2.1).
-pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
-    fragments.par_iter().with_min_len(1024).map(|f| surface_at(scene, f, camera)).collect()
-}
-
-/// The splat's G-buffer of [`surfaces`] into `out`, reusing its memory (a frame's
-/// G-buffer is tens of megabytes; faulting it back in every frame showed in the
-/// profile).
-pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera, out: &mut GBuffer) {
-    out.fill(fragments.len(), |j| {
-        let Some(f) = &fragments[j] else { return Seen::Nothing };
-        // Most pixels see a plain Lambertian surface: the point, its normal and
-        // albedo are all the splat reads, and building the hit record and BSDF for
-        // them took most of this pass (the full path gives the same values). Mirror
-        // and glass pixels are known from the material alone.
-        if let Some((p, ns, rho)) = scene.plain_lambert(f.tri, f.b) {
-            let wo = (camera.position - p).normalize_or(ns);
-            return Seen::Lambert { p, n: pm_render::facing(ns, wo), albedo_pi: rho / PI };
-        }
-        if scene.uniform_bsdf(f.tri).is_some_and(|b| b.is_specular()) {
-            return Seen::Nothing;
-        }
-        surface_at(scene, &fragments[j], camera).into()
-    });
-}
-
-fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Option<Surface> {
-    let hit = fragment.as_ref()?.hit(scene);
-    let bsdf = scene.bsdf(&hit);
-    if bsdf.is_specular() {
-        return None;
-    }
-    let wo = (camera.position - hit.p).normalize_or(hit.ns);
-    Some(Surface::new(hit.p, pm_render::facing(hit.ns, wo), wo, bsdf))
-}
-
-/// The image-space method's memory, kept between frames: the G-buffer and the
-/// splats' working arrays and outputs.
-#[derive(Default)]
-pub struct IspmScratch {
-    /// The eye's G-buffer (full resolution).
-    pub gbuffer: GBuffer,
-    /// The full-resolution splat (all photons, or the caustic ones when subsampled).
-    full: splat::SplatScratch,
-    /// The subsampled splat of the soft indirect photons.
-    low: splat::SplatScratch,
-    /// The G-buffer it is splatted over.
-    low_gbuffer: GBuffer,
-}
-
-/// Draw one image-space frame of `scene` seen by `camera` into `buffers` (layers
-/// "total", "direct", "caustic", "indirect", "specular"). `fragments` and
-/// `scratch` keep the rasteriser's, the G-buffer's and the splats' memory between
-/// frames.
-#[allow(clippy::too_many_arguments)]
-pub fn frame(
-    scene: &Scene,
-    camera: &Camera,
-    p: &LiveParams,
-    seed: u64,
-    caustics: bool,
-    buffers: &mut FrameBuffers,
-    fragments: &mut Vec<Option<Fragment>>,
-    scratch: &mut IspmScratch,
-) -> Result<IspmStats, String> {
-    let start = Instant::now();
-    let film = Film { width: p.width, height: p.height, spp: 1, contrast: 0.0, seed };
-    let t = Instant::now();
-    let (bounce, bstats) = bounce_maps(scene, p.bounce_res, seed, caustics);
-    let t_bounce = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let kernel = KernelShape::new(p, scene.bounds.diagonal());
-    let photons = trace(scene, &bounce, p.bounces, &kernel, seed);
-    let index = PhotonIndex::new(&photons);
-    let t_trace = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), fragments);
-    let t_gbuffer = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let maps = crate::shadow_maps(scene, p);
-    let shading = LiveShading::splatted(scene, &photons, &index, p, maps.as_ref()).map_err(|e| e.to_string())?;
-    pm_render::render_into(
-        camera,
-        &film,
-        film.rect(),
-        &shading,
-        false,
-        Visibility::Fragments(scene, fragments),
-        buffers,
-        &|_, _| {},
-    )?;
-    let t_direct = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let IspmScratch { gbuffer, full, low, low_gbuffer } = scratch;
-    gbuffer_into(scene, fragments, camera, gbuffer);
-    let gbuffer = &*gbuffer;
-    let (w, h, f) = (p.width, p.height, p.subsample);
-    let (t_splat, t_upsample) = if f <= 1 {
-        splat::splat_into(&photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
-        buffers.add_to_layer(pm_color::Layer::Indirect, &full.indirect);
-        (t.elapsed().as_secs_f64(), 0.0)
-    } else {
-        // Section 5.2: the soft indirect light's irradiance splatted at 1/f
-        // resolution, upsampled with the joint bilateral filter, then times each
-        // full-resolution pixel's albedo / π (exact for Lambertian surfaces; glossy
-        // ones get their normal-incidence albedo). Caustic photons, whose kernels
-        // are a few pixels wide, are splatted at full resolution: upsampled they
-        // were 130% off at f = 2 (`cargo bench -p pm-live --bench ispm`).
-        let (caustic_photons, soft): (Vec<VolumePhoton>, Vec<VolumePhoton>) = photons.iter().partition(|q| q.caustic);
-        splat::splat_into(&caustic_photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
-        gbuffer.subsample_into(w, h, f, low_gbuffer);
-        let low_gb = &*low_gbuffer;
-        splat::splat_into(&soft, low_gb, camera, (w, h, f), SplatOutput::Irradiance, low);
-        let t_splat = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let up = splat::Upsample::new(&low.indirect, low_gb, gbuffer, camera.position, (w, h, f), true);
-        buffers.add_rows_to_layer(pm_color::Layer::Indirect, w as usize, |y, row| up.row(y, row));
-        (t_splat, t.elapsed().as_secs_f64())
-    };
-    buffers.add_to_layer(pm_color::Layer::Caustic, &full.caustic);
-    Ok(IspmStats {
-        times: IspmTimes {
-            gbuffer: t_gbuffer,
-            direct: t_direct,
-            bounce: t_bounce,
-            trace: t_trace,
-            splat: t_splat,
-            upsample: t_upsample,
-            wall: start.elapsed().as_secs_f64(),
-        },
-        bounce: bstats,
-        photons: photons.len(),
-    })
 }

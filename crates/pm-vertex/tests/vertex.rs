@@ -3,13 +3,22 @@
 use glam::Vec3;
 use pm_format::{FullIrrPhoton, Photon, PhotonRecord, flags};
 use pm_light::LightSelector;
-use pm_live::{DirectMode, Distribution, Live, LiveParams, PhotonSearch, RingBuffer};
+use pm_live::{DirectMode, FrameParams, Live};
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
 use pm_scene::{LightKind, Scene};
+use pm_vertex::{Distribution, PhotonSearch, RingBuffer, Vertex, VertexParams};
 use std::path::PathBuf;
 
 fn scene(name: &str) -> Scene {
     pm_scene::load(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)).unwrap()
+}
+
+/// Frame and vertex-method parameters of a test run.
+#[derive(Clone)]
+struct Params(FrameParams, VertexParams);
+
+fn start(s: Scene, photon_scene: Option<Scene>, p: Params, seed: u64) -> Result<Live<Vertex>, String> {
+    pm_vertex::live(s, photon_scene, p.0, p.1, seed)
 }
 
 fn global_pass(scene: &Scene, seed: u64) -> TraceConfig {
@@ -111,15 +120,11 @@ fn after_total_over_per_frame_frames_no_photon_from_a_moved_light_remains() {
     let LightKind::Point { position: a, .. } = s.lights[0].kind else { panic!("plane_point has a point light") };
     let b = a + Vec3::new(0.6, -0.3, 0.4);
     let moved = point_light_at(&s, b);
-    let params = LiveParams {
-        per_frame: 300,
-        total: 1_000,
-        width: 8,
-        height: 8,
-        distribution: Distribution::SameOverTotal,
-        ..Default::default()
-    };
-    let mut live = Live::new(s, None, params, 1).unwrap();
+    let params = Params(
+        FrameParams { width: 8, height: 8, ..Default::default() },
+        VertexParams { per_frame: 300, total: 1_000, distribution: Distribution::SameOverTotal, ..Default::default() },
+    );
+    let mut live = start(s, None, params, 1).unwrap();
     for _ in 0..4 {
         live.step().unwrap();
     }
@@ -127,7 +132,8 @@ fn after_total_over_per_frame_frames_no_photon_from_a_moved_light_remains() {
     let from = |p: &Photon, l: Vec3| p.wi.dot((l - p.position).normalize()) > 0.99999;
     for frame in 0..4 {
         live.step().unwrap();
-        let direct: Vec<Photon> = live.ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
+        let direct: Vec<Photon> =
+            live.method().ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
         let old = direct.iter().filter(|p| from(p, a)).count();
         let new = direct.iter().filter(|p| from(p, b)).count();
         eprintln!("frame {frame} after the jump: {old} direct photons from the old position, {new} from the new");
@@ -147,16 +153,11 @@ fn after_total_over_per_frame_frames_no_photon_from_a_moved_light_remains() {
 fn a_full_buffer_is_the_batch_map_and_its_estimates_are_the_batchs() {
     let s = scene("cornell_boxes.gltf");
     let (total, seed) = (3_000u32, 11);
-    let params = LiveParams {
-        per_frame: 1_000,
-        total,
-        max_level: 64,
-        direct: DirectMode::Photons,
-        width: 8,
-        height: 8,
-        ..Default::default()
-    };
-    let mut live = Live::new(s.clone(), None, params.clone(), seed).unwrap();
+    let params = Params(
+        FrameParams { direct: DirectMode::Photons, width: 8, height: 8, ..Default::default() },
+        VertexParams { per_frame: 1_000, total, max_level: 64, ..Default::default() },
+    );
+    let mut live = start(s.clone(), None, params.clone(), seed).unwrap();
     for _ in 0..3 {
         live.step().unwrap();
     }
@@ -164,20 +165,20 @@ fn a_full_buffer_is_the_batch_map_and_its_estimates_are_the_batchs() {
     cfg.budget = Budget::Emitted(total as u64);
     let batch = pm_photon::trace(&s, &cfg, &|_| {}).unwrap().photons;
     let key = |p: &Photon| (p.position.to_array().map(f32::to_bits), p.power.to_array().map(f32::to_bits));
-    let mut a: Vec<_> = live.ring().photons().iter().map(key).collect();
+    let mut a: Vec<_> = live.method().ring().photons().iter().map(key).collect();
     let mut b: Vec<_> = batch.iter().map(key).collect();
     a.sort();
     b.sort();
     assert_eq!(a.len(), b.len());
     assert!(a == b, "the full buffer holds the batch photons, powers included");
     // Corner estimates: the live tree against a tree balanced from the batch map.
-    let live_records = pm_kdtree::balance(&live.tree_photons());
+    let live_records = pm_kdtree::balance(&live.method().tree_photons());
     let batch_records = pm_kdtree::balance(&batch.iter().map(FullIrrPhoton::encode).collect::<Vec<_>>());
-    let corners = live.corners();
+    let corners = live.method().corners();
     let all = vec![true; corners.len()];
-    let r = params.max_radius_rel_diag * s.bounds.diagonal();
-    let el = corners.irradiance(&pm_kdtree::KdTree::new(&live_records), &all, params.k, r);
-    let eb = corners.irradiance(&pm_kdtree::KdTree::new(&batch_records), &all, params.k, r);
+    let r = params.1.max_radius_rel_diag * s.bounds.diagonal();
+    let el = corners.irradiance(&pm_kdtree::KdTree::new(&live_records), &all, params.1.k, r);
+    let eb = corners.irradiance(&pm_kdtree::KdTree::new(&batch_records), &all, params.1.k, r);
     let mut worst = 0f32;
     for (x, y) in el.iter().zip(&eb) {
         worst = worst.max((*x - *y).abs().max_element() / y.max_element().max(1e-12));
@@ -191,9 +192,12 @@ fn a_full_buffer_is_the_batch_map_and_its_estimates_are_the_batchs() {
 #[test]
 fn frames_repeat_exactly_for_the_same_inputs() {
     let s = scene("cornell_boxes.gltf");
-    let params = LiveParams { per_frame: 500, total: 2_000, width: 24, height: 24, ..Default::default() };
+    let params = Params(
+        FrameParams { width: 24, height: 24, ..Default::default() },
+        VertexParams { per_frame: 500, total: 2_000, ..Default::default() },
+    );
     let run = || {
-        let mut live = Live::new(s.clone(), None, params.clone(), 5).unwrap();
+        let mut live = start(s.clone(), None, params.clone(), 5).unwrap();
         (0..3)
             .map(|_| {
                 live.step().unwrap();
@@ -230,8 +234,11 @@ fn an_animated_light_moves_and_its_photons_follow() {
     let k1 = Vec3::new(1.2 * (std::f32::consts::TAU / 32.0).cos(), 2.0, 1.2 * (std::f32::consts::TAU / 32.0).sin());
     assert!((mid - (Vec3::new(1.2, 2.0, 0.0) + k1) * 0.5).length() < 1e-5);
     // Frames at 4 fps: each frame's direct photons come from that frame's light.
-    let params = LiveParams { per_frame: 400, total: 800, width: 8, height: 8, fps: 4.0, ..Default::default() };
-    let mut live = Live::new(s.clone(), None, params, 3).unwrap();
+    let params = Params(
+        FrameParams { width: 8, height: 8, fps: 4.0, ..Default::default() },
+        VertexParams { per_frame: 400, total: 800, ..Default::default() },
+    );
+    let mut live = start(s.clone(), None, params, 3).unwrap();
     let mut lights = Vec::new();
     for f in 0..4 {
         let t = f as f32 / 4.0;
@@ -243,7 +250,8 @@ fn an_animated_light_moves_and_its_photons_follow() {
         live.step().unwrap();
     }
     // The buffer now holds the paths of frames 2 and 3.
-    let direct: Vec<Photon> = live.ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
+    let direct: Vec<Photon> =
+        live.method().ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
     assert!(!direct.is_empty());
     for p in &direct {
         let from = |l: Vec3| p.wi.dot((l - p.position).normalize()) > 0.9999;
@@ -258,16 +266,11 @@ fn an_animated_light_moves_and_its_photons_follow() {
 fn flicker_depends_on_the_distribution_and_the_temporal_filter() {
     let s = scene("cornell_boxes.gltf");
     let run = |distribution: Distribution, temporal: f32| {
-        let params = LiveParams {
-            per_frame: 500,
-            total: 2_000,
-            width: 8,
-            height: 8,
-            distribution,
-            temporal,
-            ..Default::default()
-        };
-        let mut live = Live::new(s.clone(), None, params, 9).unwrap();
+        let params = Params(
+            FrameParams { width: 8, height: 8, ..Default::default() },
+            VertexParams { per_frame: 500, total: 2_000, distribution, temporal, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, params, 9).unwrap();
         let f: Vec<f64> = (0..10).map(|_| live.step().unwrap().flicker).collect();
         f[6..].iter().sum::<f64>() / 4.0
     };
@@ -286,8 +289,11 @@ fn flicker_depends_on_the_distribution_and_the_temporal_filter() {
 fn shadow_map_direct_light_matches_shadow_rays() {
     let s = scene("jozwowski_room_256.gltf");
     let frame = |direct: DirectMode| {
-        let params = LiveParams { per_frame: 500, total: 500, width: 96, height: 96, direct, ..Default::default() };
-        let mut live = Live::new(s.clone(), None, params, 4).unwrap();
+        let params = Params(
+            FrameParams { width: 96, height: 96, direct, ..Default::default() },
+            VertexParams { per_frame: 500, total: 500, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, params, 4).unwrap();
         live.set_time(0.0);
         live.step().unwrap();
         live.frame_layers().layer(pm_color::Layer::Direct).to_vec()
@@ -304,14 +310,18 @@ fn shadow_map_direct_light_matches_shadow_rays() {
 fn moved_lights_keep_one_offset_on_top_of_the_animation() {
     let s = scene("plane_point.gltf");
     let LightKind::Point { position: rest, .. } = s.lights[0].kind else { panic!("a point light") };
-    let params = LiveParams { per_frame: 100, total: 100, width: 8, height: 8, ..Default::default() };
-    let mut live = Live::new(s, None, params, 1).unwrap();
+    let params = Params(
+        FrameParams { width: 8, height: 8, ..Default::default() },
+        VertexParams { per_frame: 100, total: 100, ..Default::default() },
+    );
+    let mut live = start(s, None, params, 1).unwrap();
     live.move_lights(Vec3::new(0.1, 0.0, -0.2));
     for _ in 0..3 {
         live.set_time(0.5);
         live.step().unwrap();
     }
-    let direct: Vec<Photon> = live.ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
+    let direct: Vec<Photon> =
+        live.method().ring().photons().into_iter().filter(|p| p.flags & flags::DIRECT != 0).collect();
     let at = rest + Vec3::new(0.1, 0.0, -0.2);
     assert!(!direct.is_empty());
     assert!(direct.iter().all(|p| p.wi.dot((at - p.position).normalize()) > 0.99999));
@@ -325,15 +335,11 @@ fn moved_lights_keep_one_offset_on_top_of_the_animation() {
 fn the_photon_grid_gives_the_rebuilds_estimates() {
     let s = scene("jozwowski_room_64.gltf");
     let frames = |search: PhotonSearch| {
-        let params = LiveParams {
-            per_frame: 700,
-            total: 2_000,
-            width: 48,
-            height: 48,
-            photon_search: search,
-            ..Default::default()
-        };
-        let mut live = Live::new(s.clone(), None, params, 6).unwrap();
+        let params = Params(
+            FrameParams { width: 48, height: 48, ..Default::default() },
+            VertexParams { per_frame: 700, total: 2_000, photon_search: search, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, params, 6).unwrap();
         (0..6)
             .map(|f| {
                 live.set_time(f as f32 * 0.25);

@@ -3,13 +3,22 @@
 
 use pm_color::Layer;
 use pm_color::Rgb;
-use pm_live::ispm::{self, KernelShape};
-use pm_live::splat::{self, PhotonIndex, SplatOutput, Surface};
-use pm_live::{Live, LiveParams, Method};
+use pm_ispm::KernelShape;
+use pm_ispm::splat::{self, PhotonIndex, SplatOutput, Surface};
+use pm_ispm::{Ispm, IspmParams};
+use pm_live::{FrameParams, Live};
 use pm_raster as raster;
 use pm_render::Film;
 use pm_scene::Scene;
 use std::path::PathBuf;
+
+/// Frame and image-space parameters of a run.
+#[derive(Clone, Default)]
+struct Params(FrameParams, IspmParams);
+
+fn start(s: Scene, _: Option<Scene>, p: Params, seed: u64) -> Result<Live<Ispm>, String> {
+    pm_ispm::live(s, p.0, p.1, seed)
+}
 
 fn scene(name: &str) -> Scene {
     pm_scene::load(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name)).unwrap()
@@ -19,7 +28,7 @@ fn scene(name: &str) -> Scene {
 fn gbuffer(s: &Scene, w: u32, h: u32) -> Vec<Option<Surface>> {
     let camera = s.camera.clone().unwrap();
     let film = Film { width: w, height: h, spp: 1, contrast: 0.0, seed: 0 };
-    ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera)
+    pm_ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera)
 }
 
 /// Scatter equals gather (section 5: "mathematically identical"): splatting the
@@ -39,9 +48,10 @@ fn splatting_equals_gathering() {
 /// surfaces, whose pixels the splat evaluates with the full BSDF).
 fn splat_equals_gather_on(name: &str) {
     let s = scene(name);
-    let p = LiveParams { bounce_res: 24, bounces: 3, ..LiveParams::default() };
-    let (bounce, _) = ispm::bounce_maps(&s, p.bounce_res, 5, true);
-    let photons = ispm::trace(&s, &bounce, p.bounces, &KernelShape::new(&p, s.bounds.diagonal()), 5);
+    let p =
+        Params(FrameParams { ..Default::default() }, IspmParams { bounce_res: 24, bounces: 3, ..Default::default() });
+    let (bounce, _) = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
+    let photons = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5);
     assert!(photons.iter().any(|q| q.caustic) && photons.iter().any(|q| !q.caustic));
     let sizes: Vec<f32> = photons.iter().map(|q| q.r_xy).collect();
     assert!(sizes.iter().cloned().fold(f32::INFINITY, f32::min) < sizes.iter().cloned().fold(0.0, f32::max));
@@ -85,7 +95,7 @@ fn splat_equals_gather_on(name: &str) {
 #[test]
 fn the_bounce_map_carries_the_lights_power() {
     let room = scene("jozwowski_room_16.gltf");
-    let (_, st) = ispm::bounce_maps(&room, 32, 1, true);
+    let (_, st) = pm_ispm::bounce_maps(&room, 32, 1, true);
     let phi = room.total_power();
     // Every direction meets a wall: no cracks between the rasterised triangles.
     assert_eq!(st.hits, st.texels, "the room is closed");
@@ -93,7 +103,7 @@ fn the_bounce_map_carries_the_lights_power() {
     assert!(rel(st.incident, phi) < 1e-4, "incident {} vs {}", st.incident, phi);
 
     let furnace = scene("furnace.gltf");
-    let (bounce, st) = ispm::bounce_maps(&furnace, 48, 1, true);
+    let (bounce, st) = pm_ispm::bounce_maps(&furnace, 48, 1, true);
     let phi = furnace.total_power();
     let survived = st.survived as f32 / st.hits as f32;
     eprintln!("furnace: {} texels, survival {survived:.4}", st.texels);
@@ -119,23 +129,17 @@ fn the_bounce_map_carries_the_lights_power() {
 #[test]
 fn the_furnace_glows_at_le_over_one_minus_rho() {
     let s = scene("furnace.gltf");
-    let p = LiveParams {
-        method: Method::Ispm,
-        bounces: 24,
-        bounce_res: 96,
-        width: 48,
-        height: 48,
-        light_samples: 4,
-        kernel_minor: 1.0,
-        ..LiveParams::default()
-    };
-    let mut live = Live::new(s, None, p, 3).unwrap();
+    let p = Params(
+        FrameParams { width: 48, height: 48, light_samples: 4, ..Default::default() },
+        IspmParams { bounces: 24, bounce_res: 96, kernel_minor: 1.0, ..Default::default() },
+    );
+    let mut live = start(s, None, p, 3).unwrap();
     let st = live.step().unwrap();
     let layers = live.frame_layers();
     let mean = |l: &[Rgb]| l.iter().map(|v| pm_color::mean(*v) as f64).sum::<f64>() / l.len() as f64;
     let (total, direct, indirect) =
         (mean(layers.total()), mean(layers.layer(Layer::Direct)), mean(layers.layer(Layer::Indirect)));
-    eprintln!("total {total:.4} (direct {direct:.4}, indirect {indirect:.4}); {} photons", st.photons_in_tree);
+    eprintln!("total {total:.4} (direct {direct:.4}, indirect {indirect:.4}); {} photons", st.photons);
     assert!((direct - 1.8).abs() < 0.02 * 1.8, "direct {direct}");
     assert!((total - 5.0).abs() < 0.02 * 5.0, "total {total}");
 }
@@ -144,18 +148,14 @@ fn the_furnace_glows_at_le_over_one_minus_rho() {
 #[test]
 fn frames_are_identical_for_one_and_two_threads() {
     let s = scene("cornell_spheres.gltf");
-    let p = LiveParams {
-        method: Method::Ispm,
-        width: 40,
-        height: 32,
-        bounce_res: 16,
-        subsample: 2,
-        ..LiveParams::default()
-    };
+    let p = Params(
+        FrameParams { width: 40, height: 32, ..Default::default() },
+        IspmParams { bounce_res: 16, subsample: 2, ..Default::default() },
+    );
     let frame = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            let mut live = Live::new(s.clone(), None, p.clone(), 9).unwrap();
+            let mut live = start(s.clone(), None, p.clone(), 9).unwrap();
             live.step().unwrap();
             live.frame_layers().total().iter().map(|v| v.to_array().map(f32::to_bits)).collect::<Vec<_>>()
         })
@@ -189,16 +189,11 @@ fn layers_agree_with_the_path_tracer() {
     ] {
         let s = scene(name);
         let (w, h) = (40, 40);
-        let p = LiveParams {
-            method: Method::Ispm,
-            width: w,
-            height: h,
-            bounces: 8,
-            bounce_res: 96,
-            light_samples: 16,
-            ..LiveParams::default()
-        };
-        let mut live = Live::new(s.clone(), None, p, 7).unwrap();
+        let p = Params(
+            FrameParams { width: w, height: h, light_samples: 16, ..Default::default() },
+            IspmParams { bounces: 8, bounce_res: 96, ..Default::default() },
+        );
+        let mut live = start(s.clone(), None, p, 7).unwrap();
         live.step().unwrap();
         let ispm = live.frame_layers();
         let camera = s.camera.clone().unwrap();
@@ -241,18 +236,21 @@ fn caustic_paths_are_traced_only_where_the_analysis_finds_them() {
     for (name, caustics) in [("cornell_boxes.gltf", false), ("cornell_spheres.gltf", true)] {
         let s = scene(name);
         assert_eq!(pm_light::analyze(&s).caustics.yes, caustics, "{name}");
-        let p = LiveParams { method: Method::Ispm, width: 32, height: 32, bounce_res: 24, ..LiveParams::default() };
-        let mut live = Live::new(s, None, p, 2).unwrap();
+        let p = Params(
+            FrameParams { width: 32, height: 32, ..Default::default() },
+            IspmParams { bounce_res: 24, ..Default::default() },
+        );
+        let mut live = start(s, None, p, 2).unwrap();
         live.step().unwrap();
         let lit = live.frame_layers().layer(pm_color::Layer::Caustic).iter().any(|v| v.max_element() > 0.0);
         assert_eq!(lit, caustics, "{name}");
     }
     let s = scene("cornell_spheres.gltf");
-    let p = LiveParams::default();
-    let shape = KernelShape::new(&p, s.bounds.diagonal());
+    let p = Params::default();
+    let shape = KernelShape::new(&p.1, s.bounds.diagonal());
     for traced in [true, false] {
-        let (b, _) = ispm::bounce_maps(&s, 24, 1, traced);
-        let caustic = ispm::trace(&s, &b, 2, &shape, 1).iter().filter(|q| q.caustic).count();
+        let (b, _) = pm_ispm::bounce_maps(&s, 24, 1, traced);
+        let caustic = pm_ispm::trace(&s, &b, 2, &shape, 1).iter().filter(|q| q.caustic).count();
         assert_eq!(b.iter().any(|q| q.specular), traced);
         assert_eq!(caustic > 0, traced, "{caustic} caustic photons");
     }
@@ -291,17 +289,11 @@ fn area_light_shadow_maps_agree_with_shadow_rays() {
         let camera = Camera { position, forward, up: right.cross(forward), right, yfov: 1.2, aspect: None };
         let s = Scene::from_parts(tris, mats, vec![], Some(camera));
         let frame = |direct, light_samples| {
-            let p = LiveParams {
-                method: Method::Ispm,
-                width: 48,
-                height: 48,
-                bounces: 1,
-                direct,
-                light_samples,
-                shadow_map_res: 512,
-                ..LiveParams::default()
-            };
-            let mut live = Live::new(s.clone(), None, p, 1).unwrap();
+            let p = Params(
+                FrameParams { width: 48, height: 48, direct, light_samples, shadow_map_res: 512, ..Default::default() },
+                IspmParams { bounces: 1, ..Default::default() },
+            );
+            let mut live = start(s.clone(), None, p, 1).unwrap();
             live.step().unwrap();
             live.frame_layers().layer(pm_color::Layer::Direct).to_vec()
         };
@@ -383,9 +375,10 @@ fn upsampling_keeps_depth_edges() {
 #[test]
 fn splats_into_kept_scratch_equal_fresh_ones() {
     let s = scene("cornell_spheres.gltf");
-    let p = LiveParams { bounce_res: 24, bounces: 3, ..LiveParams::default() };
-    let (bounce, _) = ispm::bounce_maps(&s, p.bounce_res, 5, true);
-    let all = ispm::trace(&s, &bounce, p.bounces, &KernelShape::new(&p, s.bounds.diagonal()), 5);
+    let p =
+        Params(FrameParams { ..Default::default() }, IspmParams { bounce_res: 24, bounces: 3, ..Default::default() });
+    let (bounce, _) = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
+    let all = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5);
     // A cluster of photons round one of them: they reach a few bands.
     let centre = all[all.len() / 2].p;
     let cluster: Vec<_> =

@@ -5,9 +5,10 @@
 //! frame is wall time: the rasteriser runs beside the photon update, so the steps
 //! add up to more.
 //!
-//! Run: `cargo bench -p pm-live --bench frame [-- SCENE]`
+//! Run: `cargo bench -p pm-vertex --bench frame [-- SCENE]`
 
-use pm_live::{DirectMode, Live, LiveParams};
+use pm_live::{DirectMode, FrameParams};
+use pm_vertex::{VertexFrame, VertexParams};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -23,26 +24,26 @@ fn main() {
     println!("| direct | shoot | grid update | estimate | draw | frame | fps |");
     println!("|---|---|---|---|---|---|---|");
     for direct in [DirectMode::Photons, DirectMode::ShadowMap, DirectMode::Rays] {
-        let params = LiveParams { direct, ..LiveParams::default() };
-        let mut live = Live::new(scene.clone(), None, params, 1).unwrap();
+        let frame = FrameParams { direct, ..FrameParams::default() };
+        let mut live = pm_vertex::live(scene.clone(), None, frame, VertexParams::default(), 1).unwrap();
         let mut rows = Vec::new();
         pool.install(|| {
             for f in 0..80 {
                 live.set_time(f as f32 / 60.0);
                 let s = live.step().unwrap();
                 if f >= 20 {
-                    rows.push(s.times);
+                    rows.push(s);
                 }
             }
         });
-        let m = |f: fn(&pm_live::FrameTimes) -> f64| median(rows.iter().map(f).collect()) * 1e3;
-        let frame = m(|t| t.wall);
+        let m = |f: fn(&VertexFrame) -> f64| median(rows.iter().map(f).collect()) * 1e3;
+        let frame = m(|t| t.total_s);
         println!(
             "| {direct:?} | {:.2} | {:.2} | {:.2} | {:.2} | {frame:.2} | {:.1} |",
-            m(|t| t.shoot),
-            m(|t| t.balance),
-            m(|t| t.estimate),
-            m(|t| t.draw),
+            m(|t| t.shoot_s),
+            m(|t| t.balance_s),
+            m(|t| t.estimate_s),
+            m(|t| t.draw_s),
             1e3 / frame
         );
     }

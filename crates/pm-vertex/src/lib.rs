@@ -1,0 +1,445 @@
+//! Real-time photon mapping by vertex estimates (Jozwowski 2002, "Real Time Photon
+//! Mapping", sections 4 and 5): every frame re-shoots the oldest `per_frame` of
+//! `total` photon paths into a ring buffer ([`RingBuffer`], section 4.1.1-4.1.2),
+//! updates the photon search over the used slots, estimates irradiance at the
+//! mesh's corners ([`Corners`], sections 4.1.3 and 4.4.2), and draws the mesh with
+//! the corner radiance interpolated across each triangle (Gouraud) times the
+//! reflectance, with direct light by shadow rays or shadow maps per pixel (sharp
+//! shadows) or from the photons alone (as in the thesis).
+//!
+//! A [`pm_live::Method`]: `pm-live` runs the frames and shades the pixels. It
+//! reuses the batch pipeline's pieces rather than forking them: the tracer's own
+//! per-path streams (`pm_photon::trace_path`), the kd-tree, the k-nearest irradiance
+//! estimate. Radiance is W sr^-1 m^-2 per RGB channel; photon power W; irradiance
+//! W m^-2.
+
+mod mesh;
+mod ring;
+
+pub use mesh::Corners;
+pub use ring::{Distribution, RingBuffer, ShootStats};
+
+use pm_color::Rgb;
+use pm_format::{FullIrrPhoton, PhotonRecord, flags};
+use pm_light::LightSelector;
+use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
+use pm_params::{Any, above, at_least, between};
+use pm_photon::{Budget, MapPass, TraceConfig};
+use pm_render::{FrameBuffers, Visibility};
+use pm_scene::{Hit, Scene, Target};
+use std::f32::consts::PI;
+use std::time::Instant;
+
+pm_params::value_enum! {
+    /// How a frame finds the surface at each pixel.
+    pub enum DrawMode {
+        /// A CPU rasteriser with a z-buffer and perspective-correct interpolation.
+        Raster,
+        /// An eye ray per pixel through the BVH.
+        Rays,
+    }
+}
+
+pm_params::value_enum! {
+    /// How the estimates find photons each frame.
+    pub enum PhotonSearch {
+        /// Rebuild a balanced kd-tree over the used slots (the thesis, section 4.1.2).
+        Rebuild,
+        /// Update a hash grid (cells as large as the search radius) for the re-shot
+        /// paths only: the thesis's future work.
+        Grid,
+    }
+}
+
+pm_params::value_enum! {
+    /// What photons are traced in (section 4.4.1, scene simplification).
+    pub enum PhotonProxy {
+        /// The scene itself (or the --photon-scene given).
+        None,
+        /// Every non-emitting object replaced by its bounding box.
+        Boxes,
+    }
+}
+
+pm_params::params! {
+    /// The vertex method's parameters (Jozwowski 2002 sections 4.1 and 4.4):
+    /// `photon-live`'s options and keys of pipeline.toml's `[live]` section.
+    pub struct VertexParams {
+        /// Photon paths re-shot every frame (the thesis: 100-2,000).
+        per_frame: u32 = 2_000 => between(1, 1 << 24);
+        /// Photon paths the ring buffer holds (the thesis: 2,000; at least per_frame).
+        total: u32 = 20_000 => between(1, 1 << 24);
+        /// Hits kept per path. The thesis finds 3 sufficient, but in a closed room
+        /// (albedo about 0.7) 3 loses 28% of the light and 8 loses 7% against the
+        /// batch pipeline (`cargo xtask live-study`, BENCHMARKS.md), for 5% more time.
+        max_level: u32 = 8 => between(1, 64);
+        /// Which paths re-shot slots get: random, same-per-frame or same-over-total.
+        distribution: Distribution = Distribution::SameOverTotal => Any;
+        /// Photons per corner estimate.
+        k: usize = 50 => between(1, 1 << 16);
+        /// Largest estimate radius, as a fraction of the scene's bounding-box diagonal.
+        max_radius_rel_diag: f32 = 0.1 => above(0.0);
+        /// One estimate per shared corner (section 4.4.2) instead of one per triangle vertex.
+        cornering: bool = true => Any;
+        /// Skip corners of triangles facing away from the camera (one-sided materials).
+        back_face_culling: bool = true => Any;
+        /// Skip corners of triangles outside the view frustum.
+        frustum_culling: bool = true => Any;
+        /// Split every triangle uniformly until no edge is longer than this [m] (section
+        /// 4.3: more corners, finer indirect light; photons are still traced in the
+        /// unsplit scene); 0 leaves the mesh as it is.
+        subdivide: f32 = 0.0 => at_least(0.0);
+        /// Find photons by rebuilding the kd-tree each frame (rebuild) or by updating a
+        /// grid for the re-shot paths only (grid; measured faster: 5 against 7.5 ms of
+        /// search structure and estimates per frame, BENCHMARKS.md).
+        photon_search: PhotonSearch = PhotonSearch::Grid => Any;
+        /// Trace photons in the scene (none) or in its bounding boxes (boxes).
+        photon_proxy: PhotonProxy = PhotonProxy::None => Any;
+        /// Temporal filter: weight of the previous frame's corner irradiance in this
+        /// frame's (E = (1 - w) E_new + w E_previous; 0: off). Trades flicker for lag.
+        temporal: f32 = 0.0 => between(0.0, 0.99);
+        /// Surfaces seen at pixels by the rasteriser or by eye rays (the same except at silhouettes).
+        draw: DrawMode = DrawMode::Raster => Any;
+    }
+}
+
+impl VertexParams {
+    /// [`Self::validate`] plus the checks that relate two values.
+    pub fn check(&self, naming: pm_params::Naming) -> Result<(), String> {
+        self.validate(naming)?;
+        if self.per_frame > self.total {
+            return Err(format!(
+                "{} = {} is above {} = {}",
+                naming.name("per_frame"),
+                self.per_frame,
+                naming.name("total"),
+                self.total
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What one vertex-method frame did: a row of frames.csv (times \[s\], the thesis's
+/// Figures 21-27 split, and counts).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VertexFrame {
+    /// Frame number (0 first).
+    pub frame: u64,
+    /// Shooting `per_frame` paths into the ring buffer \[s\].
+    pub shoot_s: f64,
+    /// Updating the photon search: the kd-tree rebuilt, or the grid updated \[s\].
+    pub balance_s: f64,
+    /// Corner culling and irradiance estimates \[s\].
+    pub estimate_s: f64,
+    /// Drawing the frame (rasterising or eye rays, interpolation, direct light) \[s\].
+    pub draw_s: f64,
+    /// The whole frame \[s\]. The rasteriser runs beside the photon update (the
+    /// grid's update is serial and leaves a core free), so this is less than the sum.
+    pub total_s: f64,
+    /// Paths shot this frame.
+    pub paths_shot: u64,
+    /// Rays the photon paths traced.
+    pub photon_rays: u64,
+    /// Paths the buffer holds.
+    pub paths_held: usize,
+    /// Photons the estimates search (used slots that the estimates read).
+    pub photons_in_tree: usize,
+    /// Corner estimates made (active corners).
+    pub estimates: usize,
+    /// Corners in all.
+    pub corners: usize,
+    /// Eye samples drawn.
+    pub samples: u64,
+    /// Flicker: mean absolute change of corner irradiance since the previous frame
+    /// over the mean irradiance, at corners active in both (0 at the first frame).
+    pub flicker: f64,
+}
+
+impl FrameRow for VertexFrame {
+    fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    fn wall_seconds(&self) -> f64 {
+        self.total_s
+    }
+}
+
+/// Irradiance at the corners [W m^-2 per channel], interpolated across each
+/// triangle (Gouraud; perspective-correct, since eye rays and the rasteriser give
+/// true barycentrics) and reflected by the diffuse albedo: the thesis's indirect
+/// light (section 4.1.3).
+pub struct CornerLight<'a> {
+    /// The corners of the drawn mesh.
+    pub corners: &'a Corners,
+    /// Irradiance at each corner.
+    pub e: &'a [Rgb],
+}
+
+impl CornerLight<'_> {
+    /// Irradiance at barycentrics `b` of triangle `tri`.
+    pub fn irradiance_at(&self, tri: u32, b: [f32; 3]) -> Rgb {
+        let (c, e) = (self.corners.tri[tri as usize], self.e);
+        e[c[0] as usize] * b[0] + e[c[1] as usize] * b[1] + e[c[2] as usize] * b[2]
+    }
+}
+
+impl IndirectLight for CornerLight<'_> {
+    const SPLATTED: bool = false;
+
+    fn radiance(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, _: glam::Vec3) -> Rgb {
+        bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI
+    }
+}
+
+/// True for the photons the corner estimates read: all of them when direct light
+/// comes from photons, else all but the direct ones (direct light is then computed
+/// per pixel).
+fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
+    direct == DirectMode::Photons || p.flags & flags::DIRECT == 0
+}
+
+/// The photons of `ring` the estimates read (see [`Vertex::tree_photons`]).
+fn tree_photons(ring: &RingBuffer, direct: DirectMode) -> Vec<FullIrrPhoton> {
+    ring.photons().iter().filter(|p| estimates_read(direct, p)).map(FullIrrPhoton::encode).collect()
+}
+
+/// Flicker of `now` against `before` (same corners): mean |now - before| over
+/// mean(before), over channels; 0 when `before` is dark.
+pub fn flicker_of(now: &[Rgb], before: &[Rgb]) -> f64 {
+    let diff: f64 = now.iter().zip(before).map(|(a, b)| (*a - *b).abs().element_sum() as f64).sum();
+    let base: f64 = before.iter().map(|b| b.element_sum() as f64).sum();
+    if base > 0.0 { diff / base } else { 0.0 }
+}
+
+/// The vertex method's state between frames: the ring buffer, the corners and
+/// their previous irradiance, the photon search.
+pub struct Vertex {
+    frame_params: FrameParams,
+    params: VertexParams,
+    seed: u64,
+    trace: TraceConfig,
+    targets: Vec<Target>,
+    ring: RingBuffer,
+    corners: Corners,
+    /// The previous frame's corner irradiance, and which corners had one.
+    previous: Option<(Vec<Rgb>, Vec<bool>)>,
+    /// The incrementally updated photon grid (photon_search = grid), keyed by slot,
+    /// with the paths' unscaled power.
+    grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
+    /// The frame's rasterised first hits.
+    fragments: Vec<Option<pm_raster::Fragment>>,
+}
+
+impl Vertex {
+    /// The method over `world` (its corners are the drawn scene's, its photons
+    /// traced in the photon scene). Fails when a parameter is out of range or the
+    /// photon scene has no light with power.
+    pub fn new(world: &World, frame_params: FrameParams, params: VertexParams, seed: u64) -> Result<Vertex, String> {
+        frame_params.validate(pm_params::Naming::Cli)?;
+        params.check(pm_params::Naming::Cli)?;
+        let selector = LightSelector::new(world.photon_scene(), &[]).map_err(|e| e.to_string())?;
+        let trace = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(params.total as u64), seed, selector };
+        let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
+        let corners = Corners::new(world.scene(), params.cornering);
+        Ok(Vertex {
+            frame_params,
+            params,
+            seed,
+            trace,
+            targets: Vec::new(),
+            ring,
+            corners,
+            previous: None,
+            grid: None,
+            fragments: Vec::new(),
+        })
+    }
+
+    /// The ring buffer.
+    pub fn ring(&self) -> &RingBuffer {
+        &self.ring
+    }
+
+    /// The corners.
+    pub fn corners(&self) -> &Corners {
+        &self.corners
+    }
+
+    /// The photons the estimates read this frame: the used slots (power scaled by
+    /// the paths held), without the direct photons when direct light comes from rays.
+    pub fn tree_photons(&self) -> Vec<FullIrrPhoton> {
+        tree_photons(&self.ring, self.frame_params.direct)
+    }
+
+    /// Shoot and update the photon search, rasterising beside it when drawing:
+    /// returns the shoot statistics, the search's records (empty for the grid) with
+    /// their buckets, and the times of shooting, search and rasterising \[s\].
+    fn shoot_and_search(
+        &mut self,
+        world: &World,
+        frame: u64,
+        draw: bool,
+    ) -> (ShootStats, Vec<FullIrrPhoton>, pm_kdtree::Buckets, [f64; 3]) {
+        let (p, f) = (&self.params, &self.frame_params);
+        let t = Instant::now();
+        let shot =
+            self.ring.shoot(world.photon_scene(), &self.trace, &self.targets, p.per_frame as usize, p.distribution);
+        let shoot = t.elapsed().as_secs_f64();
+        let max_radius = p.max_radius_rel_diag * world.scene().bounds.diagonal();
+        let film = f.film(self.seed ^ frame);
+        // The search structure (a kd-tree rebuilt over the used slots, or the grid
+        // updated for the re-shot paths' slots only; the update is serial) and the
+        // rasterised first hits of the frame, side by side.
+        let (ring, grid, direct) = (&self.ring, &mut self.grid, f.direct);
+        let update = || {
+            let t = Instant::now();
+            let records = match p.photon_search {
+                PhotonSearch::Rebuild => pm_kdtree::balance(&tree_photons(ring, direct)),
+                PhotonSearch::Grid => {
+                    let (total, levels) = (ring.total(), ring.max_level());
+                    let grid = grid.get_or_insert_with(|| pm_kdtree::PhotonGrid::new(max_radius, total * levels));
+                    for &path in ring.last_paths() {
+                        for level in 0..levels {
+                            let photon = ring.slot(path, level).filter(|q| estimates_read(direct, q));
+                            grid.set((path + level * total) as u32, photon.map(FullIrrPhoton::encode));
+                        }
+                    }
+                    Vec::new()
+                }
+            };
+            // The corners' k-nearest searches go through leaf buckets.
+            let buckets = pm_kdtree::Buckets::new(&records);
+            (records, buckets, t.elapsed().as_secs_f64())
+        };
+        let (scene, camera, fragments) = (world.scene(), world.camera(), &mut self.fragments);
+        let raster = || {
+            let t = Instant::now();
+            if draw && p.draw == DrawMode::Raster {
+                pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), fragments);
+            }
+            t.elapsed().as_secs_f64()
+        };
+        let ((records, buckets, balance), raster) = rayon::join(update, raster);
+        (shot, records, buckets, [shoot, balance, raster])
+    }
+
+    /// Irradiance at the active corners from the photon search, through the
+    /// temporal filter, with the flicker against the previous frame.
+    fn estimate(
+        &self,
+        world: &World,
+        records: &[FullIrrPhoton],
+        buckets: &pm_kdtree::Buckets,
+        active: &[bool],
+    ) -> (Vec<Rgb>, f64) {
+        let p = &self.params;
+        let max_radius = p.max_radius_rel_diag * world.scene().bounds.diagonal();
+        let mut e = match &self.grid {
+            Some(grid) if p.photon_search == PhotonSearch::Grid => {
+                // The grid holds each path's unscaled power: scale the (linear) estimate.
+                let held = self.ring.filled() as u64;
+                let e = self.corners.irradiance(grid, active, p.k, max_radius);
+                e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect()
+            }
+            _ => self.corners.irradiance(&pm_kdtree::KdTree::with_buckets(records, buckets), active, p.k, max_radius),
+        };
+        let mut flicker = 0.0;
+        if let Some((prev, was)) = &self.previous {
+            let both: Vec<usize> = (0..e.len()).filter(|&c| active[c] && was[c]).collect();
+            if p.temporal > 0.0 {
+                for &c in &both {
+                    e[c] = e[c] * (1.0 - p.temporal) + prev[c] * p.temporal;
+                }
+            }
+            // Flicker of what is shown: this frame's (filtered) estimates against the last.
+            let now: Vec<Rgb> = both.iter().map(|&c| e[c]).collect();
+            let before: Vec<Rgb> = both.iter().map(|&c| prev[c]).collect();
+            flicker = flicker_of(&now, &before);
+        }
+        (e, flicker)
+    }
+}
+
+impl pm_live::Method for Vertex {
+    type Row = VertexFrame;
+
+    fn warm_up(&self) -> u64 {
+        (self.params.total / self.params.per_frame) as u64
+    }
+
+    fn moved(&mut self, world: &World) {
+        if world.scene().has_moving_meshes() {
+            self.corners.follow(world.scene());
+        }
+        // Moving emitters can change a light's power, and so its share of photons.
+        if let Ok(selector) = LightSelector::new(world.photon_scene(), &[]) {
+            self.trace.selector = selector;
+        }
+    }
+
+    fn frame(&mut self, world: &World, frame: u64, draw: bool, out: &mut FrameBuffers) -> Result<VertexFrame, String> {
+        let start = Instant::now();
+        let (shot, records, buckets, [shoot, balance, raster]) = self.shoot_and_search(world, frame, draw);
+        let t = Instant::now();
+        let (p, f) = (&self.params, &self.frame_params);
+        let aspect = f.width as f32 / f.height as f32;
+        let active = self.corners.active(world.scene(), world.camera(), aspect, p.back_face_culling, p.frustum_culling);
+        let (e, flicker) = self.estimate(world, &records, &buckets, &active);
+        let estimate = t.elapsed().as_secs_f64();
+        if !draw {
+            self.previous = Some((e, active));
+            return Ok(VertexFrame { frame, paths_shot: shot.paths, flicker, ..Default::default() });
+        }
+        let t = Instant::now();
+        let maps = f.shadow_maps(world.scene());
+        let indirect = CornerLight { corners: &self.corners, e: &e };
+        let shading =
+            LiveShading::new(world.scene(), indirect, f.direct, f, maps.as_ref()).map_err(|e| e.to_string())?;
+        let visibility = match p.draw {
+            DrawMode::Raster => Visibility::Fragments(world.scene(), &self.fragments),
+            DrawMode::Rays => Visibility::Rays,
+        };
+        let film = f.film(self.seed ^ frame);
+        let (_, rs) =
+            pm_render::render_into(world.camera(), &film, film.rect(), &shading, false, visibility, out, &|_, _| {})?;
+        // The rasteriser ran beside the photon update: its time counts as drawing.
+        let draw_s = raster + t.elapsed().as_secs_f64();
+        let row = VertexFrame {
+            frame,
+            shoot_s: shoot,
+            balance_s: balance,
+            estimate_s: estimate,
+            draw_s,
+            total_s: start.elapsed().as_secs_f64(),
+            paths_shot: shot.paths,
+            photon_rays: shot.rays,
+            paths_held: self.ring.filled(),
+            photons_in_tree: match &self.grid {
+                Some(g) if p.photon_search == PhotonSearch::Grid => g.len(),
+                _ => records.len(),
+            },
+            estimates: active.iter().filter(|&&a| a).count(),
+            corners: self.corners.len(),
+            samples: rs.samples,
+            flicker,
+        };
+        self.previous = Some((e, active));
+        Ok(row)
+    }
+}
+
+/// A live renderer of `scene` by the vertex method, photons traced in
+/// `photon_scene` (or the scene).
+pub fn live(
+    scene: Scene,
+    photon_scene: Option<Scene>,
+    frame_params: FrameParams,
+    params: VertexParams,
+    seed: u64,
+) -> Result<pm_live::Live<Vertex>, String> {
+    let world = World::new(scene, photon_scene)?;
+    let method = Vertex::new(&world, frame_params, params, seed)?;
+    Ok(pm_live::Live::new(world, method))
+}
