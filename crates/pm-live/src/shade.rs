@@ -13,7 +13,7 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_light::{DirectLighting, LitPoint, ShadowMaps};
 use pm_raster::Fragment;
-use pm_render::{Components, Counters, Integrator, VisibleSurface};
+use pm_render::{Components, Counters, FirstHit, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
 use pm_scene::{Hit, Scene};
 
@@ -139,44 +139,27 @@ impl<I: IndirectLight> LiveShading<'_, I> {
 impl<I: IndirectLight> Integrator for LiveShading<'_, I> {
     type Scratch = ();
 
-    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
-        self.shade(self.light.scene.intersect(o, d, f32::INFINITY), d, s, vs)
-    }
-
-    fn li_hit(
+    fn li(
         &self,
-        _: Vec3,
+        o: Vec3,
         d: Vec3,
-        hit: Option<Hit>,
+        first: FirstHit,
         s: &mut Sampler,
         _: &mut (),
         vs: Option<&mut VisibleSurface>,
     ) -> Components {
-        self.shade(hit, d, s, vs)
-    }
-
-    fn li_fragment(
-        &self,
-        scene: &Scene,
-        o: Vec3,
-        d: Vec3,
-        fragment: Option<&Fragment>,
-        s: &mut Sampler,
-        scratch: &mut (),
-        vs: Option<&mut VisibleSurface>,
-    ) -> Components {
-        // Deferred shading of plain Lambertian pixels (image-space frames: their
-        // indirect light is splatted afterwards, so direct light is all they take).
+        // Deferred shading of plain Lambertian pixels (a splatting method's frames:
+        // their indirect light is added afterwards, so direct light is all they take).
         if vs.is_none()
+            && I::SPLATTED
             && self.direct == DirectMode::ShadowMap
             && self.shadow_maps.is_some()
-            && I::SPLATTED
-            && let Some(f) = fragment
+            && let FirstHit::Fragment(_, Some(f)) = first
             && let Some(direct) = self.lambert_first(f, d, s)
         {
             return Components { direct, ..Default::default() };
         }
-        self.li_hit(o, d, fragment.map(|f| f.hit(scene)), s, scratch, vs)
+        self.shade(first.resolve(self.light.scene, o, d), d, s, vs)
     }
 
     fn adaptive(&self) -> bool {
@@ -230,8 +213,9 @@ mod tests {
                 let hit = f.hit(&scene);
                 let d = (hit.p - camera.position).normalize();
                 let seeded = || Sampler::hashed(11, j as u64);
-                let full = shading.li_hit(camera.position, d, Some(hit), &mut seeded(), &mut (), None);
-                let got = shading.li_fragment(&scene, camera.position, d, Some(f), &mut seeded(), &mut (), None);
+                let full = shading.shade(Some(hit), d, &mut seeded(), None);
+                let first = FirstHit::Fragment(&scene, Some(f));
+                let got = shading.li(camera.position, d, first, &mut seeded(), &mut (), None);
                 let bits = |c: &Components| {
                     [c.direct, c.caustic, c.indirect, c.specular].map(|v| v.to_array().map(f32::to_bits))
                 };

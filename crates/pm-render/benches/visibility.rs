@@ -124,22 +124,16 @@ impl pm_render::Integrator for Flat {
         &self,
         _: glam::Vec3,
         _: glam::Vec3,
+        first: pm_render::FirstHit,
         _: &mut pm_sampling::Sampler,
         _: &mut (),
         _: Option<&mut pm_render::VisibleSurface>,
     ) -> pm_render::Components {
-        pm_render::Components::default()
-    }
-    fn li_hit(
-        &self,
-        _: glam::Vec3,
-        _: glam::Vec3,
-        hit: Option<pm_scene::Hit>,
-        _: &mut pm_sampling::Sampler,
-        _: &mut (),
-        _: Option<&mut pm_render::VisibleSurface>,
-    ) -> pm_render::Components {
-        pm_render::Components { direct: pm_color::Rgb::splat(hit.map_or(0.0, |h| h.t)), ..Default::default() }
+        let t = match first {
+            pm_render::FirstHit::Fragment(scene, f) => f.map_or(0.0, |f| f.hit(scene).t),
+            pm_render::FirstHit::Unknown => 0.0,
+        };
+        pm_render::Components { direct: pm_color::Rgb::splat(t), ..Default::default() }
     }
     fn counters(&self) -> &pm_render::Counters {
         &self.0

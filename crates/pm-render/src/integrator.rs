@@ -126,6 +126,28 @@ impl VisibleSurface {
     }
 }
 
+/// What the image loop knows of an eye sample's first surface before it is shaded.
+#[derive(Clone, Copy)]
+pub enum FirstHit<'a> {
+    /// Nothing: the ray is traced.
+    Unknown,
+    /// The rasteriser's fragment at the pixel centre on this scene (none: nothing
+    /// is seen there), drawn for the same camera and film.
+    Fragment(&'a Scene, Option<&'a pm_raster::Fragment>),
+}
+
+impl FirstHit<'_> {
+    /// The first hit of the ray from `o` along `d` in `scene`: from the fragment
+    /// when one is known (what `scene.intersect(o, d, inf)` finds, but for
+    /// rounding), else traced.
+    pub fn resolve(self, scene: &Scene, o: Vec3, d: Vec3) -> Option<Hit> {
+        match self {
+            FirstHit::Unknown => scene.intersect(o, d, f32::INFINITY),
+            FirstHit::Fragment(drawn, f) => f.map(|f| f.hit(drawn)),
+        }
+    }
+}
+
 /// What an image is made of, per eye sample (pbrt-v4's `Li`): the image loop
 /// ([`crate::render_region`]) knows nothing about how the radiance is found.
 pub trait Integrator: Sync {
@@ -133,50 +155,19 @@ pub trait Integrator: Sync {
     type Scratch: Default + Send;
 
     /// Radiance components arriving at `o` from direction `-d` [W sr^-1 m^-2].
-    /// With `vs`, also fill the G-buffer entry of the first hit.
+    /// `first` is what the image loop already knows of the ray's first surface
+    /// (the rasteriser's fragment at a pixel centre, or nothing): an integrator may
+    /// take it ([`FirstHit::resolve`]) or trace the ray, and gives the same either
+    /// way. With `vs`, also fill the G-buffer entry of the first hit.
     fn li(
         &self,
         o: Vec3,
         d: Vec3,
+        first: FirstHit,
         s: &mut Sampler,
         scratch: &mut Self::Scratch,
         vs: Option<&mut VisibleSurface>,
     ) -> Components;
-
-    /// [`Self::li`] for an eye ray whose first hit is already known (`hit` is what
-    /// `scene.intersect(o, d, inf)` returns, found by the rasteriser). The default
-    /// ignores it and traces the ray.
-    fn li_hit(
-        &self,
-        o: Vec3,
-        d: Vec3,
-        hit: Option<Hit>,
-        s: &mut Sampler,
-        scratch: &mut Self::Scratch,
-        vs: Option<&mut VisibleSurface>,
-    ) -> Components {
-        let _ = hit;
-        self.li(o, d, s, scratch, vs)
-    }
-
-    /// [`Self::li_hit`] for an eye ray through a pixel centre whose first surface
-    /// on `scene` the rasteriser found: `fragment`. The default builds the hit
-    /// record; an integrator that shades some surfaces from the fragment alone (a
-    /// deferred pass over the G-buffer) overrides it, and must give what `li_hit`
-    /// would.
-    #[allow(clippy::too_many_arguments)]
-    fn li_fragment(
-        &self,
-        scene: &Scene,
-        o: Vec3,
-        d: Vec3,
-        fragment: Option<&pm_raster::Fragment>,
-        s: &mut Sampler,
-        scratch: &mut Self::Scratch,
-        vs: Option<&mut VisibleSurface>,
-    ) -> Components {
-        self.li_hit(o, d, fragment.map(|f| f.hit(scene)), s, scratch, vs)
-    }
 
     /// True: the image loop takes one sample at each pixel centre and supersamples
     /// where neighbours differ. False: every pixel takes all samples, jittered.
@@ -295,12 +286,15 @@ macro_rules! photon_map_integrator {
                 &self,
                 o: Vec3,
                 d: Vec3,
+                first: FirstHit,
                 s: &mut Sampler,
                 scratch: &mut Scratch,
                 vs: Option<&mut VisibleSurface>,
             ) -> Components {
                 let $pm = self;
-                trace($get, &($shade as Shade<G>), o, d, 0, s, scratch, vs)
+                let pm = $get;
+                let hit = first.resolve(pm.scene, o, d);
+                trace_from(pm, &($shade as Shade<G>), hit, d, 0, s, scratch, vs)
             }
             fn counters(&self) -> &Counters {
                 let $pm = self;
@@ -404,9 +398,24 @@ fn trace<G: PhotonRecord>(
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
-    let scene = ctx.scene;
-    let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return Components::default() };
-    let tr = scene.transmittance(&hit, d);
+    let hit = ctx.scene.intersect(o, d, f32::INFINITY);
+    trace_from(ctx, shade, hit, d, depth, s, scratch, vs)
+}
+
+/// [`trace`] of a ray along `d` whose first hit is `hit`.
+#[allow(clippy::too_many_arguments)]
+fn trace_from<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    shade: &Shade<G>,
+    hit: Option<pm_scene::Hit>,
+    d: Vec3,
+    depth: u32,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let Some(hit) = hit else { return Components::default() };
+    let tr = ctx.scene.transmittance(&hit, d);
     let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
     if tr == Rgb::ONE { c } else { c.scaled(tr) }
 }

@@ -30,7 +30,9 @@ mod render;
 
 pub use gather::Scratch;
 pub use icache::IrradianceCache;
-pub use integrator::{Components, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface};
+pub use integrator::{
+    Components, FirstHit, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface,
+};
 pub use path::PathTracer;
 pub use pm_raster::Rect;
 pub use render::{

@@ -2,7 +2,7 @@
 //! power heuristic against BSDF sampling, and Russian roulette. The reference and
 //! speed baseline for the photon-map renderer, over the same scene and BSDFs.
 
-use crate::integrator::{Components, Integrator, VisibleSurface};
+use crate::integrator::{Components, FirstHit, Integrator, VisibleSurface};
 use crate::render::Counters;
 use glam::Vec3;
 use pm_color::{Layer, Rgb};
@@ -27,8 +27,16 @@ impl<'a> PathTracer<'a> {
 impl Integrator for PathTracer<'_> {
     type Scratch = ();
 
-    fn li(&self, o: Vec3, d: Vec3, s: &mut Sampler, _: &mut (), vs: Option<&mut VisibleSurface>) -> Components {
-        path_radiance(&self.light, &self.counters, o, d, s, vs)
+    fn li(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        first: FirstHit,
+        s: &mut Sampler,
+        _: &mut (),
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        path_radiance(&self.light, &self.counters, o, d, first, s, vs)
     }
 
     /// Every pixel takes all its samples, jittered: the estimate stays unbiased.
@@ -59,6 +67,7 @@ fn path_radiance(
     counters: &Counters,
     o: Vec3,
     d: Vec3,
+    first: FirstHit,
     s: &mut Sampler,
     mut vs: Option<&mut VisibleSurface>,
 ) -> Components {
@@ -75,7 +84,8 @@ fn path_radiance(
     let mut specular_before_d1 = false;
     let mut n_diffuse = 0u32;
     for depth in 0..MAX_PATH {
-        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return l };
+        let hit = if depth == 0 { first.resolve(scene, o, d) } else { scene.intersect(o, d, f32::INFINITY) };
+        let Some(hit) = hit else { return l };
         beta *= scene.transmittance(&hit, d);
         let wo = -d;
         let le = scene.emitted(&hit, wo);

@@ -3,7 +3,7 @@
 //! pixels differ (Christensen 1999 section 3: "up to 16 samples per pixel"), with a
 //! box pixel filter. It knows nothing about what a sample computes.
 
-use crate::integrator::{Components, Integrator, VisibleSurface};
+use crate::integrator::{Components, FirstHit, Integrator, VisibleSurface};
 use glam::Vec2;
 use pm_color::{Layer, Rgb};
 use pm_raster::{Fragment, Rect};
@@ -208,8 +208,8 @@ pub enum Visibility<'s> {
     /// Eye rays through the BVH.
     Rays,
     /// The rasteriser ([`pm_raster::first_hits`]) for the first sample of each
-    /// pixel (the centre), which the integrator gets through
-    /// [`Integrator::li_hit`]; supersamples still cast rays.
+    /// pixel (the centre), which the integrator gets as a [`FirstHit::Fragment`];
+    /// supersamples still cast rays.
     Raster(&'s pm_scene::Scene),
     /// First hits the caller already rasterised ([`pm_raster::first_hits_into`])
     /// for this film and region: a live frame draws them while it updates its photons.
@@ -352,29 +352,24 @@ pub fn render_into<I: Integrator>(
     if !film.contains(rect) {
         return Err(format!("region {rect:?} is empty or outside the {}x{} image", film.width, film.height));
     }
-    let (w, h) = (film.width as usize, film.height as usize);
-    let aspect = film.width as f32 / film.height as f32;
     let start = Instant::now();
     let adaptive = integ.adaptive();
-    // The apron: one pixel around the region, inside the image.
+    let supersampling = adaptive && film.spp > 1;
+    // The apron: one pixel around the region, inside the image. Sampling it only
+    // matters for supersampling decisions.
     let apron = Rect {
         x0: rect.x0.saturating_sub(1),
         y0: rect.y0.saturating_sub(1),
         x1: (rect.x1 + 1).min(film.width),
         y1: (rect.y1 + 1).min(film.height),
     };
-    let in_rect = |x: usize, y: usize| {
-        (rect.x0 as usize..rect.x1 as usize).contains(&x) && (rect.y0 as usize..rect.y1 as usize).contains(&y)
-    };
-    // Sampling the apron only matters for supersampling decisions.
-    let pass1 = if adaptive && film.spp > 1 { apron } else { rect };
-    let p1w = pass1.width() as usize;
-
+    let pass1 = if supersampling { apron } else { rect };
+    let FrameBuffers { fragments, pixels, in_region, layers } = bufs;
     // Rasterised first hits at the centres of pass 1's pixels (its first samples).
     let first: Option<(&pm_scene::Scene, &[Option<Fragment>])> = match visibility {
         Visibility::Raster(scene) => {
-            pm_raster::first_hits_into(scene, camera, film.size(), pass1, &mut bufs.fragments);
-            Some((scene, &bufs.fragments))
+            pm_raster::first_hits_into(scene, camera, film.size(), pass1, fragments);
+            Some((scene, fragments.as_slice()))
         }
         Visibility::Fragments(scene, frags) => {
             if frags.len() != pass1.area() {
@@ -384,186 +379,45 @@ pub fn render_into<I: Integrator>(
         }
         Visibility::Rays => None,
     };
-    let centre_first = first.is_some() && adaptive;
-    let rays = camera.rays(aspect);
-    // Pixels are addressed by column and row: integer division per pixel cost a
-    // live frame more than its shading.
-    let sample = |x: usize, y: usize, k: u32, scratch: &mut I::Scratch, vs: Option<&mut VisibleSurface>| {
-        // One sample per pixel has no second point to stratify against: hashed noise
-        // has the same distribution and costs a tenth.
-        let mut s = if film.spp <= 1 {
-            Sampler::hashed(film.seed, pixel_salt(y * w + x))
-        } else {
-            Sampler::salted(film.seed, pixel_salt(y * w + x), k as u64)
-        };
-        let j = if k == 0 && adaptive { Vec2::splat(0.5) } else { s.next_2d() };
-        let d = rays.direction((x as f32 + j.x) / w as f32, (y as f32 + j.y) / h as f32);
-        match &first {
-            Some((scene, hits)) if k == 0 && centre_first => {
-                let (px, py) = (x - pass1.x0 as usize, y - pass1.y0 as usize);
-                integ.li_fragment(scene, camera.position, d, hits[py * p1w + px].as_ref(), &mut s, scratch, vs)
-            }
-            _ => integ.li(camera.position, d, &mut s, scratch, vs),
-        }
+    let region = RegionLoop {
+        camera_position: camera.position,
+        rays: camera.rays(film.width as f32 / film.height as f32),
+        film,
+        integ,
+        rect,
+        pass1,
+        adaptive,
+        first_spp: if adaptive { 1 } else { film.spp.max(1) },
+        first: first.filter(|_| adaptive),
+        done: AtomicU64::new(0),
+        progress,
     };
-    let done = AtomicU64::new(0);
-    let total = pass1.area() as u64;
-    let first_spp = if adaptive { 1 } else { film.spp.max(1) };
-    // Pass 1: every pixel of the region (and the apron, when supersampling).
-    let pixel_of = |j: usize| (pass1.x0 as usize + j % p1w, pass1.y0 as usize + j / p1w);
-    let count = |j: usize| {
-        if (j + 1).is_multiple_of(256) {
-            let n = done.fetch_add(256, Relaxed) + 256;
-            progress(n, total);
-        }
-    };
-    let pixel = |x: usize, y: usize, scratch: &mut I::Scratch, mut vs: Option<&mut VisibleSurface>| {
-        if first_spp == 1 {
-            return (sample(x, y, 0, scratch, vs), 1);
-        }
-        let mut acc = Components::default();
-        for k in 0..first_spp {
-            let v = if k == 0 { vs.take() } else { None };
-            acc.add(&sample(x, y, k, scratch, v));
-        }
-        (acc, first_spp)
-    };
-    // Without supersampling, G-buffer or apron, pass 1 writes the layers directly
-    // (a live frame: no per-pixel buffer to fill and read back).
-    let single_pass = !gbuffer && pass1 == rect && !(adaptive && film.spp > 1);
-    let mut gbuffer_of_pass1: Vec<VisibleSurface> = Vec::new();
+    // Without supersampling, G-buffer or apron, the write-out computes each pixel
+    // itself (a live frame: no per-pixel buffer to fill and read back).
+    let single_pass = !gbuffer && pass1 == rect && !supersampling;
+    let mut gbuffer_of_pass1 = Vec::new();
     let mut supersampled = 0;
-    bufs.pixels.clear();
+    pixels.clear();
     if !single_pass {
-        // The G-buffer is kept apart from the pixels: it is large and usually not asked for.
-        let pixels = &mut bufs.pixels;
-        pixels.clear();
-        if gbuffer {
-            let (p, g): (Vec<(Components, u32)>, Vec<VisibleSurface>) = (0..pass1.area())
-                .into_par_iter()
-                .with_min_len(64)
-                .map_init(I::Scratch::default, |scratch, j| {
-                    let mut vs = VisibleSurface::default();
-                    let (x, y) = pixel_of(j);
-                    let p = pixel(x, y, scratch, in_rect(x, y).then_some(&mut vs));
-                    count(j);
-                    (p, vs)
-                })
-                .unzip();
-            *pixels = p;
-            gbuffer_of_pass1 = g;
-        } else {
-            pixels.par_extend((0..pass1.area()).into_par_iter().with_min_len(64).map_init(
-                I::Scratch::default,
-                |scratch, j| {
-                    let (x, y) = pixel_of(j);
-                    count(j);
-                    pixel(x, y, scratch, None)
-                },
-            ));
-        }
-        progress(total, total);
-        // Pass 2: supersample the region's pixels where a 4-neighbour differs by more
-        // than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on luminance).
-        // The neighbours of a region pixel are in pass 1's apron.
-        if adaptive && film.spp > 1 {
-            let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
-            let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
-            let mark: Vec<usize> = (0..pass1.area())
-                .filter(|&j| {
-                    let (x, y) = pixel_of(j);
-                    if !in_rect(x, y) {
-                        return false;
-                    }
-                    let l = lum[j];
-                    (x > 0 && contrast(l, lum[j - 1]) > film.contrast)
-                        || (x + 1 < w && contrast(l, lum[j + 1]) > film.contrast)
-                        || (y > 0 && contrast(l, lum[j - p1w]) > film.contrast)
-                        || (y + 1 < h && contrast(l, lum[j + p1w]) > film.contrast)
-                })
-                .collect();
-            supersampled = mark.len() as u64;
-            let extra: Vec<(usize, Components)> = mark
-                .par_iter()
-                .map_init(I::Scratch::default, |scratch, &j| {
-                    let (x, y) = pixel_of(j);
-                    let mut acc = Components::default();
-                    for k in 1..film.spp {
-                        acc.add(&sample(x, y, k, scratch, None));
-                    }
-                    (j, acc)
-                })
-                .collect();
-            for (j, acc) in extra {
-                pixels[j].0.add(&acc);
-                pixels[j].1 = film.spp;
-            }
+        gbuffer_of_pass1 = region.first_pass(gbuffer, pixels);
+        if supersampling {
+            supersampled = region.supersample(pixels);
         }
     }
     // The region's pixels of pass 1 (which may include the apron), in row order.
-    let in_region = &mut bufs.in_region;
     in_region.clear();
     if pass1 != rect {
-        in_region.extend((0..bufs.pixels.len()).filter(|&j| in_rect(pixel_of(j).0, pixel_of(j).1)));
+        in_region.extend((0..pixels.len()).filter(|&j| region.in_rect(region.pixel_of(j))));
     }
-    let in_region = &bufs.in_region;
-    let pixels = &bufs.pixels;
     let pass1_of = |r: usize| if pass1 == rect { r } else { in_region[r] };
     let n = rect.area();
-    let samples: u64 =
-        if single_pass { n as u64 * first_spp as u64 } else { (0..n).map(|r| pixels[pass1_of(r)].1 as u64).sum() };
-    // All layers in one parallel pass (every value is overwritten, so a layer of the
-    // right length is not cleared first); no NaN or Inf leaves the renderer.
-    for layer in &mut bufs.layers {
-        if layer.len() != n {
-            layer.clear();
-            layer.resize(n, Rgb::ZERO);
-        }
-    }
-    // One row of the region per chunk.
-    let rw = rect.width() as usize;
-    let [l0, l1, l2, l3, l4] = &mut bufs.layers;
-    let nonfinite: u64 = (
-        l0.par_chunks_mut(rw),
-        l1.par_chunks_mut(rw),
-        l2.par_chunks_mut(rw),
-        l3.par_chunks_mut(rw),
-        l4.par_chunks_mut(rw),
-    )
-        .into_par_iter()
-        .enumerate()
-        .map_init(I::Scratch::default, |scratch, (c, (total, direct, caustic, indirect, specular))| {
-            let mut bad = 0;
-            for (i, out) in total.iter_mut().enumerate() {
-                let r = c * rw + i;
-                let computed;
-                let (px, n) = if single_pass {
-                    let (x, y) = (rect.x0 as usize + i, rect.y0 as usize + c);
-                    count(r);
-                    computed = pixel(x, y, scratch, None);
-                    (&computed.0, &computed.1)
-                } else {
-                    let p = &pixels[pass1_of(r)];
-                    (&p.0, &p.1)
-                };
-                let values = [px.total(), px.direct, px.caustic, px.indirect, px.specular];
-                let inv = 1.0 / *n as f32;
-                let slots = [out, &mut direct[i], &mut caustic[i], &mut indirect[i], &mut specular[i]];
-                for (v, slot) in values.into_iter().zip(slots) {
-                    *slot = if v.is_finite() {
-                        (v * inv).max(Rgb::ZERO)
-                    } else {
-                        bad += 1;
-                        Rgb::ZERO
-                    };
-                }
-            }
-            bad
-        })
-        .sum();
-    if single_pass {
-        progress(total, total);
-    }
+    let samples: u64 = if single_pass {
+        n as u64 * region.first_spp as u64
+    } else {
+        (0..n).map(|r| pixels[pass1_of(r)].1 as u64).sum()
+    };
+    let source = if single_pass { Pass1::Compute } else { Pass1::Stored(pixels, in_region) };
+    let nonfinite = region.write_layers(source, layers);
     let gb = gbuffer.then(|| (0..n).map(|r| std::mem::take(&mut gbuffer_of_pass1[pass1_of(r)])).collect());
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
@@ -573,4 +427,242 @@ pub fn render_into<I: Integrator>(
         ..integ.counters().stats()
     };
     Ok((gb, stats))
+}
+
+/// What one call of the region loop samples with: the camera, the film, the
+/// integrator, the region and pass 1's pixels, and the rasterised first hits.
+struct RegionLoop<'a, I> {
+    camera_position: glam::Vec3,
+    rays: pm_scene::CameraRays,
+    film: &'a Film,
+    integ: &'a I,
+    /// The region rendered.
+    rect: Rect,
+    /// The pixels of the first pass: the region, with its apron when supersampling.
+    pass1: Rect,
+    /// The integrator's [`Integrator::adaptive`].
+    adaptive: bool,
+    /// Samples each pixel takes in the first pass (1 when adaptive).
+    first_spp: u32,
+    /// Rasterised first hits at pass 1's pixel centres (adaptive integrators only:
+    /// the others never sample a centre).
+    first: Option<(&'a pm_scene::Scene, &'a [Option<Fragment>])>,
+    /// Pass 1's pixels done, for `progress`.
+    done: AtomicU64,
+    progress: &'a (dyn Fn(u64, u64) + Sync),
+}
+
+/// Where the write-out finds pass 1's pixels.
+enum Pass1<'p> {
+    /// Not yet computed: the write-out computes each (one pass, one sample each).
+    Compute,
+    /// Computed, with the accumulated samples and their count; the second slice maps
+    /// the region's pixels to pass 1's when pass 1 included the apron (else empty).
+    Stored(&'p [(Components, u32)], &'p [usize]),
+}
+
+impl<I: Integrator> RegionLoop<'_, I> {
+    /// True when pixel (x, y) is in the region.
+    fn in_rect(&self, (x, y): (usize, usize)) -> bool {
+        let r = &self.rect;
+        (r.x0 as usize..r.x1 as usize).contains(&x) && (r.y0 as usize..r.y1 as usize).contains(&y)
+    }
+
+    /// (x, y) of pass 1's pixel `j` (row order).
+    fn pixel_of(&self, j: usize) -> (usize, usize) {
+        let w = self.pass1.width() as usize;
+        (self.pass1.x0 as usize + j % w, self.pass1.y0 as usize + j / w)
+    }
+
+    /// Count pass 1's pixel `j` done (progress every 256 pixels).
+    fn count(&self, j: usize) {
+        if (j + 1).is_multiple_of(256) {
+            let n = self.done.fetch_add(256, Relaxed) + 256;
+            (self.progress)(n, self.pass1.area() as u64);
+        }
+    }
+
+    /// Sample `k` of pixel (x, y). Pixels are addressed by column and row: integer
+    /// division per pixel cost a live frame more than its shading.
+    fn sample(
+        &self,
+        x: usize,
+        y: usize,
+        k: u32,
+        scratch: &mut I::Scratch,
+        vs: Option<&mut VisibleSurface>,
+    ) -> Components {
+        let film = self.film;
+        let (w, h) = (film.width as usize, film.height as usize);
+        // One sample per pixel has no second point to stratify against: hashed noise
+        // has the same distribution and costs a tenth.
+        let mut s = if film.spp <= 1 {
+            Sampler::hashed(film.seed, pixel_salt(y * w + x))
+        } else {
+            Sampler::salted(film.seed, pixel_salt(y * w + x), k as u64)
+        };
+        let j = if k == 0 && self.adaptive { Vec2::splat(0.5) } else { s.next_2d() };
+        let d = self.rays.direction((x as f32 + j.x) / w as f32, (y as f32 + j.y) / h as f32);
+        let known = match self.first {
+            Some((scene, hits)) if k == 0 => {
+                let (px, py) = (x - self.pass1.x0 as usize, y - self.pass1.y0 as usize);
+                FirstHit::Fragment(scene, hits[py * self.pass1.width() as usize + px].as_ref())
+            }
+            _ => FirstHit::Unknown,
+        };
+        self.integ.li(self.camera_position, d, known, &mut s, scratch, vs)
+    }
+
+    /// Pass 1's samples of pixel (x, y), summed, and their count.
+    fn pixel(
+        &self,
+        x: usize,
+        y: usize,
+        scratch: &mut I::Scratch,
+        mut vs: Option<&mut VisibleSurface>,
+    ) -> (Components, u32) {
+        if self.first_spp == 1 {
+            return (self.sample(x, y, 0, scratch, vs), 1);
+        }
+        let mut acc = Components::default();
+        for k in 0..self.first_spp {
+            let v = if k == 0 { vs.take() } else { None };
+            acc.add(&self.sample(x, y, k, scratch, v));
+        }
+        (acc, self.first_spp)
+    }
+
+    /// Pass 1: every pixel of the region (and the apron, when supersampling) into
+    /// `pixels`; the G-buffer of its region pixels when asked for (kept apart from
+    /// the pixels: it is large and usually not asked for).
+    fn first_pass(&self, gbuffer: bool, pixels: &mut Vec<(Components, u32)>) -> Vec<VisibleSurface> {
+        let n = self.pass1.area();
+        let mut g = Vec::new();
+        if gbuffer {
+            let (p, gb): (Vec<(Components, u32)>, Vec<VisibleSurface>) = (0..n)
+                .into_par_iter()
+                .with_min_len(64)
+                .map_init(I::Scratch::default, |scratch, j| {
+                    let mut vs = VisibleSurface::default();
+                    let (x, y) = self.pixel_of(j);
+                    let p = self.pixel(x, y, scratch, self.in_rect((x, y)).then_some(&mut vs));
+                    self.count(j);
+                    (p, vs)
+                })
+                .unzip();
+            *pixels = p;
+            g = gb;
+        } else {
+            pixels.par_extend((0..n).into_par_iter().with_min_len(64).map_init(I::Scratch::default, |scratch, j| {
+                let (x, y) = self.pixel_of(j);
+                self.count(j);
+                self.pixel(x, y, scratch, None)
+            }));
+        }
+        (self.progress)(n as u64, n as u64);
+        g
+    }
+
+    /// Pass 2: supersample the region's pixels where a 4-neighbour differs by more
+    /// than the contrast threshold (Mitchell's contrast |a - b| / (a + b) on
+    /// luminance), up to the film's samples. The neighbours of a region pixel are in
+    /// pass 1's apron. Returns the pixels supersampled.
+    fn supersample(&self, pixels: &mut [(Components, u32)]) -> u64 {
+        let film = self.film;
+        let (w, h) = (film.width as usize, film.height as usize);
+        let p1w = self.pass1.width() as usize;
+        let lum: Vec<f32> = pixels.iter().map(|(c, n)| pm_color::luminance(c.total()) / *n as f32).collect();
+        let contrast = |a: f32, b: f32| (a - b).abs() / (a + b).max(1e-6);
+        let mark: Vec<usize> = (0..self.pass1.area())
+            .filter(|&j| {
+                let (x, y) = self.pixel_of(j);
+                if !self.in_rect((x, y)) {
+                    return false;
+                }
+                let l = lum[j];
+                (x > 0 && contrast(l, lum[j - 1]) > film.contrast)
+                    || (x + 1 < w && contrast(l, lum[j + 1]) > film.contrast)
+                    || (y > 0 && contrast(l, lum[j - p1w]) > film.contrast)
+                    || (y + 1 < h && contrast(l, lum[j + p1w]) > film.contrast)
+            })
+            .collect();
+        let extra: Vec<(usize, Components)> = mark
+            .par_iter()
+            .map_init(I::Scratch::default, |scratch, &j| {
+                let (x, y) = self.pixel_of(j);
+                let mut acc = Components::default();
+                for k in 1..film.spp {
+                    acc.add(&self.sample(x, y, k, scratch, None));
+                }
+                (j, acc)
+            })
+            .collect();
+        for (j, acc) in extra {
+            pixels[j].0.add(&acc);
+            pixels[j].1 = film.spp;
+        }
+        mark.len() as u64
+    }
+
+    /// The region's pixels, each its samples' mean, into the total and the layers in
+    /// one parallel pass over rows (every value is overwritten, so a layer of the
+    /// right length is not cleared first). No NaN or Inf leaves the renderer: returns
+    /// the values that were not finite (written as zero).
+    fn write_layers(&self, source: Pass1, layers: &mut [Vec<Rgb>; 5]) -> u64 {
+        let rect = self.rect;
+        let n = rect.area();
+        for layer in layers.iter_mut() {
+            if layer.len() != n {
+                layer.clear();
+                layer.resize(n, Rgb::ZERO);
+            }
+        }
+        let rw = rect.width() as usize;
+        let [l0, l1, l2, l3, l4] = layers;
+        let nonfinite = (
+            l0.par_chunks_mut(rw),
+            l1.par_chunks_mut(rw),
+            l2.par_chunks_mut(rw),
+            l3.par_chunks_mut(rw),
+            l4.par_chunks_mut(rw),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map_init(I::Scratch::default, |scratch, (c, (total, direct, caustic, indirect, specular))| {
+                let mut bad = 0;
+                for (i, out) in total.iter_mut().enumerate() {
+                    let r = c * rw + i;
+                    let computed;
+                    let (px, n) = match source {
+                        Pass1::Compute => {
+                            let (x, y) = (rect.x0 as usize + i, rect.y0 as usize + c);
+                            self.count(r);
+                            computed = self.pixel(x, y, scratch, None);
+                            (&computed.0, &computed.1)
+                        }
+                        Pass1::Stored(pixels, in_region) => {
+                            let p = &pixels[if in_region.is_empty() { r } else { in_region[r] }];
+                            (&p.0, &p.1)
+                        }
+                    };
+                    let values = [px.total(), px.direct, px.caustic, px.indirect, px.specular];
+                    let inv = 1.0 / *n as f32;
+                    let slots = [out, &mut direct[i], &mut caustic[i], &mut indirect[i], &mut specular[i]];
+                    for (v, slot) in values.into_iter().zip(slots) {
+                        *slot = if v.is_finite() {
+                            (v * inv).max(Rgb::ZERO)
+                        } else {
+                            bad += 1;
+                            Rgb::ZERO
+                        };
+                    }
+                }
+                bad
+            })
+            .sum();
+        if matches!(source, Pass1::Compute) {
+            (self.progress)(n as u64, n as u64);
+        }
+        nonfinite
+    }
 }
