@@ -66,6 +66,13 @@ fn runner_runs_every_stage_then_only_what_changed() {
     // Only a render parameter changed: only the render runs.
     let third = run(&pipeline(dir.path(), 2), &out).unwrap();
     assert_eq!(ran(&third), ["photon-render"]);
+    // The caustic estimate does not shape the irradiance cache: only the render runs
+    // (the cache step once took every render parameter but the sampling's).
+    let p = dir.path().join("pipeline.toml");
+    let text = std::fs::read_to_string(&p).unwrap().replace("caustic_k = 60", "caustic_k = 30");
+    std::fs::write(&p, text).unwrap();
+    let fourth = run(&p, &out).unwrap();
+    assert_eq!(ran(&fourth), ["photon-render"]);
     // A corrupted intermediate: the next stage fails, the runner names it, and the
     // earlier outputs are left as they were.
     let kd = out.join("global.kd.pmap");

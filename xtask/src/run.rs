@@ -304,14 +304,10 @@ pub(crate) fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, ind
     let mut render_args = base.clone();
     let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap")]].concat();
     if uses_cache {
-        // The cache depends on everything but how the image is sampled and shown:
-        // those values stay at their defaults here, so changing them re-runs only
-        // the render.
-        let d = RenderParams::default();
-        let cache_params =
-            RenderParams { spp: d.spp, contrast: d.contrast, exposure: d.exposure, mode: d.mode, ..r.clone() };
+        // The cache step gets only what shapes the cache (the rest at defaults), so
+        // changing the rest re-runs only the render.
         let mut a = base;
-        a.extend(cache_params.to_args());
+        a.extend(r.cache_shaping().to_args());
         a.extend(["--icache-out".into(), s(&o("icache.bin"))]);
         steps.push(Step {
             name: "photon-render icache".into(),

@@ -306,10 +306,7 @@ impl Job<'_> {
                     .map_or(("?".into(), "?".into()), |(a, b)| (b.to_string(), a.to_string()));
                 bail!("{}: made with {had}, this render has {has}: run --icache-out again", path.display());
             }
-            let p = &self.cli.params;
-            let diag = self.scene.bounds.diagonal();
-            let spacing = (p.icache_min_spacing_rel_diag * diag, p.icache_max_spacing_rel_diag * diag);
-            pm = pm.with_cache(IrradianceCache::from_records(p.icache_accuracy, spacing, &file.records));
+            pm = pm.with_cache_records(&file.records);
             cache = CacheReport { records: file.records.len() as u64, source: "file", ..Default::default() };
         } else if uses_cache || self.cli.icache_out.is_some() {
             ensure!(pm.wants_cache(), "--icache-out needs --icache-accuracy above 0 and indirect light");

@@ -241,30 +241,18 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
         &self.cfg
     }
 
-    /// The settings that shape an irradiance cache, as text: a cache made with other
-    /// values (or for another image size or seed) must not be used.
+    /// The settings that shape an irradiance cache, as text ([`crate::cache_key`]):
+    /// a cache made with other values (or for another image size or seed) must not
+    /// be used.
     pub fn cache_key(&self, film: &Film) -> String {
-        let c = &self.cfg;
-        format!(
-            "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
-             max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
-             max_depth={}",
-            film.width,
-            film.height,
-            film.seed,
-            c.gather_rays,
-            c.secondary_rays,
-            c.secondary_distance,
-            c.lookup,
-            c.k_global,
-            c.max_radius_global,
-            c.icache_accuracy,
-            c.icache_spacing.0,
-            c.icache_spacing.1,
-            c.indirect_threshold,
-            c.light_samples,
-            c.max_depth
-        )
+        crate::cache_key(&self.cfg, film)
+    }
+
+    /// The integrator with the irradiance cache of a file's `records`, at its own
+    /// accuracy and record spacing.
+    pub fn with_cache_records(self, records: &[pm_format::CacheRecord]) -> Self {
+        let c = IrradianceCache::from_records(self.cfg.icache_accuracy, self.cfg.icache_spacing, records);
+        self.with_cache(c)
     }
 }
 

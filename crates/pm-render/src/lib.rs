@@ -141,6 +141,51 @@ impl RenderParams {
     pub fn film(&self, seed: u64) -> Film {
         Film { width: self.width, height: self.height, spp: self.spp, contrast: self.contrast, seed }
     }
+
+    /// These parameters with every one that does not shape an irradiance cache at
+    /// its default: how the image is sampled and shown (spp, contrast, mode,
+    /// exposure) and the caustic estimate (caustic_k, caustic_radius_rel_diag). The
+    /// runner's cache step takes these, so a change of those values re-runs only the
+    /// render; a test holds this list to [`cache_key`]'s.
+    pub fn cache_shaping(&self) -> RenderParams {
+        let d = RenderParams::default();
+        RenderParams {
+            spp: d.spp,
+            contrast: d.contrast,
+            mode: d.mode,
+            exposure: d.exposure,
+            caustic_k: d.caustic_k,
+            caustic_radius_rel_diag: d.caustic_radius_rel_diag,
+            ..self.clone()
+        }
+    }
+}
+
+/// The settings that shape an irradiance cache, as the text an irradiance-cache file
+/// records (`name=value` words): the image size and seed (the prepass samples the
+/// image), the final gather's settings, the global map's estimate, the cache's
+/// accuracy and spacing, direct light and the specular depth.
+pub(crate) fn cache_key(c: &Settings, film: &Film) -> String {
+    format!(
+        "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
+         max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
+         max_depth={}",
+        film.width,
+        film.height,
+        film.seed,
+        c.gather_rays,
+        c.secondary_rays,
+        c.secondary_distance,
+        c.lookup,
+        c.k_global,
+        c.max_radius_global,
+        c.icache_accuracy,
+        c.icache_spacing.0,
+        c.icache_spacing.1,
+        c.indirect_threshold,
+        c.light_samples,
+        c.max_depth
+    )
 }
 
 /// The photon-map integrators' settings in absolute units, resolved from
@@ -245,4 +290,64 @@ pub fn method_uses_cache(method: Method) -> bool {
 /// precomputed-irradiance subset, for the nearest photon.
 pub fn method_searches_global(method: Method, lookup: Lookup) -> bool {
     method == Method::Photons || (lookup == Lookup::Exact && method != Method::Path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::{Parser, ValueEnum};
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        p: RenderParams,
+    }
+
+    /// `params` with field `field` set to another accepted value.
+    fn changed(params: &RenderParams, field: &str) -> RenderParams {
+        let args = params.to_args();
+        let at = args.iter().position(|a| *a == format!("--{}", field.replace('_', "-"))).unwrap() + 1;
+        let text = &args[at];
+        let mut candidates: Vec<String> = Method::value_variants().iter().map(|v| v.to_string()).collect();
+        candidates.extend(Lookup::value_variants().iter().map(|v| v.to_string()));
+        if let Ok(i) = text.parse::<u64>() {
+            candidates.insert(0, (i + 1).to_string());
+        } else if let Ok(f) = text.parse::<f64>() {
+            candidates.insert(0, (f * 0.5 + 0.003).to_string());
+        }
+        for c in candidates {
+            let mut a = args.clone();
+            a[at] = c;
+            if let Ok(cli) = Cli::try_parse_from(std::iter::once("x".to_string()).chain(a))
+                && cli.p != *params
+                && cli.p.check(pm_params::Naming::Cli).is_ok()
+            {
+                return cli.p;
+            }
+        }
+        panic!("no other value for {field}");
+    }
+
+    /// "What shapes an irradiance cache" is said once: a parameter changes the
+    /// cache file's key exactly when it survives [`RenderParams::cache_shaping`],
+    /// for every parameter. A parameter added to the key but not to the runner's
+    /// cache step (or the other way: caustic_k once re-ran a cache it does not
+    /// shape) fails here.
+    #[test]
+    fn the_cache_key_and_the_cache_steps_parameters_agree_on_every_field() {
+        let base = RenderParams::default();
+        let key = |p: &RenderParams| cache_key(&Settings::new(p, 2.5, true), &p.film(7));
+        for field in RenderParams::FIELDS {
+            let p = changed(&base, field);
+            let in_key = key(&p) != key(&base);
+            let shaping = p.cache_shaping() != base.cache_shaping();
+            assert_eq!(in_key, shaping, "{field}: changes the cache key {in_key}, kept by cache_shaping {shaping}");
+        }
+        let shaped = RenderParams::FIELDS.iter().filter(|f| key(&changed(&base, f)) != key(&base)).count();
+        assert_eq!(
+            shaped,
+            RenderParams::FIELDS.len() - 6,
+            "spp, contrast, mode, exposure, caustic_k and caustic_radius_rel_diag leave the cache alone"
+        );
+    }
 }
