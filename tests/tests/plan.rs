@@ -3,8 +3,10 @@
 //! dependency order, the OpenJD template carries the same graph, and the local
 //! executor stops at a failing step with one line naming it.
 
+use pm_pipeline::jobs::{JobPlan, JobStep, openjd, slurm};
 use std::path::{Path, PathBuf};
-use xtask::plan::{JobPlan, JobStep, execute, openjd, plan_for, slurm};
+use xtask::exec::execute;
+use xtask::plan::plan_for;
 use xtask::run::{RunArgs, run_with};
 use xtask::stages::Bins;
 

@@ -2,8 +2,8 @@
 //! the measured accuracy/time front whose predicted time fits, lowest error first,
 //! and its values replace the file's before they are checked.
 
+use pm_pipeline::Pipeline;
 use std::path::{Path, PathBuf};
-use xtask::run::Pipeline;
 
 fn front() -> serde_json::Value {
     serde_json::json!({
@@ -96,7 +96,7 @@ fn furnace_split_finds_an_unbiased_path_tracer_unbiased() {
     let exact = vec![glam::Vec3::splat(5.0); 24 * 24];
     let keep = vec![true; 24 * 24];
     let refs: Vec<&[glam::Vec3]> = images.iter().map(Vec::as_slice).collect();
-    let s = xtask::accuracy::split(&refs, &exact, 0.0, &keep);
+    let s = pm_image::accuracy::split(&refs, &exact, 0.0, &keep);
     eprintln!("furnace, path 16 spp: {s:?}");
     assert!(s.noise > 0.01, "{s:?}");
     assert!(s.bias < 0.25 * s.noise && s.mean_bias.abs() < 0.01, "{s:?}");

@@ -13,8 +13,9 @@ use std::path::PathBuf;
 /// (pm-render: nothing below it may depend on it); 4 what the real-time methods
 /// share (pm-live: the frame loop and shading); 5 the real-time methods (never on
 /// each other); 6 the stage shell; 7 stage binaries (never on each other); 8 the
-/// test crate.
-const LAYERS: [(&str, u8); 24] = [
+/// pipeline as data (pm-pipeline: settings, steps, job graph, above the stages whose
+/// parameter types it holds); 9 the test crate.
+const LAYERS: [(&str, u8); 25] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -38,7 +39,8 @@ const LAYERS: [(&str, u8); 24] = [
     ("photon-render", STAGE),
     ("photon-inspect", STAGE),
     ("photon-live", STAGE),
-    ("pm-tests", 8),
+    ("pm-pipeline", 8),
+    ("pm-tests", 9),
 ];
 
 /// The layer of the stage binaries.

@@ -40,7 +40,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let size = args.size;
     let out = args.out.clone().unwrap_or_else(|| root.join("out/figure1"));
     std::fs::create_dir_all(&out)?;
-    let base = xtask::run::Pipeline::load(&root.join("pipeline.toml"))?;
+    let base = pm_pipeline::Pipeline::load(&root.join("pipeline.toml"))?;
     let bins = Bins::build(root)?;
     let scene = root.join("scenes/cornell_spheres.gltf").display().to_string();
     let o = |f: &str| out.join(f).display().to_string();

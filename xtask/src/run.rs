@@ -1,132 +1,16 @@
-//! `cargo xtask run`: Christensen's steps as separate processes exchanging files in
-//! one output folder with fixed names (global.pmap, caustic.pmap, global.kd.pmap,
-//! caustic.kd.pmap, global.irr.pmap, icache.bin, image.exr, *.stats.json,
-//! report.json). Each step is a value (name, program, arguments, inputs, outputs);
-//! a step whose arguments and input contents are unchanged is skipped.
+//! `cargo xtask run`: Christensen's steps ([`pm_pipeline::steps`]) as separate
+//! processes exchanging files in one output folder with fixed names, and
+//! report.json; a step whose arguments and input contents are unchanged is skipped.
+//! `cargo xtask live`: photon-live with pipeline.toml's `[live]` settings.
 
 use crate::stages::{self, Bins};
 use anyhow::{Context, Result, bail};
-use pm_estimate::IrradianceParams;
 use pm_params::Naming;
-use pm_photon::TraceParams;
-use pm_render::RenderParams;
-use serde::Deserialize;
+use pm_pipeline::steps::{Kind, Step, step_key, steps};
+use pm_pipeline::{EffectsCfg, Pipeline, Setup};
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// pipeline.toml, typed: each stage's section is that stage's parameter type (the
-/// one definition its command line also uses). Unknown keys are errors.
-#[derive(Deserialize, Debug, Clone)]
-#[serde(deny_unknown_fields)]
-pub struct Pipeline {
-    /// The scene, relative to the pipeline file.
-    pub scene: PathBuf,
-    /// Random seed of every stage.
-    #[serde(default = "one")]
-    pub seed: u64,
-    /// Units of the scene's point, spot and directional light intensities:
-    /// "photometric" (the glTF specification: candela and lux, at 683 lm/W) or
-    /// "radiometric" (W/sr and W/m^2); every stage that reads the scene gets it.
-    #[serde(default)]
-    pub light_units: pm_scene::LightUnits,
-    /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
-    pub effects: EffectsCfg,
-    /// Light name to fraction of the photon budget; the other lights share the rest
-    /// by power.
-    #[serde(default)]
-    pub light_shares: BTreeMap<String, f64>,
-    /// Stage 1.
-    #[serde(default)]
-    pub trace: TraceParams,
-    /// Stage 3.
-    #[serde(default)]
-    pub irradiance: IrradianceParams,
-    /// Stage 4 (and the irradiance-cache step).
-    #[serde(default)]
-    pub render: RenderParams,
-    /// The scene `cargo xtask live` renders, relative to the pipeline file
-    /// (default: `scene`).
-    #[serde(default)]
-    pub live_scene: Option<PathBuf>,
-    /// The real-time mode (`photon-live`, `cargo xtask live`).
-    #[serde(default)]
-    pub live: photon_live::LiveParams,
-    /// "preview", "balanced" or "final": the trace, irradiance and render settings
-    /// are picked from the measured accuracy/time front ([`crate::quality`]).
-    #[serde(default)]
-    pub quality: Option<String>,
-    /// Or a time budget \[s\] for the whole pipeline at the file's image size.
-    #[serde(default)]
-    pub time_budget_s: Option<f64>,
-    /// What quality or time_budget_s chose (not a key of the file).
-    #[serde(skip)]
-    pub chosen: Option<String>,
-}
-
-/// `effects = "auto"` or a list of forced effects.
-#[derive(Deserialize, Debug, Clone)]
-#[serde(untagged)]
-pub enum EffectsCfg {
-    /// The scene analysis decides.
-    Auto(AutoWord),
-    /// Simulate exactly these.
-    List(Vec<EffectName>),
-}
-
-/// The word `auto`.
-#[derive(Deserialize, Debug, Clone)]
-#[serde(rename_all = "lowercase")]
-pub enum AutoWord {
-    /// `"auto"`.
-    Auto,
-}
-
-/// An effect that can be forced on.
-#[derive(Deserialize, Debug, Clone, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum EffectName {
-    /// The caustic map.
-    Caustics,
-    /// The global map, irradiance precompute and final gathers.
-    Indirect,
-}
-
-fn one() -> u64 {
-    1
-}
-
-impl Pipeline {
-    /// Read, parse and range-check a pipeline file; every error is one line naming
-    /// the file and the key.
-    pub fn load(path: &Path) -> Result<Pipeline> {
-        let mut text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        let syntax = |e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " "));
-        // A quality or time budget replaces the swept settings before anything is checked.
-        let mut doc: toml::Value = toml::from_str(&text).map_err(syntax)?;
-        let chosen = crate::quality::apply(&mut doc, path)?;
-        if chosen.is_some() {
-            text = toml::to_string(&doc).context("internal error: the pipeline does not serialise")?;
-        }
-        let mut p: Pipeline = toml::from_str(&text).map_err(syntax)?;
-        p.chosen = chosen;
-        let fail = |e: String| anyhow::anyhow!("{}: {e}", path.display());
-        p.trace.validate(Naming::File("trace")).map_err(fail)?;
-        p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
-        p.render.check(Naming::File("render")).map_err(fail)?;
-        p.live.check(Naming::File("live")).map_err(fail)?;
-        for (name, share) in &p.light_shares {
-            if !(0.0..=1.0).contains(share) {
-                bail!("{}: light_shares.{name} = {share} is out of range (in [0, 1])", path.display());
-            }
-        }
-        if let Some(c) = &p.chosen {
-            println!("{}: {c}", path.display());
-        }
-        Ok(p)
-    }
-}
 
 /// Options of `cargo xtask run`.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -134,6 +18,7 @@ impl Pipeline {
 #[allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 pub struct RunArgs {
     /// Pipeline file [default: pipeline.toml at the repository root].
+    #[arg(long, value_name = "FILE")]
     pub pipeline: Option<PathBuf>,
     /// Scene (glTF 2.0) instead of the pipeline file's.
     #[arg(long)]
@@ -174,190 +59,21 @@ pub struct Outcome {
     pub ran: bool,
 }
 
-/// Which stage a step runs, and so which statistics it writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
-    Trace,
-    Sort,
-    Irradiance,
-    Icache,
-    Render,
-}
-
-impl Kind {
-    fn program(self) -> &'static str {
-        match self {
-            Kind::Trace => "photon-trace",
-            Kind::Sort => "photon-sort",
-            Kind::Irradiance => "photon-irradiance",
-            Kind::Icache | Kind::Render => "photon-render",
-        }
-    }
-}
-
-/// One step of the pipeline.
-#[derive(Clone, Debug)]
-pub(crate) struct Step {
-    pub(crate) name: String,
-    kind: Kind,
-    pub(crate) args: Vec<String>,
-    /// Files whose contents the step's key hashes (a missing one hashes as absent).
-    pub(crate) inputs: Vec<PathBuf>,
-    /// Files it writes (all must exist for it to be skipped as unchanged).
-    pub(crate) outputs: Vec<PathBuf>,
-    /// Skip the step when this input is absent (the scene did not need it).
-    pub(crate) needs: Option<PathBuf>,
-    /// Pass `--flag file` only when the file exists when the step runs.
-    pub(crate) optional: Vec<(&'static str, PathBuf)>,
-    stats: PathBuf,
-}
-
-impl Step {
-    /// The stage binary the step runs.
-    pub(crate) fn program(&self) -> &'static str {
-        self.kind.program()
-    }
-}
-
 /// Run the pipeline with the repository's release binaries, building them first.
 pub fn run(args: &RunArgs, root: &Path) -> Result<Vec<Outcome>> {
     let bins = Bins::build(root)?;
     run_with(args, root, &bins)
 }
 
-/// The steps of the pipeline for `cfg`, writing into `out`.
-pub(crate) fn plan(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
-    let o = |f: &str| out.join(f);
-    let s = |p: &Path| p.display().to_string();
-    let scene_files = scene_inputs(scene)?;
-    let seed = ["--seed".to_string(), cfg.seed.to_string()];
-    let mut trace = cfg.trace.clone();
-    if !indirect {
-        trace.global_photons = 0;
-    }
-    if !caustics {
-        trace.caustic_photons = 0;
-    }
-    let units = ["--light-units".to_string(), cfg.light_units.to_string()];
-    let mut trace_args = vec!["--scene".into(), s(scene), "--out".into(), s(out)];
-    trace_args.extend(units.clone());
-    trace_args.extend(trace.to_args());
-    trace_args.extend(seed.clone());
-    for (name, share) in &cfg.light_shares {
-        trace_args.extend(["--light-share".into(), format!("{name}={share}")]);
-    }
-    let with_stats = |mut a: Vec<String>, stats: &Path| {
-        a.extend(["--stats-json".into(), s(stats)]);
-        a
-    };
-    let mut steps = vec![Step {
-        name: "photon-trace".into(),
-        kind: Kind::Trace,
-        args: with_stats(trace_args, &o("trace.stats.json")),
-        inputs: scene_files.clone(),
-        // The maps the scene calls for (a skipped effect's map is not written).
-        outputs: [indirect.then(|| o("global.pmap")), caustics.then(|| o("caustic.pmap")), Some(o("trace.stats.json"))]
-            .into_iter()
-            .flatten()
-            .collect(),
-        needs: None,
-        optional: vec![],
-        stats: o("trace.stats.json"),
-    }];
-    for map in ["global", "caustic"] {
-        let (input, output, stats) =
-            (o(&format!("{map}.pmap")), o(&format!("{map}.kd.pmap")), o(&format!("sort-{map}.stats.json")));
-        steps.push(Step {
-            name: format!("photon-sort {map}"),
-            kind: Kind::Sort,
-            args: with_stats(vec![s(&input), "--out".into(), s(&output)], &stats),
-            inputs: vec![input.clone()],
-            outputs: vec![output, stats.clone()],
-            needs: Some(input),
-            optional: vec![],
-            stats,
-        });
-    }
-    let mut irr_args = vec![s(&o("global.kd.pmap")), "--out".into(), s(&o("global.irr.pmap"))];
-    irr_args.extend(cfg.irradiance.to_args());
-    steps.push(Step {
-        name: "photon-irradiance".into(),
-        kind: Kind::Irradiance,
-        args: with_stats(irr_args, &o("irradiance.stats.json")),
-        inputs: vec![o("global.kd.pmap")],
-        outputs: vec![o("global.irr.pmap"), o("irradiance.stats.json")],
-        needs: Some(o("global.kd.pmap")),
-        optional: vec![],
-        stats: o("irradiance.stats.json"),
-    });
-    let r = &cfg.render;
-    let mut base = vec!["--scene".into(), s(scene)];
-    base.extend(units.clone());
-    if indirect {
-        base.extend(["--global".into(), s(&o("global.irr.pmap"))]);
-    } else {
-        base.push("--no-indirect".into());
-    }
-    base.extend(seed);
-    let map_inputs = [scene_files, vec![o("global.irr.pmap")]].concat();
-    let uses_cache = indirect && r.icache_accuracy > 0.0 && pm_render::method_uses_cache(r.mode);
-    let mut render_args = base.clone();
-    let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap")]].concat();
-    if uses_cache {
-        // The cache step gets only what shapes the cache (the rest at defaults), so
-        // changing the rest re-runs only the render.
-        let mut a = base;
-        a.extend(r.cache_shaping().to_args());
-        a.extend(["--icache-out".into(), s(&o("icache.bin"))]);
-        steps.push(Step {
-            name: "photon-render icache".into(),
-            kind: Kind::Icache,
-            args: with_stats(a, &o("icache.stats.json")),
-            inputs: map_inputs,
-            outputs: vec![o("icache.bin"), o("icache.stats.json")],
-            needs: Some(o("global.irr.pmap")),
-            optional: vec![],
-            stats: o("icache.stats.json"),
-        });
-        render_args.extend(["--icache".into(), s(&o("icache.bin"))]);
-        render_inputs.push(o("icache.bin"));
-    }
-    render_args.extend(r.to_args());
-    render_args.extend(["--out".into(), s(&o("image.exr")), "--png".into(), s(&o("image.png"))]);
-    steps.push(Step {
-        name: "photon-render".into(),
-        kind: Kind::Render,
-        args: with_stats(render_args, &o("render.stats.json")),
-        inputs: render_inputs,
-        outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
-        needs: None,
-        optional: vec![("--caustic", o("caustic.kd.pmap"))],
-        stats: o("render.stats.json"),
-    });
-    Ok(steps)
-}
-
-/// What a run works on: the pipeline file's settings with the command line's
-/// overrides, the scene, the output folder and what the scene analysis decided.
-pub(crate) struct Setup {
-    pub(crate) cfg: Pipeline,
-    pub(crate) scene: PathBuf,
-    pub(crate) out: PathBuf,
-    pub(crate) analysis: pm_light::Effects,
-    pub(crate) caustics: bool,
-    pub(crate) indirect: bool,
-}
-
 /// Load the pipeline, apply `args`, create the output folder and ask the scene
 /// analysis (through photon-trace) which effects to simulate.
-pub(crate) fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
+pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
     let mut cfg = Pipeline::load(&pipeline)?;
     cfg.render.width = args.width.unwrap_or(cfg.render.width);
     cfg.render.height = args.height.unwrap_or(cfg.render.height);
     cfg.render.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
-    let base = pipeline.parent().unwrap_or(Path::new("."));
-    let scene = args.scene.clone().unwrap_or_else(|| base.join(&cfg.scene));
+    let scene = args.scene.clone().unwrap_or_else(|| cfg.scene_path(&pipeline));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out").join(&name));
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
@@ -375,11 +91,7 @@ pub(crate) fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
         }
         serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no analysis")?
     };
-    let (caustics, indirect) = match &cfg.effects {
-        EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes),
-        EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
-    };
-    Ok(Setup { cfg, scene, out, analysis, caustics, indirect })
+    Ok(Setup::new(cfg, scene, out, analysis))
 }
 
 /// Run the pipeline with the stage binaries in `bins`.
@@ -387,7 +99,8 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     let set = setup(args, root, bins)?;
     if args.tiles > 1 || args.trace_slices > 1 {
         // The job plan, executed here.
-        let plan = crate::plan::job_plan(&set, bins, args.tiles.max(1), args.trace_slices.max(1))?;
+        let program = |name: &str| bins.path(name);
+        let plan = pm_pipeline::jobs::job_plan(&set, &program, args.tiles.max(1), args.trace_slices.max(1))?;
         println!(
             "plan ({} -> {}, {} trace slices, {} tiles):",
             set.scene.display(),
@@ -395,17 +108,17 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
             args.trace_slices,
             args.tiles
         );
-        let (times, wall) = crate::plan::execute_and_record(&plan, args.workers)?;
+        let (times, wall) = crate::exec::execute_and_record(&plan, args.workers)?;
         println!(
             "  whole run {wall:.2} s with {} worker(s); the model predicts {:.2} s on {} node(s)",
             args.workers,
-            crate::plan::estimate(&times, args.workers),
+            pm_pipeline::jobs::estimate(&times, args.workers),
             args.workers
         );
         return Ok(plan.steps.iter().map(|s| Outcome { step: s.name.clone(), ran: true }).collect());
     }
     let Setup { cfg, scene, out, analysis, caustics, indirect } = set;
-    let steps = plan(&cfg, &scene, &out, caustics, indirect)?;
+    let steps = steps(&cfg, &scene, &out, caustics, indirect)?;
 
     let keys_path = out.join(".stage-keys.json");
     let mut keys: serde_json::Map<String, serde_json::Value> =
@@ -435,7 +148,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     }
     println!("plan ({} -> {}):", scene.display(), out.display());
     for step in &steps {
-        println!("  {} {}", step.kind.program(), step.args.join(" "));
+        println!("  {} {}", step.program(), step.argv().join(" "));
     }
     let mut outcomes = Vec::new();
     let mut rows = Vec::new();
@@ -452,7 +165,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
             outcomes.push(Outcome { step: step.name.clone(), ran: false });
             continue;
         }
-        let key = step_key(&bins.path(step.kind.program()), &step.args, &step.inputs);
+        let key = step_key(&bins.path(step.program()), &step.argv(), &step.inputs);
         if !args.force
             && keys.get(&step.name).and_then(|k| k.as_str()) == Some(key.as_str())
             && step.outputs.iter().all(|f| f.exists())
@@ -465,14 +178,14 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
         // A step about to run invalidates its recorded key until it succeeds.
         keys.remove(&step.name);
         std::fs::write(&keys_path, serde_json::to_string_pretty(&keys)?)?;
-        let mut a = step.args.clone();
+        let mut a = step.argv();
         for (flag, file) in &step.optional {
             if file.exists() {
                 a.extend([flag.to_string(), file.display().to_string()]);
             }
         }
         let t = Instant::now();
-        stages::run(bins, step.kind.program(), &a, &step.name, false)
+        stages::run(bins, step.program(), &a, &step.name, false)
             .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", out.display()))?;
         let secs = t.elapsed().as_secs_f64();
         println!("  {}: done in {secs:.2} s", step.name);
@@ -501,45 +214,6 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     });
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)? + "\n")?;
     Ok(outcomes)
-}
-
-/// blake3 over the program (its name and the binary's contents: a rebuilt stage
-/// runs again), its arguments and the contents of its input files.
-fn step_key(program: &Path, args: &[String], inputs: &[PathBuf]) -> String {
-    let mut h = blake3::Hasher::new();
-    h.update(program.file_name().unwrap_or_default().as_encoded_bytes());
-    match std::fs::read(program) {
-        Ok(bytes) => h.update(blake3::hash(&bytes).as_bytes()),
-        Err(_) => h.update(b"absent"),
-    };
-    for a in args {
-        h.update(a.as_bytes());
-        h.update(&[0]);
-    }
-    for f in inputs {
-        match std::fs::read(f) {
-            Ok(bytes) => h.update(blake3::hash(&bytes).as_bytes()),
-            Err(_) => h.update(b"absent"),
-        };
-    }
-    h.finalize().to_hex().to_string()
-}
-
-/// The scene file and the external buffers and images a .gltf references.
-pub fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
-    let mut files = vec![scene.to_owned()];
-    let bytes = std::fs::read(scene).with_context(|| format!("{}: cannot read", scene.display()))?;
-    if let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&bytes) {
-        let dir = scene.parent().unwrap_or(Path::new("."));
-        for key in ["buffers", "images"] {
-            for item in doc[key].as_array().into_iter().flatten() {
-                if let Some(uri) = item["uri"].as_str().filter(|u| !u.starts_with("data:")) {
-                    files.push(dir.join(uri));
-                }
-            }
-        }
-    }
-    Ok(files)
 }
 
 /// One line of the figures that matter for a step, from its typed statistics, and
@@ -592,6 +266,7 @@ fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
 pub struct LiveArgs {
     /// Pipeline file [default: pipeline.toml at the repository root]; its `[live]`
     /// section and `live_scene` are used.
+    #[arg(long, value_name = "FILE")]
     pub pipeline: Option<PathBuf>,
     /// Scene (glTF 2.0) instead of the pipeline file's `live_scene`.
     #[arg(long)]
@@ -631,15 +306,11 @@ pub fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
     let mut cfg = Pipeline::load(&pipeline)?;
     cfg.live.method = args.method.unwrap_or(cfg.live.method);
-    let base = pipeline.parent().unwrap_or(Path::new("."));
-    let scene = args.scene.clone().unwrap_or_else(|| base.join(cfg.live_scene.as_ref().unwrap_or(&cfg.scene)));
+    let scene = args.scene.clone().unwrap_or_else(|| cfg.live_scene_path(&pipeline));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out/live").join(&name));
-    let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
-    a.extend(["--frames".into(), args.frames.to_string(), "--seed".into(), cfg.seed.to_string()]);
-    a.extend(["--light-units".into(), cfg.light_units.to_string()]);
-    a.extend(cfg.live.to_args());
-    Ok(LiveSetup { out, args: a, fps: cfg.live.frame.fps })
+    let args = cfg.live_args(&scene, &out, args.frames);
+    Ok(LiveSetup { out, args, fps: cfg.live.frame.fps })
 }
 
 /// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline
@@ -649,7 +320,7 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
     if args.frame_tasks > 1 {
         let plan = crate::plan::live_plan(args, root, &bins)?;
-        let (_, wall) = crate::plan::execute_and_record(&plan, args.workers)?;
+        let (_, wall) = crate::exec::execute_and_record(&plan, args.workers)?;
         println!("{} frames as {} tasks in {wall:.2} s with {} worker(s)", args.frames, args.frame_tasks, args.workers);
         println!("wrote {}/frames, live.apng and frames.csv", plan.out);
         return Ok(());
@@ -659,33 +330,4 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     stages::run(&bins, "photon-live", &set.args, "photon-live", false)?;
     println!("wrote {}/frames, live.apng and frames.csv", set.out.display());
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A step runs again when its stage binary was rebuilt, its arguments or an
-    /// input changed; not when nothing did.
-    #[test]
-    fn a_step_key_covers_the_binary_the_arguments_and_the_inputs() {
-        let dir = tempfile::tempdir().unwrap();
-        let (bin, input) = (dir.path().join("photon-render"), dir.path().join("map.pmap"));
-        std::fs::write(&bin, b"build 1").unwrap();
-        std::fs::write(&input, b"photons").unwrap();
-        let args = vec!["--k".to_string(), "50".to_string()];
-        let key = || step_key(&bin, &args, std::slice::from_ref(&input));
-        let first = key();
-        assert_eq!(key(), first);
-        std::fs::write(&bin, b"build 2").unwrap();
-        let rebuilt = key();
-        assert_ne!(rebuilt, first, "a rebuilt binary");
-        std::fs::write(&input, b"other photons").unwrap();
-        assert_ne!(key(), rebuilt, "a changed input");
-        assert_ne!(
-            step_key(&bin, &["--k".into(), "60".into()], std::slice::from_ref(&input)),
-            key(),
-            "other arguments"
-        );
-    }
 }

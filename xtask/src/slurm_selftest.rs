@@ -6,10 +6,11 @@
 //! tiles, waits for it, and compares its photon maps and image with
 //! `cargo xtask run`'s (one trace, one render) byte for byte.
 
-use crate::plan::{plan_for, slurm};
+use crate::plan::plan_for;
 use crate::run::{RunArgs, run_with};
 use crate::stages::Bins;
 use anyhow::{Context, Result, bail, ensure};
+use pm_pipeline::jobs::slurm;
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};

@@ -18,7 +18,7 @@ use pm_render::{Lookup, Method, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use xtask::accuracy::{self, Split};
+use pm_image::accuracy::{self, Split};
 use xtask::plot::{self, Shape};
 use xtask::stages::{self, Bins};
 
@@ -100,7 +100,7 @@ impl Row {
 
 /// The defaults (pipeline.toml's values at `size`), then one setting at a time;
 /// `base_diagonal` is the scene's bounding-box diagonal [m].
-fn sweep(base: &xtask::run::Pipeline, size: u32, base_diagonal: f32) -> Vec<Setting> {
+fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Setting> {
     let mut render = base.render.clone();
     render.width = size;
     render.height = size;
@@ -225,7 +225,7 @@ fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String
 /// own seeds, cached by scene content, size and count. Returns their layers.
 fn reference_halves(
     bins: &Bins,
-    base: &xtask::run::Pipeline,
+    base: &pm_pipeline::Pipeline,
     scene: &Path,
     out: &Path,
     size: u32,
@@ -271,7 +271,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out/tradeoff").join(&name));
     std::fs::create_dir_all(&out)?;
-    let base = xtask::run::Pipeline::load(&root.join("pipeline.toml"))?;
+    let base = pm_pipeline::Pipeline::load(&root.join("pipeline.toml"))?;
     let bins = Bins::build(root)?;
     let s = |v: &dyn std::fmt::Display| v.to_string();
     let scene_s = scene.display().to_string();
@@ -453,7 +453,7 @@ fn read_rows(path: &Path, settings: &[Setting]) -> Result<Vec<Row>> {
 
 /// The pipeline.toml values of `s` that differ from `d`'s: (section, key, value),
 /// from their command lines (whose option names are the keys).
-fn overrides(d: &Setting, s: &Setting) -> Vec<(String, String, xtask::quality::Value)> {
+fn overrides(d: &Setting, s: &Setting) -> Vec<(String, String, pm_pipeline::quality::Value)> {
     let mut v = Vec::new();
     for (section, a, b) in [
         ("trace", d.trace.to_args(), s.trace.to_args()),
@@ -463,7 +463,7 @@ fn overrides(d: &Setting, s: &Setting) -> Vec<(String, String, xtask::quality::V
         for (da, sa) in a.chunks(2).zip(b.chunks(2)) {
             if da[1] != sa[1] {
                 let key = sa[0].trim_start_matches("--").replace('-', "_");
-                v.push((section.to_string(), key, xtask::quality::Value::parse(&sa[1], &da[1])));
+                v.push((section.to_string(), key, pm_pipeline::quality::Value::parse(&sa[1], &da[1])));
             }
         }
     }
@@ -620,14 +620,14 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
     // settings only, the real-time rows being another program.
     let batch_front = pareto(rows, |r| if r.setting.live.is_some() { f64::INFINITY } else { r.splits[0].error });
     let name = Path::new(&args.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-    let f = xtask::quality::Front {
+    let f = pm_pipeline::quality::Front {
         scene: name,
         size,
         machine: format!("{} cores", std::thread::available_parallelism().map_or(1, |n| n.get())),
         defaults_s: rows[0].times,
         points: batch_front
             .iter()
-            .map(|&i| xtask::quality::Point {
+            .map(|&i| pm_pipeline::quality::Point {
                 label: rows[i].setting.label.clone(),
                 times_s: rows[i].times,
                 error: rows[i].splits[0].error,

@@ -2,7 +2,10 @@
 //! (linear radiance, W sr^-1 m^-2 per channel), 8-bit sRGB PNG, reading EXR back,
 //! and the error measures the tests and the accuracy/time trade-off use.
 //!
-//! Writes are atomic (temporary file, then rename).
+//! Writes are atomic (temporary file, then rename). [`accuracy`] splits an
+//! estimator's error into bias and noise (the trade-off study's measures).
+
+pub mod accuracy;
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;

@@ -8,9 +8,11 @@
 //! the default 1024 x 1024 run it predicts 32 s against 10.7 s measured, the cache
 //! prepass and per-process costs growing less than the pixels). preview, balanced
 //! and final are a quarter of, equal to and four times the defaults' predicted
-//! time. The chosen point's parameters replace pipeline.toml's before it is read,
-//! so every check of the file applies to them.
+//! time. The chosen point's parameters replace the parsed file's (each through its
+//! section's own parsing) before the file's values are checked, so every check
+//! applies to them.
 
+use crate::Pipeline;
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -77,7 +79,8 @@ impl Value {
         }
     }
 
-    fn toml(&self) -> toml::Value {
+    /// The value as pipeline.toml writes it.
+    pub fn toml(&self) -> toml::Value {
         match self {
             Value::Int(i) => toml::Value::Integer(*i),
             Value::Float(f) => toml::Value::Float(*f),
@@ -92,7 +95,7 @@ impl Value {
 /// cornell_spheres's.
 pub fn front_path(pipeline: &Path, scene: &str) -> Option<PathBuf> {
     let class = Path::new(scene).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let dirs = [pipeline.parent().unwrap_or(Path::new(".")).to_path_buf(), repo];
     [class.as_str(), "cornell_spheres"]
         .iter()
@@ -106,19 +109,26 @@ fn predict(t: &[f64; 4], size: u32, pixels: f64) -> f64 {
     t[0] + t[1] + t[2] + t[3] * pixels / (size as f64 * size as f64).max(1.0)
 }
 
-/// If `doc` (a parsed pipeline.toml at `path`) asks for a quality or a time budget,
-/// apply the chosen point's values to it and say what was chosen.
-pub fn apply(doc: &mut toml::Value, path: &Path) -> Result<Option<String>> {
-    let quality = doc.get("quality").cloned();
-    let budget = doc.get("time_budget_s").cloned();
-    if quality.is_none() && budget.is_none() {
-        return Ok(None);
-    }
+/// The front point a pipeline file asked for.
+pub struct Choice {
+    /// Its values that differ from the defaults: section, key, value.
+    pub overrides: Vec<(String, String, Value)>,
+    /// What was chosen, from which front, predicted time and error.
+    pub summary: String,
+}
+
+/// The front point `cfg` (read from the pipeline file at `path`) asks for with its
+/// quality or time budget; none when it asks for neither.
+pub fn choose(cfg: &Pipeline, path: &Path) -> Result<Option<Choice>> {
     let file = path.display();
-    if quality.is_some() && budget.is_some() {
-        bail!("{file}: give quality or time_budget_s, not both");
-    }
-    let scene = doc.get("scene").and_then(toml::Value::as_str).unwrap_or_default().to_string();
+    let what = match (cfg.quality, cfg.time_budget_s) {
+        (None, None) => return Ok(None),
+        (Some(_), Some(_)) => bail!("{file}: give quality or time_budget_s, not both"),
+        (Some(q), None) => Budget::Relative(q),
+        (None, Some(s)) if s > 0.0 && s.is_finite() => Budget::Seconds(s),
+        (None, Some(s)) => bail!("{file}: time_budget_s = {s}: expected a positive number of seconds"),
+    };
+    let scene = cfg.scene.display().to_string();
     let front_file = front_path(path, &scene).with_context(|| {
         format!(
             "{file}: quality needs a measured front (docs/tradeoff/<scene>/front.json; run cargo xtask tradeoff --docs)"
@@ -128,35 +138,18 @@ pub fn apply(doc: &mut toml::Value, path: &Path) -> Result<Option<String>> {
         &std::fs::read_to_string(&front_file).with_context(|| format!("{}: cannot read", front_file.display()))?,
     )
     .with_context(|| format!("{}: not a front", front_file.display()))?;
-    let int = |k: &str| doc.get("render").and_then(|r| r.get(k)).and_then(toml::Value::as_integer);
-    let pixels = (int("width").unwrap_or(1024) * int("height").unwrap_or(1024)) as f64;
+    let pixels = cfg.render.width as f64 * cfg.render.height as f64;
     let defaults = predict(&front.defaults_s, front.size, pixels);
-    let (budget, what) = match (&quality, &budget) {
-        (Some(q), _) => match q.as_str() {
-            Some("preview") => (0.25 * defaults, "preview"),
-            Some("balanced") => (defaults, "balanced"),
-            Some("final") => (4.0 * defaults, "final"),
-            _ => bail!("{file}: quality = {q}: expected \"preview\", \"balanced\" or \"final\""),
-        },
-        (None, Some(b)) => match b.as_float().or_else(|| b.as_integer().map(|i| i as f64)) {
-            Some(s) if s > 0.0 && s.is_finite() => (s, "time budget"),
-            _ => bail!("{file}: time_budget_s = {b}: expected a positive number of seconds"),
-        },
-        (None, None) => unreachable!("one of them is set"),
+    let (budget, what) = match what {
+        Budget::Relative(q) => (q.budget_factor() * defaults, q.to_string()),
+        Budget::Seconds(s) => (s, "time budget".to_string()),
     };
     let fits = front.points.iter().filter(|p| predict(&p.times_s, front.size, pixels) <= budget);
     let (point, note) = match fits.min_by(|a, b| a.error.total_cmp(&b.error)) {
         Some(p) => (p, ""),
         None => (front.points.first().context("the front has no points")?, " (nothing fits: the fastest point)"),
     };
-    let table = doc.as_table_mut().context("pipeline.toml is not a table")?;
-    for (section, key, value) in &point.overrides {
-        let sec = table.entry(section.clone()).or_insert_with(|| toml::Value::Table(Default::default()));
-        sec.as_table_mut()
-            .with_context(|| format!("{file}: [{section}] is not a table"))?
-            .insert(key.clone(), value.toml());
-    }
-    Ok(Some(format!(
+    let summary = format!(
         "{what} ({budget:.1} s): \"{}\"{note} from {} (measured at {}x{} on {}): predicted {:.1} s, error {:.1}% (bias {:.1}%, noise {:.1}%)",
         point.label,
         front_file.display(),
@@ -167,5 +160,14 @@ pub fn apply(doc: &mut toml::Value, path: &Path) -> Result<Option<String>> {
         100.0 * point.error,
         100.0 * point.bias,
         100.0 * point.noise
-    )))
+    );
+    Ok(Some(Choice { overrides: point.overrides.clone(), summary }))
+}
+
+/// What a pipeline file asks the front for.
+enum Budget {
+    /// A multiple of the defaults' predicted time.
+    Relative(crate::Quality),
+    /// Seconds.
+    Seconds(f64),
 }

@@ -12,7 +12,7 @@
 //! error   = sqrt(bias^2 + noise^2)                      (one render against T)
 //! ```
 //!
-//! each divided by the reference's mean (relative, like [`pm_image::compare`]).
+//! each divided by the reference's mean (relative, like [`crate::compare`]).
 //! The reference's s_R^2 comes from two independent halves A and B of it:
 //! R = (A + B) / 2 has s_R^2 = |A - B|^2 / (4 n).
 

@@ -1,0 +1,246 @@
+//! pipeline.toml, typed.
+
+use anyhow::{Context, Result, bail};
+use pm_estimate::IrradianceParams;
+use pm_params::Naming;
+use pm_photon::TraceParams;
+use pm_render::RenderParams;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+pm_params::value_enum! {
+    /// A point on the measured accuracy/time front, by the time it may take
+    /// (relative to the defaults' predicted time: see [`crate::quality`]).
+    pub enum Quality {
+        /// A quarter of the defaults' time.
+        Preview,
+        /// The defaults' time.
+        Balanced,
+        /// Four times the defaults' time.
+        Final,
+    }
+}
+
+impl Quality {
+    /// The time it may take as a multiple of the defaults' predicted time.
+    pub fn budget_factor(self) -> f64 {
+        match self {
+            Quality::Preview => 0.25,
+            Quality::Balanced => 1.0,
+            Quality::Final => 4.0,
+        }
+    }
+}
+
+/// pipeline.toml, typed: each stage's section is that stage's parameter type (the
+/// one definition its command line also uses). Unknown keys are errors.
+#[derive(Deserialize, Debug, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct Pipeline {
+    /// The scene, relative to the pipeline file.
+    pub scene: PathBuf,
+    /// Random seed of every stage.
+    #[serde(default = "one")]
+    pub seed: u64,
+    /// Units of the scene's point, spot and directional light intensities:
+    /// "photometric" (the glTF specification: candela and lux, at 683 lm/W) or
+    /// "radiometric" (W/sr and W/m^2); every stage that reads the scene gets it.
+    #[serde(default)]
+    pub light_units: pm_scene::LightUnits,
+    /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
+    pub effects: EffectsCfg,
+    /// Light name to fraction of the photon budget; the other lights share the rest
+    /// by power.
+    #[serde(default)]
+    pub light_shares: BTreeMap<String, f64>,
+    /// Stage 1.
+    #[serde(default)]
+    pub trace: TraceParams,
+    /// Stage 3.
+    #[serde(default)]
+    pub irradiance: IrradianceParams,
+    /// Stage 4 (and the irradiance-cache step).
+    #[serde(default)]
+    pub render: RenderParams,
+    /// The scene `cargo xtask live` renders, relative to the pipeline file
+    /// (default: `scene`).
+    #[serde(default)]
+    pub live_scene: Option<PathBuf>,
+    /// The real-time mode (`photon-live`, `cargo xtask live`).
+    #[serde(default)]
+    pub live: photon_live::LiveParams,
+    /// The trace, irradiance and render settings picked from the measured
+    /// accuracy/time front ([`crate::quality`]).
+    #[serde(default)]
+    pub quality: Option<Quality>,
+    /// Or a time budget \[s\] for the whole pipeline at the file's image size.
+    #[serde(default)]
+    pub time_budget_s: Option<f64>,
+    /// What quality or time_budget_s chose (not a key of the file).
+    #[serde(skip)]
+    pub chosen: Option<String>,
+}
+
+/// `effects = "auto"` or a list of forced effects.
+#[derive(Deserialize, Debug, Clone)]
+#[serde(untagged)]
+pub enum EffectsCfg {
+    /// The scene analysis decides.
+    Auto(AutoWord),
+    /// Simulate exactly these.
+    List(Vec<EffectName>),
+}
+
+/// The word `auto`.
+#[derive(Deserialize, Debug, Clone)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoWord {
+    /// `"auto"`.
+    Auto,
+}
+
+/// An effect that can be forced on.
+#[derive(Deserialize, Debug, Clone, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum EffectName {
+    /// The caustic map.
+    Caustics,
+    /// The global map, irradiance precompute and final gathers.
+    Indirect,
+}
+
+fn one() -> u64 {
+    1
+}
+
+/// Set `key` of the serialisable `section` to `value` through its file form, so the
+/// section's own parsing (unknown keys, types) applies.
+fn set_key<T: serde::Serialize + serde::de::DeserializeOwned>(
+    section: &mut T,
+    key: &str,
+    value: toml::Value,
+) -> Result<()> {
+    let mut table = toml::Table::try_from(&*section).context("the section does not serialise")?;
+    table.insert(key.to_string(), value);
+    *section = table.try_into().map_err(|e: toml::de::Error| anyhow::anyhow!("{}", e.message()))?;
+    Ok(())
+}
+
+impl Pipeline {
+    /// Read, parse and range-check a pipeline file; a quality or time budget
+    /// replaces the swept settings by the chosen front point's before anything is
+    /// checked. Every error is one line naming the file and the key.
+    pub fn load(path: &Path) -> Result<Pipeline> {
+        let file = path.display();
+        let text = std::fs::read_to_string(path).with_context(|| format!("{file}: cannot read"))?;
+        let mut p: Pipeline = toml::from_str(&text)
+            .map_err(|e: toml::de::Error| anyhow::anyhow!("{file}: {}", e.to_string().replace('\n', " ")))?;
+        if let Some(choice) = crate::quality::choose(&p, path)? {
+            for (section, key, value) in choice.overrides {
+                p.set(&section, &key, value.toml())
+                    .with_context(|| format!("{file}: the front sets {section}.{key}"))?;
+            }
+            println!("{file}: {}", choice.summary);
+            p.chosen = Some(choice.summary);
+        }
+        let fail = |e: String| anyhow::anyhow!("{file}: {e}");
+        p.trace.validate(Naming::File("trace")).map_err(fail)?;
+        p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
+        p.render.check(Naming::File("render")).map_err(fail)?;
+        p.live.check(Naming::File("live")).map_err(fail)?;
+        for (name, share) in &p.light_shares {
+            if !(0.0..=1.0).contains(share) {
+                bail!("{file}: light_shares.{name} = {share} is out of range (in [0, 1])");
+            }
+        }
+        Ok(p)
+    }
+
+    /// Set `section.key` (a stage section: trace, irradiance, render or live).
+    pub fn set(&mut self, section: &str, key: &str, value: toml::Value) -> Result<()> {
+        match section {
+            "trace" => set_key(&mut self.trace, key, value),
+            "irradiance" => set_key(&mut self.irradiance, key, value),
+            "render" => set_key(&mut self.render, key, value),
+            "live" => set_key(&mut self.live, key, value),
+            _ => bail!("[{section}] is not a stage section"),
+        }
+    }
+
+    /// The scene of the batch pipeline: `scene` relative to the pipeline file
+    /// `pipeline`'s folder.
+    pub fn scene_path(&self, pipeline: &Path) -> PathBuf {
+        pipeline.parent().unwrap_or(Path::new(".")).join(&self.scene)
+    }
+
+    /// The scene of the real-time mode: `live_scene` (else `scene`) relative to the
+    /// pipeline file's folder.
+    pub fn live_scene_path(&self, pipeline: &Path) -> PathBuf {
+        pipeline.parent().unwrap_or(Path::new(".")).join(self.live_scene.as_ref().unwrap_or(&self.scene))
+    }
+
+    /// photon-live's arguments for `frames` frames of `scene` into `out` with the
+    /// `[live]` settings, the seed and the light units (all but `--frame-task`).
+    pub fn live_args(&self, scene: &Path, out: &Path, frames: u32) -> Vec<String> {
+        let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
+        a.extend(["--frames".into(), frames.to_string(), "--seed".into(), self.seed.to_string()]);
+        a.extend(["--light-units".into(), self.light_units.to_string()]);
+        a.extend(self.live.to_args());
+        a
+    }
+}
+
+/// What a run works on: the settings (with the command line's overrides), the
+/// scene, the output folder, the scene analysis and the effects simulated.
+pub struct Setup {
+    /// The settings.
+    pub cfg: Pipeline,
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The output folder.
+    pub out: PathBuf,
+    /// What the scene analysis found.
+    pub analysis: pm_light::Effects,
+    /// Trace and use a caustic map.
+    pub caustics: bool,
+    /// Trace a global map, precompute irradiance and gather.
+    pub indirect: bool,
+}
+
+impl Setup {
+    /// The effects to simulate: the analysis's (`effects = "auto"`) or the list
+    /// pipeline.toml forces.
+    pub fn new(cfg: Pipeline, scene: PathBuf, out: PathBuf, analysis: pm_light::Effects) -> Setup {
+        let (caustics, indirect) = match &cfg.effects {
+            EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes),
+            EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
+        };
+        Setup { cfg, scene, out, analysis, caustics, indirect }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A key of a stage section is set through the section's own parsing: a value
+    /// of the wrong type or a key the section lacks is refused, naming it.
+    #[test]
+    fn setting_a_key_goes_through_the_sections_parsing() {
+        let mut p: Pipeline = toml::from_str("scene = \"s.gltf\"\neffects = \"auto\"").unwrap();
+        p.set("render", "gather_rays", toml::Value::Integer(64)).unwrap();
+        p.set("trace", "global_photons", toml::Value::Integer(1_600_000)).unwrap();
+        p.set("irradiance", "fraction", toml::Value::Float(1.0)).unwrap();
+        p.set("live", "subsample", toml::Value::Integer(2)).unwrap();
+        assert_eq!((p.render.gather_rays, p.trace.global_photons, p.irradiance.fraction), (64, 1_600_000, 1.0));
+        assert_eq!(p.live.ispm.subsample, 2);
+        // Other values survive the round trip through the file form unchanged.
+        assert_eq!(p.render.max_radius_rel_diag, RenderParams::default().max_radius_rel_diag);
+        let e = p.set("render", "bogus", toml::Value::Integer(1)).unwrap_err().to_string();
+        assert!(e.contains("bogus"), "{e}");
+        let e = p.set("render", "gather_rays", toml::Value::String("many".into())).unwrap_err().to_string();
+        assert!(e.contains("many") || e.contains("integer"), "{e}");
+        assert!(p.set("scene", "x", toml::Value::Integer(1)).is_err());
+    }
+}
