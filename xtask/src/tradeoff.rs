@@ -13,12 +13,13 @@
 use anyhow::{Context, Result, bail};
 use pm_color::Layer;
 use pm_estimate::IrradianceParams;
+use pm_image::accuracy::{self, Split};
 use pm_photon::{RecordLayout, TraceParams};
+use pm_pipeline::Quality;
 use pm_render::{Lookup, Method, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use pm_image::accuracy::{self, Split};
 use xtask::plot::{self, Shape};
 use xtask::stages::{self, Bins};
 
@@ -486,6 +487,20 @@ fn pareto(rows: &[Row], error: impl Fn(&Row) -> f64) -> Vec<usize> {
 }
 
 fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()> {
+    std::fs::write(out.join("results.csv"), results_csv(rows, args.seeds)?)?;
+    let front = pareto(rows, |r| r.splits[0].error);
+    let md = results_md(rows, &front, size, args)?;
+    std::fs::write(out.join("results.md"), &md)?;
+    let f = quality_front(rows, size, args);
+    std::fs::write(out.join("front.json"), serde_json::to_string_pretty(&f)? + "\n")?;
+    plots(out, rows, &front)?;
+    println!("\n{md}\nwrote {}", out.display());
+    Ok(())
+}
+
+/// results.csv: a row per setting, its stage times [s], its error split and each
+/// layer's.
+fn results_csv(rows: &[Row], seeds: u64) -> Result<String> {
     let mut csv = String::from(
         "axis,setting,seeds,trace_s,sort_s,irradiance_s,render_s,total_s,error,bias,noise,reference_noise,mean_bias,measured_rmse,ssim",
     );
@@ -500,7 +515,7 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
             "{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.5},{:.5},{:.5},{:.5},{:+.5},{:.5},{:.5}",
             r.setting.axis,
             r.setting.label,
-            args.seeds,
+            seeds,
             r.times[0],
             r.times[1],
             r.times[2],
@@ -519,9 +534,12 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
         }
         csv.push('\n');
     }
-    std::fs::write(out.join("results.csv"), csv)?;
+    Ok(csv)
+}
 
-    let front = pareto(rows, |r| r.splits[0].error);
+/// results.md: the table of settings (Pareto `front` marked), what each axis buys,
+/// and the best setting per quality's time budget.
+fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<String> {
     let pct = |v: f64| format!("{:.1}%", 100.0 * v);
     let reference_noise = rows.first().map_or(0.0, |r| r.splits[0].reference_noise);
     let smallest = rows.iter().map(|r| r.splits[0].error).fold(f64::INFINITY, f64::min);
@@ -600,7 +618,8 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
     }
     md.push_str("\nBest setting per time budget (lowest error on the Pareto front within the budget):\n\n");
     let base_t = rows[0].total();
-    for (name, budget) in [("preview", 0.25 * base_t), ("balanced", base_t), ("final", 4.0 * base_t)] {
+    for q in [Quality::Preview, Quality::Balanced, Quality::Final] {
+        let (name, budget) = (q, q.budget_factor() * base_t);
         if let Some(&i) = front
             .iter()
             .filter(|&&i| rows[i].total() <= budget)
@@ -615,12 +634,15 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
             )?;
         }
     }
-    std::fs::write(out.join("results.md"), &md)?;
-    // The front as the quality knob reads it (`quality` in pipeline.toml): batch
-    // settings only, the real-time rows being another program.
+    Ok(md)
+}
+
+/// The front as the quality knob reads it (`quality` in pipeline.toml; front.json):
+/// batch settings only, the real-time rows being another program.
+fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::Front {
     let batch_front = pareto(rows, |r| if r.setting.live.is_some() { f64::INFINITY } else { r.splits[0].error });
     let name = Path::new(&args.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-    let f = pm_pipeline::quality::Front {
+    pm_pipeline::quality::Front {
         scene: name,
         size,
         machine: format!("{} cores", std::thread::available_parallelism().map_or(1, |n| n.get())),
@@ -636,11 +658,7 @@ fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()>
                 overrides: overrides(&rows[0].setting, &rows[i].setting),
             })
             .collect(),
-    };
-    std::fs::write(out.join("front.json"), serde_json::to_string_pretty(&f)? + "\n")?;
-    plots(out, rows, &front)?;
-    println!("\n{md}\nwrote {}", out.display());
-    Ok(())
+    }
 }
 
 /// The sweep's axes in legend order, and each one's colour.

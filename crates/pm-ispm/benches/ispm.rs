@@ -63,6 +63,25 @@ fn main() {
 }
 
 fn run() {
+    let scenes: Vec<(&str, Scene)> =
+        ["cornell_spheres", "caustic_ring", "cornell_dense"].into_iter().map(|n| (n, scene(n))).collect();
+    table2(&scenes);
+    attrition(&scenes);
+    let s = find(&scenes, "cornell_spheres");
+    splat_against_gather(s);
+    subsampling(s);
+    let reference = Reference::new(s);
+    against_the_path_tracer(s, &reference);
+    direct_light_both_ways(s, &reference);
+}
+
+/// The scene called `name`.
+fn find<'a>(scenes: &'a [(&str, Scene)], name: &str) -> &'a Scene {
+    &scenes.iter().find(|s| s.0 == name).unwrap().1
+}
+
+/// The frame time split like the paper's Table 2, per scene, size and setting.
+fn table2(scenes: &[(&str, Scene)]) {
     println!("Frame time split like Table 2 (2 threads, medians of 4 frames after one warm-up) [ms]");
     println!(
         "| scene | size | direct | bounces | subsample | G-buffer | direct | bounce map | trace | splat | upsample | frame | fps | texels | stored photons |"
@@ -77,12 +96,9 @@ fn run() {
         ("caustic_ring", DirectMode::Rays, 1, 1),
         ("cornell_dense", DirectMode::Rays, 1, 4),
     ];
-    let scenes: Vec<(&str, Scene)> =
-        ["cornell_spheres", "caustic_ring", "cornell_dense"].into_iter().map(|n| (n, scene(n))).collect();
-    let find = |n: &str| &scenes.iter().find(|s| s.0 == n).unwrap().1;
     for (w, h) in [(512u32, 512u32), (1920, 1080)] {
         for &(name, direct, bounces, subsample) in &rows {
-            let s = find(name);
+            let s = find(scenes, name);
             let bounce_res = if name == "caustic_ring" { 128 } else { 48 };
             let p = Params(
                 FrameParams { width: w, height: h, direct, ..Default::default() },
@@ -104,13 +120,15 @@ fn run() {
             );
         }
     }
+}
 
-    // Photon attrition (Figure 10): of the texels shot, how many hit, survive the
-    // first bounce, and how many photons each further bounce stores.
+/// Photon attrition (Figure 10): of the texels shot, how many hit, survive the
+/// first bounce, and how many photons each further bounce stores.
+fn attrition(scenes: &[(&str, Scene)]) {
     println!("\nPhoton attrition (Figure 10), bounce_res 48 (128 for the ring), 3 bounces");
     println!("| scene | texels | hit a surface | survived bounce 1 | photons stored | stored per surviving path |");
     println!("|---|---|---|---|---|---|");
-    for (name, s) in &scenes {
+    for (name, s) in scenes {
         let res = if *name == "caustic_ring" { 128 } else { 48 };
         let (b, st) = pm_ispm::bounce_maps(s, res, 1, true);
         let p = Params(FrameParams { ..Default::default() }, IspmParams { bounces: 3, ..Default::default() });
@@ -126,12 +144,13 @@ fn run() {
             photons.len() as f64 / st.survived.max(1) as f64
         );
     }
+}
 
-    // Scatter against gather at equal output.
+/// Scatter against gather at equal output (the paper's central claim).
+fn splat_against_gather(s: &Scene) {
     println!("\nSplat against a gather over the same photons (cornell_spheres, 512 x 512, 1 bounce) [ms]");
     println!("| photons | splat | gather (grid radius query per pixel) | gather / splat | largest difference |");
     println!("|---|---|---|---|---|");
-    let s = find("cornell_spheres");
     for res in [32u32, 48, 96] {
         let p = Params(
             FrameParams { ..Default::default() },
@@ -167,69 +186,93 @@ fn run() {
             t_gather / t_splat
         );
     }
+}
 
-    // What subsampling costs: indirect error against the full-resolution splat,
-    // against frame time.
+/// What subsampling costs: indirect error against the full-resolution splat,
+/// against frame time (section 5.2).
+fn subsampling(s: &Scene) {
     println!("\nSubsampling (cornell_spheres, 512 x 512, 1 bounce): indirect + caustic against full resolution");
     println!("| subsample | frame [ms] | splat + upsample [ms] | relative RMSE | mean bias |");
     println!("|---|---|---|---|---|");
     let base = Params(FrameParams { ..Default::default() }, IspmParams { bounces: 1, ..Default::default() });
     let (_, _, full) = frames(s, &base, 3);
     for f in [1u32, 2, 4, 8, 16] {
-        let (t, _, ind) = frames(
-            s,
-            &Params(FrameParams { ..Default::default() }, IspmParams { subsample: f, ..Default::default() }),
-            4,
-        );
+        let (t, _, ind) = frames(s, &Params(base.0.clone(), IspmParams { subsample: f, ..base.1.clone() }), 4);
         let e = pm_image::compare(&ind, &full, 1.0);
         println!("| {f} | {:.1} | {:.1} | {:.4} | {:+.4} |", t[6], t[4] + t[5], e.rel_rmse, e.rel_bias);
     }
+}
 
-    // Against the path tracer: 512 x 512 at 64 paths per pixel, both images compared
-    // as means of 4 x 4 blocks (the reference's noise there is that of 1024 paths),
-    // blocks touching the light's pixels left out.
-    let (w, h) = (512u32, 512u32);
-    let camera = s.camera.clone().unwrap();
-    let film = Film { width: w, height: h, spp: 64, contrast: 0.0, seed: 11 };
-    let t = Instant::now();
-    let pt = pm_render::PathTracer::new(s).unwrap();
-    let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
-    let t_path = t.elapsed().as_secs_f64();
-    let blocks = |px: &[Rgb]| -> Vec<Rgb> {
-        (0..(w / 4) * (h / 4))
-            .map(|b| {
-                let (bx, by) = (b % (w / 4), b / (w / 4));
-                let mut sum = Rgb::ZERO;
-                for y in by * 4..by * 4 + 4 {
-                    for x in bx * 4..bx * 4 + 4 {
-                        sum += px[(y * w + x) as usize];
-                    }
+/// Side of the image compared with the path tracer [pixels].
+const SIZE: u32 = 512;
+
+/// Means of 4 x 4 blocks of a SIZE x SIZE image.
+fn blocks(px: &[Rgb]) -> Vec<Rgb> {
+    let (w, h) = (SIZE, SIZE);
+    (0..(w / 4) * (h / 4))
+        .map(|b| {
+            let (bx, by) = (b % (w / 4), b / (w / 4));
+            let mut sum = Rgb::ZERO;
+            for y in by * 4..by * 4 + 4 {
+                for x in bx * 4..bx * 4 + 4 {
+                    sum += px[(y * w + x) as usize];
                 }
-                sum / 16.0
-            })
-            .collect()
-    };
-    let reference = blocks(path.total());
-    let reference_direct = blocks(path.layer(pm_color::Layer::Direct));
-    // Error measures over the blocks that do not see the light: relative RMSE and
-    // bias of the image, and the median and 90th percentile of the blocks'
-    // relative errors (the RMSE is ruled by a few caustic blocks).
-    let measure_against = |img: &[Rgb], reference: &[Rgb]| {
-        let e = pm_image::compare(img, reference, 4.0);
-        let mut rel: Vec<f32> = img
-            .iter()
-            .zip(reference)
-            .filter(|(_, r)| r.max_element() <= 4.0 && r.max_element() > 0.01)
-            .map(|(a, r)| (*a - *r).abs().element_sum() / r.element_sum())
-            .collect();
-        rel.sort_by(f32::total_cmp);
-        (e.rel_rmse, e.rel_bias, rel[rel.len() / 2], rel[rel.len() * 9 / 10])
-    };
-    let measure = |img: &[Rgb]| measure_against(img, &reference);
-    // The reference's own noise: a second path-traced image with another seed.
-    let film2 = Film { seed: 12, ..film };
-    let (path2, _) = pm_render::render_region(&camera, &film2, film2.rect(), &pt, false, &|_, _| {}).unwrap();
-    let (rr, rb, rm, r9) = measure(&blocks(path2.total()));
+            }
+            sum / 16.0
+        })
+        .collect()
+}
+
+/// Error measures over the blocks that do not see the light: relative RMSE and
+/// bias of the image, and the median and 90th percentile of the blocks' relative
+/// errors (the RMSE is ruled by a few caustic blocks).
+fn measure_against(img: &[Rgb], reference: &[Rgb]) -> (f64, f64, f32, f32) {
+    let e = pm_image::compare(img, reference, 4.0);
+    let mut rel: Vec<f32> = img
+        .iter()
+        .zip(reference)
+        .filter(|(_, r)| r.max_element() <= 4.0 && r.max_element() > 0.01)
+        .map(|(a, r)| (*a - *r).abs().element_sum() / r.element_sum())
+        .collect();
+    rel.sort_by(f32::total_cmp);
+    (e.rel_rmse, e.rel_bias, rel[rel.len() / 2], rel[rel.len() * 9 / 10])
+}
+
+/// The path tracer's image at 64 paths per pixel, as 4 x 4 block means (the
+/// reference's noise there is that of 1024 paths), its direct layer, and a second
+/// image with another seed (the reference's own noise).
+struct Reference {
+    total: Vec<Rgb>,
+    direct: Vec<Rgb>,
+    second: Vec<Rgb>,
+    seconds: f64,
+}
+
+impl Reference {
+    fn new(s: &Scene) -> Reference {
+        let camera = s.camera.clone().unwrap();
+        let film = Film { width: SIZE, height: SIZE, spp: 64, contrast: 0.0, seed: 11 };
+        let t = Instant::now();
+        let pt = pm_render::PathTracer::new(s).unwrap();
+        let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
+        let seconds = t.elapsed().as_secs_f64();
+        let film2 = Film { seed: 12, ..film };
+        let (path2, _) = pm_render::render_region(&camera, &film2, film2.rect(), &pt, false, &|_, _| {}).unwrap();
+        Reference {
+            total: blocks(path.total()),
+            direct: blocks(path.layer(pm_color::Layer::Direct)),
+            second: blocks(path2.total()),
+            seconds,
+        }
+    }
+}
+
+/// Against the path tracer: 512 x 512, both images compared as means of 4 x 4
+/// blocks, blocks touching the light's pixels left out.
+fn against_the_path_tracer(s: &Scene, reference: &Reference) {
+    let t_path = reference.seconds;
+    let measure = |img: &[Rgb]| measure_against(img, &reference.total);
+    let (rr, rb, rm, r9) = measure(&reference.second);
     println!(
         "\nAgainst the path tracer (cornell_spheres, 512 x 512, 64 spp in {t_path:.0} s; 4 x 4 block means, the light's blocks left out)"
     );
@@ -250,21 +293,19 @@ fn run() {
         let (er, eb, em, e9) = measure(&blocks(live.frame_layers().total()));
         // Frame time at the default light_samples = 1 (the error uses 4 to keep the
         // direct light's noise out of the comparison).
-        let mut timed = start(
-            s.clone(),
-            None,
-            Params(FrameParams { light_samples: 1, ..Default::default() }, IspmParams { ..Default::default() }),
-            1,
-        )
-        .unwrap();
+        let mut timed =
+            start(s.clone(), None, Params(FrameParams { light_samples: 1, ..p.0.clone() }, p.1.clone()), 1).unwrap();
         let wall = (0..3).map(|_| timed.step().unwrap().total_s).fold(f64::INFINITY, f64::min);
         println!(
             "| {bounce_res} | {bounces} | {subsample} | {:.1} | {er:.4} | {eb:+.4} | {em:.4} | {e9:.4} |",
             wall * 1e3
         );
     }
+}
 
-    // Direct light both ways (the issue: "shadow rays or shadow maps: measure both").
+/// Direct light both ways (the issue: "shadow rays or shadow maps: measure both").
+fn direct_light_both_ways(s: &Scene, reference: &Reference) {
+    let measure = |img: &[Rgb]| measure_against(img, &reference.total);
     println!(
         "\nDirect light by shadow rays or a shadow map (cornell_spheres, 512 x 512, bounce_res 48, 8 bounces, subsample 4; against the path tracer, 4 x 4 blocks)"
     );
@@ -285,7 +326,7 @@ fn run() {
             step = step.min(st.direct_s);
         }
         let layers = live.frame_layers();
-        let (dr, db, dm, _) = measure_against(&blocks(layers.layer(pm_color::Layer::Direct)), &reference_direct);
+        let (dr, db, dm, _) = measure_against(&blocks(layers.layer(pm_color::Layer::Direct)), &reference.direct);
         let (_, _, tm, _) = measure(&blocks(layers.total()));
         println!(
             "| {direct:?} | {light_samples} | {:.1} | {:.1} | {dr:.4} | {db:+.4} | {dm:.4} | {tm:.4} |",

@@ -3,6 +3,8 @@
 //! interpolation, evaluated at a time to move the lights and the camera that hang
 //! below animated nodes. Animations loop over their longest channel.
 
+use crate::accel::build_bvh;
+use crate::{Light, LightKind, Scene, Triangle, bounds_of, light};
 use glam::{Mat4, Quat, Vec3, Vec4};
 
 /// Which property a channel animates.
@@ -165,5 +167,104 @@ impl Animation {
             }
         }
         false
+    }
+}
+
+impl Scene {
+    /// True when the animation moves meshes (their triangles change with the time).
+    pub fn has_moving_meshes(&self) -> bool {
+        !self.animation.meshes.is_empty()
+    }
+
+    /// Move the animated lights, camera and meshes to time `t` \[s\] (animations loop
+    /// over their length). Lights and the camera move without rebuilding anything;
+    /// moved meshes are re-transformed from their rest pose and the BVH is rebuilt.
+    pub fn set_time(&mut self, t: f32) {
+        let anim = &self.animation;
+        for &(li, node) in &anim.lights {
+            let world = anim.world(node, t);
+            let position = world.transform_point3(Vec3::ZERO);
+            let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+            match &mut self.lights[li].kind {
+                LightKind::Point { position: p, .. } => *p = position,
+                LightKind::Spot { position: p, direction, .. } => {
+                    *p = position;
+                    if axis != Vec3::ZERO {
+                        *direction = axis;
+                    }
+                }
+                LightKind::Directional { direction, .. } => {
+                    if axis != Vec3::ZERO {
+                        *direction = axis;
+                    }
+                }
+                LightKind::Area { .. } => {}
+            }
+        }
+        if !anim.meshes.is_empty() {
+            for m in &anim.meshes {
+                let world = anim.world(m.node, t);
+                let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
+                let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+                let range = self.objects[m.object].tris.clone();
+                for (local, out) in m.local.iter().zip(&mut self.triangles[range.start as usize..range.end as usize]) {
+                    let mut p = local.p.map(|q| world.transform_point3(q));
+                    let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
+                    let mut attrs = local.clone();
+                    let linear = glam::Mat3::from_mat4(world);
+                    attrs.tangent = local.tangent.map(|t| {
+                        t.map(|t| {
+                            let w = if flip { -t.w } else { t.w };
+                            (linear * t.truncate()).normalize_or_zero().extend(w)
+                        })
+                    });
+                    if flip {
+                        p.swap(1, 2);
+                        if let Some(n) = n.as_mut() {
+                            n.swap(1, 2);
+                        }
+                        attrs.swap_corners();
+                    }
+                    // A transform that flattens a triangle keeps its last good pose.
+                    if let Some(moved) = Triangle::new(p, local.material) {
+                        *out = Triangle { n, p: moved.p, ng: moved.ng, area: moved.area, ..attrs };
+                    }
+                }
+            }
+            // Area lights on moved meshes cover their new triangles.
+            let anim = &self.animation;
+            for l in &mut self.lights {
+                if let LightKind::Area { tris, .. } = &l.kind
+                    && !tris.is_empty()
+                    && anim.meshes.iter().any(|m| self.objects[m.object].tris.contains(&tris.start))
+                {
+                    let (range, t0) = (tris.clone(), tris.start);
+                    let material = &self.materials[self.triangles[t0 as usize].material as usize];
+                    *l = Light::area(l.name.clone(), range, &self.triangles, material);
+                }
+            }
+            // Rebuild (a few milliseconds for thousands of triangles) rather than refit,
+            // in the moved scene's own normalised coordinates; the radius reference
+            // (`bounds`) stays.
+            let bvh_bounds = bounds_of(&self.triangles);
+            let (bvh, bvh_tris) = build_bvh(&self.triangles, &bvh_bounds);
+            self.bvh = bvh;
+            self.bvh_tris = bvh_tris;
+            self.bvh_inv_scale = 1.0 / bvh_bounds.diagonal().max(f32::MIN_POSITIVE);
+            light::finish_lights(self);
+        }
+        let anim = &self.animation;
+        if let (Some(node), Some(cam)) = (anim.camera, self.camera.as_mut()) {
+            let world = anim.world(node, t);
+            let r = glam::Mat3::from_mat4(world);
+            let forward = (r * -Vec3::Z).normalize_or_zero();
+            let right = forward.cross((r * Vec3::Y).normalize_or_zero()).normalize_or_zero();
+            if right != Vec3::ZERO {
+                cam.position = world.transform_point3(Vec3::ZERO);
+                cam.forward = forward;
+                cam.right = right;
+                cam.up = right.cross(forward);
+            }
+        }
     }
 }

@@ -64,221 +64,19 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// a stage that loads the scene with the other.
 pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let start = std::time::Instant::now();
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
-    let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
     let content = |message: String| SceneError::Content { path: path.to_owned(), message };
-    // Parse, check the references gltf-json's validation indexes without a bounds check
-    // (it panics on a POSITION accessor index out of range; found by fuzzing), then
-    // validate.
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err)?;
-    let root = raw.document.into_json();
-    check_attribute_indices(&root).map_err(content)?;
-    let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
-    let base_dir = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
-    let doc = gltf.document;
-
-    let mut hasher = blake3::Hasher::new();
-    hasher.update(&bytes);
-    for b in &buffers {
-        hasher.update(&b.0);
-    }
-    hasher.update(format!("light units: {units}").as_bytes());
-    let content_hash = *hasher.finalize().as_bytes();
-
+    let (doc, buffers, content_hash) = read_document(path, units)?;
     let mut warnings = Vec::new();
     for ext in doc.extensions_used() {
         if !SUPPORTED_EXTENSIONS.contains(&ext) {
             warnings.push(format!("extension {ext} is not supported and is ignored"));
         }
     }
-
-    // Textures: decoded once per image, wrapping and colour space, only when a
-    // material reads them.
-    let mut texture_loader =
-        TextureLoader { base_dir, buffers: &buffers, textures: Vec::new(), cache: Default::default() };
-    // Per material, whether a texture reads TEXCOORD_1 (only then is it read).
-    let mut uv1_needed: Vec<bool> = Vec::new();
-    // Per material, the TEXCOORD_n set its normal texture reads (tangents are needed
-    // only then, generated from that set when the file has none).
-    let mut tangent_sets: Vec<Option<u8>> = Vec::new();
-    let mut materials = Vec::new();
-    for (i, m) in doc.materials().enumerate() {
-        let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
-        let pbr = m.pbr_metallic_roughness();
-        let bc = pbr.base_color_factor();
-        let mut base = Rgb::new(bc[0], bc[1], bc[2]);
-        if !base.is_finite() || base.min_element() < 0.0 || !(0.0..=1.0).contains(&bc[3]) {
-            return Err(content(format!("material '{name}': baseColorFactor {bc:?} is not a colour")));
-        }
-        if base.max_element() > 1.0 {
-            warnings.push(format!("material '{name}': albedo {base} above 1 clamped to 1"));
-            base = base.min(Rgb::ONE);
-        }
-        let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-        if !(0.0..=1.0).contains(&transmission) {
-            return Err(content(format!("material '{name}': transmissionFactor {transmission} is not in [0, 1]")));
-        }
-        if m.transmission().is_some_and(|t| t.transmission_texture().is_some()) {
-            warnings.push(format!("material '{name}': transmission texture ignored (transmissionFactor used)"));
-        }
-        let ior = m.ior().unwrap_or(1.5);
-        let (specular, specular_color) =
-            m.specular().map_or((1.0, Rgb::ONE), |s| (s.specular_factor(), Rgb::from(s.specular_color_factor())));
-        if !(0.0..=1.0).contains(&specular) || !specular_color.is_finite() || specular_color.min_element() < 0.0 {
-            return Err(content(format!(
-                "material '{name}': KHR_materials_specular factor {specular} or colour {specular_color} is not valid"
-            )));
-        }
-        if !(ior.is_finite() && ior >= 1.0) {
-            return Err(content(format!("material '{name}': ior {ior} must be >= 1")));
-        }
-        let factors = Pbr {
-            base,
-            metallic: pbr.metallic_factor().clamp(0.0, 1.0),
-            roughness: pbr.roughness_factor().clamp(0.0, 1.0),
-            transmission,
-            ior,
-            thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
-            specular,
-            specular_color,
-        };
-        let bsdf = Bsdf::from_pbr(&factors);
-        // Every texture a material reads, with its coordinate set and transform.
-        let mut uses_uv1 = false;
-        let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, SceneError> {
-            let Some((texture, tex_coord, transform)) = source else { return Ok(None) };
-            let (r, above) = texture_loader
-                .texture_ref(texture, tex_coord, transform, srgb)
-                .map_err(|e| content(format!("material '{name}': {what} texture: {e}")))?;
-            if above {
-                warnings.push(format!(
-                    "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
-                ));
-            }
-            uses_uv1 |= r.uv_set == 1;
-            Ok(Some(r))
-        };
-        let base_texture = texture(info(pbr.base_color_texture()), true, "base colour")?;
-        let metallic_roughness_texture = texture(info(pbr.metallic_roughness_texture()), false, "metallicRoughness")?;
-        let emissive_texture = texture(info(m.emissive_texture()), true, "emissive")?;
-        let specular_texture = texture(info(m.specular().and_then(|s| s.specular_texture())), false, "specular")?;
-        let specular_color_texture =
-            texture(info(m.specular().and_then(|s| s.specular_color_texture())), true, "specular colour")?;
-        let normal = m.normal_texture();
-        let normal_scale = normal.as_ref().map_or(1.0, |nt| nt.scale());
-        if !normal_scale.is_finite() {
-            return Err(content(format!("material '{name}': normal texture scale {normal_scale} is not finite")));
-        }
-        let normal_texture = texture(
-            normal.map(|nt| {
-                // KHR_texture_transform on a normal texture is only in its JSON.
-                let transform = nt.extension_value("KHR_texture_transform").map(|t| {
-                    let pair = |k: &str, d: f32| {
-                        let a = t.get(k).and_then(|v| v.as_array());
-                        let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
-                        [at(0), at(1)]
-                    };
-                    let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
-                    let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
-                    (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
-                });
-                (nt.texture(), nt.tex_coord(), transform)
-            }),
-            false,
-            "normal",
-        )?;
-        // What is not read, said once per material: material extensions the loader
-        // does not know (clearcoat, sheen, iridescence, ...), then textures.
-        if let Some(ext) = m.extensions() {
-            for k in ext.keys() {
-                warnings.push(format!("material '{name}': extension {k} ignored"));
-            }
-        }
-        if m.occlusion_texture().is_some() {
-            warnings.push(format!(
-                "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
-            ));
-        }
-        let alpha_mode = match m.alpha_mode() {
-            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
-            gltf::material::AlphaMode::Mask => {
-                let cutoff = m.alpha_cutoff().unwrap_or(0.5);
-                if !cutoff.is_finite() || cutoff < 0.0 {
-                    return Err(content(format!(
-                        "material '{name}': alphaCutoff {cutoff} is not a non-negative number"
-                    )));
-                }
-                AlphaMode::Mask { cutoff }
-            }
-            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
-        };
-        // KHR_materials_volume: attenuationColor is what is left after
-        // attenuationDistance, so sigma_a = -ln(colour) / distance (a colour of 0 is
-        // taken as 1e-6: opaque within a few distances).
-        let mut attenuation = Rgb::ZERO;
-        if let Some(v) = m.volume() {
-            let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
-            if !c.is_finite() || c.min_element() < 0.0 || !(d > 0.0) {
-                return Err(content(format!(
-                    "material '{name}': volume attenuation colour {c} or distance {d} is not valid"
-                )));
-            }
-            if factors.thin {
-                if d.is_finite() && c != Rgb::ONE {
-                    warnings.push(format!(
-                        "material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"
-                    ));
-                }
-            } else if d.is_finite() {
-                attenuation = -c.min(Rgb::ONE).max(Rgb::splat(1e-6)).ln() / d;
-            }
-        }
-        let ef = m.emissive_factor();
-        let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
-        if !pm_color::is_valid(emission) {
-            return Err(content(format!("material '{name}': emission {emission} is not a non-negative finite colour")));
-        }
-        uv1_needed.push(uses_uv1);
-        tangent_sets.push(normal_texture.map(|t| t.uv_set));
-        materials.push(Material {
-            name,
-            bsdf,
-            pbr: factors,
-            base_alpha: bc[3],
-            alpha_mode,
-            base_texture,
-            metallic_roughness_texture,
-            emissive_texture,
-            specular_texture,
-            specular_color_texture,
-            normal_texture,
-            normal_scale,
-            emission,
-            double_sided: m.double_sided(),
-            attenuation,
-        });
-    }
-    let textures = texture_loader.textures;
-    // glTF's default material (primitives without one): white-ish diffuse.
-    let default_material = materials.len() as u32;
-    let default_factors = Pbr::dielectric(Rgb::splat(0.8));
-    materials.push(Material {
-        pbr: default_factors,
-        ..Material::new("default", Bsdf::from_pbr(&default_factors), Rgb::ZERO)
-    });
-
+    let base_dir = path.parent().unwrap_or(Path::new("."));
+    let mats = Materials::read(&doc, base_dir, &buffers, &mut warnings).map_err(content)?;
     let mut animation = read_animations(&doc, &buffers).map_err(content)?;
     let scene =
         doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| content("the file has no scene".into()))?;
-    let mut triangles = Vec::new();
-    let mut lights = Vec::new();
-    let mut objects = Vec::new();
-    let mut camera = None;
-    let mut skipped_degenerate = 0usize;
-    // Each mesh primitive's decoded vertex data, by (mesh, primitive).
-    let mut decoded: std::collections::HashMap<(usize, usize), std::rc::Rc<LocalPrim>> = Default::default();
-    let mut warned_modes = BTreeSet::new();
     // Node transforms are composed in f64 and the scene is moved near its camera
     // before anything is cast to f32 (pbrt-v4's "camera-world" space, with the
     // camera's position snapped to a 1,024 m grid): a scene placed 1e5 m from the
@@ -291,160 +89,457 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         .map_or(DVec3::ZERO, |(_, w)| (w.transform_point3(DVec3::ZERO) / ORIGIN_GRID).round() * ORIGIN_GRID);
     animation.origin = origin;
     let to_camera_world = DMat4::from_translation(-origin);
+    let mut walk = NodeWalk::default();
     for (node, world64) in nodes {
         let world = (to_camera_world * world64).as_mat4();
         if !world.is_finite() {
             return Err(content(format!("node {}: transform is not finite", node.index())));
         }
         let node_name = node.name().map_or_else(|| format!("node #{}", node.index()), str::to_owned);
+        let (a, w) = (&mut animation, &mut warnings);
         if let Some(mesh) = node.mesh() {
-            let normal_m = Mat3::from_mat4(world).inverse().transpose();
-            for (pi, prim) in mesh.primitives().enumerate() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    if warned_modes.insert(format!("{:?}", prim.mode())) {
-                        warnings.push(format!(
-                            "primitives of mode {:?} are skipped (only triangles are rendered)",
-                            prim.mode()
-                        ));
-                    }
-                    continue;
-                }
-                let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
-                let first = triangles.len();
-                let material = prim.material().index().map_or(default_material, |i| i as u32);
-                let mat = PrimMaterial {
-                    read_uv1: uv1_needed.get(material as usize).copied().unwrap_or(false),
-                    tangent_set: tangent_sets.get(material as usize).copied().flatten(),
-                };
-                // Decoded once per primitive, however many nodes instance its mesh.
-                let local = match decoded.entry((mesh.index(), pi)) {
-                    std::collections::hash_map::Entry::Occupied(e) => std::rc::Rc::clone(e.get()),
-                    std::collections::hash_map::Entry::Vacant(e) => {
-                        let d = decode_primitive(&prim, &buffers, mat).map_err(|m| content(format!("{what}: {m}")))?;
-                        std::rc::Rc::clone(e.insert(std::rc::Rc::new(d)))
-                    }
-                };
-                let skipped = instance_primitive(&local, world, normal_m, material, &mut triangles)
-                    .map_err(|m| content(format!("{what}: {m}")))?;
-                skipped_degenerate += skipped;
-                if triangles.len() > first {
-                    let name = match mesh.name() {
-                        Some(m) if m != node_name => format!("{node_name} ({m})"),
-                        _ => node_name.clone(),
-                    };
-                    if animation.moves(node.index()) {
-                        // The same primitive in the node's own space, re-posed per frame.
-                        let mut rest = Vec::new();
-                        instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
-                            .map_err(|m| content(format!("{what}: {m}")))?;
-                        if rest.len() == triangles.len() - first {
-                            animation.meshes.push(AnimatedMesh {
-                                object: objects.len(),
-                                node: node.index(),
-                                local: rest,
-                            });
-                        } else {
-                            warnings.push(format!(
-                                "node '{node_name}': its triangles degenerate differently at rest; not animated"
-                            ));
-                        }
-                    }
-                    objects.push(Object { name, tris: first as u32..triangles.len() as u32, material });
-                }
-                let mat = &materials[material as usize];
-                if mat.emission.max_element() > 0.0 && triangles.len() > first {
-                    let name = format!("{node_name} ({})", mat.name);
-                    lights.push(Light::area(name, first as u32..triangles.len() as u32, &triangles, mat));
-                }
-            }
+            walk.mesh(&node, &node_name, mesh, world, &mats, &buffers, a, w).map_err(content)?;
         }
         if let Some(light) = node.light() {
-            let position = world.transform_point3(Vec3::ZERO);
-            let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
-            let c = light.color();
-            // Candela (lm/sr) or lux (lm/m^2) to W/sr or W/m^2 at 683 lm/W, or already
-            // radiometric.
-            let watts = match units {
-                LightUnits::Photometric => light.intensity() / LUMINOUS_EFFICACY,
-                LightUnits::Radiometric => light.intensity(),
-            };
-            let value = Rgb::new(c[0], c[1], c[2]) * watts;
-            if !pm_color::is_valid(value) {
-                return Err(content(format!(
-                    "light '{node_name}': intensity x colour {value} is not a non-negative finite colour"
-                )));
-            }
-            if light.range().is_some() {
-                warnings.push(format!("light '{node_name}': range is ignored (inverse-square falloff is physical)"));
-            }
-            let kind = match light.kind() {
-                gltf::khr_lights_punctual::Kind::Point => LightKind::Point { position, intensity: value },
-                gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
-                    if axis == Vec3::ZERO {
-                        return Err(content(format!("light '{node_name}': degenerate orientation")));
-                    }
-                    let outer = outer_cone_angle.clamp(1e-4, std::f32::consts::FRAC_PI_2);
-                    let inner = inner_cone_angle.clamp(0.0, outer);
-                    LightKind::Spot {
-                        position,
-                        direction: axis,
-                        intensity: value,
-                        cos_inner: inner.cos(),
-                        cos_outer: outer.cos(),
-                    }
-                }
-                gltf::khr_lights_punctual::Kind::Directional => {
-                    if axis == Vec3::ZERO {
-                        return Err(content(format!("light '{node_name}': degenerate orientation")));
-                    }
-                    LightKind::Directional { direction: axis, irradiance: value, center: Vec3::ZERO, radius: 0.0 }
-                }
-            };
-            if animation.moves(node.index()) {
-                animation.lights.push((lights.len(), node.index()));
-            }
-            lights.push(Light { name: node_name.clone(), kind, power: Rgb::ZERO });
+            walk.light(&node, &node_name, light, world, units, a, w).map_err(content)?;
         }
-        if camera.is_none()
+        if walk.camera.is_none()
             && let Some(cam) = node.camera()
         {
-            match cam.projection() {
-                gltf::camera::Projection::Perspective(p) => {
-                    let r = Mat3::from_mat4(world);
-                    let forward = (r * -Vec3::Z).normalize_or_zero();
-                    let up0 = (r * Vec3::Y).normalize_or_zero();
-                    let right = forward.cross(up0).normalize_or_zero();
-                    let up = right.cross(forward);
-                    let yfov = p.yfov();
-                    if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
-                        return Err(content(format!("camera on '{node_name}': degenerate orientation or yfov {yfov}")));
-                    }
-                    if animation.moves(node.index()) {
-                        animation.camera = Some(node.index());
-                    }
-                    camera = Some(Camera {
-                        position: world.transform_point3(Vec3::ZERO),
-                        forward,
-                        up,
-                        right,
-                        yfov,
-                        aspect: p.aspect_ratio(),
-                    });
-                }
-                gltf::camera::Projection::Orthographic(_) => {
-                    warnings.push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
-                }
-            }
+            walk.camera(&node, &node_name, cam, world, a, w).map_err(content)?;
         }
     }
-    if skipped_degenerate > 0 {
-        warnings.push(format!("{skipped_degenerate} zero-area triangles skipped"));
+    if walk.skipped_degenerate > 0 {
+        warnings.push(format!("{} zero-area triangles skipped", walk.skipped_degenerate));
     }
-    let mut scene = Scene::build(triangles, materials, textures, lights, objects, camera, content_hash, warnings);
+    let NodeWalk { triangles, lights, objects, camera, .. } = walk;
+    let mut scene =
+        Scene::build(triangles, mats.materials, mats.textures, lights, objects, camera, content_hash, warnings);
     scene.animation = animation;
     scene.origin = origin;
     scene.load_seconds = start.elapsed().as_secs_f64();
     Ok(scene)
+}
+
+/// Read and validate the document at `path` and its buffers; its content hash
+/// covers the file, every buffer and the light units.
+fn read_document(
+    path: &Path,
+    units: LightUnits,
+) -> Result<(gltf::Document, Vec<gltf::buffer::Data>, [u8; 32]), SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+    let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
+    let content = |message: String| SceneError::Content { path: path.to_owned(), message };
+    // Parse, check the references gltf-json's validation indexes without a bounds check
+    // (it panics on a POSITION accessor index out of range; found by fuzzing), then
+    // validate.
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err)?;
+    let root = raw.document.into_json();
+    check_attribute_indices(&root).map_err(content)?;
+    let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
+    let base_dir = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
+    let mut hasher = blake3::Hasher::new();
+    hasher.update(&bytes);
+    for b in &buffers {
+        hasher.update(&b.0);
+    }
+    hasher.update(format!("light units: {units}").as_bytes());
+    Ok((gltf.document, buffers, *hasher.finalize().as_bytes()))
+}
+
+/// One glTF material: its BSDF factors, the textures it reads (decoded by
+/// `loader`), alpha, volume attenuation and emission; with whether a texture reads
+/// TEXCOORD_1 and the set its normal texture reads. Errors name the material.
+fn read_material(
+    m: gltf::Material,
+    i: usize,
+    loader: &mut TextureLoader,
+    warnings: &mut Vec<String>,
+) -> Result<(Material, bool, Option<u8>), String> {
+    let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
+    let pbr = m.pbr_metallic_roughness();
+    let bc = pbr.base_color_factor();
+    let mut base = Rgb::new(bc[0], bc[1], bc[2]);
+    if !base.is_finite() || base.min_element() < 0.0 || !(0.0..=1.0).contains(&bc[3]) {
+        return Err(format!("material '{name}': baseColorFactor {bc:?} is not a colour"));
+    }
+    if base.max_element() > 1.0 {
+        warnings.push(format!("material '{name}': albedo {base} above 1 clamped to 1"));
+        base = base.min(Rgb::ONE);
+    }
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    if !(0.0..=1.0).contains(&transmission) {
+        return Err(format!("material '{name}': transmissionFactor {transmission} is not in [0, 1]"));
+    }
+    if m.transmission().is_some_and(|t| t.transmission_texture().is_some()) {
+        warnings.push(format!("material '{name}': transmission texture ignored (transmissionFactor used)"));
+    }
+    let ior = m.ior().unwrap_or(1.5);
+    let (specular, specular_color) =
+        m.specular().map_or((1.0, Rgb::ONE), |s| (s.specular_factor(), Rgb::from(s.specular_color_factor())));
+    if !(0.0..=1.0).contains(&specular) || !specular_color.is_finite() || specular_color.min_element() < 0.0 {
+        return Err(format!(
+            "material '{name}': KHR_materials_specular factor {specular} or colour {specular_color} is not valid"
+        ));
+    }
+    if !(ior.is_finite() && ior >= 1.0) {
+        return Err(format!("material '{name}': ior {ior} must be >= 1"));
+    }
+    let factors = Pbr {
+        base,
+        metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+        roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+        transmission,
+        ior,
+        thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+        specular,
+        specular_color,
+    };
+    let bsdf = Bsdf::from_pbr(&factors);
+    // Every texture a material reads, with its coordinate set and transform.
+    let mut uses_uv1 = false;
+    let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, String> {
+        let Some((texture, tex_coord, transform)) = source else { return Ok(None) };
+        let (r, above) = loader
+            .texture_ref(texture, tex_coord, transform, srgb)
+            .map_err(|e| format!("material '{name}': {what} texture: {e}"))?;
+        if above {
+            warnings.push(format!(
+                "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
+            ));
+        }
+        uses_uv1 |= r.uv_set == 1;
+        Ok(Some(r))
+    };
+    let base_texture = texture(info(pbr.base_color_texture()), true, "base colour")?;
+    let metallic_roughness_texture = texture(info(pbr.metallic_roughness_texture()), false, "metallicRoughness")?;
+    let emissive_texture = texture(info(m.emissive_texture()), true, "emissive")?;
+    let specular_texture = texture(info(m.specular().and_then(|s| s.specular_texture())), false, "specular")?;
+    let specular_color_texture =
+        texture(info(m.specular().and_then(|s| s.specular_color_texture())), true, "specular colour")?;
+    let normal = m.normal_texture();
+    let normal_scale = normal.as_ref().map_or(1.0, |nt| nt.scale());
+    if !normal_scale.is_finite() {
+        return Err(format!("material '{name}': normal texture scale {normal_scale} is not finite"));
+    }
+    let normal_texture = texture(
+        normal.map(|nt| {
+            // KHR_texture_transform on a normal texture is only in its JSON.
+            let transform = nt.extension_value("KHR_texture_transform").map(|t| {
+                let pair = |k: &str, d: f32| {
+                    let a = t.get(k).and_then(|v| v.as_array());
+                    let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
+                    [at(0), at(1)]
+                };
+                let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+                let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
+                (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
+            });
+            (nt.texture(), nt.tex_coord(), transform)
+        }),
+        false,
+        "normal",
+    )?;
+    // What is not read, said once per material: material extensions the loader
+    // does not know (clearcoat, sheen, iridescence, ...), then textures.
+    if let Some(ext) = m.extensions() {
+        for k in ext.keys() {
+            warnings.push(format!("material '{name}': extension {k} ignored"));
+        }
+    }
+    if m.occlusion_texture().is_some() {
+        warnings.push(format!(
+            "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
+        ));
+    }
+    let alpha_mode = match m.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+        gltf::material::AlphaMode::Mask => {
+            let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+            if !cutoff.is_finite() || cutoff < 0.0 {
+                return Err(format!("material '{name}': alphaCutoff {cutoff} is not a non-negative number"));
+            }
+            AlphaMode::Mask { cutoff }
+        }
+        gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+    };
+    // KHR_materials_volume: attenuationColor is what is left after
+    // attenuationDistance, so sigma_a = -ln(colour) / distance (a colour of 0 is
+    // taken as 1e-6: opaque within a few distances).
+    let mut attenuation = Rgb::ZERO;
+    if let Some(v) = m.volume() {
+        let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
+        if !c.is_finite() || c.min_element() < 0.0 || !(d > 0.0) {
+            return Err(format!("material '{name}': volume attenuation colour {c} or distance {d} is not valid"));
+        }
+        if factors.thin {
+            if d.is_finite() && c != Rgb::ONE {
+                warnings.push(format!(
+                    "material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"
+                ));
+            }
+        } else if d.is_finite() {
+            attenuation = -c.min(Rgb::ONE).max(Rgb::splat(1e-6)).ln() / d;
+        }
+    }
+    let ef = m.emissive_factor();
+    let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
+    if !pm_color::is_valid(emission) {
+        return Err(format!("material '{name}': emission {emission} is not a non-negative finite colour"));
+    }
+    let material = Material {
+        name,
+        bsdf,
+        pbr: factors,
+        base_alpha: bc[3],
+        alpha_mode,
+        base_texture,
+        metallic_roughness_texture,
+        emissive_texture,
+        specular_texture,
+        specular_color_texture,
+        normal_texture,
+        normal_scale,
+        emission,
+        double_sided: m.double_sided(),
+        attenuation,
+    };
+    Ok((material, uses_uv1, normal_texture.map(|t| t.uv_set)))
+}
+
+/// What the walk over the scene's nodes collects: triangles in world (camera-world)
+/// space, lights, objects and the first perspective camera.
+#[derive(Default)]
+struct NodeWalk {
+    triangles: Vec<Triangle>,
+    lights: Vec<Light>,
+    objects: Vec<Object>,
+    camera: Option<Camera>,
+    skipped_degenerate: usize,
+    /// Each mesh primitive's decoded vertex data, by (mesh, primitive).
+    decoded: std::collections::HashMap<(usize, usize), std::rc::Rc<LocalPrim>>,
+    /// Primitive modes already warned about.
+    warned_modes: BTreeSet<String>,
+}
+
+/// The materials of a file with what decoding their meshes needs to know.
+struct Materials {
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
+    /// Per material, whether a texture reads TEXCOORD_1 (only then is it read).
+    uv1_needed: Vec<bool>,
+    /// Per material, the TEXCOORD_n set its normal texture reads (tangents are
+    /// needed only then, generated from that set when the file has none).
+    tangent_sets: Vec<Option<u8>>,
+    /// glTF's default material (primitives without one), the last.
+    default: u32,
+}
+
+impl Materials {
+    /// Every material of `doc`, textures decoded once per image, wrapping and
+    /// colour space, only when a material reads them; then the default material.
+    fn read(
+        doc: &gltf::Document,
+        base_dir: &Path,
+        buffers: &[gltf::buffer::Data],
+        warnings: &mut Vec<String>,
+    ) -> Result<Materials, String> {
+        let mut loader = TextureLoader { base_dir, buffers, textures: Vec::new(), cache: Default::default() };
+        let (mut materials, mut uv1_needed, mut tangent_sets) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, m) in doc.materials().enumerate() {
+            let (material, uses_uv1, tangent_set) = read_material(m, i, &mut loader, warnings)?;
+            uv1_needed.push(uses_uv1);
+            tangent_sets.push(tangent_set);
+            materials.push(material);
+        }
+        // glTF's default material (primitives without one): white-ish diffuse.
+        let default = materials.len() as u32;
+        let default_factors = Pbr::dielectric(Rgb::splat(0.8));
+        materials.push(Material {
+            pbr: default_factors,
+            ..Material::new("default", Bsdf::from_pbr(&default_factors), Rgb::ZERO)
+        });
+        Ok(Materials { materials, textures: loader.textures, uv1_needed, tangent_sets, default })
+    }
+}
+
+impl NodeWalk {
+    /// The triangles of `mesh` (on `node`, placed by `world`), its objects, and an
+    /// area light per emissive primitive; animated nodes' meshes are kept at rest
+    /// for re-posing.
+    #[allow(clippy::too_many_arguments)]
+    fn mesh(
+        &mut self,
+        node: &gltf::Node,
+        node_name: &str,
+        mesh: gltf::Mesh,
+        world: Mat4,
+        mats: &Materials,
+        buffers: &[gltf::buffer::Data],
+        animation: &mut Animation,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), String> {
+        let normal_m = Mat3::from_mat4(world).inverse().transpose();
+        for (pi, prim) in mesh.primitives().enumerate() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                if self.warned_modes.insert(format!("{:?}", prim.mode())) {
+                    warnings.push(format!(
+                        "primitives of mode {:?} are skipped (only triangles are rendered)",
+                        prim.mode()
+                    ));
+                }
+                continue;
+            }
+            let what = format!("mesh '{}' primitive {pi}", mesh.name().unwrap_or("unnamed"));
+            let first = self.triangles.len();
+            let material = prim.material().index().map_or(mats.default, |i| i as u32);
+            let mat = PrimMaterial {
+                read_uv1: mats.uv1_needed.get(material as usize).copied().unwrap_or(false),
+                tangent_set: mats.tangent_sets.get(material as usize).copied().flatten(),
+            };
+            // Decoded once per primitive, however many nodes instance its mesh.
+            let local = match self.decoded.entry((mesh.index(), pi)) {
+                std::collections::hash_map::Entry::Occupied(e) => std::rc::Rc::clone(e.get()),
+                std::collections::hash_map::Entry::Vacant(e) => {
+                    let d = decode_primitive(&prim, buffers, mat).map_err(|m| format!("{what}: {m}"))?;
+                    std::rc::Rc::clone(e.insert(std::rc::Rc::new(d)))
+                }
+            };
+            let skipped = instance_primitive(&local, world, normal_m, material, &mut self.triangles)
+                .map_err(|m| format!("{what}: {m}"))?;
+            self.skipped_degenerate += skipped;
+            if self.triangles.len() > first {
+                let name = match mesh.name() {
+                    Some(m) if m != node_name => format!("{node_name} ({m})"),
+                    _ => node_name.to_string(),
+                };
+                if animation.moves(node.index()) {
+                    // The same primitive in the node's own space, re-posed per frame.
+                    let mut rest = Vec::new();
+                    instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
+                        .map_err(|m| format!("{what}: {m}"))?;
+                    if rest.len() == self.triangles.len() - first {
+                        animation.meshes.push(AnimatedMesh {
+                            object: self.objects.len(),
+                            node: node.index(),
+                            local: rest,
+                        });
+                    } else {
+                        warnings.push(format!(
+                            "node '{node_name}': its triangles degenerate differently at rest; not animated"
+                        ));
+                    }
+                }
+                self.objects.push(Object { name, tris: first as u32..self.triangles.len() as u32, material });
+            }
+            let mat = &mats.materials[material as usize];
+            if mat.emission.max_element() > 0.0 && self.triangles.len() > first {
+                let name = format!("{node_name} ({})", mat.name);
+                self.lights.push(Light::area(name, first as u32..self.triangles.len() as u32, &self.triangles, mat));
+            }
+        }
+        Ok(())
+    }
+
+    /// A `KHR_lights_punctual` light on `node` (placed by `world`), its intensity
+    /// read in `units`.
+    #[allow(clippy::too_many_arguments)]
+    fn light(
+        &mut self,
+        node: &gltf::Node,
+        node_name: &str,
+        light: gltf::khr_lights_punctual::Light,
+        world: Mat4,
+        units: LightUnits,
+        animation: &mut Animation,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), String> {
+        let position = world.transform_point3(Vec3::ZERO);
+        let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+        let c = light.color();
+        // Candela (lm/sr) or lux (lm/m^2) to W/sr or W/m^2 at 683 lm/W, or already
+        // radiometric.
+        let watts = match units {
+            LightUnits::Photometric => light.intensity() / LUMINOUS_EFFICACY,
+            LightUnits::Radiometric => light.intensity(),
+        };
+        let value = Rgb::new(c[0], c[1], c[2]) * watts;
+        if !pm_color::is_valid(value) {
+            return Err(format!("light '{node_name}': intensity x colour {value} is not a non-negative finite colour"));
+        }
+        if light.range().is_some() {
+            warnings.push(format!("light '{node_name}': range is ignored (inverse-square falloff is physical)"));
+        }
+        let kind = match light.kind() {
+            gltf::khr_lights_punctual::Kind::Point => LightKind::Point { position, intensity: value },
+            gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                if axis == Vec3::ZERO {
+                    return Err(format!("light '{node_name}': degenerate orientation"));
+                }
+                let outer = outer_cone_angle.clamp(1e-4, std::f32::consts::FRAC_PI_2);
+                let inner = inner_cone_angle.clamp(0.0, outer);
+                LightKind::Spot {
+                    position,
+                    direction: axis,
+                    intensity: value,
+                    cos_inner: inner.cos(),
+                    cos_outer: outer.cos(),
+                }
+            }
+            gltf::khr_lights_punctual::Kind::Directional => {
+                if axis == Vec3::ZERO {
+                    return Err(format!("light '{node_name}': degenerate orientation"));
+                }
+                LightKind::Directional { direction: axis, irradiance: value, center: Vec3::ZERO, radius: 0.0 }
+            }
+        };
+        if animation.moves(node.index()) {
+            animation.lights.push((self.lights.len(), node.index()));
+        }
+        self.lights.push(Light { name: node_name.to_string(), kind, power: Rgb::ZERO });
+        Ok(())
+    }
+
+    /// The camera on `node` (placed by `world`), if it is perspective.
+    fn camera(
+        &mut self,
+        node: &gltf::Node,
+        node_name: &str,
+        cam: gltf::Camera,
+        world: Mat4,
+        animation: &mut Animation,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), String> {
+        match cam.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                let r = Mat3::from_mat4(world);
+                let forward = (r * -Vec3::Z).normalize_or_zero();
+                let up0 = (r * Vec3::Y).normalize_or_zero();
+                let right = forward.cross(up0).normalize_or_zero();
+                let up = right.cross(forward);
+                let yfov = p.yfov();
+                if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                    return Err(format!("camera on '{node_name}': degenerate orientation or yfov {yfov}"));
+                }
+                if animation.moves(node.index()) {
+                    animation.camera = Some(node.index());
+                }
+                self.camera = Some(Camera {
+                    position: world.transform_point3(Vec3::ZERO),
+                    forward,
+                    up,
+                    right,
+                    yfov,
+                    aspect: p.aspect_ratio(),
+                });
+            }
+            gltf::camera::Projection::Orthographic(_) => {
+                warnings.push(format!("camera on '{node_name}': orthographic cameras are not supported; skipped"));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Spacing [m] of the grid the scene's origin (its camera's position) is snapped to.

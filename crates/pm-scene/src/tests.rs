@@ -1,4 +1,5 @@
 use super::*;
+use pm_bsdf::Bsdf;
 use std::path::PathBuf;
 
 fn scene_path(name: &str) -> PathBuf {

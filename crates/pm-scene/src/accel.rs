@@ -1,0 +1,156 @@
+//! Ray queries: the BVH over the triangles (obvhs builds it, `bvh4` traverses it),
+//! closest hit, shadow-ray occlusion, hit records and ray-origin offsets.
+
+use crate::geometry::{self, TriangleRay, facing, offset_ray_origin};
+use crate::{Bounds, Hit, Scene, Triangle, bvh4};
+use glam::{Vec2, Vec3};
+
+/// A triangle's bounding box in the BVH's normalised coordinates, padded.
+struct PaddedBox(obvhs::aabb::Aabb);
+
+impl obvhs::Boundable for PaddedBox {
+    fn aabb(&self) -> obvhs::aabb::Aabb {
+        self.0
+    }
+}
+
+/// The triangles in the BVH's slot order, four slots to a [`geometry::Tri4`] (a
+/// leaf starts at a multiple of four), and the triangle id of each slot.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BvhTris {
+    tri4: Vec<geometry::Tri4>,
+    id: Vec<u32>,
+}
+
+impl BvhTris {
+    /// The groups of four that slots `first..first + count` span, with the number
+    /// of the range's slots in each, and the first slot of each.
+    #[inline]
+    fn groups(&self, first: u32, count: u32) -> impl Iterator<Item = (&geometry::Tri4, usize, u32)> {
+        let end = first + count;
+        (first / 4..end.div_ceil(4)).map(move |g| (&self.tri4[g as usize], (end - 4 * g).min(4) as usize, 4 * g))
+    }
+}
+
+/// The BVH over `triangles` (whose bounds are `bounds`), and the triangles in its
+/// slot order.
+pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, BvhTris) {
+    if triangles.is_empty() {
+        return (bvh4::Bvh4::default(), BvhTris::default());
+    }
+    // obvhs builds the tree (PLOC, reinsertion) over boxes in the normalised
+    // coordinates (p - centre) / diagonal, where its build behaves the same at every
+    // scale; the four-wide nodes then get boxes recomputed in world coordinates.
+    // Each triangle's box is padded by 2e-7 of the scene's size, in both: with exact
+    // boxes, obvhs's slab tests missed rays that pass exactly through an edge lying
+    // on a node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
+    // midpoints slipped through; tests/tests/hard_cases.rs).
+    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
+    let (c, inv) = (bounds.center(), 1.0 / diag);
+    let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
+    let boxes: Vec<PaddedBox> = triangles
+        .iter()
+        .map(|t| {
+            let (a, b, c) = (norm(t.p[0]), norm(t.p[1]), norm(t.p[2]));
+            let pad = glam::Vec3A::splat(2e-7);
+            PaddedBox(obvhs::aabb::Aabb::new(a.min(b).min(c) - pad, a.max(b).max(c) + pad))
+        })
+        .collect();
+    // Our own four-wide traversal, not obvhs's compressed wide BVH (CWBVH): its 8-bit
+    // quantised child boxes lost rays that start a few hundredths of a millimetre
+    // from a surface and hit it at once (13 of 200,000 gather rays from the walls of
+    // cornell_spheres, born near the floor, went through it; tests.rs).
+    let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
+    let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
+    let bvh = bvh4::Bvh4::new(&bvh2, triangles, 2e-7 * diag);
+    let id = bvh.slots().to_vec();
+    let tri4 = id
+        .chunks(4)
+        .map(|c| {
+            let mut p = [[Vec3::ZERO; 3]; 4];
+            for (q, &i) in p.iter_mut().zip(c) {
+                *q = triangles[i as usize].p;
+            }
+            geometry::Tri4::new(&p[..c.len()])
+        })
+        .collect();
+    (bvh, BvhTris { tri4, id })
+}
+
+impl Scene {
+    /// [`offset_ray_origin`] at this scene's scale: where a ray leaving surface point
+    /// `p` (geometric normal `ng`) toward `w` starts.
+    #[inline]
+    pub fn offset_origin(&self, p: Vec3, ng: Vec3, w: Vec3) -> Vec3 {
+        offset_ray_origin(p, ng, w, 1.0 / self.bvh_inv_scale)
+    }
+
+    /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
+    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+        let mut best_b = [0.0; 3];
+        let tri_ray = TriangleRay::new(o, d);
+        let tris = &self.bvh_tris;
+        let (slot, t) = self.bvh.closest(o, d, t_max, |first, count, t_max| {
+            let mut best = None;
+            let mut t_best = t_max;
+            for (group, lanes, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, lanes, t_best, |lane, t, b| {
+                    let s = slot0 + lane as u32;
+                    if !self.any_alpha || self.present(tris.id[s as usize], b) {
+                        (t_best, best_b, best) = (t, b, Some((s, t)));
+                    }
+                    t_best
+                });
+            }
+            best
+        })?;
+        Some(self.make_hit(tris.id[slot as usize], t, best_b))
+    }
+
+    /// True when something blocks the segment from `o` along unit `d` before `t_max`.
+    pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
+        let tri_ray = TriangleRay::new(o, d);
+        let tris = &self.bvh_tris;
+        self.bvh.any(o, d, t_max, |first, count, t_max| {
+            let mut blocked = false;
+            for (group, lanes, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, lanes, t_max, |lane, _, b| {
+                    blocked |= !self.any_alpha || self.present(tris.id[slot0 as usize + lane], b);
+                    if blocked { 0.0 } else { t_max }
+                });
+                if blocked {
+                    return true;
+                }
+            }
+            false
+        })
+    }
+
+    /// The hit record of triangle `tri` at barycentrics `b`, t along the ray. The
+    /// shading normal is the interpolated vertex normal, perturbed by the material's
+    /// normal texture in the tangent frame (glTF 2.0 section 3.9.3: bitangent = w
+    /// cross(n, t)), and turned to the geometric normal's side.
+    pub fn make_hit(&self, tri: u32, t: f32, b: [f32; 3]) -> Hit {
+        let tr = &self.triangles[tri as usize];
+        let (p, ns) = tr.point_normal(b);
+        let ng = tr.ng;
+        let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
+        let uv = tr.uv.as_ref().map_or(Vec2::ZERO, lerp);
+        let uv1 = tr.uv1.as_ref().map_or(Vec2::ZERO, lerp);
+        let color = tr.color.map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
+        let mut hit = Hit { t, tri, b, p, ng, ns, uv, uv1, color };
+        let m = &self.materials[tr.material as usize];
+        if let (Some(nt), Some(tg)) = (&m.normal_texture, &tr.tangent) {
+            let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
+            let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
+            if tangent != Vec3::ZERO {
+                let bitangent = ns.cross(tangent) * if tg[0].w < 0.0 { -1.0 } else { 1.0 };
+                let c = self.lookup(nt, &hit);
+                let v = (c.truncate() * 2.0 - Vec3::ONE) * Vec3::new(m.normal_scale, m.normal_scale, 1.0);
+                hit.ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
+            }
+        }
+        hit.ns = facing(hit.ns, ng);
+        hit
+    }
+}
