@@ -1,5 +1,5 @@
 //! Cross-stage and analytic-scene tests of the photon-mapping pipeline. The tests
-//! live in `tests/tests/`; this library holds the helpers they share.
+//! live in `tests/tests/suite/`; this library holds the helpers they share.
 
 use pm_format::{CompactIrrPhoton, FullPhoton, PhotonRecord};
 use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
@@ -16,23 +16,27 @@ pub fn scene_path(name: &str) -> PathBuf {
 /// scene `scene` from `scenes/`, `effects` (a TOML value), 24 x 24 pixels, `spp`,
 /// 20,000 global and 2,000 caustic photons, 32 gather rays.
 pub fn small_pipeline(dir: &std::path::Path, scene: &str, effects: &str, spp: u32, name: &str) -> PathBuf {
+    #[derive(serde::Deserialize)]
+    struct Effects {
+        effects: pm_pipeline::EffectsCfg,
+    }
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let text = std::fs::read_to_string(root.join("pipeline.toml"))
-        .unwrap()
-        .replace(
-            "scene = \"scenes/cornell_spheres.gltf\"",
-            &format!("scene = {:?}", root.join("scenes").join(scene).display().to_string()),
-        )
-        .replace("effects = \"auto\"", &format!("effects = {effects}"))
-        .replace("global_photons = 400_000", "global_photons = 20_000")
-        .replace("caustic_photons = 35_000", "caustic_photons = 2_000")
-        .replace("width = 1024", "width = 24")
-        .replace("height = 1024", "height = 24")
-        .replace("spp = 16", &format!("spp = {spp}"))
-        .replace("gather_rays = 400", "gather_rays = 32");
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, text).unwrap();
-    p
+    let mut p = pm_pipeline::Pipeline::load(&root.join("pipeline.toml")).unwrap();
+    p.scene = root.join("scenes").join(scene);
+    p.effects = toml::from_str::<Effects>(&format!("effects = {effects}")).unwrap().effects;
+    p.trace.global_photons = 20_000;
+    p.trace.caustic_photons = 2_000;
+    (p.render.width, p.render.height, p.render.spp, p.render.gather_rays) = (24, 24, spp, 32);
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, p.to_toml()).unwrap();
+    path
+}
+
+/// Change the pipeline file at `path` by field: read it, apply `edit`, write it back.
+pub fn edit_pipeline(path: &std::path::Path, edit: impl FnOnce(&mut pm_pipeline::Pipeline)) {
+    let mut p = pm_pipeline::Pipeline::load(path).unwrap();
+    edit(&mut p);
+    std::fs::write(path, p.to_toml()).unwrap();
 }
 
 /// The folder of the binaries the workspace test build made (this test's

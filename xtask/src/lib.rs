@@ -6,6 +6,7 @@
 pub mod assemble;
 pub mod exec;
 pub mod gen_scenes;
+pub mod gltf;
 pub mod plan;
 pub mod plot;
 pub mod run;

@@ -1,7 +1,6 @@
 use super::*;
 use glam::Vec3;
 use pm_color::Rgb;
-use proptest::prelude::*;
 use std::path::PathBuf;
 
 fn photons(n: usize) -> Vec<Photon> {
@@ -189,62 +188,6 @@ fn layouts_convert_through_the_decoded_photon() {
     assert_eq!(compact.records.len(), 50);
     let same: PhotonMap<FullIrrPhoton> = into_layout(AnyMap::FullIrr(map.clone()));
     assert_eq!(bytemuck::cast_slice::<_, u8>(&same.records), bytemuck::cast_slice::<_, u8>(&map.records));
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
-
-    /// Fuzz: any mutation of a valid file (byte flips, truncation, extension) is
-    /// either read as a valid map or rejected with one line naming the file; never a panic.
-    #[test]
-    fn reader_never_panics_on_mutated_files(
-        flips in proptest::collection::vec((0usize..4000, any::<u8>()), 0..6),
-        cut in proptest::option::of(0usize..4000),
-        extra in proptest::collection::vec(any::<u8>(), 0..40),
-        layout in 0u8..4,
-    ) {
-        let dir = tempfile::tempdir().unwrap();
-        let (path, _) = match layout {
-            0 => { let (p, m) = write_map::<CompactPhoton>(dir.path(), "m.pmap", 60); (p, m.header) }
-            1 => { let (p, m) = write_map::<CompactIrrPhoton>(dir.path(), "m.pmap", 60); (p, m.header) }
-            2 => { let (p, m) = write_map::<FullPhoton>(dir.path(), "m.pmap", 60); (p, m.header) }
-            _ => { let (p, m) = write_map::<FullIrrPhoton>(dir.path(), "m.pmap", 60); (p, m.header) }
-        };
-        let mut bytes = std::fs::read(&path).unwrap();
-        for (at, v) in flips {
-            if at < bytes.len() { bytes[at] ^= v; }
-        }
-        if let Some(c) = cut { bytes.truncate(c); }
-        bytes.extend_from_slice(&extra);
-        std::fs::write(&path, &bytes).unwrap();
-        match read(&path, &ReadExpect::default()) {
-            Ok(map) => {
-                for p in map.decode_all() {
-                    prop_assert!(p.position.is_finite() && pm_color::is_valid(p.power));
-                }
-            }
-            Err(e) => {
-                let s = e.to_string();
-                prop_assert!(s.starts_with(&path.display().to_string()) && !s.contains('\n'), "{}", s);
-            }
-        }
-    }
-
-    /// Fuzz: arbitrary bytes.
-    #[test]
-    fn reader_never_panics_on_random_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..600), magic in any::<bool>()) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("r.pmap");
-        let mut bytes = bytes;
-        if magic && bytes.len() >= 16 {
-            bytes[..8].copy_from_slice(&header::MAGIC);
-            bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
-        }
-        std::fs::write(&path, &bytes).unwrap();
-        if let Err(e) = read(&path, &ReadExpect::default()) {
-            prop_assert!(!e.to_string().contains('\n'));
-        }
-    }
 }
 
 fn cache_file(n: usize) -> crate::CacheFile {

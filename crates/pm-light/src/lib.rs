@@ -25,3 +25,6 @@ pub use direct::{CLOSED_FORM_LIGHTS, DirectLighting, power_heuristic};
 pub use effects::{Decision, Effects, analyze};
 pub use select::{LightSelectError, LightSelector};
 pub use shadow::{LitPoint, ShadowMaps};
+
+#[cfg(test)]
+mod tests;

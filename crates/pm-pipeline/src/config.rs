@@ -5,7 +5,7 @@ use pm_estimate::IrradianceParams;
 use pm_params::Naming;
 use pm_photon::TraceParams;
 use pm_render::RenderParams;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -34,8 +34,9 @@ impl Quality {
 }
 
 /// pipeline.toml, typed: each stage's section is that stage's parameter type (the
-/// one definition its command line also uses). Unknown keys are errors.
-#[derive(Deserialize, Debug, Clone)]
+/// one definition its command line also uses). Unknown keys are errors. It writes
+/// back as a pipeline file (tests and studies derive files from it by field).
+#[derive(Deserialize, Serialize, Debug, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct Pipeline {
     /// The scene, relative to the pipeline file.
@@ -65,17 +66,17 @@ pub struct Pipeline {
     pub render: RenderParams,
     /// The scene `cargo xtask live` renders, relative to the pipeline file
     /// (default: `scene`).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live_scene: Option<PathBuf>,
     /// The real-time mode (`photon-live`, `cargo xtask live`).
     #[serde(default)]
     pub live: photon_live::LiveParams,
     /// The trace, irradiance and render settings picked from the measured
     /// accuracy/time front ([`crate::quality`]).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub quality: Option<Quality>,
     /// Or a time budget \[s\] for the whole pipeline at the file's image size.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_budget_s: Option<f64>,
     /// What quality or time_budget_s chose (not a key of the file).
     #[serde(skip)]
@@ -83,7 +84,7 @@ pub struct Pipeline {
 }
 
 /// `effects = "auto"` or a list of forced effects.
-#[derive(Deserialize, Debug, Clone)]
+#[derive(Deserialize, Serialize, Debug, Clone)]
 #[serde(untagged)]
 pub enum EffectsCfg {
     /// The scene analysis decides.
@@ -93,7 +94,7 @@ pub enum EffectsCfg {
 }
 
 /// The word `auto`.
-#[derive(Deserialize, Debug, Clone)]
+#[derive(Deserialize, Serialize, Debug, Clone)]
 #[serde(rename_all = "lowercase")]
 pub enum AutoWord {
     /// `"auto"`.
@@ -101,7 +102,7 @@ pub enum AutoWord {
 }
 
 /// An effect that can be forced on.
-#[derive(Deserialize, Debug, Clone, PartialEq, Eq)]
+#[derive(Deserialize, Serialize, Debug, Clone, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum EffectName {
     /// The caustic map.
@@ -180,6 +181,11 @@ impl Pipeline {
         pipeline.parent().unwrap_or(Path::new(".")).join(self.live_scene.as_ref().unwrap_or(&self.scene))
     }
 
+    /// The settings as a pipeline file (what [`Self::load`] reads back equal).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a pipeline serialises")
+    }
+
     /// photon-live's arguments for `frames` frames of `scene` into `out` with the
     /// `[live]` settings, the seed and the light units (all but `--frame-task`).
     pub fn live_args(&self, scene: &Path, out: &Path, frames: u32) -> Vec<String> {
@@ -242,5 +248,19 @@ mod tests {
         let e = p.set("render", "gather_rays", toml::Value::String("many".into())).unwrap_err().to_string();
         assert!(e.contains("many") || e.contains("integer"), "{e}");
         assert!(p.set("scene", "x", toml::Value::Integer(1)).is_err());
+    }
+
+    /// The repository's pipeline.toml written back and read again gives the same
+    /// settings (the tests derive their small pipelines this way).
+    #[test]
+    fn a_pipeline_writes_back_as_the_file_it_was_read_from() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let p = Pipeline::load(&root.join("pipeline.toml")).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let copy = dir.path().join("pipeline.toml");
+        std::fs::write(&copy, p.to_toml()).unwrap();
+        let q = Pipeline::load(&copy).unwrap();
+        assert_eq!(q.to_toml(), p.to_toml());
+        assert_eq!((q.render, q.live, q.trace, q.irradiance), (p.render, p.live, p.trace, p.irradiance));
     }
 }

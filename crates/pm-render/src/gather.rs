@@ -80,7 +80,7 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                 // A photon more than a hair away must be visible from the query point:
                 // otherwise, near a thin wall, a room with no photons of its own would
                 // borrow the irradiance of the room next door (a coplanar floor passes
-                // the normal test). Measured in tests/tests/hard_scenes.rs.
+                // the normal test). Measured in tests/tests/suite/hard_scenes.rs.
                 let near = 1e-3 * ctx.scene.bounds.diagonal();
                 // The nearest similar photon is tested first, then the next; after
                 // VISIBILITY_TESTS hidden ones the lookup misses, as when no candidate

@@ -44,7 +44,7 @@ pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4,
     // Each triangle's box is padded by 2e-7 of the scene's size, in both: with exact
     // boxes, obvhs's slab tests missed rays that pass exactly through an edge lying
     // on a node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
-    // midpoints slipped through; tests/tests/hard_cases.rs).
+    // midpoints slipped through; tests/tests/suite/hard_cases.rs).
     let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
     let (c, inv) = (bounds.center(), 1.0 / diag);
     let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };

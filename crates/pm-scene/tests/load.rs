@@ -206,7 +206,7 @@ fn photometric_intensities_are_divided_by_683() {
 
 /// A scene whose lamp is written in candela (plane_point: 6830 cd) and the same scene
 /// written in W/sr (10) and read radiometrically have the same lights exactly: the
-/// analytic direct light of tests/tests/effects.rs (rho/pi x 10 W/sr cos / d^2, through
+/// analytic direct light of tests/tests/suite/effects.rs (rho/pi x 10 W/sr cos / d^2, through
 /// the whole pipeline) holds for the photometric file.
 #[test]
 fn candela_and_watts_per_steradian_files_agree() {

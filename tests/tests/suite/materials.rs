@@ -23,76 +23,31 @@ struct Doc {
 }
 
 impl Doc {
+    /// Write `dir/NAME.gltf` (with its .bin and PNGs) through the scene generator's
+    /// glTF writer: textures sampled nearest, quads without vertex normals.
     fn write(&self, dir: &Path, name: &str) -> PathBuf {
-        let mut bin: Vec<u8> = Vec::new();
-        let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
-        let mut push = |bin: &mut Vec<u8>, bytes: Vec<u8>, count: usize, ty: &str, ct: u32, minmax: Option<Value>| {
-            while !bin.len().is_multiple_of(4) {
-                bin.push(0);
-            }
-            views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
-            bin.extend(bytes);
-            let mut a = json!({"bufferView": views.len() - 1, "componentType": ct, "count": count, "type": ty});
-            if let Some(Value::Array(mm)) = minmax {
-                a["min"] = mm[0].clone();
-                a["max"] = mm[1].clone();
-            }
-            accessors.push(a);
-            accessors.len() - 1
-        };
-        let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let mut g = xtask::gltf::Doc::default();
+        for m in &self.materials {
+            g.material(m.clone());
+        }
+        for (w, h, px) in &self.images {
+            g.texture_filtered(*w, *h, px.clone(), [10497, 10497], 9728);
+        }
         for (i, (p, material, colors)) in self.quads.iter().enumerate() {
-            let pos: Vec<f32> = p.iter().flat_map(|v| v.to_array()).collect();
-            let lo = p.iter().fold(Vec3::splat(f32::INFINITY), |a, &b| a.min(b));
-            let hi = p.iter().fold(Vec3::splat(f32::NEG_INFINITY), |a, &b| a.max(b));
-            let pa = push(&mut bin, f32s(&pos), 4, "VEC3", 5126, Some(json!([lo.to_array(), hi.to_array()])));
-            let uv = push(&mut bin, f32s(&[0., 0., 1., 0., 1., 1., 0., 1.]), 4, "VEC2", 5126, None);
-            let idx: Vec<u8> = [0u16, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()).collect();
-            let ia = push(&mut bin, idx, 6, "SCALAR", 5123, None);
-            let mut attributes = json!({"POSITION": pa, "TEXCOORD_0": uv});
-            if let Some(c) = colors {
-                let c: Vec<f32> = c.iter().flat_map(|v| v.to_array()).collect();
-                attributes["COLOR_0"] = push(&mut bin, f32s(&c), 4, "VEC4", 5126, None).into();
-            }
-            meshes.push(json!({"name": format!("quad{i}"), "primitives": [
-                {"attributes": attributes, "indices": ia, "material": material}]}));
-            nodes.push(json!({"name": format!("quad{i}"), "mesh": i}));
-        }
-        let mut images = vec![];
-        for (k, (w, h, px)) in self.images.iter().enumerate() {
-            let file = format!("{name}_{k}.png");
-            let mut out = Vec::new();
-            let mut enc = png::Encoder::new(&mut out, *w, *h);
-            enc.set_color(png::ColorType::Rgba);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut wr = enc.write_header().unwrap();
-            wr.write_image_data(&px.concat()).unwrap();
-            wr.finish().unwrap();
-            std::fs::write(dir.join(&file), out).unwrap();
-            images.push(json!({"uri": file}));
-        }
-        std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
-        let mut g = json!({
-            "asset": {"version": "2.0"},
-            "scene": 0,
-            "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
-            "nodes": nodes, "meshes": meshes, "materials": self.materials,
-            "buffers": [{"uri": format!("{name}.bin"), "byteLength": bin.len()}],
-            "bufferViews": views, "accessors": accessors,
-        });
-        if !images.is_empty() {
-            g["samplers"] = json!([{"magFilter": 9728, "minFilter": 9728}]);
-            g["textures"] = (0..images.len()).map(|i| json!({"sampler": 0, "source": i})).collect();
-            g["images"] = images.into();
+            let mesh =
+                xtask::gltf::Mesh { p: p.map(|v| v.to_array()).to_vec(), n: vec![], idx: vec![0, 1, 2, 0, 2, 3] };
+            let attrs = xtask::gltf::Attrs {
+                uv: vec![[0., 0.], [1., 0.], [1., 1.], [0., 1.]],
+                color: colors.map_or(vec![], |c| c.map(|v| v.to_array()).to_vec()),
+                ..Default::default()
+            };
+            g.mesh_node_attrs(&format!("quad{i}"), &mesh, &attrs, *material);
         }
         if let Value::Object(extra) = &self.extra {
-            for (k, v) in extra {
-                g[k] = v.clone();
-            }
+            g.top_level = extra.clone();
         }
-        let path = dir.join(format!("{name}.gltf"));
-        std::fs::write(&path, g.to_string()).unwrap();
-        path
+        g.write(dir, name, false).unwrap();
+        dir.join(format!("{name}.gltf"))
     }
 }
 

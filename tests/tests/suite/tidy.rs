@@ -92,7 +92,9 @@ fn crates_depend_only_downward_and_stages_never_on_each_other() {
     let mut problems = Vec::new();
     for (name, deps) in dependencies() {
         let Some(&own) = layer.get(name.as_str()) else {
-            problems.push(format!("{name} has no layer in tests/tests/tidy.rs (add it there and to ARCHITECTURE.md)"));
+            problems.push(format!(
+                "{name} has no layer in tests/tests/suite/tidy.rs (add it there and to ARCHITECTURE.md)"
+            ));
             continue;
         };
         for d in deps {

@@ -158,19 +158,14 @@ fn the_local_executor_names_the_failing_task() {
 fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
     let dir = tempfile::tempdir().unwrap();
     let root = root();
-    let text = std::fs::read_to_string(root.join("pipeline.toml"))
-        .unwrap()
-        .replace(
-            "live_scene = \"scenes/jozwowski_room_1024.gltf\"",
-            &format!("live_scene = {:?}", root.join("scenes/jozwowski_room_16.gltf").display().to_string()),
-        )
-        .replace("scene = \"scenes/", &format!("scene = \"{}/scenes/", root.display()))
-        .replace("per_frame = 2_000", "per_frame = 300")
-        .replace("total = 20_000", "total = 900")
-        .replace("width = 512", "width = 24")
-        .replace("height = 512", "height = 16");
     let pipeline = dir.path().join("live.toml");
-    std::fs::write(&pipeline, text).unwrap();
+    std::fs::copy(root.join("pipeline.toml"), &pipeline).unwrap();
+    pm_tests::edit_pipeline(&pipeline, |p| {
+        p.scene = root.join(&p.scene);
+        p.live_scene = Some(root.join("scenes/jozwowski_room_16.gltf"));
+        (p.live.vertex.per_frame, p.live.vertex.total) = (300, 900);
+        (p.live.frame.width, p.live.frame.height) = (24, 16);
+    });
     let args = |out: &str, frame_tasks: u32| xtask::run::LiveArgs {
         pipeline: Some(pipeline.clone()),
         out: Some(dir.path().join(out)),

@@ -69,8 +69,7 @@ fn runner_runs_every_stage_then_only_what_changed() {
     // The caustic estimate does not shape the irradiance cache: only the render runs
     // (the cache step once took every render parameter but the sampling's).
     let p = dir.path().join("pipeline.toml");
-    let text = std::fs::read_to_string(&p).unwrap().replace("caustic_k = 60", "caustic_k = 30");
-    std::fs::write(&p, text).unwrap();
+    pm_tests::edit_pipeline(&p, |c| c.render.caustic_k = 30);
     let fourth = run(&p, &out).unwrap();
     assert_eq!(ran(&fourth), ["photon-render"]);
     // A corrupted intermediate: the next stage fails, the runner names it, and the
@@ -81,8 +80,7 @@ fn runner_runs_every_stage_then_only_what_changed() {
     bytes[n - 7] ^= 0x55;
     std::fs::write(&kd, &bytes).unwrap();
     let before = std::fs::read(out.join("global.pmap")).unwrap();
-    let text = std::fs::read_to_string(dir.path().join("pipeline.toml")).unwrap().replace("k = 50", "k = 40");
-    std::fs::write(dir.path().join("pipeline.toml"), text).unwrap();
+    pm_tests::edit_pipeline(&p, |c| c.irradiance.k = 40);
     let err = run(&dir.path().join("pipeline.toml"), &out).unwrap_err().to_string();
     assert!(err.contains("stage photon-irradiance failed"), "{err}");
     // The stage's own message is kept in the error.
@@ -95,12 +93,17 @@ fn pipeline_toml_errors_name_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let p = pipeline(dir.path(), 4);
     let out = dir.path().join("out");
-    let text = std::fs::read_to_string(&p).unwrap();
+    let table: toml::Table = toml::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let with = |section: &str, key: &str, value: toml::Value| {
+        let mut t = table.clone();
+        t[section].as_table_mut().unwrap().insert(key.into(), value);
+        toml::to_string(&t).unwrap()
+    };
     for (edit, what) in [
-        (text.replace("[render]", "[render]\nbogus_key = 1"), "bogus_key"),
-        (text.replace("k = 50", "k = \"fifty\""), "k"),
-        (text.replace("global_photons = 20_000", "global_photons = 10_000_000_000"), "trace.global_photons"),
-        (text.replace("fraction = 0.25", "fraction = 2.0"), "irradiance.fraction = 2 is out of range"),
+        (with("render", "bogus_key", toml::Value::Integer(1)), "bogus_key"),
+        (with("render", "k", toml::Value::String("fifty".into())), "k = \"fifty\""),
+        (with("trace", "global_photons", toml::Value::Integer(10_000_000_000)), "trace.global_photons"),
+        (with("irradiance", "fraction", toml::Value::Float(2.0)), "irradiance.fraction = 2 is out of range"),
     ] {
         std::fs::write(&p, edit).unwrap();
         let err = run(&p, &out).unwrap_err().to_string();

@@ -1,0 +1,108 @@
+//! Light choice and the closed-form direct term against independent answers.
+
+use super::*;
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_scene::{Light, LightKind, Material, Scene, Triangle};
+
+/// A 4 m floor (y = 0, facing up, reflectance 0.5), a 0.6 m square panel at
+/// y = 1.5 facing down with radiance 3, and `extra` lights.
+fn floor_and_panel(extra: Vec<Light>) -> Scene {
+    let v = Vec3::new;
+    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
+        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+    };
+    let mut tris = Vec::new();
+    quad(&mut tris, [v(-2., 0., -2.), v(-2., 0., 2.), v(2., 0., 2.), v(2., 0., -2.)], 0);
+    quad(&mut tris, [v(-0.3, 1.5, -0.3), v(0.3, 1.5, -0.3), v(0.3, 1.5, 0.3), v(-0.3, 1.5, 0.3)], 1);
+    let mats = vec![
+        Material::new("floor", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO),
+        Material::new("panel", Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::splat(3.0)),
+    ];
+    Scene::from_parts(tris, mats, extra, None)
+}
+
+fn point(name: &str, at: Vec3, intensity: f32) -> Light {
+    Light {
+        name: name.into(),
+        kind: LightKind::Point { position: at, intensity: Rgb::splat(intensity) },
+        power: Rgb::ZERO,
+    }
+}
+
+/// Light choice is by power (the panel emits 3 x 0.36 x pi = 3.39 W a channel,
+/// the point lights 4 pi I), or by the share a user gives a light, the rest
+/// splitting the remainder by power; `pick` inverts the cumulative probabilities;
+/// unknown names, shares outside [0, 1] and a scene without power are refused.
+#[test]
+fn light_choice_follows_power_and_shares() {
+    let s = floor_and_panel(vec![point("a", Vec3::Y, 1.0), point("b", Vec3::Y, 3.0)]);
+    let power: Vec<f64> = s.lights.iter().map(|l| l.power.x as f64).collect();
+    assert!((power[0] - 3.0 * 0.36 * std::f64::consts::PI).abs() < 1e-4, "{power:?}");
+    assert!((power[2] / power[1] - 3.0).abs() < 1e-6);
+    let by_power = LightSelector::new(&s, &[]).unwrap();
+    let total: f64 = power.iter().sum();
+    for (p, want) in by_power.probs.iter().zip(&power) {
+        assert!((p - want / total).abs() < 1e-6);
+    }
+    let shared = LightSelector::new(&s, &[("b".into(), 0.5)]).unwrap();
+    let rest = power[0] + power[1];
+    assert!((shared.probs[2] - 0.5).abs() < 1e-12);
+    assert!((shared.probs[0] - 0.5 * power[0] / rest).abs() < 1e-6);
+    let cdf0 = shared.probs[0] as f32;
+    assert_eq!(shared.pick(0.5 * cdf0).0, 0);
+    assert_eq!(shared.pick(cdf0 + 0.01).0, 1);
+    assert_eq!(shared.pick(0.99).0, 2);
+    assert!(matches!(LightSelector::new(&s, &[("c".into(), 0.1)]), Err(LightSelectError::UnknownLight(..))));
+    assert!(matches!(LightSelector::new(&s, &[("a".into(), 1.5)]), Err(LightSelectError::BadShares(_))));
+    let dark = Scene::from_parts(s.triangles[..2].to_vec(), s.materials.clone(), vec![], None);
+    assert!(matches!(LightSelector::new(&dark, &[]), Err(LightSelectError::NoLights)));
+}
+
+/// Lambert's closed form of the panel's unoccluded light on the floor against a
+/// 600 x 600 midpoint sum of L cos cos' / r^2 over the panel's area, at points
+/// under it, beside it and far off to the side; and the renderer's light sampling
+/// (2,048 samples, shadow rays, nothing in between) against the same sum.
+#[test]
+fn the_closed_form_and_light_sampling_agree_with_integrating_over_the_panel() {
+    let s = floor_and_panel(vec![]);
+    let panel = &s.lights[0];
+    let rho = Rgb::splat(0.5);
+    let sampling = DirectLighting::new(&s).unwrap();
+    for p in [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.4, 0.0, 0.2), Vec3::new(1.8, 0.0, -1.5)] {
+        let n = 600;
+        let da = (0.6 / n as f64) * (0.6 / n as f64);
+        let mut e = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                let q =
+                    Vec3::new(-0.3 + 0.6 * (i as f32 + 0.5) / n as f32, 1.5, -0.3 + 0.6 * (j as f32 + 0.5) / n as f32);
+                let d = q - p;
+                let r2 = d.length_squared() as f64;
+                let cos_p = (d.y as f64) / r2.sqrt();
+                e += 3.0 * cos_p * cos_p / r2 * da;
+            }
+        }
+        let want = 0.5 / std::f64::consts::PI * e;
+        let (closed, solid) = direct::lambert_unoccluded(panel, p, Vec3::Y, rho);
+        assert!((closed.x as f64 / want - 1.0).abs() < 1e-4, "{p}: closed form {} vs {want}", closed.x);
+        assert!((3.0 * solid as f64 / e - 1.0).abs() < 1e-4, "{p}: the cosine integral");
+        let hit = s.intersect(p + Vec3::Y * 0.5, -Vec3::Y, f32::INFINITY).unwrap();
+        let mut sampler = pm_sampling::Sampler::new(5, 0);
+        let sampled = sampling.direct(&hit, &Bsdf::Lambert { rho }, Vec3::Y, &mut sampler, 2048);
+        assert!((sampled.x as f64 / want - 1.0).abs() < 0.02, "{p}: light sampling {} vs {want}", sampled.x);
+    }
+}
+
+/// The power heuristic (beta = 2): a^2 / (a^2 + b^2), weights of the two ways to
+/// one direction summing to 1, and 0 when neither density is positive.
+#[test]
+fn the_power_heuristic_weights_sum_to_one() {
+    for (a, b) in [(1.0f32, 3.0f32), (0.2, 0.2), (5.0, 0.0)] {
+        assert!((power_heuristic(a, b) + power_heuristic(b, a) - 1.0).abs() < 1e-6);
+    }
+    assert_eq!(power_heuristic(1.0, 3.0), 0.1);
+    assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+}

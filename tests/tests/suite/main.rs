@@ -1,0 +1,18 @@
+//! The workspace's cross-stage and analytic-scene tests and the repository rules,
+//! as one test binary (one link of the whole stack instead of one per file). Each
+//! module is one area; TESTING.md says what each test compares against.
+
+mod effects;
+mod hard_cases;
+mod hard_geometry;
+mod hard_scenes;
+mod irradiance;
+mod materials;
+mod plan;
+mod quality;
+mod raster;
+mod regions;
+mod render;
+mod runner;
+mod scenes;
+mod tidy;
