@@ -39,7 +39,7 @@ pub struct Doc {
 
 /// A texture image and its sampler.
 pub struct Image {
-    /// Width and height [texels].
+    /// Width and height \[texels\].
     pub size: (u32, u32),
     /// RGBA texels, row by row.
     pub texels: Vec<[u8; 4]>,
@@ -63,7 +63,7 @@ pub struct Attrs {
 
 /// Indexed triangle mesh with per-vertex normals (none: flat-shaded facets).
 pub struct Mesh {
-    /// Positions [m].
+    /// Positions \[m\].
     pub p: Vec<[f32; 3]>,
     /// Unit normals, one per position, or none.
     pub n: Vec<[f32; 3]>,
@@ -101,7 +101,7 @@ impl Doc {
         i
     }
 
-    /// Key times [s] of an animation (a SCALAR float accessor with the min and max the
+    /// Key times \[s\] of an animation (a SCALAR float accessor with the min and max the
     /// specification requires of sampler inputs) and VEC3 values, in views without a
     /// target (animation data is neither vertex nor index data).
     pub fn animation_accessors(&mut self, times: &[f32], values: &[[f32; 3]]) -> (usize, usize) {

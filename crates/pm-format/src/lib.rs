@@ -161,6 +161,3 @@ pub fn into_layout<R: PhotonRecord>(any: AnyMap) -> PhotonMap<R> {
         PhotonMap { header: m.header, records: *records.expect("equal layouts are equal record types") }
     })
 }
-
-#[cfg(test)]
-mod tests;

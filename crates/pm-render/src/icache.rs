@@ -4,16 +4,24 @@
 //! w_i = 1 / (|p - p_i| / R_i + sqrt(1 - n . n_i)); a record is used where
 //! w_i > 1 / a, a being the user's accuracy.
 
-use crate::gather::{Gather, GatherFor, Scratch, final_gather};
-use crate::integrator::{PhotonMapping, cheap_indirect, diffuse_points};
-use crate::render::{Film, pixel_seed};
 use glam::{IVec3, Vec3};
 use pm_color::Rgb;
-use pm_format::{CacheRecord, PhotonRecord};
-use pm_sampling::{Sampler, mix64};
-use pm_scene::Camera;
-use rayon::prelude::*;
+use pm_format::CacheRecord;
+use pm_sampling::mix64;
 use std::collections::HashMap;
+
+/// The result of a final gather at a point.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Gather {
+    /// Indirect irradiance E [W m^-2 per channel] from the gathered radiance.
+    pub e: Rgb,
+    /// Harmonic mean distance to the surfaces the rays hit [m] (infinite if none).
+    pub r_harmonic: f32,
+    /// Translational gradient dE/dx [W m^-3], one vector per channel.
+    pub grad_t: [Vec3; 3],
+    /// Rotational gradient [W m^-2 rad^-1], one vector per channel.
+    pub grad_r: [Vec3; 3],
+}
 
 /// One cached final gather: position [m], normal, irradiance E [W m^-2], radius of
 /// validity R [m], translational [W m^-3] and rotational [W m^-2 rad^-1] gradients.
@@ -192,65 +200,6 @@ impl IrradianceCache {
             });
         }
         c
-    }
-
-    /// The irradiance-cache prepass over the image `film` of `camera`: coarse-to-fine
-    /// grids of pixel centres (steps 32, 16, ..., 1); at each level the points no
-    /// record covers yet get a final gather (in parallel), and the new records are
-    /// inserted in pixel order, so the cache does not depend on threads. Eye rays
-    /// follow mirrors and glass to the surfaces they show (Ward and Heckbert 1992's
-    /// records at the points rendering will look up).
-    pub fn prepass<G: PhotonRecord>(pm: &PhotonMapping<G>, camera: &Camera, film: &Film) -> IrradianceCache {
-        let cfg = pm.config();
-        let mut cache = IrradianceCache::new(cfg.icache_accuracy, cfg.icache_spacing);
-        let (w, h) = (film.width as usize, film.height as usize);
-        let aspect = film.width as f32 / film.height as f32;
-        let mut step = 32usize;
-        loop {
-            let pts: Vec<usize> = (0..h)
-                .step_by(step)
-                .flat_map(|y| (0..w).step_by(step).map(move |x| y * w + x))
-                .filter(|&i| step == 32 || (i / w) % (2 * step) != 0 || (i % w) % (2 * step) != 0)
-                .collect();
-            let new: Vec<_> = pts
-                .par_iter()
-                .flat_map_iter(|&i| {
-                    let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                    let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
-                    let mut points = Vec::new();
-                    diffuse_points(pm, camera.position, d, 0, &mut points);
-                    let mut scratch = Scratch::default();
-                    let cache = &cache;
-                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo))| {
-                        let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
-                        if cache.lookup(hit.p, ns, 1.0).is_some() {
-                            return None;
-                        }
-                        let mut s = Sampler::new(mix64(pixel_seed(film.seed, i) ^ 0x0063_6163_6865 ^ b as u64), 0);
-                        // No record where indirect light is unimportant: rendering will
-                        // use the photon-map estimate there (same test, same result).
-                        if cfg.indirect_threshold > 0.0 {
-                            let bsdf = pm.scene.bsdf(&hit);
-                            let direct = pm.light.direct(&hit, &bsdf, wo, &mut s, cfg.light_samples);
-                            if cheap_indirect(pm, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
-                                return None;
-                            }
-                        }
-                        let g =
-                            final_gather(pm, hit.p, ns, ng, cfg.gather_rays, &mut s, GatherFor::Record, &mut scratch);
-                        Some((hit.p, ns, g))
-                    })
-                })
-                .collect();
-            for (p, ns, g) in &new {
-                cache.insert(*p, *ns, g);
-            }
-            if step == 1 {
-                break;
-            }
-            step /= 2;
-        }
-        cache
     }
 
     /// Interpolated indirect irradiance at `p` with normal `n`, or `None` when no

@@ -1,26 +1,17 @@
-//! What is computed per eye sample: the [`Integrator`] interface, the photon-map
-//! integrator of Christensen 1999 section 1.3 (direct, caustics, soft indirect, with
-//! recursive specular reflection and refraction), and the inspection views of
-//! Figure 1 as their own small integrators over the same specular recursion.
+//! What is computed per eye sample: the [`Integrator`] interface (radiance
+//! components of a sample, what is known of its first hit, the G-buffer entry it
+//! fills), the film it samples, and the counters integrators keep. The image loop
+//! (`render`) and every integrator (`path`, `photon_mapping`) build on it; it
+//! depends on neither.
 
-use crate::gather::{Scratch, final_gather, lookup_irradiance};
-use crate::icache::IrradianceCache;
-use crate::render::{Counters, Film};
-use crate::{Maps, RenderParams, Settings, facing};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::{Layer, Rgb};
-use pm_estimate::{Filter, KnnParams};
-use pm_format::PhotonRecord;
-use pm_light::DirectLighting;
-use pm_sampling::Sampler;
-use pm_scene::{Hit, Scene};
-use std::f32::consts::PI;
+use pm_raster::Rect;
+use pm_sampling::{Sampler, mix64};
+use pm_scene::{Hit, Scene, facing};
+use std::sync::atomic::AtomicU64;
 use std::sync::atomic::Ordering::Relaxed;
-
-/// Specular bounces up to this depth trace both reflection and refraction (weighted
-/// by Fresnel); deeper ones pick one by Fresnel probability.
-const SPLIT_DEPTH: u32 = 3;
 
 /// Radiance components of one eye sample [W sr^-1 m^-2], one per [`Layer`].
 #[derive(Clone, Copy, Debug, Default)]
@@ -183,408 +174,138 @@ pub trait Integrator: Sync {
     fn counters(&self) -> &Counters;
 }
 
-/// The photon-map integrator (Christensen 1999 section 1.3): at the first
-/// non-specular hit, direct light + caustics + soft indirect light; mirrors and glass
-/// by recursive ray tracing. The inspection views wrap it.
-pub struct PhotonMapping<'a, G> {
-    pub(crate) scene: &'a Scene,
-    pub(crate) maps: Maps<'a, G>,
-    pub(crate) cfg: Settings,
-    pub(crate) light: DirectLighting<'a>,
-    pub(crate) cache: Option<IrradianceCache>,
-    pub(crate) counters: Counters,
+/// Counters an integrator keeps while rendering (sums, so their totals do not
+/// depend on the thread schedule; the nanosecond sums are thread time).
+#[derive(Default, Debug)]
+pub struct Counters {
+    pub(crate) gathers: AtomicU64,
+    pub(crate) cache_records: AtomicU64,
+    pub(crate) cache_hits: AtomicU64,
+    pub(crate) gather_rays: AtomicU64,
+    pub(crate) secondary_gathers: AtomicU64,
+    pub(crate) lookups: AtomicU64,
+    pub(crate) lookup_misses: AtomicU64,
+    pub(crate) lookup_rank: [AtomicU64; 3],
+    pub(crate) terminated_paths: AtomicU64,
+    pub(crate) thinned: AtomicU64,
+    pub(crate) ns_direct: AtomicU64,
+    pub(crate) ns_caustic: AtomicU64,
+    pub(crate) ns_gather: AtomicU64,
+    pub(crate) ns_specular: AtomicU64,
+    pub(crate) ns_icache: AtomicU64,
 }
 
-impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
-    /// The integrator over `scene` and its photon maps with the settings of
-    /// `params` (lengths relative to the scene's bounding-box diagonal); `indirect`
-    /// false leaves out soft indirect light (for scenes where the analysis finds no
-    /// diffusely reflected light reaching another diffuse surface). Fails when
-    /// nothing emits.
-    pub fn new(
-        scene: &'a Scene,
-        maps: Maps<'a, G>,
-        params: &RenderParams,
-        indirect: bool,
-    ) -> Result<Self, pm_light::LightSelectError> {
-        let cfg = Settings::new(params, scene.bounds.diagonal(), indirect);
-        Ok(PhotonMapping {
-            scene,
-            maps,
-            cfg,
-            light: DirectLighting::with_closed_form(scene)?,
-            cache: None,
-            counters: Counters::default(),
-        })
+/// The image being rendered: its size, sampling and seed. A region of it is
+/// rendered with the same per-pixel sample streams as the whole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Film {
+    /// Width \[pixels\].
+    pub width: u32,
+    /// Height \[pixels\].
+    pub height: u32,
+    /// Most samples per pixel (adaptive integrators), or samples per pixel.
+    pub spp: u32,
+    /// Luminance contrast |a - b| / (a + b) between 4-neighbours that triggers
+    /// supersampling (Mitchell's contrast), as a fraction.
+    pub contrast: f32,
+    /// Random seed.
+    pub seed: u64,
+}
+
+impl Film {
+    /// (width, height) \[pixels\], as the rasteriser takes the image's size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
-    /// Interpolate soft indirect light from `cache` (made by
-    /// [`IrradianceCache::prepass`] for the same maps and settings).
-    pub fn with_cache(mut self, cache: IrradianceCache) -> Self {
-        self.counters.cache_records.store(cache.len() as u64, Relaxed);
-        self.cache = Some(cache);
-        self
+    /// The whole image.
+    pub fn rect(&self) -> Rect {
+        Rect::full(self.width, self.height)
     }
 
-    /// The irradiance cache in use.
-    pub fn cache(&self) -> Option<&IrradianceCache> {
-        self.cache.as_ref()
+    /// Tile `k` of `n` ([`Rect::band`]).
+    pub fn band(&self, k: u32, n: u32) -> Option<Rect> {
+        Rect::band(self.width, self.height, k, n)
     }
 
-    /// True when the settings call for an irradiance cache (accuracy above 0 and
-    /// soft indirect light computed).
-    pub fn wants_cache(&self) -> bool {
-        self.cfg.icache_accuracy > 0.0 && self.cfg.indirect
-    }
-
-    pub(crate) fn config(&self) -> &Settings {
-        &self.cfg
-    }
-
-    /// The settings that shape an irradiance cache, as text ([`crate::cache_key`]):
-    /// a cache made with other values (or for another image size or seed) must not
-    /// be used.
-    pub fn cache_key(&self, film: &Film) -> String {
-        crate::cache_key(&self.cfg, film)
-    }
-
-    /// The integrator with the irradiance cache of a file's `records`, at its own
-    /// accuracy and record spacing.
-    pub fn with_cache_records(self, records: &[pm_format::CacheRecord]) -> Self {
-        let c = IrradianceCache::from_records(self.cfg.icache_accuracy, self.cfg.icache_spacing, records);
-        self.with_cache(c)
+    /// True when `rect` is non-empty and inside the image.
+    pub fn contains(&self, rect: Rect) -> bool {
+        rect.is_valid_in(self.width, self.height)
     }
 }
 
-/// Precomputed irradiance x reflectance / pi at the eye hit: Figure 1 (e), what
-/// the final gather sees.
-pub struct RadianceView<'a, G>(pub PhotonMapping<'a, G>);
-/// Radiance estimated from the global map at the eye hit: Figure 1 (b).
-pub struct PhotonsView<'a, G>(pub PhotonMapping<'a, G>);
-/// The final-gathered soft indirect term alone: Figure 1 (f).
-pub struct IndirectView<'a, G>(pub PhotonMapping<'a, G>);
-
-/// The photon-map integrators differ only in what they compute at the first
-/// non-specular hit (`shade`); the specular recursion is [`trace`]'s.
-macro_rules! photon_map_integrator {
-    ($ty:ident, |$pm:ident| $get:expr, $shade:path) => {
-        impl<G: PhotonRecord> Integrator for $ty<'_, G> {
-            type Scratch = Scratch;
-            fn li(
-                &self,
-                o: Vec3,
-                d: Vec3,
-                first: FirstHit,
-                s: &mut Sampler,
-                scratch: &mut Scratch,
-                vs: Option<&mut VisibleSurface>,
-            ) -> Components {
-                let $pm = self;
-                let pm = $get;
-                let hit = first.resolve(pm.scene, o, d);
-                trace_from(pm, &($shade as Shade<G>), hit, d, 0, s, scratch, vs)
-            }
-            fn counters(&self) -> &Counters {
-                let $pm = self;
-                &$get.counters
-            }
-            fn adaptive(&self) -> bool {
-                let $pm = self;
-                !$get.scene.has_stochastic_surfaces()
-            }
-        }
-    };
+/// What a render did.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    /// Wall time of the region's image loop \[s\].
+    pub seconds: f64,
+    /// Thread time in direct lighting, caustic estimates, final gathers, specular
+    /// recursion (inclusive of what it calls) and cache lookups \[s\].
+    pub thread_seconds: [(String, f64); 5],
+    /// Final gathers: those of the cache's records plus those done while rendering
+    /// (cache misses and uncached shading points).
+    pub final_gathers: u64,
+    /// Records of the irradiance cache in use.
+    pub cache_records: u64,
+    /// Shading points served by cache interpolation.
+    pub cache_hits: u64,
+    /// Final-gather rays traced, secondary ones included.
+    pub gather_rays: u64,
+    /// Secondary final gathers.
+    pub secondary_gathers: u64,
+    /// Photon-map lookups at gather-ray hits.
+    pub lookups: u64,
+    /// Precomputed lookups that found no similar photon within the search radius.
+    pub lookup_misses: u64,
+    /// Rank of the accepted photon in precomputed lookups: 1st, 2nd, later.
+    pub lookup_rank: [u64; 3],
+    /// Paths cut by the depth limit.
+    pub terminated_paths: u64,
+    /// Shading points where indirect light was below the importance threshold and
+    /// the photon-map estimate replaced a final gather.
+    pub thinned: u64,
+    /// Pixel values that came out NaN or infinite and were written as 0 (should be 0).
+    pub nonfinite_pixels: u64,
+    /// Eye samples traced in the region.
+    pub samples: u64,
+    /// Pixels of the region that were supersampled.
+    pub supersampled_pixels: u64,
 }
-photon_map_integrator!(PhotonMapping, |pm| pm, shade_full);
-photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
-photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
-photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
 
-/// Soft indirect irradiance at a non-specular point: interpolated from the cache
-/// when a record covers it, else a fresh final gather.
-pub(crate) fn indirect_irradiance<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    p: Vec3,
-    ns: Vec3,
-    ng: Vec3,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-) -> Rgb {
-    if let Some(c) = &ctx.cache {
-        let t = scratch.clock();
-        let e = c.lookup(p, ns, 2.0);
-        crate::gather::add_time(&ctx.counters.ns_icache, t);
-        if let Some(e) = e {
-            ctx.counters.cache_hits.fetch_add(1, Relaxed);
-            return e;
+impl Counters {
+    /// The counters as statistics (the image loop fills its own fields).
+    pub fn stats(&self) -> RenderStats {
+        let secs = |a: &AtomicU64| a.load(Relaxed) as f64 * 1e-9;
+        RenderStats {
+            thread_seconds: [
+                ("direct".into(), secs(&self.ns_direct)),
+                ("caustics".into(), secs(&self.ns_caustic)),
+                ("final_gather".into(), secs(&self.ns_gather)),
+                ("specular".into(), secs(&self.ns_specular)),
+                ("irradiance_cache".into(), secs(&self.ns_icache)),
+            ],
+            final_gathers: self.gathers.load(Relaxed) + self.cache_records.load(Relaxed),
+            cache_records: self.cache_records.load(Relaxed),
+            cache_hits: self.cache_hits.load(Relaxed),
+            gather_rays: self.gather_rays.load(Relaxed),
+            secondary_gathers: self.secondary_gathers.load(Relaxed),
+            lookups: self.lookups.load(Relaxed),
+            lookup_misses: self.lookup_misses.load(Relaxed),
+            lookup_rank: self.lookup_rank.each_ref().map(|a| a.load(Relaxed)),
+            terminated_paths: self.terminated_paths.load(Relaxed),
+            thinned: self.thinned.load(Relaxed),
+            ..Default::default()
         }
     }
-    let t = scratch.clock();
-    ctx.counters.gathers.fetch_add(1, Relaxed);
-    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, crate::gather::GatherFor::Estimate, scratch);
-    crate::gather::add_time(&ctx.counters.ns_gather, t);
-    g.e
 }
 
-/// Where indirect light matters little (Christensen 1999 section 1.3: "if the
-/// importance is low, the irradiance is estimated from the photons"), the photon
-/// map's indirect irradiance: the precomputed total irradiance minus the direct
-/// irradiance just computed by light sampling, used when it is below
-/// `indirect_threshold` x the direct irradiance. `direct_l` is the reflected direct
-/// radiance, turned back into irradiance through the albedo.
-pub(crate) fn cheap_indirect<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    p: Vec3,
-    n: Vec3,
-    albedo: Rgb,
-    direct_l: Rgb,
-    scratch: &mut Scratch,
-) -> Option<Rgb> {
-    let t = ctx.cfg.indirect_threshold;
-    if !(t > 0.0) || ctx.maps.irradiance.is_none() {
-        return None;
-    }
-    let e_direct = Rgb::new(
-        if albedo.x > 0.0 { PI * direct_l.x / albedo.x } else { 0.0 },
-        if albedo.y > 0.0 { PI * direct_l.y / albedo.y } else { 0.0 },
-        if albedo.z > 0.0 { PI * direct_l.z / albedo.z } else { 0.0 },
-    );
-    let e_total = lookup_irradiance(ctx, p, n, scratch);
-    let e_ind = (e_total - e_direct).max(Rgb::ZERO);
-    (pm_color::mean(e_ind) < t * pm_color::mean(e_direct)).then(|| {
-        ctx.counters.thinned.fetch_add(1, Relaxed);
-        e_ind
-    })
+/// The seed of pixel `i` (row-major index in the whole image): every sample's
+/// random numbers are keyed by (seed, pixel, sample index), never by thread or tile.
+pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
+    mix64(seed ^ mix64(pixel_salt(i)))
 }
 
-/// What an integrator computes at the first non-specular hit of an eye path: the
-/// hit, its BSDF, the direction toward the viewer, the emitted radiance there, and
-/// the G-buffer entry to complete (at the eye ray's own hit only).
-type Shade<G> = fn(&PhotonMapping<G>, &At, &mut Sampler, &mut Scratch, Option<&mut VisibleSurface>) -> Components;
-
-/// A non-specular hit as the shading functions see it.
-#[derive(Clone, Copy)]
-struct At<'h> {
-    hit: &'h Hit,
-    bsdf: &'h Bsdf,
-    /// Toward the viewer.
-    wo: Vec3,
-    /// Emitted radiance toward the viewer [W sr^-1 m^-2].
-    le: Rgb,
-}
-
-/// Radiance components along the ray from `o` in direction `d`: recursive specular
-/// reflection and refraction, and `shade` at the first non-specular hit.
-#[allow(clippy::too_many_arguments)]
-fn trace<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    shade: &Shade<G>,
-    o: Vec3,
-    d: Vec3,
-    depth: u32,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-    vs: Option<&mut VisibleSurface>,
-) -> Components {
-    let hit = ctx.scene.intersect(o, d, f32::INFINITY);
-    trace_from(ctx, shade, hit, d, depth, s, scratch, vs)
-}
-
-/// [`trace`] of a ray along `d` whose first hit is `hit`.
-#[allow(clippy::too_many_arguments)]
-fn trace_from<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    shade: &Shade<G>,
-    hit: Option<pm_scene::Hit>,
-    d: Vec3,
-    depth: u32,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-    vs: Option<&mut VisibleSurface>,
-) -> Components {
-    let Some(hit) = hit else { return Components::default() };
-    let tr = ctx.scene.transmittance(&hit, d);
-    let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
-    if tr == Rgb::ONE { c } else { c.scaled(tr) }
-}
-
-/// [`trace`] from its hit (before the segment's transmittance).
-#[allow(clippy::too_many_arguments)]
-fn trace_hit<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    shade: &Shade<G>,
-    hit: &pm_scene::Hit,
-    d: Vec3,
-    depth: u32,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-    mut vs: Option<&mut VisibleSurface>,
-) -> Components {
-    let (scene, cfg, hit) = (ctx.scene, &ctx.cfg, *hit);
-    let wo = -d;
-    let le = scene.emitted(&hit, wo);
-    let bsdf = scene.bsdf(&hit);
-    if let Some(v) = vs.as_deref_mut() {
-        *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
-    }
-    if !bsdf.is_specular() {
-        return shade(ctx, &At { hit: &hit, bsdf: &bsdf, wo, le }, s, scratch, vs);
-    }
-    if depth >= cfg.max_depth {
-        ctx.counters.terminated_paths.fetch_add(1, Relaxed);
-        return Components { specular: le, ..Default::default() };
-    }
-    let t0 = scratch.clock();
-    let mut l = le;
-    let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
-        let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
-        w * trace(ctx, shade, o2, wi, depth + 1, s, scratch, None).total()
-    };
-    let u = s.next_2d();
-    let uc = s.next_1d();
-    if depth < SPLIT_DEPTH {
-        // Both Fresnel branches: sample with uc at either end of [0, 1).
-        let refl = bsdf.sample(wo, hit.ns, u, 0.0);
-        let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
-        match (refl, refr) {
-            (Some(a), Some(b)) if b.transmitted => {
-                l += follow(s, scratch, a.wi, a.weight * a.pdf);
-                l += follow(s, scratch, b.wi, b.weight * b.pdf);
-            }
-            // Mirror, or total internal reflection: one branch of probability 1.
-            (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
-            _ => {}
-        }
-    } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
-        l += follow(s, scratch, bs.wi, bs.weight);
-    }
-    crate::gather::add_time(&ctx.counters.ns_specular, t0);
-    Components { specular: l, ..Default::default() }
-}
-
-/// Figure 1 (b): reflectance / pi x a k-nearest irradiance estimate from the global map.
-fn shade_photons<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    at: &At,
-    _: &mut Sampler,
-    scratch: &mut Scratch,
-    _: Option<&mut VisibleSurface>,
-) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
-    let cfg = &ctx.cfg;
-    let e = match &ctx.maps.global {
-        Some(tree) => {
-            let p = KnnParams {
-                k: cfg.k_global,
-                max_d2: cfg.max_radius_global * cfg.max_radius_global,
-                filter: Filter::None,
-            };
-            pm_estimate::irradiance(tree, hit.p, facing(hit.ng, wo), &p, &mut scratch.knn).e
-        }
-        None => Rgb::ZERO,
-    };
-    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
-}
-
-/// Figure 1 (e): reflectance / pi x the precomputed irradiance the final gather reads.
-fn shade_radiance<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    at: &At,
-    _: &mut Sampler,
-    scratch: &mut Scratch,
-    _: Option<&mut VisibleSurface>,
-) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
-    let e = lookup_irradiance(ctx, hit.p, facing(hit.ng, wo), scratch);
-    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
-}
-
-/// Figure 1 (f): the soft indirect term alone.
-fn shade_indirect<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    at: &At,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-    _: Option<&mut VisibleSurface>,
-) -> Components {
-    let At { hit, bsdf, wo, le: _ } = *at;
-    let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), s, scratch);
-    Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
-}
-
-/// The complete image (section 1.3): direct light by light sampling, caustics from
-/// the caustic map, soft indirect light from the cache or a final gather.
-fn shade_full<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    at: &At,
-    s: &mut Sampler,
-    scratch: &mut Scratch,
-    vs: Option<&mut VisibleSurface>,
-) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
-    let cfg = &ctx.cfg;
-    let n = facing(hit.ng, wo);
-    let ns = facing(hit.ns, wo);
-    let albedo = bsdf.diffuse_albedo();
-    let t = scratch.clock();
-    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
-    let direct = le + reflected;
-    if let Some(v) = vs {
-        v.direct = reflected;
-    }
-    crate::gather::add_time(&ctx.counters.ns_direct, t);
-    let t = scratch.clock();
-    let caustic = match &ctx.maps.caustic {
-        Some(tree) => {
-            let p = KnnParams {
-                k: cfg.k_caustic,
-                max_d2: cfg.max_radius_caustic * cfg.max_radius_caustic,
-                filter: Filter::Cone { k: 1.1 },
-            };
-            pm_estimate::radiance(tree, hit.p, n, &p, &mut scratch.knn, |wi| bsdf.f(wo, wi, hit.ns))
-        }
-        None => Rgb::ZERO,
-    };
-    crate::gather::add_time(&ctx.counters.ns_caustic, t);
-    let e = if !cfg.indirect {
-        Rgb::ZERO
-    } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
-        e
-    } else {
-        indirect_irradiance(ctx, hit.p, ns, n, s, scratch)
-    };
-    Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
-}
-
-/// The non-specular hits an eye ray reaches, following specular bounces exactly as
-/// [`trace`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
-/// after): where the irradiance-cache prepass puts records. Each is the hit and the
-/// direction toward the viewer.
-pub(crate) fn diffuse_points<G: PhotonRecord>(
-    ctx: &PhotonMapping<G>,
-    o: Vec3,
-    d: Vec3,
-    depth: u32,
-    out: &mut Vec<(pm_scene::Hit, Vec3)>,
-) {
-    let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
-    let bsdf = ctx.scene.bsdf(&hit);
-    if !bsdf.is_specular() {
-        out.push((hit, -d));
-        return;
-    }
-    if depth >= ctx.cfg.max_depth {
-        return;
-    }
-    let Some(refl) = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0) else { return };
-    let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
-    let mut go = |wi: Vec3| diffuse_points(ctx, ctx.scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
-    match refr {
-        Some(t) if depth < SPLIT_DEPTH => {
-            go(refl.wi);
-            go(t.wi);
-        }
-        Some(t) if t.pdf > refl.pdf => go(t.wi),
-        _ => go(refl.wi),
-    }
+/// The salt of pixel `i` (see [`pixel_seed`]).
+pub(crate) fn pixel_salt(i: usize) -> u64 {
+    0x7069_7865_6c00 ^ i as u64
 }

@@ -22,22 +22,18 @@
 //! Radiance everywhere is W sr^-1 m^-2 per RGB channel. This crate does no I/O: it
 //! returns in-memory images with component layers, statistics, and cache records.
 
-mod gather;
 mod icache;
 mod integrator;
 mod path;
+mod photon_mapping;
 mod render;
 
-pub use gather::Scratch;
 pub use icache::IrradianceCache;
-pub use integrator::{
-    Components, FirstHit, IndirectView, Integrator, PhotonMapping, PhotonsView, RadianceView, VisibleSurface,
-};
+pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, VisibleSurface};
 pub use path::PathTracer;
+pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
-pub use render::{
-    Counters, Film, FrameBuffers, Image, RenderStats, Visibility, render_into, render_region, render_region_with,
-};
+pub use render::{FrameBuffers, Image, Visibility, render_into, render_region, render_region_with};
 
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
@@ -146,7 +142,7 @@ impl RenderParams {
     /// its default: how the image is sampled and shown (spp, contrast, mode,
     /// exposure) and the caustic estimate (caustic_k, caustic_radius_rel_diag). The
     /// runner's cache step takes these, so a change of those values re-runs only the
-    /// render; a test holds this list to [`cache_key`]'s.
+    /// render; a test holds this list to [`PhotonMapping::cache_key`]'s.
     pub fn cache_shaping(&self) -> RenderParams {
         let d = RenderParams::default();
         RenderParams {

@@ -2,8 +2,7 @@
 //! power heuristic against BSDF sampling, and Russian roulette. The reference and
 //! speed baseline for the photon-map renderer, over the same scene and BSDFs.
 
-use crate::integrator::{Components, FirstHit, Integrator, VisibleSurface};
-use crate::render::Counters;
+use crate::integrator::{Components, Counters, FirstHit, Integrator, VisibleSurface};
 use glam::Vec3;
 use pm_color::{Layer, Rgb};
 use pm_light::{DirectLighting, power_heuristic};

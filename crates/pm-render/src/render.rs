@@ -3,140 +3,15 @@
 //! pixels differ (Christensen 1999 section 3: "up to 16 samples per pixel"), with a
 //! box pixel filter. It knows nothing about what a sample computes.
 
-use crate::integrator::{Components, FirstHit, Integrator, VisibleSurface};
+use crate::integrator::{Components, Film, FirstHit, Integrator, RenderStats, VisibleSurface, pixel_salt};
 use glam::Vec2;
 use pm_color::{Layer, Rgb};
 use pm_raster::{Fragment, Rect};
-use pm_sampling::{Sampler, mix64};
+use pm_sampling::Sampler;
 use pm_scene::Camera;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
-
-/// Counters an integrator keeps while rendering (sums, so their totals do not
-/// depend on the thread schedule; the nanosecond sums are thread time).
-#[derive(Default, Debug)]
-pub struct Counters {
-    pub(crate) gathers: AtomicU64,
-    pub(crate) cache_records: AtomicU64,
-    pub(crate) cache_hits: AtomicU64,
-    pub(crate) gather_rays: AtomicU64,
-    pub(crate) secondary_gathers: AtomicU64,
-    pub(crate) lookups: AtomicU64,
-    pub(crate) lookup_misses: AtomicU64,
-    pub(crate) lookup_rank: [AtomicU64; 3],
-    pub(crate) terminated_paths: AtomicU64,
-    pub(crate) thinned: AtomicU64,
-    pub(crate) ns_direct: AtomicU64,
-    pub(crate) ns_caustic: AtomicU64,
-    pub(crate) ns_gather: AtomicU64,
-    pub(crate) ns_specular: AtomicU64,
-    pub(crate) ns_icache: AtomicU64,
-}
-
-/// The image being rendered: its size, sampling and seed. A region of it is
-/// rendered with the same per-pixel sample streams as the whole.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Film {
-    /// Width \[pixels\].
-    pub width: u32,
-    /// Height \[pixels\].
-    pub height: u32,
-    /// Most samples per pixel (adaptive integrators), or samples per pixel.
-    pub spp: u32,
-    /// Luminance contrast |a - b| / (a + b) between 4-neighbours that triggers
-    /// supersampling (Mitchell's contrast), as a fraction.
-    pub contrast: f32,
-    /// Random seed.
-    pub seed: u64,
-}
-
-impl Film {
-    /// (width, height) \[pixels\], as the rasteriser takes the image's size.
-    pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
-    }
-
-    /// The whole image.
-    pub fn rect(&self) -> Rect {
-        Rect::full(self.width, self.height)
-    }
-
-    /// Tile `k` of `n` ([`Rect::band`]).
-    pub fn band(&self, k: u32, n: u32) -> Option<Rect> {
-        Rect::band(self.width, self.height, k, n)
-    }
-
-    /// True when `rect` is non-empty and inside the image.
-    pub fn contains(&self, rect: Rect) -> bool {
-        rect.is_valid_in(self.width, self.height)
-    }
-}
-
-/// What a render did.
-#[derive(Clone, Debug, Default)]
-pub struct RenderStats {
-    /// Wall time of the region's image loop \[s\].
-    pub seconds: f64,
-    /// Thread time in direct lighting, caustic estimates, final gathers, specular
-    /// recursion (inclusive of what it calls) and cache lookups \[s\].
-    pub thread_seconds: [(String, f64); 5],
-    /// Final gathers: those of the cache's records plus those done while rendering
-    /// (cache misses and uncached shading points).
-    pub final_gathers: u64,
-    /// Records of the irradiance cache in use.
-    pub cache_records: u64,
-    /// Shading points served by cache interpolation.
-    pub cache_hits: u64,
-    /// Final-gather rays traced, secondary ones included.
-    pub gather_rays: u64,
-    /// Secondary final gathers.
-    pub secondary_gathers: u64,
-    /// Photon-map lookups at gather-ray hits.
-    pub lookups: u64,
-    /// Precomputed lookups that found no similar photon within the search radius.
-    pub lookup_misses: u64,
-    /// Rank of the accepted photon in precomputed lookups: 1st, 2nd, later.
-    pub lookup_rank: [u64; 3],
-    /// Paths cut by the depth limit.
-    pub terminated_paths: u64,
-    /// Shading points where indirect light was below the importance threshold and
-    /// the photon-map estimate replaced a final gather.
-    pub thinned: u64,
-    /// Pixel values that came out NaN or infinite and were written as 0 (should be 0).
-    pub nonfinite_pixels: u64,
-    /// Eye samples traced in the region.
-    pub samples: u64,
-    /// Pixels of the region that were supersampled.
-    pub supersampled_pixels: u64,
-}
-
-impl Counters {
-    /// The counters as statistics (the image loop fills its own fields).
-    pub fn stats(&self) -> RenderStats {
-        let secs = |a: &AtomicU64| a.load(Relaxed) as f64 * 1e-9;
-        RenderStats {
-            thread_seconds: [
-                ("direct".into(), secs(&self.ns_direct)),
-                ("caustics".into(), secs(&self.ns_caustic)),
-                ("final_gather".into(), secs(&self.ns_gather)),
-                ("specular".into(), secs(&self.ns_specular)),
-                ("irradiance_cache".into(), secs(&self.ns_icache)),
-            ],
-            final_gathers: self.gathers.load(Relaxed) + self.cache_records.load(Relaxed),
-            cache_records: self.cache_records.load(Relaxed),
-            cache_hits: self.cache_hits.load(Relaxed),
-            gather_rays: self.gather_rays.load(Relaxed),
-            secondary_gathers: self.secondary_gathers.load(Relaxed),
-            lookups: self.lookups.load(Relaxed),
-            lookup_misses: self.lookup_misses.load(Relaxed),
-            lookup_rank: self.lookup_rank.each_ref().map(|a| a.load(Relaxed)),
-            terminated_paths: self.terminated_paths.load(Relaxed),
-            thinned: self.thinned.load(Relaxed),
-            ..Default::default()
-        }
-    }
-}
 
 /// A rendered region: linear radiance [W sr^-1 m^-2] per pixel, row by row from
 /// the region's top-left pixel, with its component layers and, when asked for, the
@@ -189,17 +64,6 @@ impl Image {
 fn named<'a>(total: &'a [Rgb], layers: &'a [Vec<Rgb>; 4]) -> impl Iterator<Item = (&'static str, &'a [Rgb])> {
     std::iter::once((pm_color::TOTAL, total))
         .chain(Layer::ALL.into_iter().map(|l| (l.name(), layers[l.index()].as_slice())))
-}
-
-/// The seed of pixel `i` (row-major index in the whole image): every sample's
-/// random numbers are keyed by (seed, pixel, sample index), never by thread or tile.
-pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
-    mix64(seed ^ mix64(pixel_salt(i)))
-}
-
-/// The salt of pixel `i` (see [`pixel_seed`]).
-fn pixel_salt(i: usize) -> u64 {
-    0x7069_7865_6c00 ^ i as u64
 }
 
 /// How the image loop finds the surfaces seen at pixel centres.

@@ -3,7 +3,8 @@
 //! photon map, with a secondary gather for short rays, and the irradiance gradients
 //! of Ward and Heckbert 1992 ("Irradiance Gradients") from the same rays.
 
-use crate::integrator::PhotonMapping;
+use super::PhotonMapping;
+use crate::icache::Gather;
 use crate::{Lookup, facing};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
@@ -45,19 +46,6 @@ pub(crate) fn add_time(counter: &std::sync::atomic::AtomicU64, start: Option<std
     if let Some(t) = start {
         counter.fetch_add(t.elapsed().as_nanos() as u64 * TIME_EVERY as u64, std::sync::atomic::Ordering::Relaxed);
     }
-}
-
-/// The result of a final gather at a point.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Gather {
-    /// Indirect irradiance E [W m^-2 per channel] from the gathered radiance.
-    pub e: Rgb,
-    /// Harmonic mean distance to the surfaces the rays hit [m] (infinite if none).
-    pub r_harmonic: f32,
-    /// Translational gradient dE/dx [W m^-3], one vector per channel.
-    pub grad_t: [Vec3; 3],
-    /// Rotational gradient [W m^-2 rad^-1], one vector per channel.
-    pub grad_r: [Vec3; 3],
 }
 
 /// Most hidden photons one precomputed lookup tries before it misses.

@@ -1,0 +1,420 @@
+//! The photon-map integrator of Christensen 1999 section 1.3 (direct, caustics,
+//! soft indirect, with recursive specular reflection and refraction), the
+//! inspection views of Figure 1 as their own small integrators over the same
+//! specular recursion, final gathering ([`gather`]) and the irradiance-cache
+//! prepass ([`prepass`]).
+
+mod gather;
+mod prepass;
+
+pub use gather::Scratch;
+
+use crate::icache::IrradianceCache;
+use crate::integrator::{Components, Counters, Film, FirstHit, Integrator, VisibleSurface};
+use crate::{Maps, RenderParams, Settings, facing};
+use gather::{final_gather, lookup_irradiance};
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::Rgb;
+use pm_estimate::{Filter, KnnParams};
+use pm_format::PhotonRecord;
+use pm_light::DirectLighting;
+use pm_sampling::Sampler;
+use pm_scene::{Hit, Scene};
+use std::f32::consts::PI;
+use std::sync::atomic::Ordering::Relaxed;
+/// Specular bounces up to this depth trace both reflection and refraction (weighted
+/// by Fresnel); deeper ones pick one by Fresnel probability.
+const SPLIT_DEPTH: u32 = 3;
+
+/// The photon-map integrator (Christensen 1999 section 1.3): at the first
+/// non-specular hit, direct light + caustics + soft indirect light; mirrors and glass
+/// by recursive ray tracing. The inspection views wrap it.
+pub struct PhotonMapping<'a, G> {
+    pub(crate) scene: &'a Scene,
+    pub(crate) maps: Maps<'a, G>,
+    pub(crate) cfg: Settings,
+    pub(crate) light: DirectLighting<'a>,
+    pub(crate) cache: Option<IrradianceCache>,
+    pub(crate) counters: Counters,
+}
+
+impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
+    /// The integrator over `scene` and its photon maps with the settings of
+    /// `params` (lengths relative to the scene's bounding-box diagonal); `indirect`
+    /// false leaves out soft indirect light (for scenes where the analysis finds no
+    /// diffusely reflected light reaching another diffuse surface). Fails when
+    /// nothing emits.
+    pub fn new(
+        scene: &'a Scene,
+        maps: Maps<'a, G>,
+        params: &RenderParams,
+        indirect: bool,
+    ) -> Result<Self, pm_light::LightSelectError> {
+        let cfg = Settings::new(params, scene.bounds.diagonal(), indirect);
+        Ok(PhotonMapping {
+            scene,
+            maps,
+            cfg,
+            light: DirectLighting::with_closed_form(scene)?,
+            cache: None,
+            counters: Counters::default(),
+        })
+    }
+
+    /// Interpolate soft indirect light from `cache` (made by
+    /// [`IrradianceCache::prepass`] for the same maps and settings).
+    pub fn with_cache(mut self, cache: IrradianceCache) -> Self {
+        self.counters.cache_records.store(cache.len() as u64, Relaxed);
+        self.cache = Some(cache);
+        self
+    }
+
+    /// The irradiance cache in use.
+    pub fn cache(&self) -> Option<&IrradianceCache> {
+        self.cache.as_ref()
+    }
+
+    /// True when the settings call for an irradiance cache (accuracy above 0 and
+    /// soft indirect light computed).
+    pub fn wants_cache(&self) -> bool {
+        self.cfg.icache_accuracy > 0.0 && self.cfg.indirect
+    }
+
+    pub(crate) fn config(&self) -> &Settings {
+        &self.cfg
+    }
+
+    /// The settings that shape an irradiance cache, as text (`cache_key` in lib.rs):
+    /// a cache made with other values (or for another image size or seed) must not
+    /// be used.
+    pub fn cache_key(&self, film: &Film) -> String {
+        crate::cache_key(&self.cfg, film)
+    }
+
+    /// The integrator with the irradiance cache of a file's `records`, at its own
+    /// accuracy and record spacing.
+    pub fn with_cache_records(self, records: &[pm_format::CacheRecord]) -> Self {
+        let c = IrradianceCache::from_records(self.cfg.icache_accuracy, self.cfg.icache_spacing, records);
+        self.with_cache(c)
+    }
+}
+
+/// Precomputed irradiance x reflectance / pi at the eye hit: Figure 1 (e), what
+/// the final gather sees.
+pub struct RadianceView<'a, G>(pub PhotonMapping<'a, G>);
+/// Radiance estimated from the global map at the eye hit: Figure 1 (b).
+pub struct PhotonsView<'a, G>(pub PhotonMapping<'a, G>);
+/// The final-gathered soft indirect term alone: Figure 1 (f).
+pub struct IndirectView<'a, G>(pub PhotonMapping<'a, G>);
+
+/// The photon-map integrators differ only in what they compute at the first
+/// non-specular hit (`shade`); the specular recursion is [`trace_from`]'s.
+macro_rules! photon_map_integrator {
+    ($ty:ident, |$pm:ident| $get:expr, $shade:path) => {
+        impl<G: PhotonRecord> Integrator for $ty<'_, G> {
+            type Scratch = Scratch;
+            fn li(
+                &self,
+                o: Vec3,
+                d: Vec3,
+                first: FirstHit,
+                s: &mut Sampler,
+                scratch: &mut Scratch,
+                vs: Option<&mut VisibleSurface>,
+            ) -> Components {
+                let $pm = self;
+                let pm = $get;
+                let hit = first.resolve(pm.scene, o, d);
+                trace_from(pm, &($shade as Shade<G>), hit, d, 0, s, scratch, vs)
+            }
+            fn counters(&self) -> &Counters {
+                let $pm = self;
+                &$get.counters
+            }
+            fn adaptive(&self) -> bool {
+                let $pm = self;
+                !$get.scene.has_stochastic_surfaces()
+            }
+        }
+    };
+}
+photon_map_integrator!(PhotonMapping, |pm| pm, shade_full);
+photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
+photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
+photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
+
+/// Soft indirect irradiance at a non-specular point: interpolated from the cache
+/// when a record covers it, else a fresh final gather.
+pub(crate) fn indirect_irradiance<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    p: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+) -> Rgb {
+    if let Some(c) = &ctx.cache {
+        let t = scratch.clock();
+        let e = c.lookup(p, ns, 2.0);
+        gather::add_time(&ctx.counters.ns_icache, t);
+        if let Some(e) = e {
+            ctx.counters.cache_hits.fetch_add(1, Relaxed);
+            return e;
+        }
+    }
+    let t = scratch.clock();
+    ctx.counters.gathers.fetch_add(1, Relaxed);
+    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
+    gather::add_time(&ctx.counters.ns_gather, t);
+    g.e
+}
+
+/// Where indirect light matters little (Christensen 1999 section 1.3: "if the
+/// importance is low, the irradiance is estimated from the photons"), the photon
+/// map's indirect irradiance: the precomputed total irradiance minus the direct
+/// irradiance just computed by light sampling, used when it is below
+/// `indirect_threshold` x the direct irradiance. `direct_l` is the reflected direct
+/// radiance, turned back into irradiance through the albedo.
+pub(crate) fn cheap_indirect<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    p: Vec3,
+    n: Vec3,
+    albedo: Rgb,
+    direct_l: Rgb,
+    scratch: &mut Scratch,
+) -> Option<Rgb> {
+    let t = ctx.cfg.indirect_threshold;
+    if !(t > 0.0) || ctx.maps.irradiance.is_none() {
+        return None;
+    }
+    let e_direct = Rgb::new(
+        if albedo.x > 0.0 { PI * direct_l.x / albedo.x } else { 0.0 },
+        if albedo.y > 0.0 { PI * direct_l.y / albedo.y } else { 0.0 },
+        if albedo.z > 0.0 { PI * direct_l.z / albedo.z } else { 0.0 },
+    );
+    let e_total = lookup_irradiance(ctx, p, n, scratch);
+    let e_ind = (e_total - e_direct).max(Rgb::ZERO);
+    (pm_color::mean(e_ind) < t * pm_color::mean(e_direct)).then(|| {
+        ctx.counters.thinned.fetch_add(1, Relaxed);
+        e_ind
+    })
+}
+
+/// What an integrator computes at the first non-specular hit of an eye path: the
+/// hit, its BSDF, the direction toward the viewer, the emitted radiance there, and
+/// the G-buffer entry to complete (at the eye ray's own hit only).
+type Shade<G> = fn(&PhotonMapping<G>, &At, &mut Sampler, &mut Scratch, Option<&mut VisibleSurface>) -> Components;
+
+/// A non-specular hit as the shading functions see it.
+#[derive(Clone, Copy)]
+struct At<'h> {
+    hit: &'h Hit,
+    bsdf: &'h Bsdf,
+    /// Toward the viewer.
+    wo: Vec3,
+    /// Emitted radiance toward the viewer [W sr^-1 m^-2].
+    le: Rgb,
+}
+
+/// Radiance components along a ray in direction `d` whose first hit is `hit`:
+/// recursive specular reflection and refraction, and `shade` at the first
+/// non-specular hit.
+#[allow(clippy::too_many_arguments)]
+fn trace_from<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    shade: &Shade<G>,
+    hit: Option<pm_scene::Hit>,
+    d: Vec3,
+    depth: u32,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let Some(hit) = hit else { return Components::default() };
+    let tr = ctx.scene.transmittance(&hit, d);
+    let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
+    if tr == Rgb::ONE { c } else { c.scaled(tr) }
+}
+
+/// [`trace_from`] from its hit (before the segment's transmittance).
+#[allow(clippy::too_many_arguments)]
+fn trace_hit<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    shade: &Shade<G>,
+    hit: &pm_scene::Hit,
+    d: Vec3,
+    depth: u32,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    mut vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let (scene, cfg, hit) = (ctx.scene, &ctx.cfg, *hit);
+    let wo = -d;
+    let le = scene.emitted(&hit, wo);
+    let bsdf = scene.bsdf(&hit);
+    if let Some(v) = vs.as_deref_mut() {
+        *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
+    }
+    if !bsdf.is_specular() {
+        return shade(ctx, &At { hit: &hit, bsdf: &bsdf, wo, le }, s, scratch, vs);
+    }
+    if depth >= cfg.max_depth {
+        ctx.counters.terminated_paths.fetch_add(1, Relaxed);
+        return Components { specular: le, ..Default::default() };
+    }
+    let t0 = scratch.clock();
+    let mut l = le;
+    let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
+        let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
+        let hit = ctx.scene.intersect(o2, wi, f32::INFINITY);
+        w * trace_from(ctx, shade, hit, wi, depth + 1, s, scratch, None).total()
+    };
+    let u = s.next_2d();
+    let uc = s.next_1d();
+    if depth < SPLIT_DEPTH {
+        // Both Fresnel branches: sample with uc at either end of [0, 1).
+        let refl = bsdf.sample(wo, hit.ns, u, 0.0);
+        let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
+        match (refl, refr) {
+            (Some(a), Some(b)) if b.transmitted => {
+                l += follow(s, scratch, a.wi, a.weight * a.pdf);
+                l += follow(s, scratch, b.wi, b.weight * b.pdf);
+            }
+            // Mirror, or total internal reflection: one branch of probability 1.
+            (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
+            _ => {}
+        }
+    } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
+        l += follow(s, scratch, bs.wi, bs.weight);
+    }
+    gather::add_time(&ctx.counters.ns_specular, t0);
+    Components { specular: l, ..Default::default() }
+}
+
+/// Figure 1 (b): reflectance / pi x a k-nearest irradiance estimate from the global map.
+fn shade_photons<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    at: &At,
+    _: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
+    let cfg = &ctx.cfg;
+    let e = match &ctx.maps.global {
+        Some(tree) => {
+            let p = KnnParams {
+                k: cfg.k_global,
+                max_d2: cfg.max_radius_global * cfg.max_radius_global,
+                filter: Filter::None,
+            };
+            pm_estimate::irradiance(tree, hit.p, facing(hit.ng, wo), &p, &mut scratch.knn).e
+        }
+        None => Rgb::ZERO,
+    };
+    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// Figure 1 (e): reflectance / pi x the precomputed irradiance the final gather reads.
+fn shade_radiance<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    at: &At,
+    _: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
+    let e = lookup_irradiance(ctx, hit.p, facing(hit.ng, wo), scratch);
+    Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// Figure 1 (f): the soft indirect term alone.
+fn shade_indirect<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    at: &At,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    _: Option<&mut VisibleSurface>,
+) -> Components {
+    let At { hit, bsdf, wo, le: _ } = *at;
+    let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), s, scratch);
+    Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
+}
+
+/// The complete image (section 1.3): direct light by light sampling, caustics from
+/// the caustic map, soft indirect light from the cache or a final gather.
+fn shade_full<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    at: &At,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+    vs: Option<&mut VisibleSurface>,
+) -> Components {
+    let At { hit, bsdf, wo, le } = *at;
+    let cfg = &ctx.cfg;
+    let n = facing(hit.ng, wo);
+    let ns = facing(hit.ns, wo);
+    let albedo = bsdf.diffuse_albedo();
+    let t = scratch.clock();
+    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
+    let direct = le + reflected;
+    if let Some(v) = vs {
+        v.direct = reflected;
+    }
+    gather::add_time(&ctx.counters.ns_direct, t);
+    let t = scratch.clock();
+    let caustic = match &ctx.maps.caustic {
+        Some(tree) => {
+            let p = KnnParams {
+                k: cfg.k_caustic,
+                max_d2: cfg.max_radius_caustic * cfg.max_radius_caustic,
+                filter: Filter::Cone { k: 1.1 },
+            };
+            pm_estimate::radiance(tree, hit.p, n, &p, &mut scratch.knn, |wi| bsdf.f(wo, wi, hit.ns))
+        }
+        None => Rgb::ZERO,
+    };
+    gather::add_time(&ctx.counters.ns_caustic, t);
+    let e = if !cfg.indirect {
+        Rgb::ZERO
+    } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
+        e
+    } else {
+        indirect_irradiance(ctx, hit.p, ns, n, s, scratch)
+    };
+    Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
+}
+
+/// The non-specular hits an eye ray reaches, following specular bounces exactly as
+/// [`trace_from`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
+/// after): where the irradiance-cache prepass puts records. Each is the hit and the
+/// direction toward the viewer.
+pub(crate) fn diffuse_points<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    o: Vec3,
+    d: Vec3,
+    depth: u32,
+    out: &mut Vec<(pm_scene::Hit, Vec3)>,
+) {
+    let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
+    let bsdf = ctx.scene.bsdf(&hit);
+    if !bsdf.is_specular() {
+        out.push((hit, -d));
+        return;
+    }
+    if depth >= ctx.cfg.max_depth {
+        return;
+    }
+    let Some(refl) = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0) else { return };
+    let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
+    let mut go = |wi: Vec3| diffuse_points(ctx, ctx.scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
+    match refr {
+        Some(t) if depth < SPLIT_DEPTH => {
+            go(refl.wi);
+            go(t.wi);
+        }
+        Some(t) if t.pdf > refl.pdf => go(t.wi),
+        _ => go(refl.wi),
+    }
+}
