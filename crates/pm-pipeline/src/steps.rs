@@ -166,7 +166,7 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
         // The cache step gets only what shapes the cache (the rest at defaults), so
         // changing the rest re-runs only the render.
         let mut a = base;
-        a.extend(r.cache_shaping().to_args());
+        a.extend(r.cache_settings().render_params().to_args());
         steps.push(Step {
             name: "photon-render icache".into(),
             kind: Kind::Icache,

@@ -138,50 +138,115 @@ impl RenderParams {
         Film { width: self.width, height: self.height, spp: self.spp, contrast: self.contrast, seed }
     }
 
-    /// These parameters with every one that does not shape an irradiance cache at
-    /// its default: how the image is sampled and shown (spp, contrast, mode,
-    /// exposure) and the caustic estimate (caustic_k, caustic_radius_rel_diag). The
-    /// runner's cache step takes these, so a change of those values re-runs only the
-    /// render; a test holds this list to [`PhotonMapping::cache_key`]'s.
-    pub fn cache_shaping(&self) -> RenderParams {
-        let d = RenderParams::default();
-        RenderParams {
-            spp: d.spp,
-            contrast: d.contrast,
-            mode: d.mode,
-            exposure: d.exposure,
-            caustic_k: d.caustic_k,
-            caustic_radius_rel_diag: d.caustic_radius_rel_diag,
-            ..self.clone()
+    /// What of these parameters shapes an irradiance cache.
+    pub fn cache_settings(&self) -> CacheSettings {
+        CacheSettings {
+            width: self.width,
+            height: self.height,
+            gather_rays: self.gather_rays,
+            gather_lookup: self.gather_lookup,
+            secondary_rays: self.secondary_rays,
+            secondary_distance_rel_diag: self.secondary_distance_rel_diag,
+            k: self.k,
+            max_radius_rel_diag: self.max_radius_rel_diag,
+            icache_accuracy: self.icache_accuracy,
+            icache_min_spacing_rel_diag: self.icache_min_spacing_rel_diag,
+            icache_max_spacing_rel_diag: self.icache_max_spacing_rel_diag,
+            indirect_threshold: self.indirect_threshold,
+            light_samples: self.light_samples,
+            max_depth: self.max_depth,
         }
     }
 }
 
-/// The settings that shape an irradiance cache, as the text an irradiance-cache file
-/// records (`name=value` words): the image size and seed (the prepass samples the
-/// image), the final gather's settings, the global map's estimate, the cache's
-/// accuracy and spacing, direct light and the specular depth.
-pub(crate) fn cache_key(c: &Settings, film: &Film) -> String {
-    format!(
-        "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
-         max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
-         max_depth={}",
-        film.width,
-        film.height,
-        film.seed,
-        c.gather_rays,
-        c.secondary_rays,
-        c.secondary_distance,
-        c.lookup,
-        c.k_global,
-        c.max_radius_global,
-        c.icache_accuracy,
-        c.icache_spacing.0,
-        c.icache_spacing.1,
-        c.indirect_threshold,
-        c.light_samples,
-        c.max_depth
-    )
+/// The settings that shape an irradiance cache, said once: the image size (the
+/// prepass samples the image), the final gather's settings, the global map's
+/// estimate, the cache's accuracy and spacing, direct light and the specular
+/// depth. Not: how the image is sampled and shown (spp, contrast, mode, exposure)
+/// or the caustic estimate. The runner's cache step takes exactly these
+/// ([`Self::render_params`]), so a change of anything else re-runs only the render;
+/// a cache file records them ([`Self::key`]) and a render with other values refuses
+/// it. Lengths are fractions of the scene diagonal, as in [`RenderParams`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CacheSettings {
+    /// Image width \[pixels\].
+    pub width: u32,
+    /// Image height \[pixels\].
+    pub height: u32,
+    /// Final-gather rays per gather.
+    pub gather_rays: u32,
+    /// How gather rays read the global map.
+    pub gather_lookup: Lookup,
+    /// Rays of a secondary final gather.
+    pub secondary_rays: u32,
+    /// Gather rays shorter than this fraction of the diagonal get a secondary gather.
+    pub secondary_distance_rel_diag: f32,
+    /// Photons per global-map estimate.
+    pub k: usize,
+    /// Largest global-map search radius, fraction of the diagonal.
+    pub max_radius_rel_diag: f32,
+    /// Irradiance-cache accuracy a.
+    pub icache_accuracy: f32,
+    /// Smallest record spacing, fraction of the diagonal.
+    pub icache_min_spacing_rel_diag: f32,
+    /// Largest record spacing, fraction of the diagonal.
+    pub icache_max_spacing_rel_diag: f32,
+    /// Importance threshold of the photon map's indirect irradiance.
+    pub indirect_threshold: f32,
+    /// Light samples per shading point.
+    pub light_samples: u32,
+    /// Depth limit of specular recursion.
+    pub max_depth: u32,
+}
+
+impl CacheSettings {
+    /// Render parameters with these values and every other at its default: the
+    /// cache step's.
+    pub fn render_params(&self) -> RenderParams {
+        RenderParams {
+            width: self.width,
+            height: self.height,
+            gather_rays: self.gather_rays,
+            gather_lookup: self.gather_lookup,
+            secondary_rays: self.secondary_rays,
+            secondary_distance_rel_diag: self.secondary_distance_rel_diag,
+            k: self.k,
+            max_radius_rel_diag: self.max_radius_rel_diag,
+            icache_accuracy: self.icache_accuracy,
+            icache_min_spacing_rel_diag: self.icache_min_spacing_rel_diag,
+            icache_max_spacing_rel_diag: self.icache_max_spacing_rel_diag,
+            indirect_threshold: self.indirect_threshold,
+            light_samples: self.light_samples,
+            max_depth: self.max_depth,
+            ..RenderParams::default()
+        }
+    }
+
+    /// The cache file's record of these settings for a scene of diagonal `diag` \[m\]
+    /// and the film `film` (its size and seed): `name=value` words, lengths in metres
+    /// as the renderer resolves them.
+    pub fn key(&self, diag: f32, film: &Film) -> String {
+        format!(
+            "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
+             max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
+             max_depth={}",
+            film.width,
+            film.height,
+            film.seed,
+            self.gather_rays,
+            self.secondary_rays,
+            self.secondary_distance_rel_diag * diag,
+            self.gather_lookup,
+            self.k,
+            self.max_radius_rel_diag * diag,
+            self.icache_accuracy,
+            self.icache_min_spacing_rel_diag * diag,
+            self.icache_max_spacing_rel_diag * diag,
+            self.indirect_threshold,
+            self.light_samples,
+            self.max_depth
+        )
+    }
 }
 
 /// The photon-map integrators' settings in absolute units, resolved from
@@ -324,26 +389,32 @@ mod tests {
         panic!("no other value for {field}");
     }
 
-    /// "What shapes an irradiance cache" is said once: a parameter changes the
-    /// cache file's key exactly when it survives [`RenderParams::cache_shaping`],
-    /// for every parameter. A parameter added to the key but not to the runner's
-    /// cache step (or the other way: caustic_k once re-ran a cache it does not
-    /// shape) fails here.
+    /// "What shapes an irradiance cache" is said once, in [`CacheSettings`]: every
+    /// `RenderParams` field changes the cache file's key exactly when it changes
+    /// the cache settings, and the cache step's parameters carry them back
+    /// unchanged. A field that changes the integrator's resolved settings but not
+    /// the cache settings must be one that cannot shape the cache (the caustic
+    /// estimate's): a new setting that the prepass reads fails here until it is
+    /// classified.
     #[test]
-    fn the_cache_key_and_the_cache_steps_parameters_agree_on_every_field() {
+    fn every_render_parameter_either_shapes_the_cache_or_cannot() {
         let base = RenderParams::default();
-        let key = |p: &RenderParams| cache_key(&Settings::new(p, 2.5, true), &p.film(7));
+        let key = |p: &RenderParams| p.cache_settings().key(2.5, &p.film(7));
+        let resolved = |p: &RenderParams| format!("{:?}", Settings::new(p, 2.5, true));
+        let mut shaping = 0;
         for field in RenderParams::FIELDS {
             let p = changed(&base, field);
-            let in_key = key(&p) != key(&base);
-            let shaping = p.cache_shaping() != base.cache_shaping();
-            assert_eq!(in_key, shaping, "{field}: changes the cache key {in_key}, kept by cache_shaping {shaping}");
+            let (in_key, in_settings) = (key(&p) != key(&base), p.cache_settings() != base.cache_settings());
+            assert_eq!(in_key, in_settings, "{field}: changes the key {in_key}, the cache settings {in_settings}");
+            assert_eq!(p.cache_settings().render_params().cache_settings(), p.cache_settings(), "{field}");
+            if resolved(&p) != resolved(&base) && !in_settings {
+                assert!(
+                    ["caustic_k", "caustic_radius_rel_diag"].contains(field),
+                    "{field} changes what the integrator resolves but not the cache settings"
+                );
+            }
+            shaping += in_settings as usize;
         }
-        let shaped = RenderParams::FIELDS.iter().filter(|f| key(&changed(&base, f)) != key(&base)).count();
-        assert_eq!(
-            shaped,
-            RenderParams::FIELDS.len() - 6,
-            "spp, contrast, mode, exposure, caustic_k and caustic_radius_rel_diag leave the cache alone"
-        );
+        assert_eq!(shaping, RenderParams::FIELDS.len() - 6, "spp, contrast, mode, exposure and the caustic two");
     }
 }

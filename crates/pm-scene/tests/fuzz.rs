@@ -1,7 +1,8 @@
 //! Fuzzing the glTF-to-scene conversion: mutated copies of a hand-written glTF (text
 //! edits and byte flips) and of a .glb must load or fail with a one-line error
 //! naming the file, never panic. Inputs that ever crashed the loader are kept in
-//! tests/corpus/ and replayed here.
+//! tests/corpus/ and replayed here; a new crash is saved under the build's
+//! temporary folder (never into the source tree) for a developer to move there.
 
 use proptest::prelude::*;
 use std::path::PathBuf;
@@ -17,10 +18,15 @@ fn check(bytes: &[u8], ext: &str) -> Result<(), TestCaseError> {
     let result = std::panic::catch_unwind(|| pm_scene::load(&p).map(|s| s.triangles.len()));
     match result {
         Err(_) => {
-            // Keep the crashing input as a regression case.
-            let keep = data("corpus").join(format!("crash-{}.{ext}", blake3::hash(bytes).to_hex()));
+            // Save the crashing input for a developer to keep in tests/corpus/.
+            let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-crashes");
+            std::fs::create_dir_all(&dir).unwrap();
+            let keep = dir.join(format!("crash-{}.{ext}", blake3::hash(bytes).to_hex()));
             std::fs::write(&keep, bytes).unwrap();
-            Err(TestCaseError::fail(format!("loader panicked; input saved to {}", keep.display())))
+            Err(TestCaseError::fail(format!(
+                "loader panicked; input saved to {} (move it to crates/pm-scene/tests/corpus/ to replay it)",
+                keep.display()
+            )))
         }
         Ok(Ok(_)) => Ok(()),
         Ok(Err(e)) => {

@@ -11,7 +11,7 @@ pub use gather::Scratch;
 
 use crate::icache::IrradianceCache;
 use crate::integrator::{Components, Counters, Film, FirstHit, Integrator, VisibleSurface};
-use crate::{Maps, RenderParams, Settings, facing};
+use crate::{CacheSettings, Maps, RenderParams, Settings, facing};
 use gather::{final_gather, lookup_irradiance};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
@@ -34,6 +34,8 @@ pub struct PhotonMapping<'a, G> {
     pub(crate) scene: &'a Scene,
     pub(crate) maps: Maps<'a, G>,
     pub(crate) cfg: Settings,
+    /// What shapes an irradiance cache, as given (relative lengths).
+    cache_settings: CacheSettings,
     pub(crate) light: DirectLighting<'a>,
     pub(crate) cache: Option<IrradianceCache>,
     pub(crate) counters: Counters,
@@ -56,6 +58,7 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
             scene,
             maps,
             cfg,
+            cache_settings: params.cache_settings(),
             light: DirectLighting::with_closed_form(scene)?,
             cache: None,
             counters: Counters::default(),
@@ -85,11 +88,11 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
         &self.cfg
     }
 
-    /// The settings that shape an irradiance cache, as text (`cache_key` in lib.rs):
+    /// The record a cache file keeps of what shaped the cache ([`CacheSettings::key`]):
     /// a cache made with other values (or for another image size or seed) must not
     /// be used.
     pub fn cache_key(&self, film: &Film) -> String {
-        crate::cache_key(&self.cfg, film)
+        self.cache_settings.key(self.scene.bounds.diagonal(), film)
     }
 
     /// The integrator with the irradiance cache of a file's `records`, at its own
