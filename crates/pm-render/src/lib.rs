@@ -140,86 +140,35 @@ impl RenderParams {
 
     /// What of these parameters shapes an irradiance cache.
     pub fn cache_settings(&self) -> CacheSettings {
-        CacheSettings {
-            width: self.width,
-            height: self.height,
-            gather_rays: self.gather_rays,
-            gather_lookup: self.gather_lookup,
-            secondary_rays: self.secondary_rays,
-            secondary_distance_rel_diag: self.secondary_distance_rel_diag,
-            k: self.k,
-            max_radius_rel_diag: self.max_radius_rel_diag,
-            icache_accuracy: self.icache_accuracy,
-            icache_min_spacing_rel_diag: self.icache_min_spacing_rel_diag,
-            icache_max_spacing_rel_diag: self.icache_max_spacing_rel_diag,
-            indirect_threshold: self.indirect_threshold,
-            light_samples: self.light_samples,
-            max_depth: self.max_depth,
-        }
+        let d = RenderParams::default();
+        CacheSettings(RenderParams {
+            spp: d.spp,
+            contrast: d.contrast,
+            mode: d.mode,
+            exposure: d.exposure,
+            caustic_k: d.caustic_k,
+            caustic_radius_rel_diag: d.caustic_radius_rel_diag,
+            ..self.clone()
+        })
     }
 }
 
-/// The settings that shape an irradiance cache, said once: the image size (the
-/// prepass samples the image), the final gather's settings, the global map's
-/// estimate, the cache's accuracy and spacing, direct light and the specular
-/// depth. Not: how the image is sampled and shown (spp, contrast, mode, exposure)
-/// or the caustic estimate. The runner's cache step takes exactly these
-/// ([`Self::render_params`]), so a change of anything else re-runs only the render;
-/// a cache file records them ([`Self::key`]) and a render with other values refuses
-/// it. Lengths are fractions of the scene diagonal, as in [`RenderParams`].
+/// The settings that shape an irradiance cache, said once: render parameters with
+/// every value that cannot shape a cache at its default (how the image is sampled
+/// and shown: spp, contrast, mode, exposure; the caustic estimate: caustic_k,
+/// caustic_radius_rel_diag). What remains is the image size (the prepass samples
+/// the image), the final gather's settings, the global map's estimate, the cache's
+/// accuracy and spacing, direct light and the specular depth. The runner's cache
+/// step takes exactly these ([`Self::render_params`]), so a change of anything
+/// else re-runs only the render; a cache file records them ([`Self::key`]) and a
+/// render with other values refuses it.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct CacheSettings {
-    /// Image width \[pixels\].
-    pub width: u32,
-    /// Image height \[pixels\].
-    pub height: u32,
-    /// Final-gather rays per gather.
-    pub gather_rays: u32,
-    /// How gather rays read the global map.
-    pub gather_lookup: Lookup,
-    /// Rays of a secondary final gather.
-    pub secondary_rays: u32,
-    /// Gather rays shorter than this fraction of the diagonal get a secondary gather.
-    pub secondary_distance_rel_diag: f32,
-    /// Photons per global-map estimate.
-    pub k: usize,
-    /// Largest global-map search radius, fraction of the diagonal.
-    pub max_radius_rel_diag: f32,
-    /// Irradiance-cache accuracy a.
-    pub icache_accuracy: f32,
-    /// Smallest record spacing, fraction of the diagonal.
-    pub icache_min_spacing_rel_diag: f32,
-    /// Largest record spacing, fraction of the diagonal.
-    pub icache_max_spacing_rel_diag: f32,
-    /// Importance threshold of the photon map's indirect irradiance.
-    pub indirect_threshold: f32,
-    /// Light samples per shading point.
-    pub light_samples: u32,
-    /// Depth limit of specular recursion.
-    pub max_depth: u32,
-}
+pub struct CacheSettings(RenderParams);
 
 impl CacheSettings {
-    /// Render parameters with these values and every other at its default: the
-    /// cache step's.
-    pub fn render_params(&self) -> RenderParams {
-        RenderParams {
-            width: self.width,
-            height: self.height,
-            gather_rays: self.gather_rays,
-            gather_lookup: self.gather_lookup,
-            secondary_rays: self.secondary_rays,
-            secondary_distance_rel_diag: self.secondary_distance_rel_diag,
-            k: self.k,
-            max_radius_rel_diag: self.max_radius_rel_diag,
-            icache_accuracy: self.icache_accuracy,
-            icache_min_spacing_rel_diag: self.icache_min_spacing_rel_diag,
-            icache_max_spacing_rel_diag: self.icache_max_spacing_rel_diag,
-            indirect_threshold: self.indirect_threshold,
-            light_samples: self.light_samples,
-            max_depth: self.max_depth,
-            ..RenderParams::default()
-        }
+    /// The cache step's render parameters.
+    pub fn render_params(&self) -> &RenderParams {
+        &self.0
     }
 
     /// The cache file's record of these settings for a scene of diagonal `diag` \[m\]
@@ -233,18 +182,18 @@ impl CacheSettings {
             film.width,
             film.height,
             film.seed,
-            self.gather_rays,
-            self.secondary_rays,
-            self.secondary_distance_rel_diag * diag,
-            self.gather_lookup,
-            self.k,
-            self.max_radius_rel_diag * diag,
-            self.icache_accuracy,
-            self.icache_min_spacing_rel_diag * diag,
-            self.icache_max_spacing_rel_diag * diag,
-            self.indirect_threshold,
-            self.light_samples,
-            self.max_depth
+            self.0.gather_rays,
+            self.0.secondary_rays,
+            self.0.secondary_distance_rel_diag * diag,
+            self.0.gather_lookup,
+            self.0.k,
+            self.0.max_radius_rel_diag * diag,
+            self.0.icache_accuracy,
+            self.0.icache_min_spacing_rel_diag * diag,
+            self.0.icache_max_spacing_rel_diag * diag,
+            self.0.indirect_threshold,
+            self.0.light_samples,
+            self.0.max_depth
         )
     }
 }
