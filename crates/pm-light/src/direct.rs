@@ -130,10 +130,7 @@ impl<'a> DirectLighting<'a> {
             return None;
         }
         let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
-        // Measure the shadow ray from the offset origin: the offset can exceed a relative
-        // margin in tiny scenes, and the ray would then reach the light itself (every
-        // shadow ray in a 2 mm Cornell box was blocked before this).
-        let t_max = if ls.dist.is_finite() { (ls.dist - (o - hit.p).dot(ls.wi)) * (1.0 - 1e-4) } else { f32::INFINITY };
+        let t_max = shadow_length(hit.p, o, &ls);
         let p_l = ls.pdf * p_sel;
         let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
         Some((f * ls.li * (w / p_l), o, ls.wi, t_max))
@@ -206,6 +203,25 @@ fn light_numbers(s: &mut Sampler) -> [f32; 4] {
 pub(crate) fn lambert_unoccluded(light: &pm_scene::Light, p: Vec3, n: Vec3, rho: Rgb) -> (Rgb, f32) {
     let (le, e) = light.cos_integral(p, n).unwrap_or((Rgb::ZERO, 0.0));
     (rho * le * (e / PI), e)
+}
+
+/// How far a shadow ray from `o` (the offset of surface point `p`) toward the light
+/// sample `ls` may go before it counts as blocked \[m\]: to the light point, measured
+/// from the offset origin (the offset can exceed a relative margin in tiny scenes,
+/// and the ray would then reach the light itself: every shadow ray in a 2 mm Cornell
+/// box was blocked before this), less a relative margin and a margin of a few units
+/// in the last place of the light point's coordinates. Far from the origin the
+/// sampled point and the ray's hit on the light's own triangle differ by such units
+/// (a box 350 m from its camera-relative origin has coordinates 3e-5 m apart, and a
+/// 1e-4 relative margin of a 0.5 m ray is 5e-5 m): without it the ray found the
+/// light and the floor of a 0.55 m Cornell box 100 km away lost most of its direct
+/// light (issue 36). Infinite for lights at infinity.
+fn shadow_length(p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> f32 {
+    if !ls.dist.is_finite() {
+        return f32::INFINITY;
+    }
+    let far = (p + ls.wi * ls.dist).abs().max_element();
+    (ls.dist - (o - p).dot(ls.wi)) * (1.0 - 1e-4) - far * (16.0 * f32::EPSILON)
 }
 
 /// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.
