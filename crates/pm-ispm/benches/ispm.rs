@@ -63,6 +63,12 @@ fn main() {
 }
 
 fn run() {
+    // `cargo bench -p pm-ispm --bench ispm -- bounces`: only the bounce-count table.
+    if std::env::args().any(|a| a == "bounces") {
+        let s = scene("cornell_spheres");
+        against_the_path_tracer(&s, &Reference::new(&s), &BOUNCE_ROWS);
+        return;
+    }
     let scenes: Vec<(&str, Scene)> =
         ["cornell_spheres", "caustic_ring", "cornell_dense"].into_iter().map(|n| (n, scene(n))).collect();
     table2(&scenes);
@@ -71,7 +77,7 @@ fn run() {
     splat_against_gather(s);
     subsampling(s);
     let reference = Reference::new(s);
-    against_the_path_tracer(s, &reference);
+    against_the_path_tracer(s, &reference, &ROWS);
     direct_light_both_ways(s, &reference);
 }
 
@@ -269,7 +275,13 @@ impl Reference {
 
 /// Against the path tracer: 512 x 512, both images compared as means of 4 x 4
 /// blocks, blocks touching the light's pixels left out.
-fn against_the_path_tracer(s: &Scene, reference: &Reference) {
+/// (bounce_res, bounces, subsample) of the comparison with the path tracer.
+const ROWS: [(u32, u32, u32); 7] = [(48, 1, 1), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)];
+
+/// The bounce count at the default bounce map: where more bounces stop paying.
+const BOUNCE_ROWS: [(u32, u32, u32); 6] = [(48, 1, 1), (48, 2, 1), (48, 3, 1), (48, 4, 1), (48, 6, 1), (48, 8, 1)];
+
+fn against_the_path_tracer(s: &Scene, reference: &Reference, rows: &[(u32, u32, u32)]) {
     let t_path = reference.seconds;
     let measure = |img: &[Rgb]| measure_against(img, &reference.total);
     let (rr, rb, rm, r9) = measure(&reference.second);
@@ -281,9 +293,7 @@ fn against_the_path_tracer(s: &Scene, reference: &Reference) {
     );
     println!("|---|---|---|---|---|---|---|---|");
     println!("| (a second 64-spp path-traced image) | | | | {rr:.4} | {rb:+.4} | {rm:.4} | {r9:.4} |");
-    for (bounce_res, bounces, subsample) in
-        [(48u32, 1u32, 1u32), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)]
-    {
+    for &(bounce_res, bounces, subsample) in rows {
         let p = Params(
             FrameParams { light_samples: 4, ..Default::default() },
             IspmParams { bounce_res, bounces, subsample, ..Default::default() },

@@ -34,8 +34,11 @@ pm_params::params! {
         /// for a point light; directional and area lights shoot as many samples;
         /// lights share texels by power).
         bounce_res: u32 = 48 => between(1, 4096);
-        /// Photons stored per path after the bounce map (1: one indirect bounce).
-        bounces: u32 = 2 => between(1, 64);
+        /// Photons stored per path after the bounce map (1: one indirect bounce). The
+        /// default traces until more stop paying: on cornell_spheres the image's mean
+        /// bias against the path tracer is -14.9% at 2, -6.4% at 4, -4.3% at 6 and
+        /// -3.7% at 8 (`cargo bench -p pm-ispm --bench ispm -- bounces`, BENCHMARKS.md).
+        bounces: u32 = 8 => between(1, 64);
         /// Kernel radius of a path of density 1, as a fraction of the scene diagonal;
         /// a path of density ρ gets radius r / sqrt(ρ) (one Lambertian bounce:
         /// ρ ≈ albedo / 1000).
