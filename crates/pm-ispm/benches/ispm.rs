@@ -273,14 +273,15 @@ impl Reference {
     }
 }
 
-/// Against the path tracer: 512 x 512, both images compared as means of 4 x 4
-/// blocks, blocks touching the light's pixels left out.
 /// (bounce_res, bounces, subsample) of the comparison with the path tracer.
-const ROWS: [(u32, u32, u32); 7] = [(48, 1, 1), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)];
+const ROWS: [(u32, u32, u32); 7] =
+    [(48, 1, 1), (48, 3, 1), (48, 8, 1), (48, 8, 4), (96, 8, 1), (96, 8, 4), (160, 8, 4)];
 
 /// The bounce count at the default bounce map: where more bounces stop paying.
 const BOUNCE_ROWS: [(u32, u32, u32); 6] = [(48, 1, 1), (48, 2, 1), (48, 3, 1), (48, 4, 1), (48, 6, 1), (48, 8, 1)];
 
+/// Against the path tracer: 512 x 512, both images compared as means of 4 x 4
+/// blocks, blocks touching the light's pixels left out, for each of `rows`.
 fn against_the_path_tracer(s: &Scene, reference: &Reference, rows: &[(u32, u32, u32)]) {
     let t_path = reference.seconds;
     let measure = |img: &[Rgb]| measure_against(img, &reference.total);
