@@ -73,7 +73,19 @@ pub fn photon_maps(
     caustic: u64,
     fraction: f64,
 ) -> (Vec<CompactIrrPhoton>, Vec<FullPhoton>) {
-    let mut g = global_tree(scene, global, 1);
+    photon_maps_seeded(scene, global, caustic, fraction, 1)
+}
+
+/// [`photon_maps`] with the global map traced with `seed` and the caustic map
+/// with `seed + 1` (`photon_maps` is seed 1).
+pub fn photon_maps_seeded(
+    scene: &Scene,
+    global: u64,
+    caustic: u64,
+    fraction: f64,
+    seed: u64,
+) -> (Vec<CompactIrrPhoton>, Vec<FullPhoton>) {
+    let mut g = global_tree(scene, global, seed);
     let params = pm_estimate::KnnParams {
         k: 50,
         max_d2: (0.1 * scene.bounds.diagonal()).powi(2),
@@ -83,7 +95,7 @@ pub fn photon_maps(
     let cfg = TraceConfig {
         pass: MapPass::Caustic,
         budget: Budget::Stored { target: caustic, cap: caustic * 1000 },
-        seed: 2,
+        seed: seed + 1,
         selector: LightSelector::new(scene, &[]).unwrap(),
     };
     let c: Vec<FullPhoton> =

@@ -273,7 +273,7 @@ pub fn render_into<I: Integrator>(
     if pass1 != rect {
         in_region.extend((0..pixels.len()).filter(|&j| region.in_rect(region.pixel_of(j))));
     }
-    let pass1_of = |r: usize| if pass1 == rect { r } else { in_region[r] };
+    let pass1_of = |r: usize| pass1_index(in_region, r);
     let n = rect.area();
     let samples: u64 = if single_pass {
         n as u64 * region.first_spp as u64
@@ -314,6 +314,12 @@ struct RegionLoop<'a, I> {
     /// Pass 1's pixels done, for `progress`.
     done: AtomicU64,
     progress: &'a (dyn Fn(u64, u64) + Sync),
+}
+
+/// The index in pass 1's pixels of the region's pixel `r` (row order): itself when
+/// pass 1 was the region, else through `in_region` (pass 1 included the apron).
+fn pass1_index(in_region: &[usize], r: usize) -> usize {
+    if in_region.is_empty() { r } else { in_region[r] }
 }
 
 /// Where the write-out finds pass 1's pixels.
@@ -505,7 +511,7 @@ impl<I: Integrator> RegionLoop<'_, I> {
                             (&computed.0, &computed.1)
                         }
                         Pass1::Stored(pixels, in_region) => {
-                            let p = &pixels[if in_region.is_empty() { r } else { in_region[r] }];
+                            let p = &pixels[pass1_index(in_region, r)];
                             (&p.0, &p.1)
                         }
                     };

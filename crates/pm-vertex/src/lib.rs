@@ -273,6 +273,16 @@ impl Vertex {
         tree_photons(&self.ring, self.frame_params.direct)
     }
 
+    /// The largest estimate radius in `world` \[m\].
+    fn max_radius(&self, world: &World) -> f32 {
+        self.params.max_radius_rel_diag * world.scene().bounds.diagonal()
+    }
+
+    /// Frame `frame`'s film (its pixel streams keyed by the seed and the frame).
+    fn film(&self, frame: u64) -> pm_render::Film {
+        self.frame_params.film(self.seed ^ frame)
+    }
+
     /// Shoot and update the photon search, rasterising beside it when drawing:
     /// returns the shoot statistics, the search's records (empty for the grid) with
     /// their buckets, and the times of shooting, search and rasterising \[s\].
@@ -287,8 +297,7 @@ impl Vertex {
         let shot =
             self.ring.shoot(world.photon_scene(), &self.trace, &self.targets, p.per_frame as usize, p.distribution);
         let shoot = t.elapsed().as_secs_f64();
-        let max_radius = p.max_radius_rel_diag * world.scene().bounds.diagonal();
-        let film = f.film(self.seed ^ frame);
+        let (max_radius, film) = (self.max_radius(world), self.film(frame));
         // The search structure (a kd-tree rebuilt over the used slots, or the grid
         // updated for the re-shot paths' slots only; the update is serial) and the
         // rasterised first hits of the frame, side by side.
@@ -335,7 +344,7 @@ impl Vertex {
         active: &[bool],
     ) -> (Vec<Rgb>, f64) {
         let p = &self.params;
-        let max_radius = p.max_radius_rel_diag * world.scene().bounds.diagonal();
+        let max_radius = self.max_radius(world);
         let mut e = match &self.grid {
             Some(grid) if p.photon_search == PhotonSearch::Grid => {
                 // The grid holds each path's unscaled power: scale the (linear) estimate.
@@ -401,7 +410,7 @@ impl pm_live::Method for Vertex {
             DrawMode::Raster => Visibility::Fragments(world.scene(), &self.fragments),
             DrawMode::Rays => Visibility::Rays,
         };
-        let film = f.film(self.seed ^ frame);
+        let film = self.film(frame);
         let (_, rs) =
             pm_render::render_into(world.camera(), &film, film.rect(), &shading, false, visibility, out, &|_, _| {})?;
         // The rasteriser ran beside the photon update: its time counts as drawing.

@@ -411,14 +411,7 @@ fn far_from_the_origin_every_layer_matches_block_by_block() {
     for method in [Method::Full, Method::Path] {
         let render_at = |t: f32, seed: u64| {
             let scene = pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
-            let mut global = pm_tests::global_tree(&scene, 50_000, seed);
-            let knn = pm_estimate::KnnParams {
-                k: 50,
-                max_d2: (0.1 * scene.bounds.diagonal()).powi(2),
-                filter: pm_estimate::Filter::None,
-            };
-            pm_estimate::precompute(&mut global, &knn, 0.25, &|_| {});
-            let maps = (global, Vec::new());
+            let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
             let mut cfg = render_params(method, 64, 64);
             (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
             let camera = scene.camera.as_ref().unwrap();
