@@ -175,7 +175,7 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
     for f in [0.05f32, 0.02] {
         v.push(with("live vertex", format!("vertex subdivide {f} diag"), &|s| {
             let mut p = live(photon_live::Method::Vertex);
-            p.vertex.subdivide = f * diagonal;
+            p.vertex.subdivide = pm_vertex::Subdivide::MaxEdge(f * diagonal);
             s.live = Some(p)
         }));
     }

@@ -252,23 +252,14 @@ pub fn run(cli: &Cli) -> Result<()> {
                 Some(path) => Some(pm_stage::load_scene("photon-live", path, cli.scene_args)?),
                 None => None,
             };
-            // Photons are traced in the scene as given (or the --photon-scene); only
-            // the drawn mesh is subdivided.
-            let photon_scene = match p.vertex.photon_proxy {
-                pm_vertex::PhotonProxy::Boxes => Some(photon_scene.as_ref().unwrap_or(&scene).bounding_box_proxy()),
-                pm_vertex::PhotonProxy::None => photon_scene,
-            };
             let (hash, origin, diagonal) = (scene.content_hash, scene.origin.to_array(), scene.bounds.diagonal());
-            let (drawn, photon_scene) = if p.vertex.subdivide > 0.0 {
-                let sub = scene.subdivided(p.vertex.subdivide);
-                (sub, Some(photon_scene.unwrap_or(scene)))
-            } else {
-                (scene, photon_scene)
-            };
-            let world = World::new(drawn, photon_scene).map_err(at_scene)?;
-            let method = Vertex::new(&world, p.frame.clone(), p.vertex.clone(), cli.seed).map_err(at_scene)?;
+            let live =
+                pm_vertex::live(scene, photon_scene, p.frame.clone(), p.vertex.clone(), cli.seed).map_err(at_scene)?;
+            if let Some(s) = live.method().subdivision() {
+                eprintln!("photon-live: {s}");
+            }
             let dump = |live: &Live<Vertex>, path: &std::path::Path| dump(live, hash, diagonal, origin, path);
-            run_frames(cli, out, Live::new(world, method), frames, dump)
+            run_frames(cli, out, live, frames, dump)
         }
         Method::Ispm => {
             let world = World::new(scene, None).map_err(at_scene)?;

@@ -277,10 +277,15 @@ fn raster_tri<T: Texel>(scene: &Scene, st: &ScreenTri, rect: Rect, by0: u32, by1
             // (an affine form with the origin far away loses interior pixels of
             // triangles clipped at the near plane, whose vertices project far out);
             // a centre on an edge belongs to the triangle (both neighbours may claim
-            // it: the nearer one, then the lower id, wins).
+            // it: the nearer one, then the lower id, wins). Each edge's function is
+            // computed from that edge's own two vertices, so the two triangles that
+            // share an edge evaluate it as exact negatives and no centre falls between
+            // them; with the third as 1 - l0 - l1, its rounding left a crack along the
+            // wall-floor edge of cornell_boxes 1 km from the origin, whose pixel
+            // centres the edge passes through exactly (issue 36).
             let l0 = (b - q).perp_dot(c - q) * inv;
             let l1 = (c - q).perp_dot(a - q) * inv;
-            let l2 = 1.0 - l0 - l1;
+            let l2 = (a - q).perp_dot(b - q) * inv;
             if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
                 continue;
             }

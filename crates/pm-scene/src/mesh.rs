@@ -143,30 +143,50 @@ pub fn bounds_of(triangles: &[Triangle]) -> Bounds {
 }
 
 impl Scene {
-    /// The scene with every triangle split uniformly into n^2 triangles, n the
-    /// smallest count with (longest edge / n) <= `max_edge` \[m\] (Jozwowski 2002
-    /// section 4.3: more vertices, so estimates at vertices resolve more detail).
-    /// Positions, shading normals and texture coordinates are interpolated from the
-    /// parent, so the surface and its shading are unchanged; objects, materials,
-    /// punctual lights and the camera are kept, and area lights cover their split
-    /// triangles. A `max_edge` that is not positive and finite returns a copy.
+    /// The scene with its triangles split until no edge is longer than `max_edge`
+    /// \[m\] ([`Scene::subdivided_within`] without a limit).
     pub fn subdivided(&self, max_edge: f32) -> Scene {
+        self.subdivided_within(max_edge, usize::MAX).0
+    }
+
+    /// The scene with its triangles split for more corners (Jozwowski 2002 section
+    /// 4.3), in rounds: each round splits every edge longer than `max_edge` \[m\] at
+    /// its midpoint and each triangle by the edges split (into 2, 3 or 4), for as
+    /// many rounds as keep the count within `max_triangles` (or until no edge is
+    /// longer). Returns the scene and its longest edge \[m\].
+    ///
+    /// Whether an edge splits and where its midpoint lies depend on its two ends
+    /// only ((a + b) / 2 is the same float either way round), so two triangles that
+    /// share an edge split it alike and the mesh stays watertight. (A uniform split
+    /// into n^2 by each triangle's own longest edge left T-junctions between
+    /// neighbours of different n: cracks a shadow map saw light through.) Shading
+    /// normals and texture coordinates are interpolated from the parent, so the
+    /// surface and its shading are unchanged; objects, materials, punctual lights and
+    /// the camera are kept, and area lights cover their split triangles. A
+    /// `max_edge` that is not positive and finite returns a copy.
+    pub fn subdivided_within(&self, max_edge: f32, max_triangles: usize) -> (Scene, f32) {
+        let longest_edge = |tris: &[Triangle]| {
+            tris.iter().flat_map(|t| (0..3).map(move |k| (t.p[(k + 1) % 3] - t.p[k]).length())).fold(0.0f32, f32::max)
+        };
         if !(max_edge > 0.0) || !max_edge.is_finite() {
-            return self.clone();
+            return (self.clone(), longest_edge(&self.triangles));
         }
-        self.map_objects(|_, tris| {
+        // Triangles after each round, summed over the scene, for the rounds to run.
+        let mut counts = [0usize; MAX_SPLIT_ROUNDS + 1];
+        for t in &self.triangles {
+            for (c, n) in counts.iter_mut().zip(split_counts(t.p, max_edge)) {
+                *c = c.saturating_add(n);
+            }
+        }
+        let limit = max_triangles.max(self.triangles.len());
+        let rounds = counts.iter().rposition(|&c| c <= limit && c < usize::MAX).unwrap_or(0);
+        let scene = self.map_objects(|_, tris| {
             let mut out = Vec::new();
             for t in tris {
-                let longest = (0..3).map(|k| (t.p[(k + 1) % 3] - t.p[k]).length()).fold(0.0f32, f32::max);
-                let n = ((longest / max_edge).ceil() as usize).clamp(1, 1024);
-                let at = |i: usize, j: usize| {
-                    let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-                    [1.0 - u - v, u, v]
-                };
-                let mut emit = |b: [[f32; 3]; 3]| {
-                    let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
-                    let p = b.map(|w| lerp3(&t.p, w));
-                    if let Some(mut sub) = Triangle::new(p, t.material) {
+                for corners in split(t.p, max_edge, rounds) {
+                    let b = corners.map(|c| c.1.to_array());
+                    if let Some(mut sub) = Triangle::new(corners.map(|c| c.0), t.material) {
+                        let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
                         sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
                         let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
                         sub.uv = t.uv.as_ref().map(lerp2);
@@ -175,18 +195,12 @@ impl Scene {
                         sub.tangent = t.tangent.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
                         out.push(sub);
                     }
-                };
-                for i in 0..n {
-                    for j in 0..n - i {
-                        emit([at(i, j), at(i + 1, j), at(i, j + 1)]);
-                        if i + j + 1 < n {
-                            emit([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
-                        }
-                    }
                 }
             }
             out
-        })
+        });
+        let longest = longest_edge(&scene.triangles);
+        (scene, longest)
     }
 
     /// A stand-in for photon tracing (Jozwowski 2002 section 4.4.1, scene
@@ -274,4 +288,101 @@ impl Scene {
         scene.origin = self.origin;
         scene
     }
+}
+
+/// Most rounds of [`Scene::subdivided_within`]: each halves the split edges, so
+/// 24 take an edge below 1e-7 of its length.
+const MAX_SPLIT_ROUNDS: usize = 24;
+
+/// A corner of a split triangle: its position \[m\] and barycentrics in the parent.
+type Corner = (Vec3, Vec3);
+
+/// One round: the edges of `t` (counter-clockwise) longer than `max_edge` split at
+/// their midpoints, and `t` into the triangles those make, in the same winding.
+fn split_once(t: [Corner; 3], max_edge: f32, out: &mut Vec<[Corner; 3]>) {
+    let mid = |a: Corner, b: Corner| ((a.0 + b.0) * 0.5, (a.1 + b.1) * 0.5);
+    let long = |a: Corner, b: Corner| (a.0 - b.0).length() > max_edge;
+    let [v0, v1, v2] = t;
+    match (long(v0, v1), long(v1, v2), long(v2, v0)) {
+        (false, false, false) => out.push(t),
+        (true, false, false) => {
+            let m = mid(v0, v1);
+            out.extend([[v0, m, v2], [m, v1, v2]]);
+        }
+        (false, true, false) => {
+            let m = mid(v1, v2);
+            out.extend([[v0, v1, m], [v0, m, v2]]);
+        }
+        (false, false, true) => {
+            let m = mid(v2, v0);
+            out.extend([[v0, v1, m], [m, v1, v2]]);
+        }
+        (true, true, true) => {
+            let (m0, m1, m2) = (mid(v0, v1), mid(v1, v2), mid(v2, v0));
+            out.extend([[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]);
+        }
+        (s0, s1, _) => {
+            // Two edges split: turn the triangle so the whole edge is (w2, w0), cut
+            // off the corner at w1, and split the quad left by its shorter diagonal.
+            let [w0, w1, w2] = if !s0 {
+                [v1, v2, v0]
+            } else if !s1 {
+                [v2, v0, v1]
+            } else {
+                [v0, v1, v2]
+            };
+            let (m0, m1) = (mid(w0, w1), mid(w1, w2));
+            out.push([m0, w1, m1]);
+            if (w0.0 - m1.0).length() <= (m0.0 - w2.0).length() {
+                out.extend([[w0, m0, m1], [w0, m1, w2]]);
+            } else {
+                out.extend([[w0, m0, w2], [m0, m1, w2]]);
+            }
+        }
+    }
+}
+
+/// The triangle with corners `p` after `rounds` rounds of [`split_once`].
+fn split(p: [Vec3; 3], max_edge: f32, rounds: usize) -> Vec<[Corner; 3]> {
+    let mut tris = vec![[(p[0], Vec3::X), (p[1], Vec3::Y), (p[2], Vec3::Z)]];
+    let mut next = Vec::new();
+    for _ in 0..rounds {
+        next.clear();
+        for &t in &tris {
+            split_once(t, max_edge, &mut next);
+        }
+        if next.len() == tris.len() {
+            break;
+        }
+        std::mem::swap(&mut tris, &mut next);
+    }
+    tris
+}
+
+/// Most triangles one triangle is counted into: a round past it counts as too many.
+const MAX_SPLIT_COUNT: usize = 1 << 20;
+
+/// How many triangles the triangle with corners `p` is after 0, 1, ...,
+/// [`MAX_SPLIT_ROUNDS`] rounds (`usize::MAX` past [`MAX_SPLIT_COUNT`]).
+fn split_counts(p: [Vec3; 3], max_edge: f32) -> [usize; MAX_SPLIT_ROUNDS + 1] {
+    let mut counts = [1; MAX_SPLIT_ROUNDS + 1];
+    let mut tris = vec![[(p[0], Vec3::X), (p[1], Vec3::Y), (p[2], Vec3::Z)]];
+    let mut next = Vec::new();
+    for r in 1..=MAX_SPLIT_ROUNDS {
+        next.clear();
+        for &t in &tris {
+            split_once(t, max_edge, &mut next);
+        }
+        counts[r] = next.len();
+        if next.len() > MAX_SPLIT_COUNT {
+            counts[r..].fill(usize::MAX);
+            break;
+        }
+        if next.len() == tris.len() {
+            counts[r..].fill(next.len());
+            break;
+        }
+        std::mem::swap(&mut tris, &mut next);
+    }
+    counts
 }

@@ -106,6 +106,26 @@ fn offset_origins_avoid_self_intersection_at_any_scale() {
     }
 }
 
+/// A concave edge far from the origin: a point on a wall (normal +x) interpolated
+/// one ulp under the floor it stands on (y = -352 m, where f32 spacing is 3e-5 m),
+/// as hits at a wall-floor edge were in cornell_boxes 1e5 m away. A ray toward a
+/// light above must start above the floor: offsetting along the wall's normal only
+/// left it under the floor, and the floor blocked every such ray.
+#[test]
+fn offset_origins_leave_a_concave_edge_on_the_rays_side() {
+    let y = -352.0f32;
+    let floor = [Vec3::new(-400.0, y, -400.0), Vec3::new(-400.0, y, -300.0), Vec3::new(-300.0, y, -350.0)];
+    let under = f32::from_bits(y.to_bits() + 1); // one ulp further from zero: below
+    assert!(under < y);
+    let p = Vec3::new(-350.0, under, -350.0);
+    for w in [Vec3::new(0.3, 0.9, 0.1), Vec3::new(0.9, 0.3, -0.2), Vec3::new(0.05, 0.99, 0.0)] {
+        let w = w.normalize();
+        let o = offset_ray_origin(p, Vec3::X, w, 200.0);
+        assert!(o.y > y, "{w}: origin {o} under the floor");
+        assert!(intersect_triangle(o, w, &floor, f32::INFINITY).is_none(), "{w}: the floor blocks the ray");
+    }
+}
+
 #[test]
 fn watertight_edges_are_not_missed() {
     // Rays aimed exactly at the shared diagonal of a two-triangle quad hit one of them.
@@ -133,8 +153,8 @@ fn camera_rays_round_trip_through_projection() {
     assert!(cam.ray_direction(0.5, 0.0, 1.0).y > 0.0);
 }
 
-/// Uniform subdivision (Jozwowski 2002 section 4.3) splits every triangle into n^2
-/// with edges no longer than the limit, keeps the surface (area, every ray's hit
+/// Subdivision (Jozwowski 2002 section 4.3) splits triangles until no edge is
+/// longer than the limit, keeps the surface (area, every ray's hit
 /// point and shading normal), the objects, and each light's power.
 #[test]
 fn subdivision_keeps_the_surface_lights_and_objects() {
@@ -173,6 +193,41 @@ fn subdivision_keeps_the_surface_lights_and_objects() {
     assert!(hits > 300);
     // No limit: a copy.
     assert_eq!(s.subdivided(0.0).triangles.len(), s.triangles.len());
+}
+
+/// Subdivision keeps a closed mesh closed: the thesis's room (6 faces of 2
+/// triangles, in three objects) split at lengths that split some edges more often
+/// than others: every edge is still shared by exactly two triangles, end for end in
+/// the same bits (no T-junction, no crack). And a triangle budget stops the rounds
+/// early, reporting the longest edge left.
+#[test]
+fn subdivision_is_watertight_and_keeps_within_its_budget() {
+    let s = load_scene("jozwowski_room_16.gltf");
+    let walls = ["room", "left_wall", "right_wall"];
+    let open_edges = |sc: &Scene| {
+        let mut count = std::collections::HashMap::new();
+        for o in sc.objects.iter().filter(|o| walls.contains(&o.name.as_str())) {
+            for t in &sc.triangles[o.tris.start as usize..o.tris.end as usize] {
+                for k in 0..3 {
+                    let (a, b) = (t.p[k].to_array().map(f32::to_bits), t.p[(k + 1) % 3].to_array().map(f32::to_bits));
+                    *count.entry(if a < b { (a, b) } else { (b, a) }).or_insert(0u32) += 1;
+                }
+            }
+        }
+        count.values().filter(|&&n| n != 2).count()
+    };
+    assert_eq!(open_edges(&s), 0, "the room is closed to begin with");
+    let diagonal = s.bounds.diagonal();
+    for f in [0.3f32, 0.07, 0.023] {
+        let (sub, longest) = s.subdivided_within(f * diagonal, usize::MAX);
+        assert!(longest <= f * diagonal);
+        let open = open_edges(&sub);
+        assert_eq!(open, 0, "{f} of the diagonal: {open} edges not shared by exactly two triangles");
+    }
+    let all = s.subdivided(0.023 * diagonal).triangles.len();
+    let (within, longest) = s.subdivided_within(0.023 * diagonal, all / 3);
+    assert!(within.triangles.len() <= all / 3 && within.triangles.len() > all / 16, "{}", within.triangles.len());
+    assert!(longest > 0.023 * diagonal);
 }
 
 /// The photon-tracing stand-in (Jozwowski 2002 section 4.4.1): each non-emitting

@@ -15,15 +15,17 @@
 
 mod mesh;
 mod ring;
+mod subdivide;
 
 pub use mesh::Corners;
 pub use ring::{Distribution, RingBuffer, ShootStats};
+pub use subdivide::{AUTO_MAX_TRIANGLES, Subdivide, Subdivision, expected_radius, scenes};
 
 use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_light::LightSelector;
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
-use pm_params::{Any, above, at_least, between};
+use pm_params::{Any, above, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
 use pm_render::{FrameBuffers, Visibility};
 use pm_scene::{Hit, Scene, Target};
@@ -85,10 +87,11 @@ pm_params::params! {
         back_face_culling: bool = true => Any;
         /// Skip corners of triangles outside the view frustum.
         frustum_culling: bool = true => Any;
-        /// Split every triangle uniformly until no edge is longer than this [m] (section
-        /// 4.3: more corners, finer indirect light; photons are still traced in the
-        /// unsplit scene); 0 leaves the mesh as it is.
-        subdivide: f32 = 0.0 => at_least(0.0);
+        /// Split every drawn triangle uniformly until no edge is longer than this [m]
+        /// (section 4.3: more corners, finer indirect light; photons are still traced
+        /// in the unsplit scene); 0 leaves the mesh as it is; auto splits at the
+        /// expected photon search radius (printed), the finest that pays.
+        subdivide: Subdivide = Subdivide::Auto => Any;
         /// Find photons by rebuilding the kd-tree each frame (rebuild) or by updating a
         /// grid for the re-shot paths only (grid; measured faster: 5 against 7.5 ms of
         /// search structure and estimates per frame, BENCHMARKS.md).
@@ -230,6 +233,8 @@ pub struct Vertex {
     grid: Option<pm_kdtree::PhotonGrid<FullIrrPhoton>>,
     /// The frame's rasterised first hits.
     fragments: Vec<Option<pm_raster::Fragment>>,
+    /// How [`live`] chose the drawn mesh.
+    subdivision: Option<Subdivision>,
 }
 
 impl Vertex {
@@ -254,7 +259,14 @@ impl Vertex {
             previous: None,
             grid: None,
             fragments: Vec::new(),
+            subdivision: None,
         })
+    }
+
+    /// How the drawn mesh was chosen, when [`live`] made the method (`None` for a
+    /// method made by [`Vertex::new`] over a world as given).
+    pub fn subdivision(&self) -> Option<&Subdivision> {
+        self.subdivision.as_ref()
     }
 
     /// The ring buffer.
@@ -440,7 +452,8 @@ impl pm_live::Method for Vertex {
 }
 
 /// A live renderer of `scene` by the vertex method, photons traced in
-/// `photon_scene` (or the scene).
+/// `photon_scene` (or the scene), on the scenes [`scenes`] makes: the drawn mesh
+/// split as `params.subdivide` says ([`Vertex::subdivision`] tells how).
 pub fn live(
     scene: Scene,
     photon_scene: Option<Scene>,
@@ -448,7 +461,10 @@ pub fn live(
     params: VertexParams,
     seed: u64,
 ) -> Result<pm_live::Live<Vertex>, String> {
-    let world = World::new(scene, photon_scene)?;
-    let method = Vertex::new(&world, frame_params, params, seed)?;
+    params.check(pm_params::Naming::Cli)?;
+    let (drawn, photon_scene, subdivision) = scenes(scene, photon_scene, &params);
+    let world = World::new(drawn, photon_scene)?;
+    let mut method = Vertex::new(&world, frame_params, params, seed)?;
+    method.subdivision = Some(subdivision);
     Ok(pm_live::Live::new(world, method))
 }

