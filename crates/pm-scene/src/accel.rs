@@ -23,6 +23,11 @@ pub(crate) struct BvhTris {
 }
 
 impl BvhTris {
+    /// Bytes its groups and ids hold (their capacities).
+    pub(crate) fn memory_bytes(&self) -> usize {
+        self.tri4.capacity() * std::mem::size_of::<geometry::Tri4>() + self.id.capacity() * 4
+    }
+
     /// The groups of four that slots `first..first + count` span, with the number
     /// of the range's slots in each, and the first slot of each.
     #[inline]

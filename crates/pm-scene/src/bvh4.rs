@@ -87,6 +87,11 @@ impl BoxRay {
 }
 
 impl Bvh4 {
+    /// Bytes its nodes and slot ids hold (their capacities).
+    pub(crate) fn memory_bytes(&self) -> usize {
+        self.nodes.capacity() * std::mem::size_of::<Node4>() + self.slots.capacity() * 4
+    }
+
     /// Collapse `bvh` (over boxes of the triangles `tris`, in any coordinates) into
     /// four-wide nodes whose boxes bound `tris`'s vertices padded by `pad` [m].
     pub(crate) fn new(bvh: &obvhs::bvh2::Bvh2, tris: &[Triangle], pad: f32) -> Bvh4 {

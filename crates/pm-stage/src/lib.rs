@@ -61,12 +61,14 @@ pub fn load_scene(stage: &str, path: &Path, how: SceneArgs) -> Result<pm_scene::
     for w in &scene.warnings {
         eprintln!("{stage}: warning: {}: {w}", path.display());
     }
+    let memory = scene.memory_use();
     eprintln!(
-        "{stage}: scene loaded: {} triangles, {} textures in {:.3} s (BVH {:.3} s)",
+        "{stage}: scene loaded: {} triangles, {} textures in {:.3} s (BVH {:.3} s); holds {memory}, {:.0} bytes per triangle",
         scene.triangles.len(),
         scene.textures.len(),
         scene.load_seconds,
-        scene.bvh_seconds
+        scene.bvh_seconds,
+        memory.per_triangle(scene.triangles.len())
     );
     Ok(scene)
 }
