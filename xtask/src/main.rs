@@ -71,6 +71,10 @@ enum Task {
         /// Fail if the committed files differ from what the code generates.
         #[arg(long)]
         check: bool,
+        /// Write instead the memory benchmark's big scenes (a room with 100 spheres:
+        /// 1 million and 10 million triangles) into out/big-scenes (not committed).
+        #[arg(long)]
+        big: bool,
     },
 }
 
@@ -119,7 +123,8 @@ fn main() -> std::process::ExitCode {
         Task::Golden(a) => golden::run(&a, &root),
         Task::IspmPlot(a) => ispm_plot::run(&a),
         Task::Scale(a) => scale::run(&a, &root),
-        Task::GenScenes { check } => gen_scenes::run(&root.join("scenes"), check),
+        Task::GenScenes { big: true, .. } => gen_scenes::run_big(&root.join("out/big-scenes")),
+        Task::GenScenes { check, .. } => gen_scenes::run(&root.join("scenes"), check),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -14,26 +14,30 @@ impl obvhs::Boundable for PaddedBox {
     }
 }
 
-/// The triangles in the BVH's slot order, four slots to a [`geometry::Tri4`] (a
-/// leaf starts at a multiple of four), and the triangle id of each slot.
+/// The triangles' positions in the BVH's slot order, four slots to a
+/// [`geometry::Tri4`]; a leaf's slots may start and end inside a group (the slots
+/// are packed: padding each leaf to a multiple of four held about half as many
+/// positions again as there are triangles).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BvhTris {
     tri4: Vec<geometry::Tri4>,
-    id: Vec<u32>,
 }
 
 impl BvhTris {
-    /// Bytes its groups and ids hold (their capacities).
+    /// Bytes its groups hold (their capacity).
     pub(crate) fn memory_bytes(&self) -> usize {
-        self.tri4.capacity() * std::mem::size_of::<geometry::Tri4>() + self.id.capacity() * 4
+        self.tri4.capacity() * std::mem::size_of::<geometry::Tri4>()
     }
 
-    /// The groups of four that slots `first..first + count` span, with the number
-    /// of the range's slots in each, and the first slot of each.
+    /// The groups of four that slots `first..first + count` span, with the mask of
+    /// the range's lanes in each, and the first slot of each.
     #[inline]
-    fn groups(&self, first: u32, count: u32) -> impl Iterator<Item = (&geometry::Tri4, usize, u32)> {
+    fn groups(&self, first: u32, count: u32) -> impl Iterator<Item = (&geometry::Tri4, u32, u32)> {
         let end = first + count;
-        (first / 4..end.div_ceil(4)).map(move |g| (&self.tri4[g as usize], (end - 4 * g).min(4) as usize, 4 * g))
+        (first / 4..end.div_ceil(4)).map(move |g| {
+            let (lo, hi) = (first.max(4 * g) - 4 * g, end.min(4 * g + 4) - 4 * g);
+            (&self.tri4[g as usize], ((1u32 << hi) - 1) & !((1u32 << lo) - 1), 4 * g)
+        })
     }
 }
 
@@ -67,9 +71,13 @@ pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4,
     // cornell_spheres, born near the floor, went through it; tests.rs).
     let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
     let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
+    // Each intermediate freed as soon as the next is built (the boxes, then the
+    // binary tree): they set the load's peak memory.
+    drop(boxes);
     let bvh = bvh4::Bvh4::new(&bvh2, triangles, 2e-7 * diag);
-    let id = bvh.slots().to_vec();
-    let tri4 = id
+    drop(bvh2);
+    let tri4 = bvh
+        .slots()
         .chunks(4)
         .map(|c| {
             let mut p = [[Vec3::ZERO; 3]; 4];
@@ -79,7 +87,7 @@ pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4,
             geometry::Tri4::new(&p[..c.len()])
         })
         .collect();
-    (bvh, BvhTris { tri4, id })
+    (bvh, BvhTris { tri4 })
 }
 
 impl Scene {
@@ -94,14 +102,14 @@ impl Scene {
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let mut best_b = [0.0; 3];
         let tri_ray = TriangleRay::new(o, d);
-        let tris = &self.bvh_tris;
+        let (tris, id) = (&self.bvh_tris, self.bvh.slots());
         let (slot, t) = self.bvh.closest(o, d, t_max, |first, count, t_max| {
             let mut best = None;
             let mut t_best = t_max;
-            for (group, lanes, slot0) in tris.groups(first, count) {
-                tri_ray.hit4(group, lanes, t_best, |lane, t, b| {
+            for (group, mask, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, mask, t_best, |lane, t, b| {
                     let s = slot0 + lane as u32;
-                    if !self.any_alpha || self.present(tris.id[s as usize], b) {
+                    if !self.any_alpha || self.present(id[s as usize], b) {
                         (t_best, best_b, best) = (t, b, Some((s, t)));
                     }
                     t_best
@@ -109,18 +117,18 @@ impl Scene {
             }
             best
         })?;
-        Some(self.make_hit(tris.id[slot as usize], t, best_b))
+        Some(self.make_hit(id[slot as usize], t, best_b))
     }
 
     /// True when something blocks the segment from `o` along unit `d` before `t_max`.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
         let tri_ray = TriangleRay::new(o, d);
-        let tris = &self.bvh_tris;
+        let (tris, id) = (&self.bvh_tris, self.bvh.slots());
         self.bvh.any(o, d, t_max, |first, count, t_max| {
             let mut blocked = false;
-            for (group, lanes, slot0) in tris.groups(first, count) {
-                tri_ray.hit4(group, lanes, t_max, |lane, _, b| {
-                    blocked |= !self.any_alpha || self.present(tris.id[slot0 as usize + lane], b);
+            for (group, mask, slot0) in tris.groups(first, count) {
+                tri_ray.hit4(group, mask, t_max, |lane, _, b| {
+                    blocked |= !self.any_alpha || self.present(id[slot0 as usize + lane], b);
                     if blocked { 0.0 } else { t_max }
                 });
                 if blocked {
@@ -140,12 +148,12 @@ impl Scene {
         let (p, ns) = tr.point_normal(b);
         let ng = tr.ng;
         let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
-        let uv = tr.uv.as_ref().map_or(Vec2::ZERO, lerp);
-        let uv1 = tr.uv1.as_ref().map_or(Vec2::ZERO, lerp);
-        let color = tr.color.map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
+        let uv = tr.uv().map_or(Vec2::ZERO, lerp);
+        let uv1 = tr.uv1().map_or(Vec2::ZERO, lerp);
+        let color = tr.color().map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
         let mut hit = Hit { t, tri, b, p, ng, ns, uv, uv1, color };
         let m = &self.materials[tr.material as usize];
-        if let (Some(nt), Some(tg)) = (&m.normal_texture, &tr.tangent) {
+        if let (Some(nt), Some(tg)) = (&m.normal_texture, tr.tangent()) {
             let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
             let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
             if tangent != Vec3::ZERO {

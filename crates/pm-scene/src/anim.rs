@@ -212,12 +212,12 @@ impl Scene {
                     let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
                     let mut attrs = local.clone();
                     let linear = glam::Mat3::from_mat4(world);
-                    attrs.tangent = local.tangent.map(|t| {
-                        t.map(|t| {
+                    if let Some(t) = local.tangent() {
+                        attrs.extras_mut().tangent = Some(t.map(|t| {
                             let w = if flip { -t.w } else { t.w };
                             (linear * t.truncate()).normalize_or_zero().extend(w)
-                        })
-                    });
+                        }));
+                    }
                     if flip {
                         p.swap(1, 2);
                         if let Some(n) = n.as_mut() {

@@ -157,14 +157,6 @@ impl Bvh4 {
         for (lane, &c) in lanes.iter().enumerate() {
             let cn = &bvh.nodes[c];
             let (child, count, bx) = if cn.prim_count > 0 {
-                // Leaves start at a multiple of four slots (their triangles are
-                // tested four at a time); the slots between leaves repeat the last
-                // leaf's first triangle.
-                if let Some(&pad) = self.slots.get(self.slots.len() & !3) {
-                    while !self.slots.len().is_multiple_of(4) {
-                        self.slots.push(pad);
-                    }
-                }
                 let first = self.slots.len() as u32;
                 let mut bx = [Vec3::INFINITY, Vec3::NEG_INFINITY];
                 for k in cn.first_index..cn.first_index + cn.prim_count {

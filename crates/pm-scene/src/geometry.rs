@@ -97,26 +97,26 @@ impl TriangleRay {
     #[inline]
     pub fn hit(&self, p: &[Vec3; 3], t_max: f32) -> Option<(f32, [f32; 3])> {
         let mut found = None;
-        self.hit4(&Tri4::new(std::slice::from_ref(p)), 1, t_max, |_, t, b| {
+        self.hit4(&Tri4::new(std::slice::from_ref(p)), 0b1, t_max, |_, t, b| {
             found = Some((t, b));
             t
         });
         found
     }
 
-    /// [`Self::hit`] for the first `lanes` of four triangles: `on_hit(lane, t, b)`
+    /// [`Self::hit`] for the lanes of four triangles in `mask` (bit i: lane i): `on_hit(lane, t, b)`
     /// for each hit, in lane order, returning the t_max for the lanes after it (the
     /// closest-hit search passes t, an any-hit search 0 to stop). The arithmetic up
     /// to the edge functions, which decides most misses, runs on all four lanes
     /// together.
     #[inline]
-    pub fn hit4(&self, tri: &Tri4, lanes: usize, t_max: f32, on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32) {
+    pub fn hit4(&self, tri: &Tri4, mask: u32, t_max: f32, on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32) {
         // One copy of the test per permutation, so the axis swizzle is fixed at
         // compile time rather than indexed per vertex.
         match self.k[2] {
-            0 => self.hit4_in::<1, 2, 0>(tri, lanes, t_max, on_hit),
-            1 => self.hit4_in::<2, 0, 1>(tri, lanes, t_max, on_hit),
-            _ => self.hit4_in::<0, 1, 2>(tri, lanes, t_max, on_hit),
+            0 => self.hit4_in::<1, 2, 0>(tri, mask, t_max, on_hit),
+            1 => self.hit4_in::<2, 0, 1>(tri, mask, t_max, on_hit),
+            _ => self.hit4_in::<0, 1, 2>(tri, mask, t_max, on_hit),
         }
     }
 
@@ -124,7 +124,7 @@ impl TriangleRay {
     fn hit4_in<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         tri: &Tri4,
-        lanes: usize,
+        mask: u32,
         mut t_max: f32,
         mut on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32,
     ) {
@@ -154,7 +154,7 @@ impl TriangleRay {
         let mut alive = on_edge.bitmask() | !(neg & pos).bitmask();
         let (x, y, z) = ([x0, x1, x2], [y0, y1, y2], [z0, z1, z2]);
         let e = [e0, e1, e2];
-        alive &= (1u32 << lanes.min(4)) - 1;
+        alive &= mask & 0b1111;
         while alive != 0 {
             let i = alive.trailing_zeros() as usize;
             alive &= alive - 1;

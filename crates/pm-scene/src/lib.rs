@@ -32,7 +32,7 @@ pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
 pub use material::{AlphaMode, Material, Texture, TextureRef, Wrap};
 pub use memory::MemoryUse;
-pub use mesh::{Bounds, Object, Triangle, bounds_of};
+pub use mesh::{Bounds, Object, Triangle, TriangleExtras, bounds_of};
 
 use accel::{BvhTris, build_bvh};
 use glam::{Vec2, Vec3};

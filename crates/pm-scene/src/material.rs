@@ -229,7 +229,7 @@ impl Scene {
     pub fn plain_lambert(&self, tri: u32, b: [f32; 3]) -> Option<(Vec3, Vec3, Rgb)> {
         let tr = &self.triangles[tri as usize];
         let Some(Bsdf::Lambert { rho }) = self.uniform_bsdf(tri) else { return None };
-        if self.materials[tr.material as usize].normal_texture.is_some() && tr.tangent.is_some() {
+        if self.materials[tr.material as usize].normal_texture.is_some() && tr.tangent().is_some() {
             return None;
         }
         let (p, ns) = tr.point_normal(b);
@@ -243,7 +243,7 @@ impl Scene {
     pub fn uniform_bsdf(&self, tri: u32) -> Option<Bsdf> {
         let tr = &self.triangles[tri as usize];
         let m = &self.materials[tr.material as usize];
-        (!m.varies() && tr.color.is_none()).then_some(m.bsdf)
+        (!m.varies() && tr.color().is_none()).then_some(m.bsdf)
     }
 
     /// Alpha at barycentrics `b` of triangle `tri`: baseColorFactor's alpha times the
@@ -255,7 +255,7 @@ impl Scene {
         if let Some(t) = &m.base_texture {
             a *= self.sample_at(t, tr, b).w;
         }
-        if let Some(c) = tr.color {
+        if let Some(c) = tr.color() {
             a *= c[0].w * b[0] + c[1].w * b[1] + c[2].w * b[2];
         }
         a

@@ -2,14 +2,14 @@
 //! triangle), summed from the sizes of its buffers rather than measured, so a
 //! test can hold it to a budget; the process's peak RSS stays a benchmark figure.
 
-use crate::{LightKind, Scene, Triangle};
+use crate::{LightKind, Scene, Triangle, TriangleExtras};
 use std::mem::size_of;
 
 /// Bytes a [`Scene`] holds, by what they are for.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoryUse {
-    /// The triangles' shading records ([`Triangle`]: positions, normals, texture
-    /// coordinates, colours, tangents, material).
+    /// The triangles' shading records ([`Triangle`]: positions, normals, material)
+    /// and the extras of those that have any (texture coordinates, colours, tangents).
     pub triangles: usize,
     /// The BVH: four-wide nodes, the triangles' positions in slot order (four to a
     /// SIMD group, padded), and the triangle id of each slot.
@@ -69,7 +69,8 @@ impl Scene {
             })
             .sum();
         MemoryUse {
-            triangles: bytes(self.triangles.capacity(), size_of::<Triangle>()),
+            triangles: bytes(self.triangles.capacity(), size_of::<Triangle>())
+                + bytes(self.triangles.iter().filter(|t| t.extras.is_some()).count(), size_of::<TriangleExtras>()),
             bvh: self.bvh.memory_bytes() + self.bvh_tris.memory_bytes(),
             light_of_triangle: bytes(self.light_of_triangle.capacity(), 4),
             animation: self.animation.meshes.iter().map(|m| bytes(m.local.capacity(), size_of::<Triangle>())).sum(),

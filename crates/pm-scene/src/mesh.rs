@@ -12,6 +12,21 @@ pub struct Triangle {
     pub p: [Vec3; 3],
     /// World-space unit vertex normals, when the file had usable ones.
     pub n: Option<[Vec3; 3]>,
+    /// Unit geometric normal from the winding (counter-clockwise = front).
+    pub ng: Vec3,
+    /// Area [m^2].
+    pub area: f32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+    /// Texture coordinates, vertex colours and tangents, when the mesh has any. Boxed:
+    /// most triangles have none, and held inline they were 184 of the record's 288
+    /// bytes (issue 36; `Scene::memory_use`).
+    pub extras: Option<Box<TriangleExtras>>,
+}
+
+/// What some meshes carry per corner besides positions and normals.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleExtras {
     /// Texture coordinates TEXCOORD_0, when present.
     pub uv: Option<[Vec2; 3]>,
     /// Texture coordinates TEXCOORD_1, when present (and read by some texture).
@@ -23,12 +38,6 @@ pub struct Triangle {
     /// w cross(normal, tangent)), from TANGENT or generated with MikkTSpace, when the
     /// material has a normal texture.
     pub tangent: Option<[glam::Vec4; 3]>,
-    /// Unit geometric normal from the winding (counter-clockwise = front).
-    pub ng: Vec3,
-    /// Area [m^2].
-    pub area: f32,
-    /// Index into [`Scene::materials`].
-    pub material: u32,
 }
 
 impl Triangle {
@@ -42,25 +51,60 @@ impl Triangle {
         (p, ns)
     }
 
+    /// Texture coordinates TEXCOORD_0, when present.
+    #[inline]
+    pub fn uv(&self) -> Option<&[Vec2; 3]> {
+        self.extras.as_ref().and_then(|e| e.uv.as_ref())
+    }
+
+    /// Texture coordinates TEXCOORD_1, when present.
+    #[inline]
+    pub fn uv1(&self) -> Option<&[Vec2; 3]> {
+        self.extras.as_ref().and_then(|e| e.uv1.as_ref())
+    }
+
+    /// Linear RGBA vertex colours, when present.
+    #[inline]
+    pub fn color(&self) -> Option<&[glam::Vec4; 3]> {
+        self.extras.as_ref().and_then(|e| e.color.as_ref())
+    }
+
+    /// Tangents with the bitangent's sign, when present.
+    #[inline]
+    pub fn tangent(&self) -> Option<&[glam::Vec4; 3]> {
+        self.extras.as_ref().and_then(|e| e.tangent.as_ref())
+    }
+
     /// The corners' texture coordinates of set `set` (TEXCOORD_0 or TEXCOORD_1), when
     /// the mesh has them.
     pub fn uvs(&self, set: u8) -> Option<&[Vec2; 3]> {
-        if set == 1 { self.uv1.as_ref() } else { self.uv.as_ref() }
+        if set == 1 { self.uv1() } else { self.uv() }
+    }
+
+    /// The extras to change (made empty when there are none).
+    pub fn extras_mut(&mut self) -> &mut TriangleExtras {
+        self.extras.get_or_insert_with(Default::default)
+    }
+
+    /// Set the extras: none are held when `e` has none.
+    pub fn set_extras(&mut self, e: TriangleExtras) {
+        self.extras = (e != TriangleExtras::default()).then(|| Box::new(e));
     }
 
     /// Swap corners 1 and 2 of the per-vertex attributes (a mirroring transform
     /// reverses the winding).
     pub(crate) fn swap_corners(&mut self) {
-        if let Some(uv) = self.uv.as_mut() {
+        let Some(e) = self.extras.as_mut() else { return };
+        if let Some(uv) = e.uv.as_mut() {
             uv.swap(1, 2);
         }
-        if let Some(uv) = self.uv1.as_mut() {
+        if let Some(uv) = e.uv1.as_mut() {
             uv.swap(1, 2);
         }
-        if let Some(c) = self.color.as_mut() {
+        if let Some(c) = e.color.as_mut() {
             c.swap(1, 2);
         }
-        if let Some(t) = self.tangent.as_mut() {
+        if let Some(t) = e.tangent.as_mut() {
             t.swap(1, 2);
         }
     }
@@ -73,10 +117,7 @@ impl Triangle {
         (area > 0.0 && area.is_finite() && ng != Vec3::ZERO).then_some(Triangle {
             p,
             n: None,
-            uv: None,
-            uv1: None,
-            color: None,
-            tangent: None,
+            extras: None,
             ng,
             area,
             material,
@@ -188,11 +229,16 @@ impl Scene {
                     if let Some(mut sub) = Triangle::new(corners.map(|c| c.0), t.material) {
                         let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
                         sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
-                        let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
-                        sub.uv = t.uv.as_ref().map(lerp2);
-                        sub.uv1 = t.uv1.as_ref().map(lerp2);
-                        sub.color = t.color.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
-                        sub.tangent = t.tangent.map(|c| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]));
+                        if let Some(e) = &t.extras {
+                            let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
+                            let lerp4 = |c: &[glam::Vec4; 3]| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]);
+                            sub.set_extras(TriangleExtras {
+                                uv: e.uv.as_ref().map(lerp2),
+                                uv1: e.uv1.as_ref().map(lerp2),
+                                color: e.color.as_ref().map(lerp4),
+                                tangent: e.tangent.as_ref().map(lerp4),
+                            });
+                        }
                         out.push(sub);
                     }
                 }

@@ -424,7 +424,7 @@ fn instanced_meshes_load_once_and_place_every_instance() {
             assert!((ea[i] - eb[i]).abs() < 1e-5, "triangle {k}: edges {ea:?} vs {eb:?}");
         }
         assert!((ta.p[0] - tb.p[0]).length() > 1.0, "the instances are in different places");
-        assert!(ta.tangent.is_some() && ta.uv.is_some(), "normal-mapped meshes carry tangents");
+        assert!(ta.tangent().is_some() && ta.uv().is_some(), "normal-mapped meshes carry tangents");
     }
 }
 
@@ -454,7 +454,7 @@ fn check_plain_lambert(s: &pm_scene::Scene, name: &str) -> (usize, usize) {
                     let m = &s.materials[t.material as usize];
                     let plain_material = matches!(m.bsdf, pm_bsdf::Bsdf::Lambert { .. })
                         && m.base_texture.is_none()
-                        && t.color.is_none()
+                        && t.color().is_none()
                         && m.normal_texture.is_none();
                     assert!(!plain_material, "{name} triangle {tri} is plain Lambertian but was declined");
                 }
@@ -487,9 +487,10 @@ fn plain_lambert_equals_the_hit_record_and_bsdf() {
     }
     for (i, t) in s.triangles.iter_mut().enumerate() {
         if i % 2 == 0 {
-            t.color = Some([glam::Vec4::new(0.5, 0.7, 0.9, 1.0); 3]);
+            t.extras_mut().color = Some([glam::Vec4::new(0.5, 0.7, 0.9, 1.0); 3]);
         } else {
-            t.tangent = Some([(t.p[1] - t.p[0]).normalize().extend(1.0); 3]);
+            let tangent = (t.p[1] - t.p[0]).normalize().extend(1.0);
+            t.extras_mut().tangent = Some([tangent; 3]);
         }
     }
     let (p, o) = check_plain_lambert(&s, "cornell_dense, coloured and normal-mapped");

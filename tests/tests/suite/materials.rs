@@ -549,8 +549,8 @@ fn normal_mapped_furnace_creates_no_energy() {
             (Vec2::new(4.0 * phi, 2.0 * theta), tangent.extend(1.0))
         };
         let v = t.p.map(at);
-        t.uv = Some(v.map(|x| x.0));
-        t.tangent = Some(v.map(|x| x.1));
+        t.extras_mut().uv = Some(v.map(|x| x.0));
+        t.extras_mut().tangent = Some(v.map(|x| x.1));
     }
     let mut m = material("furnace", Bsdf::Lambert { rho: Rgb::splat(0.8) }, 1.0);
     m.normal_texture = Some(pm_scene::TextureRef { texture: 0, uv_set: 0, transform: glam::Affine2::IDENTITY });
