@@ -157,6 +157,17 @@ impl Bvh4 {
         for (lane, &c) in lanes.iter().enumerate() {
             let cn = &bvh.nodes[c];
             let (child, count, bx) = if cn.prim_count > 0 {
+                // A leaf (at most four triangles) never straddles two groups of four,
+                // so it takes one four-wide test: it starts the next group when it
+                // does not fit in what is left of this one. (Packed without this, a
+                // straddling leaf took two, and eye rays in the instanced scene took
+                // 1.37 times as long; padding every leaf to a group start held 58
+                // bytes of positions per triangle instead of 36-40.)
+                let used = self.slots.len() % 4;
+                if used != 0 && used + cn.prim_count as usize > 4 {
+                    let last = self.slots[self.slots.len() - 1];
+                    self.slots.resize(self.slots.len() + 4 - used, last);
+                }
                 let first = self.slots.len() as u32;
                 let mut bx = [Vec3::INFINITY, Vec3::NEG_INFINITY];
                 for k in cn.first_index..cn.first_index + cn.prim_count {
