@@ -418,6 +418,9 @@ impl NodeWalk {
                 std::collections::hash_map::Entry::Occupied(e) => std::rc::Rc::clone(e.get()),
                 std::collections::hash_map::Entry::Vacant(e) => {
                     let d = decode_primitive(&prim, buffers, mat).map_err(|m| format!("{what}: {m}"))?;
+                    if let Some(w) = coarse_positions(&d.positions) {
+                        warnings.push(format!("{what}: {w}"));
+                    }
                     std::rc::Rc::clone(e.insert(std::rc::Rc::new(d)))
                 }
             };
@@ -693,6 +696,26 @@ struct LocalPrim {
     indices: Vec<u32>,
     /// Per corner (index position), in the mesh's space.
     corner_tangents: Option<Vec<Vec4>>,
+}
+
+/// A warning when a primitive's positions, as the file stores them (f32, before
+/// any node transform), are so far from the file's origin that the spacing of f32
+/// there exceeds 0.1% of the primitive's size: its shape was lost when the file was
+/// written, and no loading can restore it (a 0.5 m box stored 1e5 m out is on a 7.8
+/// mm grid, 1.6% of its size). A node translation keeps full precision (the loader
+/// composes node transforms in f64 and moves the scene to its camera first).
+fn coarse_positions(positions: &[Vec3]) -> Option<String> {
+    let (lo, hi) = positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let size = (hi - lo).length();
+    let far = lo.abs().max(hi.abs()).max_element();
+    let spacing = far * f32::EPSILON;
+    (size > 0.0 && spacing > 1e-3 * size).then(|| {
+        format!(
+            "its positions are stored up to {far:.0} m from the file's origin, where f32 is spaced {:.2} mm apart, {:.1}% of its size {size:.3} m: its shape is quantised in the file itself; store it near the origin and place it with its node's translation",
+            spacing * 1e3,
+            100.0 * spacing / size
+        )
+    })
 }
 
 /// Decode one primitive's accessors (checked against their buffers) and, when its

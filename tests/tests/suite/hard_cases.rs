@@ -394,6 +394,93 @@ fn block_means(px: &[Vec3], w: usize) -> Vec<Vec3> {
     out
 }
 
+/// The distances [m] the far-from-origin tests move a scene along every axis.
+const FAR: [f32; 3] = [1e3, 1e5, 1e6];
+
+/// Copy cornell_boxes into `dir` with `scale` and then `translation` baked into its
+/// positions (the .bin's POSITION data rewritten) and the camera's node moved
+/// alike, as a tool that writes world coordinates would store it.
+fn baked_scene(dir: &Path, scale: f32, translation: [f32; 3]) -> PathBuf {
+    let text = std::fs::read_to_string(scene_path("cornell_boxes.gltf")).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut bin = std::fs::read(scene_path("cornell_boxes.bin")).unwrap();
+    let t = Vec3::from(translation);
+    let mut done = std::collections::BTreeSet::new();
+    let meshes = doc["meshes"].as_array().unwrap().clone();
+    for prim in meshes.iter().flat_map(|m| m["primitives"].as_array().unwrap().clone()) {
+        let a = prim["attributes"]["POSITION"].as_u64().unwrap() as usize;
+        if !done.insert(a) {
+            continue;
+        }
+        let acc = doc["accessors"][a].clone();
+        let view = &doc["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+        let start =
+            view["byteOffset"].as_u64().unwrap_or(0) as usize + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let stride = view["byteStride"].as_u64().unwrap_or(12) as usize;
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for i in 0..acc["count"].as_u64().unwrap() as usize {
+            let at = start + i * stride;
+            let f = |k: usize| f32::from_le_bytes(bin[at + 4 * k..at + 4 * k + 4].try_into().unwrap());
+            let p = Vec3::new(f(0), f(1), f(2)) * scale + t;
+            for (k, v) in p.to_array().into_iter().enumerate() {
+                bin[at + 4 * k..at + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+            }
+            (lo, hi) = (lo.min(p), hi.max(p));
+        }
+        doc["accessors"][a]["min"] = serde_json::json!(lo.to_array());
+        doc["accessors"][a]["max"] = serde_json::json!(hi.to_array());
+    }
+    for node in doc["nodes"].as_array_mut().unwrap() {
+        if node.get("camera").is_some() {
+            let tr: Vec<f32> = serde_json::from_value(node["translation"].clone()).unwrap_or(vec![0.0; 3]);
+            node["translation"] = serde_json::json!((Vec3::from_slice(&tr) * scale + t).to_array());
+        }
+    }
+    let name = format!("baked_{}", translation[0]);
+    doc["buffers"][0]["uri"] = serde_json::json!(format!("{name}.bin"));
+    std::fs::write(dir.join(format!("{name}.bin")), bin).unwrap();
+    let p = dir.join(format!("{name}.gltf"));
+    std::fs::write(&p, serde_json::to_string(&doc).unwrap()).unwrap();
+    p
+}
+
+/// Far from the origin in the vertex data itself (issue 36), as tools that write
+/// world coordinates store it: cornell_boxes shrunk to 0.5 m with its translation
+/// baked into the positions. At 1e3 m (f32 spacing 61 um) it renders like the box
+/// at the origin, layer by layer and block by block, through the photon-map
+/// renderer. At 1e5 and 1e6 m the file itself holds the box on a 7.8 and 62 mm
+/// grid (1.6% and 12% of it): no loader can restore the shape, and the loader says
+/// so, naming the mesh, instead of rendering it silently.
+#[test]
+fn far_from_the_origin_in_the_vertex_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let load = |t: f32| {
+        let path = if t == 0.0 {
+            transformed_scene(dir.path(), "cornell_boxes", 0.25, [0.0; 3])
+        } else {
+            baked_scene(dir.path(), 0.25, [t, t, t])
+        };
+        pm_scene::load(&path).unwrap()
+    };
+    let quantised = |s: &pm_scene::Scene| s.warnings.iter().filter(|w| w.contains("quantised in the file")).count();
+    assert_eq!(quantised(&load(1e3)), 0);
+    for t in [1e5f32, 1e6] {
+        let s = load(t);
+        assert!(quantised(&s) > 0, "at {t} m: no warning in {:?}", s.warnings);
+    }
+    layers_match_far_away("full (baked)", &[1e3], 0.01, load, |scene, seed| {
+        let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
+        let mut cfg = render_params(Method::Full, 64, 64);
+        (cfg.spp, cfg.gather_rays) = (1, 64);
+        let camera = scene.camera.as_ref().unwrap();
+        let film = cfg.film(seed);
+        let (img, _) = pm_tests::with_photon_mapping(&scene, &maps, &cfg, |pm| {
+            pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
+        });
+        (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(&scene))
+    });
+}
+
 /// Far from the origin, layer by layer and block by block (issue 36): the diffuse
 /// Cornell box shrunk to 0.5 m and moved 1e3, 1e5 and 1e6 m along every axis by a
 /// root node (the camera with it) against the same box at the origin, through the
@@ -408,7 +495,7 @@ fn far_from_the_origin_every_layer_matches_block_by_block() {
     let dir = tempfile::tempdir().unwrap();
     let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
     for method in [Method::Full, Method::Path] {
-        layers_match_far_away(&method.to_string(), 0.01, load, |scene, seed| {
+        layers_match_far_away(&method.to_string(), &FAR, 0.01, load, |scene, seed| {
             let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
             let mut cfg = render_params(method, 64, 64);
             (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
@@ -438,7 +525,7 @@ fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
     let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
     let frame = |direct| FrameParams { width: 64, height: 64, direct, light_samples: 16, ..Default::default() };
     for direct in [DirectMode::Rays, DirectMode::ShadowMap] {
-        layers_match_far_away(&format!("vertex ({direct})"), 0.01, load, |scene, seed| {
+        layers_match_far_away(&format!("vertex ({direct})"), &FAR, 0.01, load, |scene, seed| {
             let params = pm_vertex::VertexParams { per_frame: 20_000, total: 20_000, ..Default::default() };
             let mut live = pm_vertex::live(scene, None, frame(direct), params, seed).unwrap();
             live.step().unwrap();
@@ -449,7 +536,7 @@ fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
     // and 1e6 m in every seed tried (4 seeds: 0.9% at 1e5, 1.0% at 1e6 on average),
     // with 0.4% fewer photons stored past the first bounce; the cause is not found
     // yet (issue 36), so its mean is held to 2%.
-    layers_match_far_away("ispm", 0.02, load, |scene, seed| {
+    layers_match_far_away("ispm", &FAR, 0.02, load, |scene, seed| {
         let params = pm_ispm::IspmParams { bounce_res: 128, ..Default::default() };
         let mut live = pm_ispm::live(scene, frame(DirectMode::Rays), params, seed).unwrap();
         live.step().unwrap();
@@ -471,7 +558,7 @@ fn planes_seen(scene: &pm_scene::Scene) -> Vec<Option<Vec3>> {
 /// it drew, which a method may have split).
 type Layers = ([Vec<Vec3>; 4], Vec<Option<Vec3>>);
 
-/// Each layer of `render(load(t), seed)` (64 x 64) at t = 1e3, 1e5 and 1e6 m
+/// Each layer of `render(load(t), seed)` (64 x 64) at each of `distances` t [m]
 /// against `render(load(0), 1)` in 8 x 8 blocks. The bound comes from the
 /// untranslated render's own noise: in every block within 4 x the blocks' relative
 /// RMS difference between seeds 1 and 2 plus 2%, and the mean within
@@ -486,6 +573,7 @@ type Layers = ([Vec<Vec3>; 4], Vec<Option<Vec3>>);
 /// which are left out the same way; the black wall-floor edge was 64.
 fn layers_match_far_away(
     what: &str,
+    distances: &[f32],
     mean_tolerance: f64,
     load: impl Fn(f32) -> pm_scene::Scene,
     render: impl Fn(pm_scene::Scene, u64) -> Layers,
@@ -493,9 +581,9 @@ fn layers_match_far_away(
     const SIZE: u32 = 64;
     let base_scene = load(0.0);
     let ((base, base_planes), (other_seed, _)) = (render(base_scene.clone(), 1), render(base_scene, 2));
-    let far: Vec<_> = [1e3f32, 1e5, 1e6]
-        .into_iter()
-        .map(|t| {
+    let far: Vec<_> = distances
+        .iter()
+        .map(|&t| {
             let (img, planes) = render(load(t), 1);
             let ties: Vec<bool> = planes
                 .iter()
