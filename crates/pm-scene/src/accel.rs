@@ -15,9 +15,8 @@ impl obvhs::Boundable for PaddedBox {
 }
 
 /// The triangles' positions in the BVH's slot order, four slots to a
-/// [`geometry::Tri4`]; a leaf's slots may start and end inside a group (the slots
-/// are packed: padding each leaf to a multiple of four held about half as many
-/// positions again as there are triangles).
+/// [`geometry::Tri4`]. A leaf lies within one group but need not start it: small
+/// leaves share groups (see `Bvh4::new`), and a leaf's lanes are a mask.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BvhTris {
     tri4: Vec<geometry::Tri4>,

@@ -147,8 +147,9 @@ impl Scene {
         content_hash: [u8; 32],
         warnings: Vec<String>,
     ) -> Scene {
-        // The loader grows the list as it reads: without this its spare capacity
-        // was a fifth of the scene's triangle bytes (Scene::memory_use).
+        // Lists grown as they are built (subdivision, proxies, skipped degenerate
+        // triangles) keep spare capacity: before the loader reserved its list at
+        // its final size, this was a fifth of a loaded scene's triangle bytes.
         let mut triangles = triangles;
         triangles.shrink_to_fit();
         let bounds = bounds_of(&triangles);

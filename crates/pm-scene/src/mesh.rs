@@ -224,7 +224,7 @@ impl Scene {
         let scene = self.map_objects(|_, tris| {
             let mut out = Vec::new();
             for t in tris {
-                for corners in split(t.p, max_edge, rounds) {
+                for corners in split(t.p, max_edge, rounds, |_| true) {
                     let b = corners.map(|c| c.1.to_array());
                     if let Some(mut sub) = Triangle::new(corners.map(|c| c.0), t.material) {
                         let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
@@ -388,8 +388,10 @@ fn split_once(t: [Corner; 3], max_edge: f32, out: &mut Vec<[Corner; 3]>) {
     }
 }
 
-/// The triangle with corners `p` after `rounds` rounds of [`split_once`].
-fn split(p: [Vec3; 3], max_edge: f32, rounds: usize) -> Vec<[Corner; 3]> {
+/// The triangle with corners `p` after up to `rounds` rounds of [`split_once`]:
+/// `after_round(count)` hears the count after each round that split something, and
+/// stops the rounds by returning false; a round that splits nothing ends them.
+fn split(p: [Vec3; 3], max_edge: f32, rounds: usize, mut after_round: impl FnMut(usize) -> bool) -> Vec<[Corner; 3]> {
     let mut tris = vec![[(p[0], Vec3::X), (p[1], Vec3::Y), (p[2], Vec3::Z)]];
     let mut next = Vec::new();
     for _ in 0..rounds {
@@ -401,6 +403,9 @@ fn split(p: [Vec3; 3], max_edge: f32, rounds: usize) -> Vec<[Corner; 3]> {
             break;
         }
         std::mem::swap(&mut tris, &mut next);
+        if !after_round(tris.len()) {
+            break;
+        }
     }
     tris
 }
@@ -411,24 +416,18 @@ const MAX_SPLIT_COUNT: usize = 1 << 20;
 /// How many triangles the triangle with corners `p` is after 0, 1, ...,
 /// [`MAX_SPLIT_ROUNDS`] rounds (`usize::MAX` past [`MAX_SPLIT_COUNT`]).
 fn split_counts(p: [Vec3; 3], max_edge: f32) -> [usize; MAX_SPLIT_ROUNDS + 1] {
-    let mut counts = [1; MAX_SPLIT_ROUNDS + 1];
-    let mut tris = vec![[(p[0], Vec3::X), (p[1], Vec3::Y), (p[2], Vec3::Z)]];
-    let mut next = Vec::new();
-    for r in 1..=MAX_SPLIT_ROUNDS {
-        next.clear();
-        for &t in &tris {
-            split_once(t, max_edge, &mut next);
-        }
-        counts[r] = next.len();
-        if next.len() > MAX_SPLIT_COUNT {
-            counts[r..].fill(usize::MAX);
-            break;
-        }
-        if next.len() == tris.len() {
-            counts[r..].fill(next.len());
-            break;
-        }
-        std::mem::swap(&mut tris, &mut next);
+    let mut counts = [usize::MAX; MAX_SPLIT_ROUNDS + 1];
+    counts[0] = 1;
+    let mut round = 0;
+    split(p, max_edge, MAX_SPLIT_ROUNDS, |n| {
+        round += 1;
+        counts[round] = if n > MAX_SPLIT_COUNT { usize::MAX } else { n };
+        n <= MAX_SPLIT_COUNT
+    });
+    // Past the last round that split something, the count stays (unless too many).
+    let last = counts[round];
+    if last < usize::MAX {
+        counts[round..].fill(last);
     }
     counts
 }

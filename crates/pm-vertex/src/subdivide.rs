@@ -96,7 +96,7 @@ pub struct Subdivision {
     /// What was asked.
     pub asked: Subdivide,
     /// The drawn mesh's longest edge \[m\].
-    pub max_edge: f32,
+    pub longest_edge: f32,
     /// The expected photon search radius \[m\] ([`expected_radius`]).
     pub radius: f32,
     /// Triangles before and after.
@@ -110,9 +110,13 @@ impl fmt::Display for Subdivision {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (before, after) = self.triangles;
         if after == before {
-            write!(f, "drawn mesh as it is: {before} triangles, the longest edge {:.3} m", self.max_edge)?;
+            write!(f, "drawn mesh as it is: {before} triangles, the longest edge {:.3} m", self.longest_edge)?;
         } else {
-            write!(f, "drawn mesh: {before} triangles split into {after}, the longest edge {:.3} m", self.max_edge)?;
+            write!(
+                f,
+                "drawn mesh: {before} triangles split into {after}, the longest edge {:.3} m",
+                self.longest_edge
+            )?;
         }
         match self.asked {
             Subdivide::MaxEdge(0.0) => f.write_str(" (subdivide = 0)"),
@@ -155,7 +159,7 @@ pub fn scenes(scene: Scene, photon_scene: Option<Scene>, params: &VertexParams) 
     let (drawn, longest) = scene.subdivided_within(max_edge, budget);
     let subdivision = Subdivision {
         asked: params.subdivide,
-        max_edge: longest,
+        longest_edge: longest,
         radius,
         triangles: (before, drawn.triangles.len()),
         capped: max_edge > 0.0 && longest > max_edge,

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use pm_render::Method;
-use pm_tests::{photon_maps, render, render_params, scene_path};
+use pm_tests::{block_means, photon_maps, render, render_params, scene_path};
 use std::path::{Path, PathBuf};
 
 /// Copy a scene into `dir` with all its nodes under one new root node carrying
@@ -381,19 +381,6 @@ fn closed_form_direct_light(second_light: bool) {
     }
 }
 
-/// Means of the 8 x 8 blocks of a `w`-wide image.
-fn block_means(px: &[Vec3], w: usize) -> Vec<Vec3> {
-    let h = px.len() / w;
-    let mut out = vec![Vec3::ZERO; (w / 8) * (h / 8)];
-    for (i, p) in px.iter().enumerate() {
-        let (x, y) = (i % w, i / w);
-        if x / 8 < w / 8 && y / 8 < h / 8 {
-            out[(y / 8) * (w / 8) + x / 8] += *p / 64.0;
-        }
-    }
-    out
-}
-
 /// The distances [m] the far-from-origin tests move a scene along every axis.
 const FAR: [f32; 3] = [1e3, 1e5, 1e6];
 
@@ -455,12 +442,11 @@ fn baked_scene(dir: &Path, scale: f32, translation: [f32; 3]) -> PathBuf {
 fn far_from_the_origin_in_the_vertex_data() {
     let dir = tempfile::tempdir().unwrap();
     let load = |t: f32| {
-        let path = if t == 0.0 {
-            transformed_scene(dir.path(), "cornell_boxes", 0.25, [0.0; 3])
+        if t == 0.0 {
+            far_box(dir.path(), 0.0)
         } else {
-            baked_scene(dir.path(), 0.25, [t, t, t])
-        };
-        pm_scene::load(&path).unwrap()
+            pm_scene::load(&baked_scene(dir.path(), 0.25, [t, t, t])).unwrap()
+        }
     };
     let quantised = |s: &pm_scene::Scene| s.warnings.iter().filter(|w| w.contains("quantised in the file")).count();
     assert_eq!(quantised(&load(1e3)), 0);
@@ -468,17 +454,7 @@ fn far_from_the_origin_in_the_vertex_data() {
         let s = load(t);
         assert!(quantised(&s) > 0, "at {t} m: no warning in {:?}", s.warnings);
     }
-    layers_match_far_away("full (baked)", &[1e3], 0.01, load, |scene, seed| {
-        let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
-        let mut cfg = render_params(Method::Full, 64, 64);
-        (cfg.spp, cfg.gather_rays) = (1, 64);
-        let camera = scene.camera.as_ref().unwrap();
-        let film = cfg.film(seed);
-        let (img, _) = pm_tests::with_photon_mapping(&scene, &maps, &cfg, |pm| {
-            pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
-        });
-        (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(&scene))
-    });
+    layers_match_far_away("full (baked)", &[1e3], 0.01, load, |scene, seed| batch_layers(&scene, Method::Full, seed));
 }
 
 /// Far from the origin, layer by layer and block by block (issue 36): the diffuse
@@ -493,20 +469,31 @@ fn far_from_the_origin_in_the_vertex_data() {
 #[test]
 fn far_from_the_origin_every_layer_matches_block_by_block() {
     let dir = tempfile::tempdir().unwrap();
-    let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
+    let load = |t: f32| far_box(dir.path(), t);
     for method in [Method::Full, Method::Path] {
-        layers_match_far_away(&method.to_string(), &FAR, 0.01, load, |scene, seed| {
-            let maps = pm_tests::photon_maps_seeded(&scene, 50_000, 0, 0.25, seed);
-            let mut cfg = render_params(method, 64, 64);
-            (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
-            let camera = scene.camera.as_ref().unwrap();
-            let film = cfg.film(seed);
-            let (img, _) = pm_tests::with_photon_mapping(&scene, &maps, &cfg, |pm| {
-                pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
-            });
-            (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(&scene))
-        });
+        layers_match_far_away(&method.to_string(), &FAR, 0.01, load, |scene, seed| batch_layers(&scene, method, seed));
     }
+}
+
+/// cornell_boxes shrunk to 0.5 m and moved `t` m along every axis by a root node
+/// in `dir`, loaded.
+fn far_box(dir: &Path, t: f32) -> pm_scene::Scene {
+    pm_scene::load(&transformed_scene(dir, "cornell_boxes", 0.25, [t, t, t])).unwrap()
+}
+
+/// A 64 x 64 render of `scene` by `method` with streams from `seed` (photon maps
+/// of 50,000 global photons; 1 sample a pixel with 64 gather rays, 16 paths a
+/// pixel for the path tracer): its layers and the surfaces it drew.
+fn batch_layers(scene: &pm_scene::Scene, method: Method, seed: u64) -> Layers {
+    let maps = pm_tests::photon_maps_seeded(scene, 50_000, 0, 0.25, seed);
+    let mut cfg = render_params(method, 64, 64);
+    (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
+    let camera = scene.camera.as_ref().unwrap();
+    let film = cfg.film(seed);
+    let (img, _) = pm_tests::with_photon_mapping(scene, &maps, &cfg, |pm| {
+        pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
+    });
+    (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(scene))
 }
 
 /// The same for both real-time methods, on their defaults but for the photon and
@@ -522,7 +509,7 @@ fn far_from_the_origin_every_layer_matches_block_by_block() {
 fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
     use pm_live::{DirectMode, FrameParams};
     let dir = tempfile::tempdir().unwrap();
-    let load = |t: f32| pm_scene::load(&transformed_scene(dir.path(), "cornell_boxes", 0.25, [t, t, t])).unwrap();
+    let load = |t: f32| far_box(dir.path(), t);
     let frame = |direct| FrameParams { width: 64, height: 64, direct, light_samples: 16, ..Default::default() };
     for direct in [DirectMode::Rays, DirectMode::ShadowMap] {
         layers_match_far_away(&format!("vertex ({direct})"), &FAR, 0.01, load, |scene, seed| {

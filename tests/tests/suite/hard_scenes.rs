@@ -132,15 +132,8 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
         live.step().unwrap();
         live.frame_layers().total().to_vec()
     };
-    let blocks = |img: &[Vec3]| {
-        let mut out = vec![Vec3::ZERO; (w as usize / 8) * (h as usize / 8)];
-        for (i, p) in img.iter().enumerate() {
-            out[(i / w as usize / 8) * (w as usize / 8) + (i % w as usize) / 8] += *p / 64.0;
-        }
-        out
-    };
     let judge = |img: &[Vec3]| {
-        let (a, b) = (blocks(img), blocks(&reference));
+        let (a, b) = (pm_tests::block_means(img, w as usize), pm_tests::block_means(&reference, w as usize));
         let mean = |v: &[Vec3]| v.iter().map(|p| p.element_sum() as f64).sum::<f64>();
         let rms = (a
             .iter()
