@@ -53,9 +53,9 @@ impl LightMap {
             }
             LightKind::Area { tris, .. } => {
                 let t: Vec<&pm_scene::Triangle> = tris.clone().map(|i| &scene.triangles[i as usize]).collect();
-                let normal = t.first()?.ng;
-                let area: f32 = t.iter().map(|q| q.area).sum();
-                let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area / 3.0)).sum::<Vec3>() / area;
+                let normal = t.first()?.ng();
+                let area: f32 = t.iter().map(|q| q.area()).sum();
+                let centroid = t.iter().map(|q| (q.p[0] + q.p[1] + q.p[2]) * (q.area() / 3.0)).sum::<Vec3>() / area;
                 let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
                 Some(LightMap { depth: CubeDepth::new(scene, position, res), area: true })
             }

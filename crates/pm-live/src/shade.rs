@@ -86,7 +86,7 @@ impl<I: IndirectLight> LiveShading<'_, I> {
             return None;
         }
         let maps = self.shadow_maps?;
-        Some(maps.direct(scene, LitPoint { p, ng: tr.ng, ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
+        Some(maps.direct(scene, LitPoint { p, ng: tr.ng(), ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
     }
 
     /// The components seen along direction `d` whose first hit is `first`.

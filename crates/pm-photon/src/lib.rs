@@ -424,6 +424,14 @@ pub fn trace_slice(
         Budget::Stored { target, cap } => (cap, slice.quota(target)),
     };
     let n_chunks = end.div_ceil(CHUNK);
+    // Room for the stored target and the last batch's overshoot, reserved at once:
+    // growing by doubling held the old and the new list together (the trace's peak
+    // memory; issue 36), and what is never written takes no memory.
+    if quota != u64::MAX {
+        let room = quota.saturating_add(quota / 4).saturating_add(4 * BATCH);
+        out.photons.reserve_exact(room as usize);
+        out.bounces.reserve_exact(room as usize);
+    }
     // This slice's chunks, BATCH paths' worth at a time in parallel.
     let mut mine = (slice.index as u64..n_chunks).step_by(slice.count as usize).peekable();
     let per_batch = (BATCH / CHUNK) as usize;
@@ -509,11 +517,13 @@ pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeErro
         })
         .collect();
     let mut stats = MapStats::default();
-    let mut photons: Vec<Photon> = Vec::new();
+    // The photon ranges kept, (slice, from, to), then the map gathered from them.
+    let mut kept: Vec<(usize, usize, usize)> = Vec::new();
+    let mut n_kept = 0;
     let keep_bounces = slices.iter().all(|s| s.bounces.len() == s.photons.len());
     let mut emitted = 0;
     for c in 0..n_chunks {
-        if (photons.len() as u64) >= target {
+        if (n_kept as u64) >= target {
             break;
         }
         let k = (c % count as u64) as usize;
@@ -530,13 +540,27 @@ pub fn merge_slices(mut slices: Vec<TracedSlice>) -> Result<TracedMap, MergeErro
         if to > s.photons.len() {
             return Err(MergeError::Mismatch(format!("slice {k} holds fewer photons than its chunks record")));
         }
-        photons.extend_from_slice(&s.photons[from..to]);
+        kept.push((k, from, to));
+        n_kept += to - from;
         if keep_bounces {
             stats.add_bounces(&s.bounces[from..to]);
         }
         stats.add_chunk(chunk);
         emitted = ((c + 1) * CHUNK).min(end);
     }
+    // One slice's kept chunks are its first photons: the map is that list, cut,
+    // rather than a copy beside it (the trace's peak memory; issue 36).
+    let mut photons = if slices.len() == 1 {
+        let mut p = std::mem::take(&mut slices[0].photons);
+        p.truncate(n_kept);
+        p
+    } else {
+        let mut p = Vec::with_capacity(n_kept);
+        for &(k, from, to) in &kept {
+            p.extend_from_slice(&slices[k].photons[from..to]);
+        }
+        p
+    };
     let n_emitted = match budget {
         Budget::Emitted(n) => n,
         Budget::Stored { .. } => emitted,

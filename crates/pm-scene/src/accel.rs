@@ -1,18 +1,9 @@
-//! Ray queries: the BVH over the triangles (obvhs builds it, `bvh4` traverses it),
+//! Ray queries: the BVH over the triangles (`bvh4` builds and traverses it),
 //! closest hit, shadow-ray occlusion, hit records and ray-origin offsets.
 
 use crate::geometry::{self, TriangleRay, facing, offset_ray_origin};
 use crate::{Bounds, Hit, Scene, Triangle, bvh4};
 use glam::{Vec2, Vec3};
-
-/// A triangle's bounding box in the BVH's normalised coordinates, padded.
-struct PaddedBox(obvhs::aabb::Aabb);
-
-impl obvhs::Boundable for PaddedBox {
-    fn aabb(&self) -> obvhs::aabb::Aabb {
-        self.0
-    }
-}
 
 /// The triangles' positions in the BVH's slot order, four slots to a
 /// [`geometry::Tri4`]. A leaf lies within one group but need not start it: small
@@ -46,35 +37,17 @@ pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4,
     if triangles.is_empty() {
         return (bvh4::Bvh4::default(), BvhTris::default());
     }
-    // obvhs builds the tree (PLOC, reinsertion) over boxes in the normalised
-    // coordinates (p - centre) / diagonal, where its build behaves the same at every
-    // scale; the four-wide nodes then get boxes recomputed in world coordinates.
-    // Each triangle's box is padded by 2e-7 of the scene's size, in both: with exact
-    // boxes, obvhs's slab tests missed rays that pass exactly through an edge lying
-    // on a node boundary (30 of 13,000 rays aimed at a sphere's vertices and edge
-    // midpoints slipped through; tests/tests/suite/hard_cases.rs).
-    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
-    let (c, inv) = (bounds.center(), 1.0 / diag);
-    let norm = |p: Vec3| -> glam::Vec3A { ((p - c) * inv).into() };
-    let boxes: Vec<PaddedBox> = triangles
-        .iter()
-        .map(|t| {
-            let (a, b, c) = (norm(t.p[0]), norm(t.p[1]), norm(t.p[2]));
-            let pad = glam::Vec3A::splat(2e-7);
-            PaddedBox(obvhs::aabb::Aabb::new(a.min(b).min(c) - pad, a.max(b).max(c) + pad))
-        })
-        .collect();
-    // Our own four-wide traversal, not obvhs's compressed wide BVH (CWBVH): its 8-bit
+    // Each triangle's box is padded by 2e-7 of the scene's size: with exact boxes,
+    // slab tests missed rays that pass exactly through an edge lying on a node
+    // boundary (30 of 13,000 rays aimed at a sphere's vertices and edge midpoints
+    // slipped through obvhs's; tests/tests/suite/hard_cases.rs). Our own four-wide
+    // tree and build, not obvhs's compressed wide BVH (CWBVH), whose 8-bit
     // quantised child boxes lost rays that start a few hundredths of a millimetre
     // from a surface and hit it at once (13 of 200,000 gather rays from the walls of
-    // cornell_spheres, born near the floor, went through it; tests.rs).
-    let params = obvhs::BvhBuildParams { max_prims_per_leaf: 4, ..obvhs::BvhBuildParams::medium_build() };
-    let bvh2 = obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut std::time::Duration::default());
-    // Each intermediate freed as soon as the next is built (the boxes, then the
-    // binary tree): they set the load's peak memory.
-    drop(boxes);
-    let bvh = bvh4::Bvh4::new(&bvh2, triangles, 2e-7 * diag);
-    drop(bvh2);
+    // cornell_spheres, born near the floor, went through it; tests.rs), nor its PLOC
+    // build, whose scratch (about 190 bytes a triangle) set the load's peak memory.
+    let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
+    let bvh = bvh4::Bvh4::build(triangles, 2e-7 * diag);
     let tri4 = bvh
         .slots()
         .chunks(4)
@@ -145,7 +118,7 @@ impl Scene {
     pub fn make_hit(&self, tri: u32, t: f32, b: [f32; 3]) -> Hit {
         let tr = &self.triangles[tri as usize];
         let (p, ns) = tr.point_normal(b);
-        let ng = tr.ng;
+        let ng = tr.ng();
         let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
         let uv = tr.uv().map_or(Vec2::ZERO, lerp);
         let uv1 = tr.uv1().map_or(Vec2::ZERO, lerp);

@@ -227,7 +227,7 @@ impl Scene {
                     }
                     // A transform that flattens a triangle keeps its last good pose.
                     if let Some(moved) = Triangle::new(p, local.material) {
-                        *out = Triangle { n, p: moved.p, ng: moved.ng, area: moved.area, ..attrs };
+                        *out = Triangle { n, p: moved.p, ..attrs };
                     }
                 }
             }

@@ -1,9 +1,9 @@
-//! A four-wide BVH for single rays: obvhs's binary BVH (PLOC build with
-//! reinsertion; Meister and Bittner 2018) collapsed into nodes of four children
-//! whose boxes one ray tests together (Wald et al. 2008, "Getting Rid of Packets"),
-//! traversed nearest child first. The boxes are recomputed from the triangles in
-//! world coordinates, padded, and tested with Ize's (2013) conservative slab test,
-//! so a ray through an edge on a node's boundary is not lost.
+//! A four-wide BVH for single rays: nodes of four children whose boxes one ray
+//! tests together (Wald et al. 2008, "Getting Rid of Packets"), built top-down by
+//! the binned surface area heuristic and traversed nearest child first. The boxes
+//! bound the triangles in world coordinates, padded, and are tested with Ize's
+//! (2013) conservative slab test, so a ray through an edge on a node's boundary is
+//! not lost.
 
 use crate::Triangle;
 use glam::{Vec3, Vec4};
@@ -11,7 +11,7 @@ use glam::{Vec3, Vec4};
 /// Four children: the box of each (min x, y, z, then max x, y, z, one lane a
 /// child; an empty lane's box is inverted so that no ray hits it), and what each
 /// is: `count` 0 with `child` a node index, or a leaf of `count` triangle slots
-/// from `child` (a multiple of four).
+/// from `child` (within one group of four: see `Bvh4::node`).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node4 {
@@ -23,6 +23,162 @@ struct Node4 {
 /// Slab-test margin: distances are computed with at most 3 roundings, so the far
 /// distance is scaled by 1 + 2 gamma(3) (Ize 2013; pbrt-v4 section 6.8.2).
 const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// A triangle's box, padded, and its index: what the builder sorts (28 bytes, the
+/// build's only per-triangle scratch besides the tree it writes).
+#[derive(Clone, Copy, Debug)]
+struct PrimRef {
+    lo: Vec3,
+    hi: Vec3,
+    id: u32,
+}
+
+impl PrimRef {
+    /// Twice the centroid along axis `a` (the halving does not change the binning).
+    #[inline(always)]
+    fn centre2(&self, a: usize) -> f32 {
+        self.lo[a] + self.hi[a]
+    }
+}
+
+/// An axis-aligned box; the empty box is inverted.
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb { lo: Vec3::INFINITY, hi: Vec3::NEG_INFINITY };
+
+    #[inline(always)]
+    fn grow(&mut self, lo: Vec3, hi: Vec3) {
+        self.lo = self.lo.min(lo);
+        self.hi = self.hi.max(hi);
+    }
+
+    #[inline(always)]
+    fn join(self, o: Aabb) -> Aabb {
+        Aabb { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+
+    /// Half the surface area (0 for the empty box).
+    fn half_area(&self) -> f32 {
+        let e = (self.hi - self.lo).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+}
+
+/// A range of the builder's primitives with their box and the box of their
+/// centroids (doubled, as [`PrimRef::centre2`]).
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    start: usize,
+    len: usize,
+    bounds: Aabb,
+    centres: Aabb,
+}
+
+/// Bins per axis of the SAH split search.
+const BINS: usize = 32;
+
+/// Below this level the builder halves spans at the median (see [`split`]): a
+/// lopsided tree past it would cost a deep traversal stack.
+pub(crate) const MAX_SAH_LEVEL: usize = 40;
+
+/// Triangles a leaf holds at most: one four-wide test (`geometry::Tri4`).
+const LEAF: usize = 4;
+
+/// The box of `prims` and of their doubled centroids.
+fn span_of(prims: &[PrimRef], start: usize) -> Span {
+    let (mut bounds, mut centres) = (Aabb::EMPTY, Aabb::EMPTY);
+    for p in prims {
+        bounds.grow(p.lo, p.hi);
+        let c = p.lo + p.hi;
+        centres.grow(c, c);
+    }
+    Span { start, len: prims.len(), bounds, centres }
+}
+
+/// Split `s` (more than [`LEAF`] primitives of `prims`) in two by the surface area
+/// heuristic over [`BINS`] bins of centroid position on each axis (Wald 2007, "On
+/// fast construction of SAH-based bounding volume hierarchies"), costing a side by
+/// its groups of four (one four-wide test each, as Embree counts blocks); the
+/// primitives are partitioned in place. Where every centroid falls in one bin, the
+/// span is halved in its present order; `median` (a deep level, where the heuristic
+/// has made a lopsided tree) halves it by centroid along its widest axis instead,
+/// which bounds the depth.
+fn split(prims: &mut [PrimRef], s: &Span, median: bool) -> (Span, Span) {
+    let all = &mut prims[s.start..s.start + s.len];
+    let ext = s.centres.hi - s.centres.lo;
+    if median {
+        let a = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        let mid = all.len() / 2;
+        all.select_nth_unstable_by(mid, |p, q| p.centre2(a).total_cmp(&q.centre2(a)));
+        let (l, r) = all.split_at(mid);
+        return (span_of(l, s.start), span_of(r, s.start + mid));
+    }
+    let mut best: Option<(f32, usize, usize)> = None;
+    for a in 0..3 {
+        if !(ext[a] > 0.0) {
+            continue;
+        }
+        let (lo, scale) = (s.centres.lo[a], BINS as f32 / ext[a]);
+        let mut boxes = [Aabb::EMPTY; BINS];
+        let mut counts = [0usize; BINS];
+        for p in all.iter() {
+            let b = (((p.centre2(a) - lo) * scale) as usize).min(BINS - 1);
+            boxes[b].grow(p.lo, p.hi);
+            counts[b] += 1;
+        }
+        // Right sides' areas and counts from the last bin down, then sweep the left.
+        let mut right = [(0.0f32, 0usize); BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in (1..BINS).rev() {
+            acc = acc.join(boxes[b]);
+            n += counts[b];
+            right[b] = (acc.half_area(), n);
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in 1..BINS {
+            acc = acc.join(boxes[b - 1]);
+            n += counts[b - 1];
+            let (ra, rn) = right[b];
+            if n == 0 || rn == 0 {
+                continue;
+            }
+            let cost = acc.half_area() * n.div_ceil(LEAF) as f32 + ra * rn.div_ceil(LEAF) as f32;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, a, b));
+            }
+        }
+    }
+    let mid = match best {
+        Some((_, a, bin)) => {
+            let (lo, scale) = (s.centres.lo[a], BINS as f32 / ext[a]);
+            let left = |p: &PrimRef| (((p.centre2(a) - lo) * scale) as usize).min(BINS - 1) < bin;
+            let (mut i, mut j) = (0, all.len());
+            while i < j {
+                if left(&all[i]) {
+                    i += 1;
+                } else {
+                    j -= 1;
+                    all.swap(i, j);
+                }
+            }
+            i
+        }
+        None => all.len() / 2,
+    };
+    let (l, r) = all.split_at(mid);
+    (span_of(l, s.start), span_of(r, s.start + mid))
+}
 
 /// Run `f` with a traversal stack of at least `need` entries: on the call stack in
 /// one of a few sizes (a fixed large array cost a 1.5 kB memset per ray, 5% of a
@@ -92,17 +248,43 @@ impl Bvh4 {
         self.nodes.capacity() * std::mem::size_of::<Node4>() + self.slots.capacity() * 4
     }
 
-    /// Collapse `bvh` (over boxes of the triangles `tris`, in any coordinates) into
-    /// four-wide nodes whose boxes bound `tris`'s vertices padded by `pad` [m].
-    pub(crate) fn new(bvh: &obvhs::bvh2::Bvh2, tris: &[Triangle], pad: f32) -> Bvh4 {
+    /// The tree over `tris`, built top-down by the surface area heuristic (see
+    /// [`split`]) straight into four-wide nodes: a node's span is split in two, then
+    /// the lane of largest surface area with more than [`LEAF`] triangles is split
+    /// again, until there are four lanes or only leaves (as Embree's wide builders
+    /// and Wald et al. 2008 collapse a binary tree). Child boxes bound the triangles'
+    /// vertices padded by `pad` [m]. The build holds 28 bytes a triangle of scratch
+    /// beside the tree (issue 36: obvhs's PLOC build held about 190).
+    pub(crate) fn build(tris: &[Triangle], pad: f32) -> Bvh4 {
         let mut out = Bvh4 { nodes: Vec::new(), slots: Vec::new(), stack_need: 1 };
-        if bvh.nodes.is_empty() || tris.is_empty() {
+        if tris.is_empty() {
             return out;
         }
+        let mut prims: Vec<PrimRef> = tris
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let [a, b, c] = t.p;
+                PrimRef { lo: a.min(b).min(c) - pad, hi: a.max(b).max(c) + pad, id: i as u32 }
+            })
+            .collect();
+        // A four-wide tree over n leaves has at most (n - 1) / 3 + 1 inner nodes.
+        out.nodes.reserve_exact(tris.len().div_ceil(3) + 1);
+        out.slots.reserve_exact(tris.len() + tris.len() / 4);
+        let root = span_of(&prims, 0);
         let mut depth = 0;
-        out.collapse(bvh, 0, tris, pad, 1, &mut depth);
+        out.node(&mut prims, root, 1, &mut depth);
+        drop(prims);
+        out.nodes.shrink_to_fit();
+        out.slots.shrink_to_fit();
         out.stack_need = 3 * depth + 1;
         out
+    }
+
+    /// Levels below and including the root.
+    #[cfg(test)]
+    pub(crate) fn depth(&self) -> usize {
+        (self.stack_need - 1) / 3
     }
 
     /// Index into the caller's triangles of each slot.
@@ -110,35 +292,29 @@ impl Bvh4 {
         &self.slots
     }
 
-    /// Build the four-wide node for binary node `b2` (its children, and theirs, up to
-    /// four); returns its index and box.
-    fn collapse(
-        &mut self,
-        bvh: &obvhs::bvh2::Bvh2,
-        b2: usize,
-        tris: &[Triangle],
-        pad: f32,
-        level: usize,
-        depth: &mut usize,
-    ) -> (u32, [Vec3; 2]) {
+    /// Build the node over span `s` of `prims` and its subtree (level `level`, the
+    /// root 1); returns its index. Leaves take their slots as they are met, in lane
+    /// order depth first.
+    fn node(&mut self, prims: &mut [PrimRef], s: Span, level: usize, depth: &mut usize) -> u32 {
         *depth = (*depth).max(level);
-        let node = &bvh.nodes[b2];
-        // The lanes: a binary leaf as root is one leaf lane; otherwise open the inner
-        // child of largest surface area until there are four or only leaves.
-        let mut lanes: Vec<usize> =
-            if node.prim_count > 0 { vec![b2] } else { vec![node.first_index as usize, node.first_index as usize + 1] };
+        let deep = level > MAX_SAH_LEVEL;
+        let mut lanes = if s.len <= LEAF {
+            vec![s]
+        } else {
+            let (l, r) = split(prims, &s, deep);
+            vec![l, r]
+        };
         while lanes.len() < 4 {
             let open = lanes
                 .iter()
                 .enumerate()
-                .filter(|&(_, &c)| bvh.nodes[c].prim_count == 0)
-                .max_by(|a, b| bvh.nodes[*a.1].aabb.half_area().total_cmp(&bvh.nodes[*b.1].aabb.half_area()))
+                .filter(|(_, l)| l.len > LEAF)
+                .max_by(|a, b| a.1.bounds.half_area().total_cmp(&b.1.bounds.half_area()))
                 .map(|(i, _)| i);
             let Some(i) = open else { break };
-            let c = lanes.remove(i);
-            let first = bvh.nodes[c].first_index as usize;
-            lanes.insert(i, first + 1);
-            lanes.insert(i, first);
+            let (l, r) = split(prims, &lanes[i], deep);
+            lanes[i] = r;
+            lanes.insert(i, l);
         }
         let index = self.nodes.len();
         self.nodes.push(Node4 {
@@ -153,10 +329,8 @@ impl Bvh4 {
             child: [0; 4],
             count: [0; 4],
         });
-        let mut whole = [Vec3::INFINITY, Vec3::NEG_INFINITY];
-        for (lane, &c) in lanes.iter().enumerate() {
-            let cn = &bvh.nodes[c];
-            let (child, count, bx) = if cn.prim_count > 0 {
+        for (lane, l) in lanes.iter().enumerate() {
+            let (child, count) = if l.len <= LEAF {
                 // A leaf (at most four triangles) never straddles two groups of four,
                 // so it takes one four-wide test: it starts the next group when it
                 // does not fit in what is left of this one. (Packed without this, a
@@ -164,34 +338,25 @@ impl Bvh4 {
                 // 1.37 times as long; padding every leaf to a group start held 58
                 // bytes of positions per triangle instead of 36-40.)
                 let used = self.slots.len() % 4;
-                if used != 0 && used + cn.prim_count as usize > 4 {
+                if used != 0 && used + l.len > 4 {
                     let last = self.slots[self.slots.len() - 1];
                     self.slots.resize(self.slots.len() + 4 - used, last);
                 }
                 let first = self.slots.len() as u32;
-                let mut bx = [Vec3::INFINITY, Vec3::NEG_INFINITY];
-                for k in cn.first_index..cn.first_index + cn.prim_count {
-                    let t = bvh.primitive_indices[k as usize];
-                    self.slots.push(t);
-                    for p in tris[t as usize].p {
-                        bx = [bx[0].min(p - pad), bx[1].max(p + pad)];
-                    }
-                }
-                (first, cn.prim_count, bx)
+                self.slots.extend(prims[l.start..l.start + l.len].iter().map(|p| p.id));
+                (first, l.len as u32)
             } else {
-                let (i, bx) = self.collapse(bvh, c, tris, pad, level + 1, depth);
-                (i, 0, bx)
+                (self.node(prims, *l, level + 1, depth), 0)
             };
             let n = &mut self.nodes[index];
             n.child[lane] = child;
             n.count[lane] = count;
-            for (a, (lo, hi)) in bx[0].to_array().into_iter().zip(bx[1].to_array()).enumerate() {
-                n.b[a][lane] = lo;
-                n.b[a + 3][lane] = hi;
+            for a in 0..3 {
+                n.b[a][lane] = l.bounds.lo[a];
+                n.b[a + 3][lane] = l.bounds.hi[a];
             }
-            whole = [whole[0].min(bx[0]), whole[1].max(bx[1])];
         }
-        (index as u32, whole)
+        index as u32
     }
 
     /// The closest hit along the ray from `o` in direction `d` within (0, t_max):

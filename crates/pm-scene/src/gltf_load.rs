@@ -889,7 +889,7 @@ fn instance_primitive(
         let uv1 = uvs1.as_ref().map(|u| [u[a], u[b], u[c]]);
         let color = colors.as_ref().map(|v| [v[a], v[b], v[c]].map(|c| c.min(Vec4::ONE)));
         let tangent = corner_tangents.as_ref().map(|t| corners.map(|k| to_world(t[3 * f + k])));
-        let mut t = Triangle { p, n, ng, area, material, extras: None };
+        let mut t = Triangle { p, n, material, extras: None };
         t.set_extras(crate::TriangleExtras { uv, uv1, color, tangent });
         out.push(t);
     }

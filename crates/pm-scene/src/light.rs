@@ -105,8 +105,8 @@ impl Outline {
     /// The outline of triangles `t`, when they are planar (every normal within 0.1
     /// degrees of the first's) and at most [`OUTLINE_TRIANGLES`].
     fn of(t: &[&crate::Triangle]) -> Option<Outline> {
-        let normal = t.first()?.ng;
-        if t.len() > OUTLINE_TRIANGLES || !t.iter().all(|q| q.ng.dot(normal) >= 0.999_998) {
+        let normal = t.first()?.ng();
+        if t.len() > OUTLINE_TRIANGLES || !t.iter().all(|q| q.ng().dot(normal) >= 0.999_998) {
             return None;
         }
         Some(Outline { polys: outline_polygons(t), normal })
@@ -182,7 +182,7 @@ impl Light {
         let cdf = tris
             .clone()
             .map(|t| {
-                acc += triangles[t as usize].area as f64;
+                acc += triangles[t as usize].area() as f64;
                 acc
             })
             .collect();
@@ -248,26 +248,27 @@ impl Light {
         match &self.kind {
             LightKind::Area { two_sided, .. } => {
                 let AreaPick { tri, p, le: emission, area, .. } = self.pick_area_point(scene, u_sel, u_pos)?;
+                let ng = tri.ng();
                 let (n, sides) = if *two_sided && u_tgt < 0.5 && targets.is_empty() {
-                    (-tri.ng, 2.0)
+                    (-ng, 2.0)
                 } else if *two_sided {
-                    (tri.ng, 2.0)
+                    (ng, 2.0)
                 } else {
-                    (tri.ng, 1.0)
+                    (ng, 1.0)
                 };
                 let (dir, power) = if targets.is_empty() {
                     // pdf_pos = 1/A, pdf_dir = cos/pi (per side), so Phi-hat = L_e pi A sides.
                     (to_world(cosine_hemisphere(u_dir), n), emission * (PI * area * sides))
                 } else {
                     let d = cone_dir(p, pick(u_tgt))?;
-                    let cos = if *two_sided { d.dot(tri.ng).abs() } else { d.dot(tri.ng) };
+                    let cos = if *two_sided { d.dot(ng).abs() } else { d.dot(ng) };
                     let pdf = cone_pdf(p, d);
                     if cos <= 0.0 || pdf <= 0.0 {
                         return None;
                     }
                     (d, emission * (cos * area / pdf))
                 };
-                let origin = scene.offset_origin(p, tri.ng, dir);
+                let origin = scene.offset_origin(p, ng, dir);
                 Some(EmittedRay { origin, dir, power })
             }
             LightKind::Point { position, intensity } => {
@@ -527,7 +528,7 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
                     let weights: Vec<f64> = tris
                         .clone()
                         .zip(&means)
-                        .map(|(t, m)| pm_color::mean(*m) as f64 * scene.triangles[t as usize].area as f64)
+                        .map(|(t, m)| pm_color::mean(*m) as f64 * scene.triangles[t as usize].area() as f64)
                         .collect();
                     let total: f64 = weights.iter().sum();
                     let mut acc = 0.0;
@@ -545,13 +546,14 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
                         .zip(&weights)
                         .map(|(t, w)| {
                             if total > 0.0 {
-                                scene.triangles[t as usize].area / (w / total) as f32
+                                scene.triangles[t as usize].area() / (w / total) as f32
                             } else {
                                 f32::INFINITY
                             }
                         })
                         .collect();
-                    let power: Rgb = tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area).sum();
+                    let power: Rgb =
+                        tris.clone().zip(&means).map(|(t, m)| *m * scene.triangles[t as usize].area()).sum();
                     power * (PI * sides)
                 } else {
                     *emission * (PI * *area * sides)
@@ -610,7 +612,7 @@ impl Light {
                     }
                     let dist = dist2.sqrt();
                     let wi = d / dist;
-                    let cos_l = -wi.dot(tri.ng);
+                    let cos_l = -wi.dot(tri.ng());
                     let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
                     if cos_l <= 0.0 {
                         return None;
@@ -618,12 +620,13 @@ impl Light {
                     return Some(LightSample { wi, dist, li: le, pdf: dist2 / (cos_l * area), delta: false });
                 };
                 let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
-                let cos_l = -wi.dot(tri.ng);
+                let ng = tri.ng();
+                let cos_l = -wi.dot(ng);
                 if !(if *two_sided { cos_l.abs() } else { cos_l } > 0.0) {
                     return None;
                 }
                 // Where the direction meets the triangle's plane.
-                let dist = (tri.p[0] - p).dot(tri.ng) / -cos_l;
+                let dist = (tri.p[0] - p).dot(ng) / -cos_l;
                 if !(dist > 0.0 && dist.is_finite()) {
                     return None;
                 }
@@ -634,7 +637,7 @@ impl Light {
                     wi,
                     dist,
                     li: le,
-                    pdf: tri.area / (per_pick * omega),
+                    pdf: tri.area() / (per_pick * omega),
                     delta: false,
                 })
             }
@@ -673,13 +676,13 @@ impl Light {
                     return 0.0;
                 }
                 let t = &scene.triangles[tri as usize];
-                let cos_l = -wi.dot(t.ng);
+                let cos_l = -wi.dot(t.ng());
                 let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
                 let area = *area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
                 if cos_l <= 0.0 {
                     0.0
                 } else if let Some((omega, _)) = near_solid_angle(t, spheres[(tri - tris.start) as usize], p) {
-                    t.area / (area * omega)
+                    t.area() / (area * omega)
                 } else {
                     dist * dist / (cos_l * area)
                 }

@@ -233,7 +233,7 @@ impl Scene {
             return None;
         }
         let (p, ns) = tr.point_normal(b);
-        Some((p, facing(ns, tr.ng), rho))
+        Some((p, facing(ns, tr.ng()), rho))
     }
 
     /// The BSDF at every point of triangle `tri` when it is the same everywhere (a

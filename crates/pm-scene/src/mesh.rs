@@ -12,10 +12,6 @@ pub struct Triangle {
     pub p: [Vec3; 3],
     /// World-space unit vertex normals, when the file had usable ones.
     pub n: Option<[Vec3; 3]>,
-    /// Unit geometric normal from the winding (counter-clockwise = front).
-    pub ng: Vec3,
-    /// Area [m^2].
-    pub area: f32,
     /// Index into [`Scene::materials`].
     pub material: u32,
     /// Texture coordinates, vertex colours and tangents, when the mesh has any. Boxed:
@@ -41,13 +37,28 @@ pub struct TriangleExtras {
 }
 
 impl Triangle {
+    /// Unit geometric normal from the winding (counter-clockwise = front). Computed
+    /// from the vertices when asked, as the loader computed it, rather than held (16
+    /// bytes a triangle with the area; issue 36).
+    #[inline]
+    pub fn ng(&self) -> Vec3 {
+        (self.p[1] - self.p[0]).cross(self.p[2] - self.p[0]).normalize_or_zero()
+    }
+
+    /// Area [m^2].
+    #[inline]
+    pub fn area(&self) -> f32 {
+        0.5 * (self.p[1] - self.p[0]).cross(self.p[2] - self.p[0]).length()
+    }
+
     /// Position \[m\] and interpolated unit vertex normal (the geometric normal
     /// when there are none; not yet turned to its side, nor normal-mapped) at
     /// barycentrics `b`.
     #[inline]
     pub fn point_normal(&self, b: [f32; 3]) -> (Vec3, Vec3) {
         let p = self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2];
-        let ns = self.n.map_or(self.ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(self.ng));
+        let ng = self.ng();
+        let ns = self.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng));
         (p, ns)
     }
 
@@ -114,14 +125,7 @@ impl Triangle {
         let cross = (p[1] - p[0]).cross(p[2] - p[0]);
         let area = 0.5 * cross.length();
         let ng = cross.normalize_or_zero();
-        (area > 0.0 && area.is_finite() && ng != Vec3::ZERO).then_some(Triangle {
-            p,
-            n: None,
-            extras: None,
-            ng,
-            area,
-            material,
-        })
+        (area > 0.0 && area.is_finite() && ng != Vec3::ZERO).then_some(Triangle { p, n: None, extras: None, material })
     }
 }
 
@@ -228,7 +232,7 @@ impl Scene {
                     let b = corners.map(|c| c.1.to_array());
                     if let Some(mut sub) = Triangle::new(corners.map(|c| c.0), t.material) {
                         let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
-                        sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng)));
+                        sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng())));
                         if let Some(e) = &t.extras {
                             let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
                             let lerp4 = |c: &[glam::Vec4; 3]| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]);

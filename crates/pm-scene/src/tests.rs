@@ -33,7 +33,7 @@ fn project_scenes_load_with_expected_content() {
     let f = load_scene("furnace.gltf");
     assert_eq!(f.lights.len(), 1);
     assert!(
-        f.triangles.iter().all(|t| t.ng.dot(-(t.p[0] + t.p[1] + t.p[2]) / 3.0) > 0.0),
+        f.triangles.iter().all(|t| t.ng().dot(-(t.p[0] + t.p[1] + t.p[2]) / 3.0) > 0.0),
         "furnace faces point inward"
     );
     let b = load_scene("cornell_boxes.gltf");
@@ -167,7 +167,7 @@ fn subdivision_keeps_the_surface_lights_and_objects() {
             assert!((t.p[(k + 1) % 3] - t.p[k]).length() <= 0.25 * (1.0 + 1e-5));
         }
     }
-    let area = |sc: &Scene| sc.triangles.iter().map(|t| t.area as f64).sum::<f64>();
+    let area = |sc: &Scene| sc.triangles.iter().map(|t| t.area() as f64).sum::<f64>();
     assert!((area(&sub) / area(&s) - 1.0).abs() < 1e-5);
     assert_eq!(sub.objects.len(), s.objects.len());
     for (a, b) in s.objects.iter().zip(&sub.objects) {
@@ -403,4 +403,34 @@ fn bvh_answers_equal_a_test_of_every_triangle() {
     }
     assert!(occluded > 300, "too few occluded segments to mean anything: {occluded}");
     assert_eq!(differ, 0, "{differ} of {} rays differ", pts.len());
+}
+
+/// Geometry a binned surface area heuristic splits badly stays correct and
+/// shallow: triangles at x = 1.2^i, so that all but the last few centroids share
+/// the first bin of their span (measured depth 13), and 40 copies of one triangle
+/// (every centroid in one bin: halved in order). Rays down onto each triangle's centre
+/// find what a test of every triangle finds.
+#[test]
+fn lopsided_and_coincident_triangles_are_hit_as_by_every_triangle() {
+    let mut tris = Vec::new();
+    for i in 0..120 {
+        let x = 1.2f32.powi(i);
+        let s = 0.3 * x;
+        tris.push(
+            Triangle::new([Vec3::new(x, 0.0, 0.0), Vec3::new(x + s, 0.0, 0.0), Vec3::new(x, s, 0.0)], 0).unwrap(),
+        );
+    }
+    let same = Triangle::new([Vec3::new(-1.0, 0.0, 0.0), Vec3::new(-0.5, 0.0, 0.0), Vec3::new(-1.0, 0.5, 0.0)], 0);
+    tris.extend(std::iter::repeat_n(same.unwrap(), 40));
+    let grey = Material::new("grey", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO);
+    let scene = Scene::from_parts(tris.clone(), vec![grey], Vec::new(), None);
+    for t in &tris {
+        let c = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        let (o, d) = (c + Vec3::new(0.0, 0.0, 2.0 * t.p[1].x.abs().max(1.0)), -Vec3::Z);
+        let want = nearest_of_all_triangles(&scene, o, d);
+        let got = scene.intersect(o, d, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
+        assert!(want.is_finite() && got == want, "ray onto {c}: {got} against {want}");
+        assert!(scene.occluded(o, d, f32::INFINITY));
+    }
+    assert!(scene.bvh.depth() <= bvh4::MAX_SAH_LEVEL + 12, "depth {}", scene.bvh.depth());
 }

@@ -24,18 +24,18 @@ fn check_handmade(path: &Path) {
     let s = load_with(path, LightUnits::Radiometric).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(s.triangles.len(), 3);
     // Ground: the unit quad scaled by 2 (node matrix), facing +y.
-    let ground: Vec<_> = s.triangles.iter().filter(|t| close(t.ng, Vec3::Y)).collect();
+    let ground: Vec<_> = s.triangles.iter().filter(|t| close(t.ng(), Vec3::Y)).collect();
     assert_eq!(ground.len(), 2);
-    assert!((ground.iter().map(|t| t.area).sum::<f32>() - 16.0).abs() < 1e-5);
+    assert!((ground.iter().map(|t| t.area()).sum::<f32>() - 16.0).abs() < 1e-5);
     // Mirrored triangle: (0,0,0),(1,0,0),(0,1,0) with normal +z, scaled by (-1,1,1),
     // rotated 90 degrees about y (x' = z, z' = -x), translated by +1 in y:
     // (0,1,0), (0,1,1), (0,2,0); normal (1,0,0). The negative determinant must not
     // flip the face: the winding normal agrees with the vertex normal.
-    let tri = s.triangles.iter().find(|t| !close(t.ng, Vec3::Y)).unwrap();
+    let tri = s.triangles.iter().find(|t| !close(t.ng(), Vec3::Y)).unwrap();
     for p in [Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(0.0, 2.0, 0.0)] {
         assert!(tri.p.iter().any(|q| close(*q, p)), "{p} not in {:?}", tri.p);
     }
-    assert!(close(tri.ng, Vec3::X), "{}", tri.ng);
+    assert!(close(tri.ng(), Vec3::X), "{}", tri.ng());
     assert!(tri.n.unwrap().iter().all(|n| close(*n, Vec3::X)));
     // Lights: the glowing triangle (area 0.5, L_e = 2) and the three punctual lights.
     assert_eq!(s.lights.len(), 4);

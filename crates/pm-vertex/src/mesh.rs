@@ -37,7 +37,7 @@ impl Corners {
             let mut ids = [0u32; 3];
             for (k, id) in ids.iter_mut().enumerate() {
                 let p = tri.p[k];
-                let n = tri.n.map_or(tri.ng, |n| n[k]).normalize_or(tri.ng);
+                let n = tri.n.map_or(tri.ng(), |n| n[k]).normalize_or(tri.ng());
                 let key = (object, p.to_array().map(f32::to_bits), (n * 1e4).round().as_ivec3().to_array());
                 let new = c.p.len() as u32;
                 *id = if cornering { *index.entry(key).or_insert(new) } else { new };
@@ -58,7 +58,7 @@ impl Corners {
             let tri = &scene.triangles[t];
             for (k, &c) in ids.iter().enumerate() {
                 self.p[c as usize] = tri.p[k];
-                self.n[c as usize] = tri.n.map_or(tri.ng, |n| n[k]).normalize_or(tri.ng);
+                self.n[c as usize] = tri.n.map_or(tri.ng(), |n| n[k]).normalize_or(tri.ng());
             }
         }
     }
@@ -82,7 +82,7 @@ impl Corners {
         let tan_x = tan_y * aspect;
         for (t, tri) in scene.triangles.iter().enumerate() {
             if back_faces
-                && (tri.p[0] - camera.position).dot(tri.ng) >= 0.0
+                && (tri.p[0] - camera.position).dot(tri.ng()) >= 0.0
                 && !scene.materials[tri.material as usize].double_sided
             {
                 continue;

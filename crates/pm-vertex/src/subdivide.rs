@@ -85,7 +85,7 @@ pub const AUTO_MAX_TRIANGLES: usize = 200_000;
 /// A, sqrt(k A / (pi total)), at most the largest estimate radius. (Later hits add
 /// photons and shrink it; first hits alone are the dimmest case.)
 pub fn expected_radius(scene: &Scene, params: &VertexParams) -> f32 {
-    let area: f64 = scene.triangles.iter().map(|t| t.area as f64).sum();
+    let area: f64 = scene.triangles.iter().map(|t| t.area() as f64).sum();
     let r = (params.k as f64 * area / (PI as f64 * params.total as f64)).sqrt() as f32;
     r.min(params.max_radius_rel_diag * scene.bounds.diagonal())
 }

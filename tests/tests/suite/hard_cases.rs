@@ -537,7 +537,7 @@ fn planes_seen(scene: &pm_scene::Scene) -> Vec<Option<Vec3>> {
     let rect = pm_raster::Rect::full(64, 64);
     pm_raster::first_hits(scene, scene.camera.as_ref().unwrap(), (64, 64), rect)
         .into_iter()
-        .map(|f| f.map(|f| scene.triangles[f.tri as usize].ng))
+        .map(|f| f.map(|f| scene.triangles[f.tri as usize].ng()))
         .collect()
 }
 
