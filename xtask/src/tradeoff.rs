@@ -179,6 +179,29 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
             s.live = Some(p)
         }));
     }
+    // Paths cut at a fixed depth lose the light of their later bounces (a closed
+    // room keeps 0.7^8 of it past 8 bounces).
+    for level in [16u32, 32] {
+        v.push(with("live vertex", format!("vertex max level {level}"), &|s| {
+            let mut p = live(photon_live::Method::Vertex);
+            p.vertex.max_level = level;
+            s.live = Some(p)
+        }));
+    }
+    for k in [100usize, 200] {
+        v.push(with("live vertex", format!("vertex k {k}"), &|s| {
+            let mut p = live(photon_live::Method::Vertex);
+            p.vertex.k = k;
+            s.live = Some(p)
+        }));
+    }
+    for bounces in [16u32, 32] {
+        v.push(with("live ispm", format!("ispm bounces {bounces}"), &|s| {
+            let mut p = live(photon_live::Method::Ispm);
+            p.ispm.bounces = bounces;
+            s.live = Some(p)
+        }));
+    }
     for f in [1u32, 2, 4] {
         v.push(with("live ispm", format!("ispm subsample {f}"), &|s| {
             let mut p = live(photon_live::Method::Ispm);

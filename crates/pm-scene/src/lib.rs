@@ -1,6 +1,6 @@
 //! The scene: triangles, materials, lights and camera loaded from glTF 2.0, and the
-//! ray queries every stage needs (closest hit and shadow-ray occlusion on an obvhs
-//! compressed wide BVH, Ylitie et al. 2017).
+//! ray queries every stage needs (closest hit and shadow-ray occlusion on a
+//! four-wide BVH built by the binned surface area heuristic: `bvh4`).
 //!
 //! Units (see README): lengths are the glTF file's metres; emission of emissive
 //! triangles is radiance L_e [W sr^-1 m^-2 per channel] = emissiveFactor x
