@@ -104,6 +104,11 @@ struct CompareArgs {
     /// image, the total of the layers].
     #[arg(long, value_parser = parse_layer)]
     layer: Option<pm_color::Layer>,
+    /// Also print, for blocks of N x N pixels, the image's mean over the
+    /// reference's in percent (channel means; "  -" where the reference is black):
+    /// where in the picture a bias lives.
+    #[arg(long, value_name = "N")]
+    blocks: Option<usize>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -191,5 +196,23 @@ fn compare(a: &CompareArgs) -> Result<()> {
         e.pixels,
         if identical { "  (bit-identical)" } else { "" }
     );
+    if let Some(n) = a.blocks.filter(|&n| n > 0) {
+        let (w, h) = (ia.width as usize, ia.height as usize);
+        for by in 0..h.div_ceil(n) {
+            let row: Vec<String> = (0..w.div_ceil(n))
+                .map(|bx| {
+                    let (mut si, mut sr) = (0.0f64, 0.0f64);
+                    for y in by * n..((by + 1) * n).min(h) {
+                        for x in bx * n..((bx + 1) * n).min(w) {
+                            si += pm_color::mean(la[y * w + x]) as f64;
+                            sr += pm_color::mean(lb[y * w + x]) as f64;
+                        }
+                    }
+                    if sr > 0.0 { format!("{:4.0}", 100.0 * si / sr) } else { "   -".into() }
+                })
+                .collect();
+            println!("{}", row.join(""));
+        }
+    }
     Ok(())
 }

@@ -181,21 +181,21 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
     }
     // Paths cut at a fixed depth lose the light of their later bounces (a closed
     // room keeps 0.7^8 of it past 8 bounces).
-    for level in [16u32, 32] {
+    for level in [8u32, 32] {
         v.push(with("live vertex", format!("vertex max level {level}"), &|s| {
             let mut p = live(photon_live::Method::Vertex);
             p.vertex.max_level = level;
             s.live = Some(p)
         }));
     }
-    for k in [100usize, 200] {
+    for k in [25usize, 100, 200] {
         v.push(with("live vertex", format!("vertex k {k}"), &|s| {
             let mut p = live(photon_live::Method::Vertex);
             p.vertex.k = k;
             s.live = Some(p)
         }));
     }
-    for bounces in [16u32, 32] {
+    for bounces in [4u32, 16] {
         v.push(with("live ispm", format!("ispm bounces {bounces}"), &|s| {
             let mut p = live(photon_live::Method::Ispm);
             p.ispm.bounces = bounces;

@@ -13,10 +13,12 @@
 //! estimate. Radiance is W sr^-1 m^-2 per RGB channel; photon power W; irradiance
 //! W m^-2.
 
+mod coverage;
 mod mesh;
 mod ring;
 mod subdivide;
 
+pub use coverage::{CoverageCache, MIN_COVERAGE, coverage};
 pub use mesh::Corners;
 pub use ring::{Distribution, RingBuffer, ShootStats};
 pub use subdivide::{AUTO_MAX_TRIANGLES, Subdivide, Subdivision, expected_radius, scenes};
@@ -73,12 +75,20 @@ pm_params::params! {
         total: u32 = 20_000 => between(1, 1 << 24);
         /// Hits kept per path. The thesis finds 3 sufficient, but in a closed room
         /// (albedo about 0.7) 3 loses 28% of the light and 8 loses 7% against the
-        /// batch pipeline (`cargo xtask live-study`, BENCHMARKS.md), for 5% more time.
-        max_level: u32 = 8 => between(1, 64);
+        /// batch pipeline (`cargo xtask live-study`, BENCHMARKS.md), for 5% more time;
+        /// 16 took cornell_boxes' bias from 11.6% to 11.0% at no measurable frame
+        /// time, and 32 bought nothing more (`cargo xtask tradeoff`, issue 36).
+        max_level: u32 = 16 => between(1, 64);
         /// Which paths re-shot slots get: random, same-per-frame or same-over-total.
         distribution: Distribution = Distribution::SameOverTotal => Any;
         /// Photons per corner estimate.
         k: usize = 50 => between(1, 1 << 16);
+        /// Divide each corner estimate by the part of its disc that lies on the
+        /// surface (probed with rays once per corner and radius step), not the whole
+        /// disc: corners on an edge of a surface otherwise read half the light, and
+        /// corners of two edges a quarter (on cornell_boxes the indirect light was 10%
+        /// dark in mean, 40-60% along the walls' edges).
+        coverage: bool = true => Any;
         /// Largest estimate radius, as a fraction of the scene's bounding-box diagonal.
         max_radius_rel_diag: f32 = 0.1 => above(0.0);
         /// One estimate per shared corner (section 4.4.2) instead of one per triangle vertex.
@@ -236,6 +246,8 @@ pub struct Vertex {
     fragments: Vec<Option<pm_raster::Fragment>>,
     /// How [`live`] chose the drawn mesh.
     subdivision: Option<Subdivision>,
+    /// The corners' disc coverages probed so far (`coverage`).
+    coverage: CoverageCache,
 }
 
 impl Vertex {
@@ -261,6 +273,7 @@ impl Vertex {
             grid: None,
             fragments: Vec::new(),
             subdivision: None,
+            coverage: CoverageCache::default(),
         })
     }
 
@@ -350,7 +363,7 @@ impl Vertex {
     /// Irradiance at the active corners from the photon search, through the
     /// temporal filter, with the flicker against the previous frame.
     fn estimate(
-        &self,
+        &mut self,
         world: &World,
         records: &[FullIrrPhoton],
         buckets: &pm_kdtree::Buckets,
@@ -358,15 +371,18 @@ impl Vertex {
     ) -> (Vec<Rgb>, f64) {
         let p = &self.params;
         let max_radius = self.max_radius(world);
-        let mut e = match &self.grid {
+        let (mut e, r2) = match &self.grid {
             Some(grid) if p.photon_search == PhotonSearch::Grid => {
                 // The grid holds each path's unscaled power: scale the (linear) estimate.
                 let held = self.ring.filled() as u64;
-                let e = self.corners.irradiance(grid, active, p.k, max_radius);
-                e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect()
+                let (e, r2) = self.corners.irradiance(grid, active, p.k, max_radius);
+                (e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect(), r2)
             }
             _ => self.corners.irradiance(&pm_kdtree::KdTree::with_buckets(records, buckets), active, p.k, max_radius),
         };
+        if p.coverage {
+            self.coverage.correct(world.photon_scene(), &self.corners, active, &mut e, &r2);
+        }
         let mut flicker = 0.0;
         if let Some((prev, was)) = &self.previous {
             let both: Vec<usize> = (0..e.len()).filter(|&c| active[c] && was[c]).collect();
@@ -394,6 +410,7 @@ impl pm_live::Method for Vertex {
     fn moved(&mut self, world: &World) {
         if world.scene().has_moving_meshes() {
             self.corners.follow(world.scene());
+            self.coverage.clear();
         }
         // Moving emitters can change a light's power, and so its share of photons.
         if let Ok(selector) = LightSelector::new(world.photon_scene(), &[]) {
@@ -410,6 +427,7 @@ impl pm_live::Method for Vertex {
         let active = self.corners.active(world.scene(), world.camera(), aspect, p.back_face_culling, p.frustum_culling);
         let (e, flicker) = self.estimate(world, &records, &buckets, &active);
         let estimate = t.elapsed().as_secs_f64();
+        let (p, f) = (&self.params, &self.frame_params);
         if !draw {
             self.previous = Some((e, active));
             return Ok(VertexFrame { frame, paths_shot: shot.paths, flicker, ..Default::default() });

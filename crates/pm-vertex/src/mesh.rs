@@ -113,20 +113,26 @@ impl Corners {
 
     /// Irradiance E [W m^-2 per channel] at every active corner from the k nearest
     /// photons of `tree` (the kd-tree or the photon grid) on the corner's side within `max_radius` \[m\]
-    /// (`pm_estimate::irradiance`, the batch pipeline's estimate); zero elsewhere.
+    /// (`pm_estimate::irradiance`, the batch pipeline's estimate), with the squared
+    /// radius of its disc \[m^2\]; zero elsewhere.
     pub fn irradiance(
         &self,
         tree: &(impl Neighbours<FullIrrPhoton> + Sync),
         active: &[bool],
         k: usize,
         max_radius: f32,
-    ) -> Vec<Rgb> {
+    ) -> (Vec<Rgb>, Vec<f32>) {
         let p = KnnParams { k, max_d2: max_radius * max_radius, filter: Filter::None };
         (0..self.len())
             .into_par_iter()
             .map_init(KnnScratch::default, |scratch, c| {
-                if active[c] { pm_estimate::irradiance(tree, self.p[c], self.n[c], &p, scratch).e } else { Rgb::ZERO }
+                if active[c] {
+                    let e = pm_estimate::irradiance(tree, self.p[c], self.n[c], &p, scratch);
+                    (e.e, e.r2)
+                } else {
+                    (Rgb::ZERO, 0.0)
+                }
             })
-            .collect()
+            .unzip()
     }
 }
