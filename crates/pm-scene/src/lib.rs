@@ -105,7 +105,7 @@ pub struct Scene {
     /// The first camera found in the scene, if any.
     pub camera: Option<Camera>,
     /// World position \[m\] of this scene's coordinate origin: positions are stored
-    /// relative to the first perspective camera's rest position snapped to a 1,024 m
+    /// relative to the first perspective camera's rest position snapped to a 16 m
     /// grid (pbrt-v4's "camera-world" space; transforms composed in f64 before the
     /// cast to f32), so a scene far from the file's origin keeps its precision and a
     /// scene near it keeps its coordinates. Zero without a camera.
