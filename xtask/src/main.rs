@@ -7,6 +7,7 @@ mod figure1;
 mod golden;
 mod ispm_plot;
 mod live_study;
+mod peer;
 mod scale;
 mod tradeoff;
 
@@ -66,6 +67,9 @@ enum Task {
     /// time, peak memory, scene load and BVH build time (BENCHMARKS.md, with
     /// --scene scenes/instanced.gltf).
     Scale(scale::Args),
+    /// Our path tracer against Mitsuba 3's on the same scenes: time per sample and
+    /// means (needs a Python with mitsuba; not part of CI).
+    Peer(peer::Args),
     /// Write scenes/*.gltf + .bin from code.
     GenScenes {
         /// Fail if the committed files differ from what the code generates.
@@ -128,6 +132,7 @@ fn main() -> std::process::ExitCode {
         Task::Golden(a) => golden::run(&a, &root),
         Task::IspmPlot(a) => ispm_plot::run(&a),
         Task::Scale(a) => scale::run(&a, &root),
+        Task::Peer(a) => peer::run(&a, &root),
         Task::GenScenes { big: true, .. } => gen_scenes::run_big(&root.join("out/big-scenes")),
         Task::GenScenes { check, .. } => gen_scenes::run(&root.join("scenes"), check),
     };
