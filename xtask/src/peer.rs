@@ -41,6 +41,10 @@ pub struct Args {
     /// runs anywhere but is not the peer).
     #[arg(long, default_value = "llvm_ad_rgb")]
     variant: String,
+    /// Paths per pixel of the converged reference (Mitsuba's) both images' errors
+    /// are measured against.
+    #[arg(long, default_value_t = 1024)]
+    reference_spp: u32,
     /// Output folder (one subfolder per scene, and `peer.md` with the table).
     #[arg(long, default_value = "out/peer")]
     out: PathBuf,
@@ -253,6 +257,9 @@ struct Row {
     means: (f64, f64),
     apart: (f64, f64),
     rmse: f64,
+    /// Relative RMSE of ours and of Mitsuba's image against the reference, the
+    /// light's own pixels left out.
+    errors: (f64, f64),
 }
 
 /// Run and report.
@@ -310,6 +317,22 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             theirs_s = theirs_s.min(json["seconds"].as_f64().context("Mitsuba's time")?);
             println!("{name} run {}: ours {:.3} s, Mitsuba {:.3} s", run + 1, report.seconds, json["seconds"]);
         }
+        // The reference: Mitsuba at many paths a pixel, its own seed.
+        let ref_exr = dir.join("reference.exr");
+        let out = Command::new(&args.python)
+            .arg(&script)
+            .args([&args.variant, &xml.display().to_string(), &args.reference_spp.to_string()])
+            .args(["9999", &ref_exr.display().to_string()])
+            .output()
+            .with_context(|| format!("cannot start {}", args.python))?;
+        if !out.status.success() {
+            bail!("Mitsuba failed on {name}'s reference: {}", String::from_utf8_lossy(&out.stderr).trim());
+        }
+        let reference = pm_image::read_exr(&ref_exr)?;
+        let pr = reference.total().context("the reference image")?;
+        // Pixels brighter than half the brightest emitter are the light's own.
+        let mask = 0.5 * scene.materials.iter().map(|m| pm_color::mean(m.emission)).fold(0.0f32, f32::max);
+        let mask = if mask > 0.0 { mask } else { f32::INFINITY };
         let (a, b) = (pm_image::read_exr(&ours_exr)?, pm_image::read_exr(&theirs_exr)?);
         let (pa, pb) = (a.total().context("our image")?, b.total().context("Mitsuba's image")?);
         let size = args.size as usize;
@@ -324,24 +347,30 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             ),
             apart: means_apart(pa, pb, size),
             rmse: e.rel_rmse as f64,
+            errors: (pm_image::compare(pa, pr, mask).rel_rmse as f64, pm_image::compare(pb, pr, mask).rel_rmse as f64),
         });
     }
     let mut md = format!(
         "`cargo xtask peer --size {} --spp {} --runs {}` (Mitsuba variant {}): path tracing, both renderers on\n\
          all cores, best of {} alternated runs each, render time only (Mitsuba after a warm-up render).\n\n\
-         | scene | ours [s] | Mitsuba [s] | ours / Mitsuba per sample | mean ours | mean Mitsuba | means apart | relative RMSE between |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|\n",
-        args.size, args.spp, args.runs, args.variant, args.runs
+         Error: relative RMSE against Mitsuba at {} paths a pixel, the light's pixels left out; the time\n\
+         to equal error is time x error^2 (both estimators unbiased, error ~ 1/sqrt(time)).\n\n\
+         | scene | ours [s] | Mitsuba [s] | ours / Mitsuba per sample | error ours | error Mitsuba | ours / Mitsuba at equal error | mean ours | mean Mitsuba | means apart | relative RMSE between |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        args.size, args.spp, args.runs, args.variant, args.runs, args.reference_spp
     );
     for r in &rows {
         let (apart, noise) = r.apart;
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {:.3} | {:.2}x | {:.5} | {:.5} | {:+.2}% (noise {:.2}%) | {:.1}% |",
+            "| {} | {:.3} | {:.3} | {:.2}x | {:.2}% | {:.2}% | {:.2}x | {:.5} | {:.5} | {:+.2}% (noise {:.2}%) | {:.1}% |",
             r.scene,
             r.ours_s,
             r.theirs_s,
             r.ours_s / r.theirs_s,
+            100.0 * r.errors.0,
+            100.0 * r.errors.1,
+            (r.ours_s * r.errors.0.powi(2)) / (r.theirs_s * r.errors.1.powi(2)),
             r.means.0,
             r.means.1,
             100.0 * apart,
