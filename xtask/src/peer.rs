@@ -23,7 +23,10 @@ use xtask::stages::Bins;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// glTF scenes to translate and render.
-    #[arg(long = "scene", default_values = ["scenes/cornell_boxes.gltf", "scenes/cornell_spheres.gltf"])]
+    #[arg(
+        long = "scene",
+        default_values = ["scenes/cornell_boxes.gltf", "scenes/cornell_spheres.gltf", "scenes/jozwowski_room_1024.gltf", "scenes/plane_point.gltf"]
+    )]
     scenes: Vec<PathBuf>,
     /// Image width and height [pixels].
     #[arg(long, default_value_t = 512)]
