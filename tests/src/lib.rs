@@ -233,17 +233,3 @@ pub fn against_constant(px: &[glam::Vec3], want: f64) -> (f64, f64, f64) {
     let worst = px.iter().map(|p| (p.x as f64 / want - 1.0).abs()).fold(0.0, f64::max);
     (mean, rms, worst)
 }
-
-/// Means of the 8 x 8 blocks of a `w`-wide image (the partial blocks at its right
-/// and bottom edges left out).
-pub fn block_means(px: &[glam::Vec3], w: usize) -> Vec<glam::Vec3> {
-    let h = px.len() / w;
-    let mut out = vec![glam::Vec3::ZERO; (w / 8) * (h / 8)];
-    for (i, p) in px.iter().enumerate() {
-        let (x, y) = (i % w, i / w);
-        if x / 8 < w / 8 && y / 8 < h / 8 {
-            out[(y / 8) * (w / 8) + x / 8] += *p / 64.0;
-        }
-    }
-    out
-}

@@ -202,18 +202,15 @@ fn compare(a: &CompareArgs) -> Result<()> {
         if identical { "  (bit-identical)" } else { "" }
     );
     if let Some(n) = a.blocks.filter(|&n| n > 0) {
-        let (w, h) = (ia.width as usize, ia.height as usize);
-        for by in 0..h.div_ceil(n) {
-            let row: Vec<String> = (0..w.div_ceil(n))
-                .map(|bx| {
-                    let (mut si, mut sr) = (0.0f64, 0.0f64);
-                    for y in by * n..((by + 1) * n).min(h) {
-                        for x in bx * n..((bx + 1) * n).min(w) {
-                            si += pm_color::mean(la[y * w + x]) as f64;
-                            sr += pm_color::mean(lb[y * w + x]) as f64;
-                        }
-                    }
-                    if sr > 0.0 { format!("{:4.0}", 100.0 * si / sr) } else { "   -".into() }
+        let w = ia.width as usize;
+        let (ba, bb) = (pm_image::block_means(&la, w, n), pm_image::block_means(&lb, w, n));
+        for (row_a, row_b) in ba.chunks(w.div_ceil(n)).zip(bb.chunks(w.div_ceil(n))) {
+            let row: Vec<String> = row_a
+                .iter()
+                .zip(row_b)
+                .map(|(i, r)| {
+                    let (i, r) = (pm_color::mean(*i) as f64, pm_color::mean(*r) as f64);
+                    if r > 0.0 { format!("{:4.0}", 100.0 * i / r) } else { "   -".into() }
                 })
                 .collect();
             println!("{}", row.join(""));

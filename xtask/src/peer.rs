@@ -230,26 +230,15 @@ fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u32) -> Resu
 /// that from the spread of the two images' differences in 16 x 16 blocks (the
 /// scene's own structure cancels in the differences; the noise does not).
 fn means_apart(a: &[Vec3], b: &[Vec3], size: usize) -> (f64, f64) {
-    let (ba, bb) = (block_means(a, size, 16), block_means(b, size, 16));
+    let means =
+        |px| pm_image::block_means(px, size, 16).into_iter().map(|p| pm_color::mean(p) as f64).collect::<Vec<_>>();
+    let (ba, bb) = (means(a), means(b));
     let n = ba.len() as f64;
     let (ma, mb) = (ba.iter().sum::<f64>() / n, bb.iter().sum::<f64>() / n);
     let d: Vec<f64> = ba.iter().zip(&bb).map(|(x, y)| x - y).collect();
     let md = d.iter().sum::<f64>() / n;
     let var = d.iter().map(|x| (x - md).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
     (ma / mb - 1.0, (var / n).sqrt() / mb)
-}
-
-/// The mean of each `b` x `b` block of a `size` wide image (channel means).
-fn block_means(px: &[Vec3], size: usize, b: usize) -> Vec<f64> {
-    let per = size / b;
-    let mut out = vec![0.0f64; per * per];
-    for (i, p) in px.iter().enumerate() {
-        let (x, y) = (i % size / b, i / size / b);
-        if x < per && y < per {
-            out[y * per + x] += pm_color::mean(*p) as f64 / (b * b) as f64;
-        }
-    }
-    out
 }
 
 /// One scene's comparison.

@@ -335,6 +335,22 @@ pub struct ImageError {
     pub pixels: usize,
 }
 
+/// The means of the `n` x `n` blocks of a `width`-wide image, row by row (`width /
+/// n` rounded up to a row); a partial block at the right or bottom edge is the mean
+/// of the pixels it has. Where in a picture a difference lives, and the unit the
+/// far-from-origin tests and `xtask compare --blocks` judge in.
+pub fn block_means(px: &[Vec3], width: usize, n: usize) -> Vec<Vec3> {
+    let (cols, height) = (width.div_ceil(n), px.len() / width.max(1));
+    let rows = height.div_ceil(n);
+    let mut out = vec![Vec3::ZERO; cols * rows];
+    for (i, p) in px.iter().enumerate() {
+        let (bx, by) = (i % width / n, i / width / n);
+        let (w, h) = ((width - bx * n).min(n), (height - by * n).min(n));
+        out[by * cols + bx] += *p / (w * h) as f32;
+    }
+    out
+}
+
 /// Compare `a` against the reference `b`, skipping pixels where the reference's
 /// largest channel exceeds `mask_above` (e.g. directly visible lights, whose
 /// anti-aliased edges would dominate any error measure).
@@ -450,6 +466,15 @@ mod tests {
         let s_flat = ssim(&flat, &img, w, h);
         assert!(s_noisy < 0.99 && s_noisy > s_flat, "noisy {s_noisy}, flat {s_flat}");
         assert!(s_flat < 0.5, "a flat image keeps no structure: {s_flat}");
+    }
+
+    /// A 3 x 3 image in 2 x 2 blocks: a whole block, two half blocks at the edges
+    /// and a corner pixel, each the mean of the pixels it has.
+    #[test]
+    fn block_means_average_whole_and_partial_blocks() {
+        let px: Vec<Vec3> = (1..=9).map(|v| Vec3::splat(v as f32)).collect();
+        let got: Vec<f32> = block_means(&px, 3, 2).iter().map(|p| p.x).collect();
+        assert_eq!(got, vec![(1.0 + 2.0 + 4.0 + 5.0) / 4.0, (3.0 + 6.0) / 2.0, (7.0 + 8.0) / 2.0, 9.0]);
     }
 
     #[test]

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 
 /// The triangles' positions in the BVH's slot order, four slots to a
 /// [`geometry::Tri4`]. A leaf lies within one group but need not start it: small
-/// leaves share groups (see `Bvh4::new`), and a leaf's lanes are a mask.
+/// leaves share groups (see `Bvh4::node`), and a leaf's lanes are a mask.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BvhTris {
     tri4: Vec<geometry::Tri4>,

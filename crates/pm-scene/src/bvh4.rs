@@ -5,7 +5,7 @@
 //! (2013) conservative slab test, so a ray through an edge on a node's boundary is
 //! not lost.
 
-use crate::Triangle;
+use crate::{Bounds, Triangle};
 use glam::{Vec3, Vec4};
 
 /// Four children: the box of each (min x, y, z, then max x, y, z, one lane a
@@ -41,42 +41,14 @@ impl PrimRef {
     }
 }
 
-/// An axis-aligned box; the empty box is inverted.
-#[derive(Clone, Copy, Debug)]
-struct Aabb {
-    lo: Vec3,
-    hi: Vec3,
-}
-
-impl Aabb {
-    const EMPTY: Aabb = Aabb { lo: Vec3::INFINITY, hi: Vec3::NEG_INFINITY };
-
-    #[inline(always)]
-    fn grow(&mut self, lo: Vec3, hi: Vec3) {
-        self.lo = self.lo.min(lo);
-        self.hi = self.hi.max(hi);
-    }
-
-    #[inline(always)]
-    fn join(self, o: Aabb) -> Aabb {
-        Aabb { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
-    }
-
-    /// Half the surface area (0 for the empty box).
-    fn half_area(&self) -> f32 {
-        let e = (self.hi - self.lo).max(Vec3::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
-    }
-}
-
 /// A range of the builder's primitives with their box and the box of their
 /// centroids (doubled, as [`PrimRef::centre2`]).
 #[derive(Clone, Copy, Debug)]
 struct Span {
     start: usize,
     len: usize,
-    bounds: Aabb,
-    centres: Aabb,
+    bounds: Bounds,
+    centres: Bounds,
 }
 
 /// Bins per axis of the SAH split search.
@@ -89,9 +61,30 @@ pub(crate) const MAX_SAH_LEVEL: usize = 40;
 /// Triangles a leaf holds at most: one four-wide test (`geometry::Tri4`).
 const LEAF: usize = 4;
 
+/// The bins of a span's centroids along one axis.
+struct Binning {
+    axis: usize,
+    lo: f32,
+    scale: f32,
+}
+
+impl Binning {
+    /// [`BINS`] bins over span `s`'s centroids along axis `a` (whose extent is positive).
+    fn new(s: &Span, a: usize) -> Binning {
+        Binning { axis: a, lo: s.centres.min[a], scale: BINS as f32 / (s.centres.max[a] - s.centres.min[a]) }
+    }
+
+    /// The bin of `p`'s centroid: the one expression both the cost sweep and the
+    /// partition use, so they agree on every primitive.
+    #[inline(always)]
+    fn of(&self, p: &PrimRef) -> usize {
+        (((p.centre2(self.axis) - self.lo) * self.scale) as usize).min(BINS - 1)
+    }
+}
+
 /// The box of `prims` and of their doubled centroids.
 fn span_of(prims: &[PrimRef], start: usize) -> Span {
-    let (mut bounds, mut centres) = (Aabb::EMPTY, Aabb::EMPTY);
+    let (mut bounds, mut centres) = (Bounds::EMPTY, Bounds::EMPTY);
     for p in prims {
         bounds.grow(p.lo, p.hi);
         let c = p.lo + p.hi;
@@ -110,7 +103,7 @@ fn span_of(prims: &[PrimRef], start: usize) -> Span {
 /// which bounds the depth.
 fn split(prims: &mut [PrimRef], s: &Span, median: bool) -> (Span, Span) {
     let all = &mut prims[s.start..s.start + s.len];
-    let ext = s.centres.hi - s.centres.lo;
+    let ext = s.centres.max - s.centres.min;
     if median {
         let a = if ext.x >= ext.y && ext.x >= ext.z {
             0
@@ -129,23 +122,23 @@ fn split(prims: &mut [PrimRef], s: &Span, median: bool) -> (Span, Span) {
         if !(ext[a] > 0.0) {
             continue;
         }
-        let (lo, scale) = (s.centres.lo[a], BINS as f32 / ext[a]);
-        let mut boxes = [Aabb::EMPTY; BINS];
+        let bin = Binning::new(s, a);
+        let mut boxes = [Bounds::EMPTY; BINS];
         let mut counts = [0usize; BINS];
         for p in all.iter() {
-            let b = (((p.centre2(a) - lo) * scale) as usize).min(BINS - 1);
+            let b = bin.of(p);
             boxes[b].grow(p.lo, p.hi);
             counts[b] += 1;
         }
         // Right sides' areas and counts from the last bin down, then sweep the left.
         let mut right = [(0.0f32, 0usize); BINS];
-        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        let (mut acc, mut n) = (Bounds::EMPTY, 0);
         for b in (1..BINS).rev() {
             acc = acc.join(boxes[b]);
             n += counts[b];
             right[b] = (acc.half_area(), n);
         }
-        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        let (mut acc, mut n) = (Bounds::EMPTY, 0);
         for b in 1..BINS {
             acc = acc.join(boxes[b - 1]);
             n += counts[b - 1];
@@ -160,9 +153,9 @@ fn split(prims: &mut [PrimRef], s: &Span, median: bool) -> (Span, Span) {
         }
     }
     let mid = match best {
-        Some((_, a, bin)) => {
-            let (lo, scale) = (s.centres.lo[a], BINS as f32 / ext[a]);
-            let left = |p: &PrimRef| (((p.centre2(a) - lo) * scale) as usize).min(BINS - 1) < bin;
+        Some((_, a, split_bin)) => {
+            let bin = Binning::new(s, a);
+            let left = |p: &PrimRef| bin.of(p) < split_bin;
             let (mut i, mut j) = (0, all.len());
             while i < j {
                 if left(&all[i]) {
@@ -352,8 +345,8 @@ impl Bvh4 {
             n.child[lane] = child;
             n.count[lane] = count;
             for a in 0..3 {
-                n.b[a][lane] = l.bounds.lo[a];
-                n.b[a + 3][lane] = l.bounds.hi[a];
+                n.b[a][lane] = l.bounds.min[a];
+                n.b[a + 3][lane] = l.bounds.max[a];
             }
         }
         index as u32

@@ -874,14 +874,10 @@ fn instance_primitive(
     for (f, tri) in indices.chunks_exact(3).enumerate() {
         let corners = if flip { [0, 2, 1] } else { [0, 1, 2] };
         let [a, b, c] = corners.map(|k| tri[k] as usize);
-        let p = [positions[a], positions[b], positions[c]];
-        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
-        let area = 0.5 * cross.length();
-        let ng = cross.normalize_or_zero();
-        if !(area > 0.0) || ng == Vec3::ZERO || !area.is_finite() {
+        let Some(mut t) = Triangle::new([positions[a], positions[b], positions[c]], material) else {
             skipped += 1;
             continue;
-        }
+        };
         let n = normals.as_ref().and_then(|ns| {
             let n = [ns[a], ns[b], ns[c]];
             // Zero-length normals carry no information: fall back to the face normal.
@@ -891,7 +887,7 @@ fn instance_primitive(
         let uv1 = uvs1.as_ref().map(|u| [u[a], u[b], u[c]]);
         let color = colors.as_ref().map(|v| [v[a], v[b], v[c]].map(|c| c.min(Vec4::ONE)));
         let tangent = corner_tangents.as_ref().map(|t| corners.map(|k| to_world(t[3 * f + k])));
-        let mut t = Triangle { p, n, material, extras: None };
+        t.n = n;
         t.set_extras(crate::TriangleExtras { uv, uv1, color, tangent });
         out.push(t);
     }

@@ -122,10 +122,9 @@ impl Triangle {
 
     /// A triangle without vertex normals or UVs; `None` when it has no area.
     pub fn new(p: [Vec3; 3], material: u32) -> Option<Triangle> {
-        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
-        let area = 0.5 * cross.length();
-        let ng = cross.normalize_or_zero();
-        (area > 0.0 && area.is_finite() && ng != Vec3::ZERO).then_some(Triangle { p, n: None, extras: None, material })
+        let t = Triangle { p, n: None, extras: None, material };
+        let area = t.area();
+        (area > 0.0 && area.is_finite() && t.ng() != Vec3::ZERO).then_some(t)
     }
 }
 
@@ -165,6 +164,28 @@ pub struct Bounds {
 }
 
 impl Bounds {
+    /// The empty box (inverted, so that growing it by a point gives that point).
+    pub(crate) const EMPTY: Bounds = Bounds { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
+
+    /// Grow to contain the box from `lo` to `hi`.
+    #[inline(always)]
+    pub(crate) fn grow(&mut self, lo: Vec3, hi: Vec3) {
+        self.min = self.min.min(lo);
+        self.max = self.max.max(hi);
+    }
+
+    /// The box containing both.
+    #[inline(always)]
+    pub(crate) fn join(self, o: Bounds) -> Bounds {
+        Bounds { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+
+    /// Half the surface area \[m^2\] (0 for the empty box).
+    pub(crate) fn half_area(&self) -> f32 {
+        let e = (self.max - self.min).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+
     /// Length of the diagonal \[m\]; the unit for radii "relative to the scene".
     pub fn diagonal(&self) -> f32 {
         (self.max - self.min).length()
@@ -177,11 +198,10 @@ impl Bounds {
 
 /// The bounds of `triangles` (zero for none).
 pub fn bounds_of(triangles: &[Triangle]) -> Bounds {
-    let mut bounds = Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+    let mut bounds = Bounds::EMPTY;
     for t in triangles {
         for p in t.p {
-            bounds.min = bounds.min.min(p);
-            bounds.max = bounds.max.max(p);
+            bounds.grow(p, p);
         }
     }
     if triangles.is_empty() { Bounds { min: Vec3::ZERO, max: Vec3::ZERO } } else { bounds }

@@ -13,6 +13,13 @@ use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+/// The unit normal at corner `k` of `tri`: its vertex normal there, or its
+/// geometric normal where it has none (or a zero one).
+fn corner_normal(tri: &pm_scene::Triangle, k: usize) -> Vec3 {
+    let ng = tri.ng();
+    tri.n.map_or(ng, |n| n[k]).normalize_or(ng)
+}
+
 /// The scene's triangles as indexed meshes: corner positions and normals, and the
 /// corners of each triangle (same order as `Scene::triangles`).
 #[derive(Clone, Debug)]
@@ -37,7 +44,7 @@ impl Corners {
             let mut ids = [0u32; 3];
             for (k, id) in ids.iter_mut().enumerate() {
                 let p = tri.p[k];
-                let n = tri.n.map_or(tri.ng(), |n| n[k]).normalize_or(tri.ng());
+                let n = corner_normal(tri, k);
                 let key = (object, p.to_array().map(f32::to_bits), (n * 1e4).round().as_ivec3().to_array());
                 let new = c.p.len() as u32;
                 *id = if cornering { *index.entry(key).or_insert(new) } else { new };
@@ -58,7 +65,7 @@ impl Corners {
             let tri = &scene.triangles[t];
             for (k, &c) in ids.iter().enumerate() {
                 self.p[c as usize] = tri.p[k];
-                self.n[c as usize] = tri.n.map_or(tri.ng(), |n| n[k]).normalize_or(tri.ng());
+                self.n[c as usize] = corner_normal(tri, k);
             }
         }
     }

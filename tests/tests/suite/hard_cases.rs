@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use pm_render::Method;
-use pm_tests::{block_means, photon_maps, render, render_params, scene_path};
+use pm_tests::{photon_maps, render, render_params, scene_path};
 use std::path::{Path, PathBuf};
 
 /// Copy a scene into `dir` with all its nodes under one new root node carrying
@@ -596,7 +596,8 @@ fn layers_match_far_away(
     // ratio of the means, without the pixels in `skip`.
     let differ = |a: &[Vec3], b: &[Vec3], skip: &[bool]| {
         let keep = |v: &[Vec3]| v.iter().zip(skip).map(|(p, &s)| if s { Vec3::ZERO } else { *p }).collect::<Vec<_>>();
-        let (a, b) = (block_means(&keep(a), SIZE as usize), block_means(&keep(b), SIZE as usize));
+        let (a, b) =
+            (pm_image::block_means(&keep(a), SIZE as usize, 8), pm_image::block_means(&keep(b), SIZE as usize, 8));
         let sum = |v: &[Vec3]| v.iter().map(|p| p.element_sum() as f64).sum::<f64>();
         let floor = 0.1 * sum(&b) / b.len() as f64;
         let rel: Vec<f64> = a

@@ -136,7 +136,7 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
         live.frame_layers().total().to_vec()
     };
     let judge = |img: &[Vec3]| {
-        let (a, b) = (pm_tests::block_means(img, w as usize), pm_tests::block_means(&reference, w as usize));
+        let (a, b) = (pm_image::block_means(img, w as usize, 8), pm_image::block_means(&reference, w as usize, 8));
         let mean = |v: &[Vec3]| v.iter().map(|p| p.element_sum() as f64).sum::<f64>();
         let rms = (a
             .iter()
