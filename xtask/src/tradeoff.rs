@@ -158,56 +158,43 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
     // (paths in the buffer) and image-space photon mapping (subsampling).
-    let live = |method: photon_live::Method| {
-        let frame = pm_live::FrameParams { width: size, height: size, ..base.live.frame.clone() };
-        photon_live::LiveParams { method, frame, ..base.live.clone() }
-    };
-    for total in [5_000u32, 20_000, 80_000] {
-        v.push(with("live vertex", format!("vertex total {total}"), &|s| {
-            let mut p = live(photon_live::Method::Vertex);
-            (p.vertex.total, p.vertex.per_frame) = (total, total / 10);
+    // One real-time row: the method's defaults at the study's size, then `edit`.
+    let live = |method: photon_live::Method, label: String, edit: &dyn Fn(&mut photon_live::LiveParams)| {
+        let axis = if method == photon_live::Method::Vertex { "live vertex" } else { "live ispm" };
+        with(axis, label, &|s| {
+            let frame = pm_live::FrameParams { width: size, height: size, ..base.live.frame.clone() };
+            let mut p = photon_live::LiveParams { method, frame, ..base.live.clone() };
+            edit(&mut p);
             s.live = Some(p)
+        })
+    };
+    use photon_live::Method::{Ispm, Vertex};
+    for total in [5_000u32, 20_000, 80_000] {
+        v.push(live(Vertex, format!("vertex total {total}"), &|p| {
+            (p.vertex.total, p.vertex.per_frame) = (total, total / 10)
         }));
     }
     // Corner estimates need corners: the mesh split to edges of at most this
     // fraction of the scene's diagonal (section 4.3).
     let diagonal = base_diagonal;
     for f in [0.05f32, 0.02] {
-        v.push(with("live vertex", format!("vertex subdivide {f} diag"), &|s| {
-            let mut p = live(photon_live::Method::Vertex);
-            p.vertex.subdivide = pm_vertex::Subdivide::MaxEdge(f * diagonal);
-            s.live = Some(p)
+        v.push(live(Vertex, format!("vertex subdivide {f} diag"), &|p| {
+            p.vertex.subdivide = pm_vertex::Subdivide::MaxEdge(f * diagonal)
         }));
     }
     // Paths cut at a fixed depth lose the light of their later bounces (a closed
     // room keeps 0.7^8 of it past 8 bounces).
     for level in [8u32, 32] {
-        v.push(with("live vertex", format!("vertex max level {level}"), &|s| {
-            let mut p = live(photon_live::Method::Vertex);
-            p.vertex.max_level = level;
-            s.live = Some(p)
-        }));
+        v.push(live(Vertex, format!("vertex max level {level}"), &|p| p.vertex.max_level = level));
     }
     for k in [25usize, 100, 200] {
-        v.push(with("live vertex", format!("vertex k {k}"), &|s| {
-            let mut p = live(photon_live::Method::Vertex);
-            p.vertex.k = k;
-            s.live = Some(p)
-        }));
+        v.push(live(Vertex, format!("vertex k {k}"), &|p| p.vertex.k = k));
     }
     for bounces in [4u32, 16] {
-        v.push(with("live ispm", format!("ispm bounces {bounces}"), &|s| {
-            let mut p = live(photon_live::Method::Ispm);
-            p.ispm.bounces = bounces;
-            s.live = Some(p)
-        }));
+        v.push(live(Ispm, format!("ispm bounces {bounces}"), &|p| p.ispm.bounces = bounces));
     }
     for f in [1u32, 2, 4] {
-        v.push(with("live ispm", format!("ispm subsample {f}"), &|s| {
-            let mut p = live(photon_live::Method::Ispm);
-            p.ispm.subsample = f;
-            s.live = Some(p)
-        }));
+        v.push(live(Ispm, format!("ispm subsample {f}"), &|p| p.ispm.subsample = f));
     }
     v
 }
