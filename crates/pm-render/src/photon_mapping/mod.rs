@@ -84,6 +84,13 @@ impl<'a, G: PhotonRecord> PhotonMapping<'a, G> {
         self.cfg.icache_accuracy > 0.0 && self.cfg.indirect
     }
 
+    /// The irradiance [W m^-2 per channel] a final-gather ray reads where it hits a
+    /// diffuse surface at `x` with normal `n` (facing the ray's origin), by the
+    /// configured lookup: what `benches/lookup.rs` times on its own.
+    pub fn gather_lookup(&self, x: Vec3, n: Vec3, scratch: &mut Scratch) -> Rgb {
+        lookup_irradiance(self, x, n, scratch)
+    }
+
     pub(crate) fn config(&self) -> &Settings {
         &self.cfg
     }
