@@ -165,6 +165,19 @@ impl Bsdf {
         }
     }
 
+    /// Both branches of a specular BSDF at `wo` (normal `n`), for following each of
+    /// them instead of one chosen at random (Whitted's recursive ray tracing; what
+    /// eye paths do through their first few mirror and glass bounces): reflection,
+    /// and transmission when there is one (none for a mirror or at total internal
+    /// reflection). Each is [`Bsdf::sample`]'s sample of that lobe, so a branch's
+    /// share of the light is `weight * pdf` (the lobe's Fresnel reflectance or
+    /// transmittance times its tint). `u` is passed on to `sample`.
+    pub fn specular_branches(&self, wo: Vec3, n: Vec3, u: Vec2) -> [Option<BsdfSample>; 2] {
+        let reflected = self.sample(wo, n, u, 0.0);
+        let transmitted = self.sample(wo, n, u, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
+        [reflected, transmitted]
+    }
+
     /// Importance-sample an incident direction. `u` picks the direction, `uc` the lobe.
     /// Returns `None` when the sample carries no energy (below the horizon, or a
     /// degenerate microfacet configuration).

@@ -24,7 +24,8 @@ use pm_scene::{Hit, Scene};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 /// Specular bounces up to this depth trace both reflection and refraction (weighted
-/// by Fresnel); deeper ones pick one by Fresnel probability.
+/// by Fresnel, [`pm_bsdf::Bsdf::specular_branches`]); deeper ones pick one by
+/// Fresnel probability.
 const SPLIT_DEPTH: u32 = 3;
 
 /// The photon-map integrator (Christensen 1999 section 1.3): at the first
@@ -283,17 +284,12 @@ fn trace_hit<G: PhotonRecord>(
     let u = s.next_2d();
     let uc = s.next_1d();
     if depth < SPLIT_DEPTH {
-        // Both Fresnel branches: sample with uc at either end of [0, 1).
-        let refl = bsdf.sample(wo, hit.ns, u, 0.0);
-        let refr = bsdf.sample(wo, hit.ns, u, 1.0 - f32::EPSILON);
-        match (refl, refr) {
-            (Some(a), Some(b)) if b.transmitted => {
-                l += follow(s, scratch, a.wi, a.weight * a.pdf);
+        // Both Fresnel branches (without a reflection, nothing).
+        if let [Some(a), b] = bsdf.specular_branches(wo, hit.ns, u) {
+            l += follow(s, scratch, a.wi, a.weight * a.pdf);
+            if let Some(b) = b {
                 l += follow(s, scratch, b.wi, b.weight * b.pdf);
             }
-            // Mirror, or total internal reflection: one branch of probability 1.
-            (Some(a), _) => l += follow(s, scratch, a.wi, a.weight * a.pdf),
-            _ => {}
         }
     } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
         l += follow(s, scratch, bs.wi, bs.weight);
@@ -416,8 +412,7 @@ pub(crate) fn diffuse_points<G: PhotonRecord>(
     if depth >= ctx.cfg.max_depth {
         return;
     }
-    let Some(refl) = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 0.0) else { return };
-    let refr = bsdf.sample(-d, hit.ns, glam::Vec2::ZERO, 1.0 - f32::EPSILON).filter(|t| t.transmitted);
+    let [Some(refl), refr] = bsdf.specular_branches(-d, hit.ns, glam::Vec2::ZERO) else { return };
     let mut go = |wi: Vec3| diffuse_points(ctx, ctx.scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
     match refr {
         Some(t) if depth < SPLIT_DEPTH => {
