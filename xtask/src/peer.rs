@@ -73,6 +73,50 @@ mi.util.write_bitmap(out, img[:, :, :3])
 print(json.dumps({"seconds": seconds}))
 "#;
 
+/// A Python that runs Mitsuba, and the render script it runs.
+pub(crate) struct Mitsuba {
+    python: String,
+    variant: String,
+    script: PathBuf,
+}
+
+impl Mitsuba {
+    /// Check that `python` runs Mitsuba's `variant` and write the render script into
+    /// `dir`.
+    pub(crate) fn start(python: &str, variant: &str, dir: &Path) -> Result<Mitsuba> {
+        let check = Command::new(python)
+            .args(["-c", &format!("import mitsuba as mi; mi.set_variant('{variant}')")])
+            .output()
+            .with_context(|| format!("cannot start {python}"))?;
+        if !check.status.success() {
+            let err = String::from_utf8_lossy(&check.stderr);
+            let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
+            bail!("{python} cannot run Mitsuba's {variant} variant ({last}): see ../shared/CRATES.md for the install");
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        let script = dir.join("render.py");
+        std::fs::write(&script, RENDER_PY).with_context(|| format!("{}: cannot write", script.display()))?;
+        Ok(Mitsuba { python: python.into(), variant: variant.into(), script })
+    }
+
+    /// Render scene `xml` at `spp` paths a pixel with `seed` into the OpenEXR `out`;
+    /// returns the render's time [s] (after a warm-up render, load excluded).
+    pub(crate) fn render(&self, xml: &Path, spp: u32, seed: u32, out: &Path) -> Result<f64> {
+        let run = Command::new(&self.python)
+            .arg(&self.script)
+            .args([&self.variant, &xml.display().to_string(), &spp.to_string()])
+            .args([&seed.to_string(), &out.display().to_string()])
+            .output()
+            .with_context(|| format!("cannot start {}", self.python))?;
+        if !run.status.success() {
+            bail!("Mitsuba failed: {}", String::from_utf8_lossy(&run.stderr).trim());
+        }
+        let json: serde_json::Value = serde_json::from_slice(&run.stdout)
+            .with_context(|| format!("Mitsuba's output: {}", String::from_utf8_lossy(&run.stdout)))?;
+        json["seconds"].as_f64().context("Mitsuba's time")
+    }
+}
+
 /// `rgb` as Mitsuba's "r, g, b".
 fn rgb(c: Vec3) -> String {
     format!("{}, {}, {}", c.x, c.y, c.z)
@@ -164,7 +208,7 @@ fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>) -> Result<(
 /// Write `scene` as `dir/scene.xml` with a PLY per object, rendering `size` x
 /// `size` at `spp` paths a pixel; fails with the reason when the scene has
 /// something that cannot be translated.
-fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u32) -> Result<PathBuf> {
+pub(crate) fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u32) -> Result<PathBuf> {
     let refuse = |why: String| anyhow::anyhow!("{name}: {why}");
     let cam = scene.camera.as_ref().ok_or_else(|| refuse("the scene has no camera".into()))?;
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -256,23 +300,8 @@ struct Row {
 
 /// Run and report.
 pub fn run(args: &Args, root: &Path) -> Result<()> {
-    let check = Command::new(&args.python)
-        .args(["-c", &format!("import mitsuba as mi; mi.set_variant('{}')", args.variant)])
-        .output()
-        .with_context(|| format!("cannot start {}", args.python))?;
-    if !check.status.success() {
-        let err = String::from_utf8_lossy(&check.stderr);
-        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
-        bail!(
-            "{} cannot run Mitsuba's {} variant ({last}): see ../shared/CRATES.md for the install",
-            args.python,
-            args.variant
-        );
-    }
+    let mitsuba = Mitsuba::start(&args.python, &args.variant, &args.out)?;
     let bins = Bins::build(root)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
-    let script = args.out.join("render.py");
-    std::fs::write(&script, RENDER_PY)?;
     let mut rows = Vec::new();
     for scene_path in &args.scenes {
         let name = scene_path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
@@ -295,31 +324,13 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             }
             let report: photon_render::Report = serde_json::from_slice(&std::fs::read(&stats)?)?;
             ours_s = ours_s.min(report.seconds);
-            let out = Command::new(&args.python)
-                .arg(&script)
-                .args([&args.variant, &xml.display().to_string(), &args.spp.to_string()])
-                .args([&(run + 1).to_string(), &theirs_exr.display().to_string()])
-                .output()
-                .with_context(|| format!("cannot start {}", args.python))?;
-            if !out.status.success() {
-                bail!("Mitsuba failed on {name}: {}", String::from_utf8_lossy(&out.stderr).trim());
-            }
-            let json: serde_json::Value = serde_json::from_slice(&out.stdout)
-                .with_context(|| format!("Mitsuba's output: {}", String::from_utf8_lossy(&out.stdout)))?;
-            theirs_s = theirs_s.min(json["seconds"].as_f64().context("Mitsuba's time")?);
-            println!("{name} run {}: ours {:.3} s, Mitsuba {:.3} s", run + 1, report.seconds, json["seconds"]);
+            let seconds = mitsuba.render(&xml, args.spp, run + 1, &theirs_exr).with_context(|| name.clone())?;
+            theirs_s = theirs_s.min(seconds);
+            println!("{name} run {}: ours {:.3} s, Mitsuba {seconds:.3} s", run + 1, report.seconds);
         }
         // The reference: Mitsuba at many paths a pixel, its own seed.
         let ref_exr = dir.join("reference.exr");
-        let out = Command::new(&args.python)
-            .arg(&script)
-            .args([&args.variant, &xml.display().to_string(), &args.reference_spp.to_string()])
-            .args(["9999", &ref_exr.display().to_string()])
-            .output()
-            .with_context(|| format!("cannot start {}", args.python))?;
-        if !out.status.success() {
-            bail!("Mitsuba failed on {name}'s reference: {}", String::from_utf8_lossy(&out.stderr).trim());
-        }
+        mitsuba.render(&xml, args.reference_spp, 9999, &ref_exr).with_context(|| format!("{name}'s reference"))?;
         let reference = pm_image::read_exr(&ref_exr)?;
         let pr = reference.total().context("the reference image")?;
         // Pixels brighter than half the brightest emitter are the light's own.

@@ -54,6 +54,16 @@ pub struct Args {
     /// equal-error comparison needs only `--axes path`.
     #[arg(long, value_delimiter = ',')]
     axes: Vec<String>,
+    /// A Python with Mitsuba 3 (`mitsuba`, `drjit`; ../shared/CRATES.md): adds the
+    /// peer's path tracer as rows of its own (axis "peer": 16, 64 and 256 paths a
+    /// pixel, render time only, after a warm-up render) and, for every row, the
+    /// time Mitsuba takes to reach that row's error over the row's own time (issue
+    /// 40). Needs a scene `cargo xtask peer` can translate.
+    #[arg(long)]
+    peer: Option<String>,
+    /// Mitsuba variant of the peer rows.
+    #[arg(long, default_value = "llvm_ad_rgb")]
+    peer_variant: String,
 }
 
 /// One point of the sweep: the stage parameters it runs with.
@@ -67,6 +77,8 @@ struct Setting {
     /// A real-time row instead: photon-live's settings (its frame of the scene's
     /// camera after the buffer filled, timed as its mean frame time).
     live: Option<photon_live::LiveParams>,
+    /// A peer row instead: Mitsuba's path tracer at this many paths a pixel.
+    peer_spp: Option<u32>,
 }
 
 impl Setting {
@@ -112,6 +124,7 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
         irradiance: base.irradiance.clone(),
         render,
         live: None,
+        peer_spp: None,
     };
     let mut v = vec![d.clone()];
     let with = |axis: &'static str, label: String, f: &dyn Fn(&mut Setting)| {
@@ -196,7 +209,30 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
     for f in [1u32, 2, 4] {
         v.push(live(Ispm, format!("ispm subsample {f}"), &|p| p.ispm.subsample = f));
     }
+    // Photons per frame: 6 x res^2 bounce-map texels for a point light (the
+    // default 48).
+    for res in [32u32, 96] {
+        v.push(live(Ispm, format!("ispm bounce res {res}"), &|p| p.ispm.bounce_res = res));
+    }
+    // Direct light from cube shadow maps: no shadow rays, no noise (issue 40's
+    // image-space figure).
+    v.push(live(Ispm, "ispm direct shadow-map".into(), &|p| p.frame.direct = pm_live::DirectMode::ShadowMap));
     v
+}
+
+/// The peer's rows (axis "peer"): Mitsuba's path tracer at these sample counts.
+fn peer_rows(d: &Setting) -> Vec<Setting> {
+    [16u32, 64, 256]
+        .map(|spp| Setting { axis: "peer", label: format!("mitsuba {spp} spp"), peer_spp: Some(spp), ..d.clone() })
+        .to_vec()
+}
+
+/// Mitsuba's time to reach `error` [s]: its path tracer is unbiased, so its error
+/// falls as 1 / sqrt(time); fitted on its row with the most paths (the one whose
+/// fixed costs weigh least). None without peer rows.
+fn peer_time_at(rows: &[Row], error: f64) -> Option<f64> {
+    let r = rows.iter().filter(|r| r.setting.peer_spp.is_some()).max_by_key(|r| r.setting.peer_spp)?;
+    Some(r.total() * (r.splits[0].error / error).powi(2))
 }
 
 /// Render a real-time row's frame: photon-live runs until the vertex method's
@@ -308,13 +344,23 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut default_image = None;
     let diagonal = pm_scene::load(&scene).map(|s| s.bounds.diagonal()).unwrap_or(1.0);
     let mut settings = sweep(&base, size, diagonal);
+    let mitsuba = match &args.peer {
+        Some(python) => {
+            settings.extend(peer_rows(&settings[0]));
+            let m = crate::peer::Mitsuba::start(python, &args.peer_variant, &out.join("mitsuba"))?;
+            let scene = pm_scene::load(&scene).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let xml = crate::peer::translate(&scene, &name, &out.join("mitsuba"), size, 16)?;
+            Some((m, xml))
+        }
+        None => None,
+    };
     if !args.axes.is_empty() {
         for a in &args.axes {
             if !AXES.contains(&a.as_str()) {
                 bail!("--axes: no axis named '{a}' (the axes: {})", AXES[1..].join(", "));
             }
         }
-        settings.retain(|s| s.axis == "default" || args.axes.iter().any(|a| a == s.axis));
+        settings.retain(|s| s.axis == "default" || s.axis == "peer" || args.axes.iter().any(|a| a == s.axis));
     }
     if args.replot {
         rows = read_rows(&out.join("results.csv"), &settings)?;
@@ -324,6 +370,12 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         let mut times = [0.0f64; 4];
         let mut images = Vec::new();
         for seed in 1..=args.seeds {
+            if let (Some(spp), Some((m, xml))) = (st.peer_spp, &mitsuba) {
+                let exr = out.join(format!("{}-s{seed}.exr", st.label.replace(' ', "_")));
+                times[3] += m.render(xml, spp, seed as u32, &exr)? / args.seeds as f64;
+                images.push(pm_image::read_exr(&exr)?);
+                continue;
+            }
             if let Some(lp) = &st.live {
                 let dir = out.join("live").join(format!("{}-s{seed}", st.label.replace(' ', "_")));
                 let (img, secs) = live_frame(&bins, &scene_s, lp, seed, &dir)?;
@@ -377,6 +429,9 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             images.push(pm_image::read_exr(&img)?);
         }
         let splits: [Split; 5] = std::array::from_fn(|k| {
+            if k > 0 && st.peer_spp.is_some() {
+                return Split::default(); // Mitsuba writes no layers
+            }
             let layers: Vec<Vec<glam::Vec3>> = images.iter().map(|i| layer(i, LAYERS[k])).collect();
             let refs: Vec<&[glam::Vec3]> = layers.iter().map(Vec::as_slice).collect();
             accuracy::split(&refs, &references[k].0, references[k].1, &keep)
@@ -498,7 +553,7 @@ fn pareto(rows: &[Row], error: impl Fn(&Row) -> f64) -> Vec<usize> {
 
 fn write_outputs(out: &Path, size: u32, args: &Args, rows: &[Row]) -> Result<()> {
     std::fs::write(out.join("results.csv"), results_csv(rows, args.seeds)?)?;
-    let front = pareto(rows, |r| r.splits[0].error);
+    let front = pareto(rows, |r| if r.setting.peer_spp.is_some() { f64::INFINITY } else { r.splits[0].error });
     let md = results_md(rows, &front, size, args)?;
     std::fs::write(out.join("results.md"), &md)?;
     let f = quality_front(rows, size, args);
@@ -553,6 +608,7 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
     let pct = |v: f64| format!("{:.1}%", 100.0 * v);
     let reference_noise = rows.first().map_or(0.0, |r| r.splits[0].reference_noise);
     let smallest = rows.iter().map(|r| r.splits[0].error).fold(f64::INFINITY, f64::min);
+    let peer = rows.iter().any(|r| r.setting.peer_spp.is_some());
     let mut md = format!(
         "Trade-off on {size}x{size} against a path-traced reference of {} paths per pixel (two halves with their own seeds; \
          its own noise, from their difference, is {} relative RMS, {:.2} of the smallest error below, {}). Every setting is \
@@ -562,8 +618,8 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
          reference reports. Times are wall seconds per stage (means over the seeds) on this machine (2 cores), one session; \
          the real-time rows (photon-live, one frame of the same camera) count the mean frame time after the vertex \
          method's buffer filled.\n\n\
-         | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular | Pareto |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular | Pareto |{}\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|{}\n",
         args.reference_spp,
         pct(reference_noise),
         reference_noise / smallest.max(1e-12),
@@ -572,14 +628,21 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
         } else {
             "above a third of it: raise --reference-spp"
         },
-        args.seeds
+        args.seeds,
+        if peer { " Mitsuba at equal error |" } else { "" },
+        if peer { "---:|" } else { "" },
     );
     for (i, r) in rows.iter().enumerate() {
         let t = &r.splits[0];
-        let l = |k: usize| format!("{} / {}", pct(r.splits[k].bias), pct(r.splits[k].noise));
+        let l = |k: usize| match r.setting.peer_spp {
+            Some(_) => "-".to_string(),
+            None => format!("{} / {}", pct(r.splits[k].bias), pct(r.splits[k].noise)),
+        };
+        // Mitsuba's time to this row's error over the row's time.
+        let lead = peer_time_at(rows, t.error).map_or(String::new(), |p| format!(" {:.1}x |", p / r.total()));
         writeln!(
             md,
-            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |{lead}",
             r.setting.axis,
             r.setting.label,
             r.times[0],
@@ -599,6 +662,14 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
         )?;
     }
     md.push_str("\nLayers: bias / noise, relative to each layer's own mean in the reference.\n\n");
+    if peer {
+        md.push_str(
+            "Mitsuba at equal error: the time Mitsuba 3's path tracer (the peer rows, render time only, after a \
+             warm-up render) needs to reach the row's error, from its row with the most paths as time x \
+             (its error / the row's error)^2 (unbiased: error ~ 1 / sqrt(time)), over the row's total time; above \
+             1x the row is ahead.\n\n",
+        );
+    }
     md.push_str("What each setting buys, from its smallest to its largest value (the defaults in between):\n\n");
     let mut axes: Vec<&str> = Vec::new();
     for r in rows {
@@ -650,7 +721,9 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
 /// The front as the quality knob reads it (`quality` in pipeline.toml; front.json):
 /// batch settings only, the real-time rows being another program.
 fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::Front {
-    let batch_front = pareto(rows, |r| if r.setting.live.is_some() { f64::INFINITY } else { r.splits[0].error });
+    let batch_front = pareto(rows, |r| {
+        if r.setting.live.is_some() || r.setting.peer_spp.is_some() { f64::INFINITY } else { r.splits[0].error }
+    });
     let name = Path::new(&args.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
     pm_pipeline::quality::Front {
         scene: name,
@@ -672,7 +745,7 @@ fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 14] = [
+const AXES: [&str; 15] = [
     "default",
     "global photons",
     "caustic photons",
@@ -687,6 +760,7 @@ const AXES: [&str; 14] = [
     "path",
     "live vertex",
     "live ispm",
+    "peer",
 ];
 
 fn colour(axis: &str) -> plot::Colour {
