@@ -467,6 +467,87 @@ pub fn sample_cdf(cdf: &[f64], u: f32) -> usize {
     i.min(cdf.len().saturating_sub(1))
 }
 
+/// A piecewise-constant density over the unit square, proportional to a grid of
+/// non-negative weights (`width` x `height` cells, row 0 at v = 0), sampled by
+/// inversion: a row by the rows' marginal, then a column within it, each
+/// continuous within its cell (pbrt-v4 section A.5.6, `PiecewiseConstant2D`). What
+/// an environment image is importance-sampled by.
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    width: usize,
+    height: usize,
+    /// Per row, the cumulative weights of its cells (the last is the row's sum).
+    rows: Vec<f64>,
+    /// Cumulative row sums (the last is the total).
+    marginal: Vec<f64>,
+}
+
+impl Distribution2D {
+    /// The density of `weights` (row-major, `width` x `height`). None when the
+    /// grid is empty, a weight is negative or not finite, or all are zero.
+    pub fn new(width: usize, height: usize, weights: &[f64]) -> Option<Distribution2D> {
+        if width == 0 || height == 0 || weights.len() != width * height {
+            return None;
+        }
+        if weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return None;
+        }
+        let mut rows = Vec::with_capacity(weights.len());
+        let mut marginal = Vec::with_capacity(height);
+        let mut total = 0.0;
+        for row in weights.chunks(width) {
+            let mut acc = 0.0;
+            for w in row {
+                acc += w;
+                rows.push(acc);
+            }
+            total += acc;
+            marginal.push(total);
+        }
+        (total > 0.0).then_some(Distribution2D { width, height, rows, marginal })
+    }
+
+    /// Pick a cell of the cumulative table `cdf` by `u` in [0, 1), continuously:
+    /// the index and the offset within the cell in [0, 1).
+    fn invert(cdf: &[f64], u: f32) -> (usize, f32) {
+        let total = *cdf.last().unwrap_or(&0.0);
+        let target = u as f64 * total;
+        let i = cdf.partition_point(|&c| c <= target).min(cdf.len() - 1);
+        let lo = if i == 0 { 0.0 } else { cdf[i - 1] };
+        let w = cdf[i] - lo;
+        let off = if w > 0.0 { ((target - lo) / w) as f32 } else { 0.5 };
+        (i, off.clamp(0.0, ONE_MINUS_EPSILON))
+    }
+
+    /// A point of the square with this density, and the density there (w.r.t.
+    /// area of the unit square; the mean density is 1).
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let (y, fy) = Self::invert(&self.marginal, u.y);
+        let row = &self.rows[y * self.width..(y + 1) * self.width];
+        let (x, fx) = Self::invert(row, u.x);
+        let p = Vec2::new((x as f32 + fx) / self.width as f32, (y as f32 + fy) / self.height as f32);
+        (p, self.cell_pdf(x, y))
+    }
+
+    /// The density at point `p` of the unit square (0 outside it).
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        if !(p.x >= 0.0 && p.y >= 0.0 && p.x < 1.0 && p.y < 1.0) {
+            return 0.0;
+        }
+        let x = ((p.x * self.width as f32) as usize).min(self.width - 1);
+        let y = ((p.y * self.height as f32) as usize).min(self.height - 1);
+        self.cell_pdf(x, y)
+    }
+
+    /// The density of cell (x, y): its weight over the mean weight.
+    fn cell_pdf(&self, x: usize, y: usize) -> f32 {
+        let row = &self.rows[y * self.width..(y + 1) * self.width];
+        let w = row[x] - if x == 0 { 0.0 } else { row[x - 1] };
+        let total = self.marginal[self.height - 1];
+        (w * (self.width * self.height) as f64 / total) as f32
+    }
+}
+
 /// 4 pi: the solid angle of the sphere \[sr\].
 pub const FOUR_PI: f32 = 2.0 * TAU;
 /// pi, re-exported for radiometric formulas (E = pi L for a uniform hemisphere).
@@ -536,6 +617,43 @@ mod tests {
                 assert_eq!(s.next_1d().to_bits(), want.to_bits(), "seed {seed} index {index} dim {d}");
             }
         }
+    }
+
+    /// Distribution2D's samples land in each cell in proportion to its weight
+    /// (zero-weight cells never), its density is the weight over the mean weight
+    /// wherever a sample lands and integrates to 1 over the square, and invalid
+    /// weights are refused.
+    #[test]
+    fn piecewise_constant_2d_samples_its_weights() {
+        let (w, h) = (5, 3);
+        let weights: Vec<f64> = (0..w * h).map(|i| if i % 4 == 1 { 0.0 } else { (i % 7 + 1) as f64 }).collect();
+        let d = Distribution2D::new(w, h, &weights).unwrap();
+        let total: f64 = weights.iter().sum();
+        let n = 1 << 16;
+        let mut counts = vec![0u32; w * h];
+        for k in 0..n {
+            let (p, pdf) = d.sample(Sampler::new(3, k).next_2d());
+            let (x, y) = ((p.x * w as f32) as usize, (p.y * h as f32) as usize);
+            let cell = y * w + x;
+            counts[cell] += 1;
+            let want = weights[cell] * (w * h) as f64 / total;
+            assert!((pdf as f64 - want).abs() < 1e-5 * want && d.pdf(p) == pdf, "cell {cell}: {pdf} vs {want}");
+        }
+        for (cell, &c) in counts.iter().enumerate() {
+            let expect = n as f64 * weights[cell] / total;
+            assert!((c as f64 - expect).abs() <= 4.0 * expect.sqrt() + 1.0, "cell {cell}: {c} vs {expect}");
+        }
+        // Midpoint integral of the density over a fine grid: 1.
+        let m = 200;
+        let integral: f64 = (0..m * m)
+            .map(|i| d.pdf(Vec2::new(((i % m) as f32 + 0.5) / m as f32, ((i / m) as f32 + 0.5) / m as f32)) as f64)
+            .sum::<f64>()
+            / (m * m) as f64;
+        assert!((integral - 1.0).abs() < 0.01, "{integral}");
+        assert!(Distribution2D::new(2, 1, &[1.0, -1.0]).is_none());
+        assert!(Distribution2D::new(2, 1, &[1.0, f64::NAN]).is_none());
+        assert!(Distribution2D::new(2, 1, &[0.0, 0.0]).is_none());
+        assert!(Distribution2D::new(2, 2, &[1.0, 1.0]).is_none());
     }
 
     /// The nibble tables give `sobol_burley::sample_4d` bit for bit: every

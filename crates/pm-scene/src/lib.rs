@@ -18,6 +18,7 @@ mod accel;
 mod anim;
 mod bvh4;
 mod camera;
+mod environment;
 mod geometry;
 mod gltf_load;
 mod light;
@@ -27,6 +28,7 @@ mod mesh;
 
 pub use anim::Animation;
 pub use camera::{Camera, CameraRays};
+pub use environment::{Environment, EnvironmentSample, direction_to_uv, uv_to_direction};
 pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
