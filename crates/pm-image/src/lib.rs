@@ -193,6 +193,32 @@ pub fn read_exr(path: &Path) -> Result<Layers> {
     read_exr_placed(path).map(|(layers, _)| layers)
 }
 
+/// An image of radiance for lighting (an environment map): its width, height and
+/// pixels (row-major from the top row, linear RGB), from OpenEXR (the image's R, G,
+/// B channels; a layered file's total) or Radiance RGBE (`.hdr`, decoded by the
+/// `image` crate), chosen by the file's extension. Errors name the file.
+pub fn read_radiance_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>)> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "exr" => {
+            let img = read_exr(path)?;
+            let px = img.total().with_context(|| format!("{}: no R, G, B channels", path.display()))?.to_vec();
+            Ok((img.width as usize, img.height as usize, px))
+        }
+        "hdr" => {
+            let file = std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+            let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
+                .map_err(|e| anyhow::anyhow!("{}: not a Radiance HDR image: {e}", path.display()))?;
+            let img = image::DynamicImage::from_decoder(decoder)
+                .map_err(|e| anyhow::anyhow!("{}: cannot decode: {e}", path.display()))?
+                .into_rgb32f();
+            let (w, h) = (img.width() as usize, img.height() as usize);
+            Ok((w, h, img.pixels().map(|p| Vec3::from(p.0)).collect()))
+        }
+        _ => bail!("{}: unknown environment image format (.exr or .hdr)", path.display()),
+    }
+}
+
 /// [`read_exr`] with where the file's pixels sit in its image (a region written by
 /// [`write_exr_region`]; a whole image sits at 0, 0 in itself).
 pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {
