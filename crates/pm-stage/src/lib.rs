@@ -16,6 +16,15 @@ use std::time::Instant;
 /// Run a stage's body and turn its result into the process exit: on error, print
 /// `<stage>: error: <message chain>` as one line on stderr and return exit code 1.
 pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
+    // Built for x86-64-v3 (.cargo/config.toml): say so on a CPU without it rather
+    // than die of an illegal instruction.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!(
+            "{stage}: error: this build needs a CPU with AVX2 and FMA (x86-64-v3, .cargo/config.toml); on this one build with RUSTFLAGS=\"-C target-cpu=x86-64\""
+        );
+        return ExitCode::FAILURE;
+    }
     match body() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
