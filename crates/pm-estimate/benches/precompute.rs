@@ -5,19 +5,12 @@
 
 use pm_estimate::{Filter, KnnParams, precompute};
 use pm_format::{CompactIrrPhoton, PhotonRecord};
-use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
 use std::time::Instant;
 
 fn main() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell_spheres.gltf");
     let scene = pm_scene::load(&path).unwrap();
-    let cfg = TraceConfig {
-        pass: MapPass::Global,
-        budget: Budget::Stored { target: 400_000, cap: u64::MAX },
-        seed: 1,
-        selector: LightSelector::new(&scene, &[]).unwrap(),
-    };
-    let photons = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
+    let photons = pm_photon::trace_global(&scene, 400_000, 1).unwrap();
     let recs: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();
     let nodes = pm_kdtree::balance(&recs);
     let p = KnnParams { k: 50, max_d2: 0.3464f32.powi(2), filter: Filter::None };

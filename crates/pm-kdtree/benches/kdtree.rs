@@ -8,7 +8,6 @@ use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use pm_format::{CompactIrrPhoton, Photon, PhotonRecord, flags};
 use pm_kdtree::{Buckets, KdTree, KnnScratch, balance};
-use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
 use rayon::prelude::*;
 use std::num::NonZero;
 use std::time::Instant;
@@ -19,13 +18,7 @@ const QUERIES: usize = 200_000;
 fn real_photons(n: u64, seed: u64) -> Vec<CompactIrrPhoton> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell_spheres.gltf");
     let scene = pm_scene::load(&path).unwrap();
-    let cfg = TraceConfig {
-        pass: MapPass::Global,
-        budget: Budget::Stored { target: n, cap: u64::MAX },
-        seed,
-        selector: LightSelector::new(&scene, &[]).unwrap(),
-    };
-    let mut ps = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
+    let mut ps = pm_photon::trace_global(&scene, n, seed).unwrap();
     ps.truncate(n as usize);
     ps.iter().map(CompactIrrPhoton::encode).collect()
 }

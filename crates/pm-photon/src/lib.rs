@@ -384,6 +384,14 @@ pub enum MergeError {
     },
 }
 
+/// The global map of `target` stored photons, every light emitting by its power
+/// (photon-trace's defaults; benchmarks start from it), in index order.
+pub fn trace_global(scene: &Scene, target: u64, seed: u64) -> Result<Vec<Photon>, TraceError> {
+    let budget = Budget::Stored { target, cap: u64::MAX };
+    let cfg = TraceConfig { pass: MapPass::Global, budget, seed, selector: LightSelector::new(scene, &[])? };
+    Ok(trace(scene, &cfg, &|_| {})?.photons)
+}
+
 /// Trace a map in one run (every slice of the index space). `progress` is called
 /// after each batch with the photons stored so far. Identical to merging the
 /// slices of any [`Slice::count`] traced with [`trace_slice`].

@@ -14,7 +14,6 @@ use glam::Vec3;
 use pm_estimate::{Filter, KnnParams, precompute};
 use pm_format::{CompactIrrPhoton, PhotonRecord};
 use pm_kdtree::{Buckets, KdTree};
-use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
 use pm_render::{Lookup, Maps, PhotonMapping, RenderParams, Scratch};
 use pm_sampling::Sampler;
 use std::hint::black_box;
@@ -27,13 +26,7 @@ const RAYS_PER_HIT: u32 = 64;
 fn main() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell_spheres.gltf");
     let scene = pm_scene::load(&path).unwrap();
-    let cfg = TraceConfig {
-        pass: MapPass::Global,
-        budget: Budget::Stored { target: 400_000, cap: u64::MAX },
-        seed: 1,
-        selector: LightSelector::new(&scene, &[]).unwrap(),
-    };
-    let photons = pm_photon::trace(&scene, &cfg, &|_| {}).unwrap().photons;
+    let photons = pm_photon::trace_global(&scene, 400_000, 1).unwrap();
     let recs: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();
     let mut nodes = pm_kdtree::balance(&recs);
     let params = RenderParams::default();
