@@ -293,8 +293,8 @@ struct Row {
     means: (f64, f64),
     apart: (f64, f64),
     rmse: f64,
-    /// Relative RMSE of ours and of Mitsuba's image against the reference, the
-    /// light's own pixels left out.
+    /// One render's expected relative error against the truth, ours and Mitsuba's
+    /// (bias and noise over the runs, the reference's own noise taken out).
     errors: (f64, f64),
 }
 
@@ -308,9 +308,11 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         let scene = pm_scene::load(scene_path).map_err(|e| anyhow::anyhow!("{e}"))?;
         let dir = args.out.join(&name);
         let xml = translate(&scene, &name, &dir.join("mitsuba"), args.size, args.spp)?;
-        let (ours_exr, theirs_exr) = (dir.join("ours.exr"), dir.join("mitsuba.exr"));
         let (mut ours_s, mut theirs_s) = (f64::INFINITY, f64::INFINITY);
+        // Each run's images are kept: their spread is each renderer's noise.
+        let (mut ours_runs, mut theirs_runs) = (Vec::new(), Vec::new());
         for run in 0..args.runs {
+            let (ours_exr, theirs_exr) = (dir.join(format!("ours-{run}.exr")), dir.join(format!("mitsuba-{run}.exr")));
             let stats = dir.join("ours.json");
             let out = Command::new(bins.path("photon-render"))
                 .args(["--scene", &scene_path.display().to_string(), "--mode", "path"])
@@ -327,18 +329,28 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             let seconds = mitsuba.render(&xml, args.spp, run + 1, &theirs_exr).with_context(|| name.clone())?;
             theirs_s = theirs_s.min(seconds);
             println!("{name} run {}: ours {:.3} s, Mitsuba {seconds:.3} s", run + 1, report.seconds);
+            ours_runs.push(pm_image::read_exr(&ours_exr)?.total().context("our image")?.to_vec());
+            theirs_runs.push(pm_image::read_exr(&theirs_exr)?.total().context("Mitsuba's image")?.to_vec());
         }
-        // The reference: Mitsuba at many paths a pixel, its own seed.
-        let ref_exr = dir.join("reference.exr");
-        mitsuba.render(&xml, args.reference_spp, 9999, &ref_exr).with_context(|| format!("{name}'s reference"))?;
-        let reference = pm_image::read_exr(&ref_exr)?;
-        let pr = reference.total().context("the reference image")?;
-        // Pixels brighter than half the brightest emitter are the light's own.
-        let mask = 0.5 * scene.materials.iter().map(|m| pm_color::mean(m.emission)).fold(0.0f32, f32::max);
-        let mask = if mask > 0.0 { mask } else { f32::INFINITY };
-        let (a, b) = (pm_image::read_exr(&ours_exr)?, pm_image::read_exr(&theirs_exr)?);
-        let (pa, pb) = (a.total().context("our image")?, b.total().context("Mitsuba's image")?);
+        // The reference: Mitsuba at many paths a pixel in two halves with their own
+        // seeds, whose difference measures its own noise (taken out of the errors).
+        let mut halves = Vec::new();
+        for h in 0..2u32 {
+            let exr = dir.join(format!("reference-{h}.exr"));
+            let spp = (args.reference_spp / 2).max(1);
+            mitsuba.render(&xml, spp, 9998 + h, &exr).with_context(|| format!("{name}'s reference"))?;
+            halves.push(pm_image::read_exr(&exr)?.total().context("the reference image")?.to_vec());
+        }
         let size = args.size as usize;
+        let mean: Vec<Vec3> = halves[0].iter().zip(&halves[1]).map(|(a, b)| (*a + *b) * 0.5).collect();
+        let keep = pm_image::accuracy::keep_mask(&mean, size, size);
+        let (reference, reference_var) = pm_image::accuracy::reference_from_halves(&halves[0], &halves[1], &keep);
+        let error = |runs: &[Vec<Vec3>]| {
+            let r: Vec<&[Vec3]> = runs.iter().map(Vec::as_slice).collect();
+            pm_image::accuracy::split(&r, &reference, reference_var, &keep).error
+        };
+        let errors = (error(&ours_runs), error(&theirs_runs));
+        let (pa, pb) = (&ours_runs[ours_runs.len() - 1][..], &theirs_runs[theirs_runs.len() - 1][..]);
         let e = pm_image::compare(pa, pb, f32::INFINITY);
         rows.push(Row {
             scene: name,
@@ -350,14 +362,16 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             ),
             apart: means_apart(pa, pb, size),
             rmse: e.rel_rmse as f64,
-            errors: (pm_image::compare(pa, pr, mask).rel_rmse as f64, pm_image::compare(pb, pr, mask).rel_rmse as f64),
+            errors,
         });
     }
     let mut md = format!(
         "`cargo xtask peer --size {} --spp {} --runs {}` (Mitsuba variant {}): path tracing, both renderers on\n\
          all cores, best of {} alternated runs each, render time only (Mitsuba after a warm-up render).\n\n\
-         Error: relative RMSE against Mitsuba at {} paths a pixel, the light's pixels left out; the time\n\
-         to equal error is time x error^2 (both estimators unbiased, error ~ 1/sqrt(time)).\n\n\
+         Error: one render's expected relative RMSE against the truth (`pm_image::accuracy`: over the runs'\n\
+         seeds, against Mitsuba at {} paths a pixel in two halves whose own noise is taken out; the light's\n\
+         pixels and their neighbours left out); the time to equal error is time x error^2 (both\n\
+         estimators unbiased, error ~ 1/sqrt(time)).\n\n\
          | scene | ours [s] | Mitsuba [s] | ours / Mitsuba per sample | error ours | error Mitsuba | ours / Mitsuba at equal error | mean ours | mean Mitsuba | means apart | relative RMSE between |\n\
          |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         args.size, args.spp, args.runs, args.variant, args.runs, args.reference_spp
