@@ -3,8 +3,9 @@
 //! can never disagree: for each 4-D dimension set and each 4-bit group of the
 //! (bit-reversed, scrambled) index's top 16 bits, the Sobol' point of the index
 //! with only that group's bits, for each of their 16 values (an XOR of direction
-//! vectors; the point of an index is the XOR of its groups' entries). Four table reads then replace a loop of up to 16 dependent,
-//! mispredicted steps (see `Sampler::next_1d`).
+//! vectors; the point of an index is the XOR of its groups' entries). Four table
+//! reads then replace a loop of up to 16 dependent, mispredicted steps (see
+//! `Sampler::next_1d`).
 
 use std::fmt::Write as _;
 

@@ -100,14 +100,13 @@ impl<I: IndirectLight> LiveShading<'_, I> {
     }
 
     /// The components seen along direction `d` whose first hit is `first`.
-    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, vs: Option<&mut VisibleSurface>) -> Components {
+    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
         let Some(hit) = first else { return Components::default() };
         let scene = self.light.scene;
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         let bsdf = scene.bsdf(&hit);
         let tr = scene.transmittance(&hit, d);
-        let mut vs = vs;
         if let Some(v) = vs.as_deref_mut() {
             *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
         }
@@ -286,9 +285,8 @@ mod tests {
     /// is nearly the same whatever its seed (two seeds within 5% RMS; only paths
     /// still inside the glass past the split depth choose), where one pixel sample
     /// picking one branch at random varied by 100% and more. And it is that
-    /// estimator's mean: 1,024 of its
-    /// samples a pixel (an independent loop here), summed over the pixels, agree
-    /// within 2%. A branch dropped or weighted by its probability twice fails the
+    /// estimator's mean: 1,024 of its samples a pixel (an independent loop here),
+    /// summed over the pixels, agree within 2%. A branch dropped or weighted by its probability twice fails the
     /// second; a random choice left in, the first.
     #[test]
     fn mirrors_and_glass_follow_both_fresnel_branches() {

@@ -510,9 +510,8 @@ impl Distribution2D {
     /// Pick a cell of the cumulative table `cdf` by `u` in [0, 1), continuously:
     /// the index and the offset within the cell in [0, 1).
     fn invert(cdf: &[f64], u: f32) -> (usize, f32) {
-        let total = *cdf.last().unwrap_or(&0.0);
-        let target = u as f64 * total;
-        let i = cdf.partition_point(|&c| c <= target).min(cdf.len() - 1);
+        let i = sample_cdf(cdf, u);
+        let target = u as f64 * cdf[cdf.len() - 1];
         let lo = if i == 0 { 0.0 } else { cdf[i - 1] };
         let w = cdf[i] - lo;
         let off = if w > 0.0 { ((target - lo) / w) as f32 } else { 0.5 };

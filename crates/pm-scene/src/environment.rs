@@ -94,17 +94,11 @@ impl Environment {
             ));
         }
         let texels: Vec<Rgb> = texels.into_iter().map(|v| v * strength).collect();
-        // Each texel weighs its mean radiance times its solid angle,
-        // (2 pi / width) (cos theta_top - cos theta_bottom), theta from the zenith.
+        // Each texel weighs its mean radiance times its solid angle.
         let weights: Vec<f64> = texels
             .iter()
             .enumerate()
-            .map(|(i, v)| {
-                let y = (i / width) as f64;
-                let (t0, t1) =
-                    (std::f64::consts::PI * y / height as f64, std::f64::consts::PI * (y + 1.0) / height as f64);
-                pm_color::mean(*v) as f64 * (t0.cos() - t1.cos())
-            })
+            .map(|(i, v)| pm_color::mean(*v) as f64 * texel_solid_angle(i / width, width, height))
             .collect();
         let a = rotation_deg.to_radians();
         Ok(Environment {
@@ -159,23 +153,15 @@ impl Environment {
         };
         let (uv, pdf_uv) = dist.sample(u);
         let d = uv_to_direction(uv);
-        let sin_theta = (1.0 - d.y * d.y).max(0.0).sqrt();
-        if !(pdf_uv > 0.0 && sin_theta > 0.0) {
-            return None;
-        }
-        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
-        Some(EnvironmentSample { wi: self.to_world(d), l: self.texels[self.texel(uv)], pdf })
+        let pdf = solid_angle_pdf(pdf_uv, d);
+        (pdf > 0.0).then(|| EnvironmentSample { wi: self.to_world(d), l: self.texels[self.texel(uv)], pdf })
     }
 
     /// Density [sr^-1] with which [`Environment::sample`] gives unit direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
         let Some(dist) = &self.distribution else { return 1.0 / pm_sampling::FOUR_PI };
         let d = self.to_image(d);
-        let sin_theta = (1.0 - d.y * d.y).max(0.0).sqrt();
-        if sin_theta <= 0.0 {
-            return 0.0;
-        }
-        dist.pdf(direction_to_uv(d)) / (2.0 * PI * PI * sin_theta)
+        solid_angle_pdf(dist.pdf(direction_to_uv(d)), d)
     }
 
     /// The integral of the radiance over the sphere, ∫ L dω [W m^-2 per channel]
@@ -188,14 +174,26 @@ impl Environment {
         }
         let mut sum = glam::DVec3::ZERO;
         for (i, v) in self.texels.iter().enumerate() {
-            let y = (i / self.width) as f64;
-            let h = self.height as f64;
-            let (t0, t1) = (std::f64::consts::PI * y / h, std::f64::consts::PI * (y + 1.0) / h);
-            let omega = std::f64::consts::TAU / self.width as f64 * (t0.cos() - t1.cos());
-            sum += v.as_dvec3() * omega;
+            sum += v.as_dvec3() * texel_solid_angle(i / self.width, self.width, self.height);
         }
         sum.as_vec3()
     }
+}
+
+/// Solid angle [sr] of a texel in row `y` of a `width` x `height` equirectangular
+/// image: (2 pi / width) (cos theta_top - cos theta_bottom), theta from the zenith.
+fn texel_solid_angle(y: usize, width: usize, height: usize) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let (t0, t1) = (PI * y as f64 / height as f64, PI * (y + 1) as f64 / height as f64);
+    TAU / width as f64 * (t0.cos() - t1.cos())
+}
+
+/// Density per steradian of image-frame direction `d` drawn with density `pdf_uv`
+/// over the image's unit square: dω = 2 pi^2 sin(theta) du dt. Zero at the poles,
+/// where it is undefined.
+fn solid_angle_pdf(pdf_uv: f32, d: Vec3) -> f32 {
+    let sin_theta = (1.0 - d.y * d.y).max(0.0).sqrt();
+    if pdf_uv > 0.0 && sin_theta > 0.0 { pdf_uv / (2.0 * PI * PI * sin_theta) } else { 0.0 }
 }
 
 #[cfg(test)]
