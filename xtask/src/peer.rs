@@ -342,8 +342,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             halves.push(pm_image::read_exr(&exr)?.total().context("the reference image")?.to_vec());
         }
         let size = args.size as usize;
-        let mean: Vec<Vec3> = halves[0].iter().zip(&halves[1]).map(|(a, b)| (*a + *b) * 0.5).collect();
-        let keep = pm_image::accuracy::keep_mask(&mean, size, size);
+        let keep = pm_image::accuracy::keep_mask_of_halves(&halves[0], &halves[1], size, size);
         let (reference, reference_var) = pm_image::accuracy::reference_from_halves(&halves[0], &halves[1], &keep);
         let error = |runs: &[Vec<Vec3>]| {
             let r: Vec<&[Vec3]> = runs.iter().map(Vec::as_slice).collect();

@@ -323,12 +323,26 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let s = |v: &dyn std::fmt::Display| v.to_string();
     let scene_s = scene.display().to_string();
 
+    // The scene once, for its size and, with --peer, Mitsuba's copy of it: a Python
+    // without Mitsuba or a scene it cannot take fails before the reference renders.
+    let (diagonal, mitsuba) = {
+        let loaded = pm_scene::load(&scene).map_err(|e| anyhow::anyhow!("{e}"));
+        let diagonal = loaded.as_ref().map(|s| s.bounds.diagonal()).unwrap_or(1.0);
+        let mitsuba = match &args.peer {
+            Some(python) => {
+                let m = crate::peer::Mitsuba::start(python, &args.peer_variant, &out.join("mitsuba"))?;
+                let xml = crate::peer::translate(&loaded?, &name, &out.join("mitsuba"), size, 16)?;
+                Some((m, xml))
+            }
+            None => None,
+        };
+        (diagonal, mitsuba)
+    };
     let [half_a, half_b] = reference_halves(&bins, &base, &scene, &out, size, args.reference_spp)?;
     let n = (size * size) as usize;
     let total = |h: &pm_image::Layers| layer(h, None);
     let (a, b) = (total(&half_a), total(&half_b));
-    let mean: Vec<glam::Vec3> = a.iter().zip(&b).map(|(a, b)| (*a + *b) * 0.5).collect();
-    let keep = accuracy::keep_mask(&mean, size as usize, size as usize);
+    let keep = accuracy::keep_mask_of_halves(&a, &b, size as usize, size as usize);
     let references: Vec<(Vec<glam::Vec3>, f64)> = LAYERS
         .iter()
         .map(|l| accuracy::reference_from_halves(&layer(&half_a, *l), &layer(&half_b, *l), &keep))
@@ -342,18 +356,10 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
-    let diagonal = pm_scene::load(&scene).map(|s| s.bounds.diagonal()).unwrap_or(1.0);
     let mut settings = sweep(&base, size, diagonal);
-    let mitsuba = match &args.peer {
-        Some(python) => {
-            settings.extend(peer_rows(&settings[0]));
-            let m = crate::peer::Mitsuba::start(python, &args.peer_variant, &out.join("mitsuba"))?;
-            let scene = pm_scene::load(&scene).map_err(|e| anyhow::anyhow!("{e}"))?;
-            let xml = crate::peer::translate(&scene, &name, &out.join("mitsuba"), size, 16)?;
-            Some((m, xml))
-        }
-        None => None,
-    };
+    if mitsuba.is_some() {
+        settings.extend(peer_rows(&settings[0]));
+    }
     if !args.axes.is_empty() {
         for a in &args.axes {
             if !AXES.contains(&a.as_str()) {

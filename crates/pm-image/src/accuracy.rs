@@ -59,6 +59,13 @@ pub fn keep_mask(reference: &[Vec3], width: usize, height: usize) -> Vec<bool> {
         .collect()
 }
 
+/// [`keep_mask`] of the reference whose two independent halves are `a` and `b`
+/// (their mean).
+pub fn keep_mask_of_halves(a: &[Vec3], b: &[Vec3], width: usize, height: usize) -> Vec<bool> {
+    let mean: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
+    keep_mask(&mean, width, height)
+}
+
 /// The reference (mean of its halves) and its per-pixel noise variance averaged
 /// over the kept channels, from two independent halves of equal sample counts.
 pub fn reference_from_halves(a: &[Vec3], b: &[Vec3], keep: &[bool]) -> (Vec<Vec3>, f64) {
