@@ -83,7 +83,7 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let analysis: pm_light::Effects = {
         let o = std::process::Command::new(bins.path("photon-trace"))
             .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
-            .args(["--light-units".to_string(), cfg.light_units.to_string()])
+            .args(cfg.scene_args())
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {

@@ -160,7 +160,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             .with_context(|| format!("{}: cannot write", ply.display()))?;
     }
     if let (Some(png), Some(scene_path)) = (&cli.image, &cli.scene) {
-        let scene = pm_stage::load_scene("photon-inspect", scene_path, cli.scene_args)?;
+        let scene = pm_stage::load_scene("photon-inspect", scene_path, &cli.scene_args)?;
         ensure!(
             scene.content_hash == map.header().scene_hash,
             "{}: the map was traced in another scene than {}",

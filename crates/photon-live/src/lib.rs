@@ -235,7 +235,7 @@ pub fn run(cli: &Cli) -> Result<()> {
         None => 0..cli.frames,
     };
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-live", scene_path, cli.scene_args)?;
+    let scene = pm_stage::load_scene("photon-live", scene_path, &cli.scene_args)?;
     if p.frame.direct == pm_live::DirectMode::ShadowMap {
         let without = pm_live::lights_without_shadow_maps(&scene);
         if !without.is_empty() {
@@ -249,7 +249,7 @@ pub fn run(cli: &Cli) -> Result<()> {
     match p.method {
         Method::Vertex => {
             let photon_scene = match &cli.photon_scene {
-                Some(path) => Some(pm_stage::load_scene("photon-live", path, cli.scene_args)?),
+                Some(path) => Some(pm_stage::load_scene("photon-live", path, &cli.scene_args)?),
                 None => None,
             };
             let (hash, origin, diagonal) = (scene.content_hash, scene.origin.to_array(), scene.bounds.diagonal());

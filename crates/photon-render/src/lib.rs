@@ -124,7 +124,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let p = &cli.params;
     p.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-render", &cli.scene, cli.scene_args)?;
+    let scene = pm_stage::load_scene("photon-render", &cli.scene, &cli.scene_args)?;
     let camera = scene
         .camera
         .clone()

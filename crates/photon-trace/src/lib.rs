@@ -155,6 +155,11 @@ pub struct MapReport {
     pub stored_per_bounce: Vec<u64>,
     /// Photons emitted per light, by light name.
     pub emitted_per_light: Vec<(String, u64)>,
+    /// Per light, the fraction of its photons whose first ray hit the scene (an
+    /// environment's photons start on the bounding sphere's disc: most miss an
+    /// object that fills little of it, or a room seen through a window).
+    #[serde(default)]
+    pub reached_fraction_per_light: Vec<(String, f64)>,
     /// Rays traced.
     pub rays: u64,
     /// Paths cut by the bounce limit.
@@ -198,7 +203,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
     let out = &out;
     pm_stage::init_threads(args.threads)?;
     let start = Instant::now();
-    let scene = pm_stage::load_scene("photon-trace", scene_path, args.scene_args)?;
+    let scene = pm_stage::load_scene("photon-trace", scene_path, &args.scene_args)?;
     if args.analyze {
         println!("{}", serde_json::to_string_pretty(&pm_light::analyze(&scene))?);
         return Ok(None);
@@ -329,6 +334,11 @@ fn map_report(s: &MapStats, total_power_w: [f64; 3], lights: &[String], secs: f6
         stored: s.stored,
         stored_per_bounce: s.stored_per_bounce.clone(),
         emitted_per_light: lights.iter().zip(&s.emitted_per_light).map(|(l, n)| (l.clone(), *n)).collect(),
+        reached_fraction_per_light: lights
+            .iter()
+            .zip(s.emitted_per_light.iter().zip(&s.reached_per_light))
+            .map(|(l, (&n, &r))| (l.clone(), if n > 0 { r as f64 / n as f64 } else { 0.0 }))
+            .collect(),
         rays: s.rays,
         truncated_paths: s.truncated_paths,
         hit_emission_cap: s.hit_cap,

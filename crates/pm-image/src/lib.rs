@@ -219,6 +219,19 @@ pub fn read_radiance_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>)> {
     }
 }
 
+/// Write an image of radiance as Radiance RGBE (`.hdr`; 8-bit mantissas with a
+/// shared exponent, 1% steps), atomically: what [`read_radiance_image`] reads
+/// back (generated environments, tests).
+pub fn write_radiance_hdr(path: &Path, width: usize, height: usize, pixels: &[Vec3]) -> Result<()> {
+    let rgb: Vec<image::Rgb<f32>> = pixels.iter().map(|p| image::Rgb(p.to_array())).collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes)
+        .encode(&rgb, width, height)
+        .map_err(|e| anyhow::anyhow!("{}: cannot encode Radiance HDR: {e}", path.display()))?;
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
 /// [`read_exr`] with where the file's pixels sit in its image (a region written by
 /// [`write_exr_region`]; a whole image sits at 0, 0 in itself).
 pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {

@@ -86,9 +86,11 @@ struct Arrival {
 /// The first hits of light `li`'s `res` x `res`-per-face directions with their power
 /// (section 4.2). Point and spot lights: a cube map drawn by the rasteriser, each
 /// texel carrying I(ω) times its exact solid angle (spot lights then rescaled to the
-/// light's power: the paper's round-off correction). Directional and area lights
-/// (which have no centre of projection): as many stratified emission samples
-/// (Sobol') traced through the BVH, each carrying Φ / n.
+/// light's power: the paper's round-off correction). Directional, area and
+/// environment lights (which have no centre of projection): as many stratified
+/// emission samples (Sobol') traced through the BVH, each carrying Φ / n (an
+/// environment's photons start on the bounding sphere's disc, so the bounce map's
+/// power stays exact; those that miss the scene carry theirs away).
 fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
     let light = &scene.lights[li];
     match light.kind {
@@ -104,7 +106,7 @@ fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
             }
             v
         }
-        LightKind::Directional { .. } | LightKind::Area { .. } => {
+        LightKind::Directional { .. } | LightKind::Area { .. } | LightKind::Environment { .. } => {
             let n = 6 * (res as usize) * (res as usize);
             (0..n)
                 .into_par_iter()

@@ -121,7 +121,7 @@ impl<'a> DirectLighting<'a> {
     ) -> Option<(Rgb, Vec3, Vec3, f32)> {
         let scene = self.scene;
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
-        let ls = scene.lights[li].sample_li(scene, hit.p, u_tri, u)?;
+        let ls = scene.lights[li].sample_li(scene, hit.p, pm_scene::facing(hit.ng, wo), u_tri, u)?;
         if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
             return None;
         }
@@ -243,11 +243,24 @@ impl DirectLighting<'_> {
         })
     }
 
+    /// The density [sr^-1] with which [`Self::light_sample`] at a shading point
+    /// with unit normal `n` (on the side light arrives from) picks unit direction
+    /// `wi` toward the sky, over the lights at infinity (light choice included): for
+    /// MIS weights of BSDF-sampled rays that leave the scene.
+    pub fn pdf_escaped(&self, n: Vec3, wi: Vec3) -> f32 {
+        let mut pdf = 0.0;
+        for &i in &self.scene.infinite_lights {
+            pdf += self.scene.lights[i as usize].pdf_escaped(n, wi) * self.lights.probs[i as usize] as f32;
+        }
+        pdf
+    }
+
     /// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit,
     /// averaged over `n` light samples. Glossy surfaces, and every surface inside an
     /// area light that encloses space, also sample the BSDF and weigh the two by the
-    /// power heuristic. Inside such a light (the furnace's emitting sphere) the facets
-    /// next to a point subtend large solid angles but are chosen by their small
+    /// power heuristic, and so does every surface of a scene with lights at
+    /// infinity (an environment, a sun disc; issue 37). Inside such a light (the
+    /// furnace's emitting sphere) the facets next to a point subtend large solid angles but are chosen by their small
     /// areas: a light sample on one weighed up to 11 times the mean, and made the
     /// furnace test's worst pixel; cosine-sampled directions find those facets often.
     /// Built [`Self::with_closed_form`], Lambertian surfaces in a scene of at most
@@ -256,6 +269,7 @@ impl DirectLighting<'_> {
     pub fn direct(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, n: u32) -> Rgb {
         let scene = self.scene;
         let mis = !matches!(bsdf, Bsdf::Lambert { .. })
+            || !scene.infinite_lights.is_empty()
             || self.enclosing.iter().any(|(lo, hi)| hit.p.cmpgt(*lo).all() && hit.p.cmplt(*hi).all());
         if !mis
             && self.closed_form
@@ -299,12 +313,21 @@ impl DirectLighting<'_> {
                     && bs.wi.dot(hit.ng) * side_o > 0.0
                 {
                     let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
-                    if let Some(h) = scene.intersect(o, bs.wi, f32::INFINITY) {
-                        let le = scene.emitted(&h, -bs.wi) * scene.transmittance(&h, bs.wi);
-                        if le.max_element() > 0.0
-                            && let Some(p_l) = self.pdf_emitter(hit.p, h.tri, bs.wi, h.t)
-                        {
-                            sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+                    match scene.intersect(o, bs.wi, f32::INFINITY) {
+                        Some(h) => {
+                            let le = scene.emitted(&h, -bs.wi) * scene.transmittance(&h, bs.wi);
+                            if le.max_element() > 0.0
+                                && let Some(p_l) = self.pdf_emitter(hit.p, h.tri, bs.wi, h.t)
+                            {
+                                sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+                            }
+                        }
+                        None => {
+                            let le = scene.escaped(bs.wi);
+                            if le.max_element() > 0.0 {
+                                let p_l = self.pdf_escaped(pm_scene::facing(hit.ng, wo), bs.wi);
+                                sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
+                            }
                         }
                     }
                 }

@@ -192,16 +192,18 @@ pub fn analyze(scene: &Scene) -> Effects {
         Decision::yes(format!("glossy materials {}", glossy_names.join(", ")))
     };
 
-    let mut counts = [0usize; 4];
+    let mut counts = [0usize; 6];
     for l in &scene.lights {
         counts[match l.kind {
             LightKind::Area { .. } => 0,
             LightKind::Point { .. } => 1,
             LightKind::Spot { .. } => 2,
-            LightKind::Directional { .. } => 3,
+            LightKind::Directional { cap, .. } if cap > 0.0 => 3,
+            LightKind::Directional { .. } => 4,
+            LightKind::Environment { .. } => 5,
         }] += 1;
     }
-    let direct = ["area", "point", "spot", "directional"]
+    let direct = ["area", "point", "spot", "sun disc", "directional", "environment"]
         .iter()
         .zip(counts)
         .filter(|(_, c)| *c > 0)

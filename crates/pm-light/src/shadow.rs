@@ -59,7 +59,7 @@ impl LightMap {
                 let position = centroid + normal * (1e-3 * scene.bounds.diagonal());
                 Some(LightMap { depth: CubeDepth::new(scene, position, res), area: true })
             }
-            LightKind::Directional { .. } => None,
+            LightKind::Directional { .. } | LightKind::Environment { .. } => None,
         }
     }
 
@@ -94,13 +94,13 @@ impl ShadowMaps {
     }
 
     /// True when `light` can have a shadow map: point and spot lights, and area
-    /// lights with a closed-form irradiance (not directional lights, nor area
+    /// lights with a closed-form irradiance (not lights at infinity, nor area
     /// lights that are large, curved, two-sided or textured).
     pub fn supports(light: &Light) -> bool {
         match &light.kind {
             LightKind::Point { .. } | LightKind::Spot { .. } => true,
             LightKind::Area { .. } => light.has_cos_integral(),
-            LightKind::Directional { .. } => false,
+            LightKind::Directional { .. } | LightKind::Environment { .. } => false,
         }
     }
 
@@ -130,7 +130,7 @@ impl ShadowMaps {
             } else {
                 (0.5, glam::Vec2::splat(0.5))
             };
-            let Some(ls) = light.sample_li(scene, at.p, u_sel, u) else { continue };
+            let Some(ls) = light.sample_li(scene, at.p, pm_scene::facing(at.ng, wo), u_sel, u) else { continue };
             if ls.wi.dot(at.ng) * wo.dot(at.ng) <= 0.0 {
                 continue;
             }

@@ -109,6 +109,9 @@ pub struct MapStats {
     pub stored_per_bounce: Vec<u64>,
     /// Photons emitted from each light.
     pub emitted_per_light: Vec<u64>,
+    /// Of those, the photons whose first ray hit the scene (the rest left it at
+    /// once: most of an environment's, whose disc is the bounding sphere's).
+    pub reached_per_light: Vec<u64>,
     /// Rays traced (intersection queries).
     pub rays: u64,
     /// Paths ended by [`MAX_BOUNCES`] rather than absorption or escape.
@@ -160,6 +163,8 @@ pub struct PathOut {
     pub photons: Vec<(Photon, u32)>,
     /// The light the path left.
     pub light: usize,
+    /// True when the photon's first ray hit the scene.
+    pub reached: bool,
     /// Rays traced.
     pub rays: u64,
     /// True when the path was cut at [`MAX_BOUNCES`].
@@ -175,6 +180,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     out.photons.clear();
     out.rays = 0;
     out.truncated = false;
+    out.reached = false;
     let stream = match cfg.pass {
         MapPass::Global => 0x676c_6f62_616c,
         MapPass::Caustic => 0x6361_7573_7469,
@@ -197,6 +203,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         }
         out.rays += 1;
         let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
+        out.reached = true;
         phi *= scene.transmittance(&hit, d);
         let bsdf = scene.bsdf(&hit);
         let wo = -d;
@@ -302,6 +309,9 @@ pub struct ChunkStats {
     pub truncated: u64,
     /// Paths emitted from each light.
     pub per_light: Vec<u64>,
+    /// Of those, the paths whose first ray hit the scene.
+    #[serde(default)]
+    pub reached_per_light: Vec<u64>,
 }
 
 impl MapStats {
@@ -311,6 +321,12 @@ impl MapStats {
             self.emitted_per_light.resize(chunk.per_light.len(), 0);
         }
         for (a, b) in self.emitted_per_light.iter_mut().zip(&chunk.per_light) {
+            *a += b;
+        }
+        if self.reached_per_light.len() < chunk.reached_per_light.len() {
+            self.reached_per_light.resize(chunk.reached_per_light.len(), 0);
+        }
+        for (a, b) in self.reached_per_light.iter_mut().zip(&chunk.reached_per_light) {
             *a += b;
         }
         self.rays += chunk.rays;
@@ -401,7 +417,11 @@ pub fn trace(scene: &Scene, cfg: &TraceConfig, progress: &(dyn Fn(u64) + Sync)) 
         // No mirror or glass to aim at: an empty map, nothing emitted.
         return Ok(TracedMap {
             photons: Vec::new(),
-            stats: MapStats { emitted_per_light: vec![0; scene.lights.len()], ..Default::default() },
+            stats: MapStats {
+                emitted_per_light: vec![0; scene.lights.len()],
+                reached_per_light: vec![0; scene.lights.len()],
+                ..Default::default()
+            },
         });
     }
     Ok(merge_slices(vec![whole]).expect("one whole slice always merges"))
@@ -449,12 +469,18 @@ pub fn trace_slice(
         let results: Vec<(ChunkStats, Vec<(Photon, u32)>)> = batch
             .par_iter()
             .map(|&c| {
-                let mut stats = ChunkStats { index: c, per_light: vec![0; lights], ..Default::default() };
+                let mut stats = ChunkStats {
+                    index: c,
+                    per_light: vec![0; lights],
+                    reached_per_light: vec![0; lights],
+                    ..Default::default()
+                };
                 let mut photons = Vec::new();
                 let mut path = PathOut::default();
                 for i in c * CHUNK..((c + 1) * CHUNK).min(end) {
                     trace_path(scene, cfg, &targets, i, &mut path);
                     stats.per_light[path.light] += 1;
+                    stats.reached_per_light[path.light] += path.reached as u64;
                     stats.rays += path.rays;
                     stats.truncated += path.truncated as u64;
                     photons.extend_from_slice(&path.photons);

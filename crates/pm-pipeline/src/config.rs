@@ -49,6 +49,21 @@ pub struct Pipeline {
     /// "radiometric" (W/sr and W/m^2); every stage that reads the scene gets it.
     #[serde(default)]
     pub light_units: pm_scene::LightUnits,
+    /// Light from infinitely far away: an equirectangular .exr or .hdr (relative
+    /// to the pipeline file; Blender's orientation) or a colour of radiance
+    /// [W sr^-1 m^-2 per channel]. Wins over one the glTF file's extras name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<EnvironmentCfg>,
+    /// Multiplier of the environment's radiance (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment_strength: Option<f32>,
+    /// Rotation of the environment about the up axis \[degrees\] (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment_rotation_deg: Option<f32>,
+    /// Angular diameter of directional lights' sun disc \[degrees\]: one number for
+    /// all, or a table by light name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sun_angle_deg: Option<SunAngleCfg>,
     /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
     pub effects: EffectsCfg,
     /// Light name to fraction of the photon budget; the other lights share the rest
@@ -81,6 +96,27 @@ pub struct Pipeline {
     /// What quality or time_budget_s chose (not a key of the file).
     #[serde(skip)]
     pub chosen: Option<String>,
+}
+
+/// `environment = "sky.exr"` or `environment = [r, g, b]`.
+#[derive(Deserialize, Serialize, Debug, Clone, PartialEq)]
+#[serde(untagged)]
+pub enum EnvironmentCfg {
+    /// An image file (made absolute when the pipeline file is read).
+    File(PathBuf),
+    /// One colour of radiance [W sr^-1 m^-2 per channel].
+    Colour([f32; 3]),
+}
+
+/// `sun_angle_deg = 0.53` (every directional light) or `sun_angle_deg = { Sun =
+/// 0.53 }` (by light name).
+#[derive(Deserialize, Serialize, Debug, Clone, PartialEq)]
+#[serde(untagged)]
+pub enum SunAngleCfg {
+    /// Every directional light.
+    All(f32),
+    /// By light name.
+    Named(BTreeMap<String, f32>),
 }
 
 /// `effects = "auto"` or a list of forced effects.
@@ -145,6 +181,29 @@ impl Pipeline {
             println!("{file}: {}", choice.summary);
             p.chosen = Some(choice.summary);
         }
+        if let Some(EnvironmentCfg::File(f)) = &mut p.environment {
+            let joined = path.parent().unwrap_or(Path::new(".")).join(&*f);
+            *f = std::path::absolute(&joined).unwrap_or(joined);
+        }
+        let check = |key: &str, v: Option<f32>, ok: bool, range: &str| match v {
+            Some(v) if !ok => bail!("{file}: {key} = {v} is out of range ({range})"),
+            _ => Ok(()),
+        };
+        let strength = p.environment_strength;
+        check("environment_strength", strength, strength.is_none_or(|v| v.is_finite() && v >= 0.0), ">= 0")?;
+        let rotation = p.environment_rotation_deg;
+        check("environment_rotation_deg", rotation, rotation.is_none_or(f32::is_finite), "finite")?;
+        if let Some(EnvironmentCfg::Colour(c)) = &p.environment
+            && !c.iter().all(|v| v.is_finite() && *v >= 0.0)
+        {
+            bail!("{file}: environment = {c:?}: radiance must be finite and non-negative");
+        }
+        for (name, deg) in p.sun_angles() {
+            if !(deg > 0.0 && deg < 180.0) {
+                let key = name.map_or("sun_angle_deg".to_string(), |n| format!("sun_angle_deg.{n}"));
+                bail!("{file}: {key} = {deg} is out of range (0 < degrees < 180)");
+            }
+        }
         let fail = |e: String| anyhow::anyhow!("{file}: {e}");
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
@@ -191,9 +250,50 @@ impl Pipeline {
     pub fn live_args(&self, scene: &Path, out: &Path, frames: u32) -> Vec<String> {
         let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
         a.extend(["--frames".into(), frames.to_string(), "--seed".into(), self.seed.to_string()]);
-        a.extend(["--light-units".into(), self.light_units.to_string()]);
+        a.extend(self.scene_args());
         a.extend(self.live.to_args());
         a
+    }
+
+    /// The sun angles as (light name or all, degrees).
+    fn sun_angles(&self) -> Vec<(Option<String>, f32)> {
+        match &self.sun_angle_deg {
+            None => Vec::new(),
+            Some(SunAngleCfg::All(d)) => vec![(None, *d)],
+            Some(SunAngleCfg::Named(m)) => m.iter().map(|(n, d)| (Some(n.clone()), *d)).collect(),
+        }
+    }
+
+    /// How every program that loads the scene reads and lights it: the light
+    /// units, the environment and the sun angles, as options
+    /// ([`pm_stage::SceneArgs`]'s).
+    pub fn scene_args(&self) -> Vec<String> {
+        let mut a = vec!["--light-units".to_string(), self.light_units.to_string()];
+        match &self.environment {
+            Some(EnvironmentCfg::File(f)) => a.extend(["--environment".into(), f.display().to_string()]),
+            Some(EnvironmentCfg::Colour([r, g, b])) => a.extend(["--environment".into(), format!("{r},{g},{b}")]),
+            None => {}
+        }
+        if let Some(v) = self.environment_strength {
+            a.extend(["--environment-strength".into(), v.to_string()]);
+        }
+        if let Some(v) = self.environment_rotation_deg {
+            a.extend(["--environment-rotation-deg".into(), v.to_string()]);
+        }
+        for (name, deg) in self.sun_angles() {
+            let v = name.map_or(deg.to_string(), |n| format!("{n}={deg}"));
+            a.extend(["--sun-angle-deg".into(), v]);
+        }
+        a
+    }
+
+    /// The environment image file, if the settings name one (an input of every
+    /// step that loads the scene).
+    pub fn environment_file(&self) -> Option<&Path> {
+        match &self.environment {
+            Some(EnvironmentCfg::File(f)) => Some(f),
+            _ => None,
+        }
     }
 }
 

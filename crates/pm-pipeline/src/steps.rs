@@ -89,7 +89,8 @@ impl Step {
 pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
     let o = |f: &str| out.join(f);
     let s = |p: &Path| p.display().to_string();
-    let scene_files = scene_inputs(scene)?;
+    let mut scene_files = scene_inputs(scene)?;
+    scene_files.extend(cfg.environment_file().map(Path::to_owned));
     let seed = ["--seed".to_string(), cfg.seed.to_string()];
     let mut trace = cfg.trace.clone();
     if !indirect {
@@ -98,9 +99,9 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
     if !caustics {
         trace.caustic_photons = 0;
     }
-    let units = ["--light-units".to_string(), cfg.light_units.to_string()];
+    let scene_args = cfg.scene_args();
     let mut trace_args = vec!["--scene".into(), s(scene)];
-    trace_args.extend(units.clone());
+    trace_args.extend(scene_args.clone());
     trace_args.extend(trace.to_args());
     trace_args.extend(seed.clone());
     for (name, share) in &cfg.light_shares {
@@ -151,7 +152,7 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
     });
     let r = &cfg.render;
     let mut base = vec!["--scene".into(), s(scene)];
-    base.extend(units);
+    base.extend(scene_args);
     if indirect {
         base.extend(["--global".into(), s(&o("global.irr.pmap"))]);
     } else {
@@ -218,7 +219,8 @@ pub fn step_key(program: &Path, args: &[String], inputs: &[PathBuf]) -> String {
     h.finalize().to_hex().to_string()
 }
 
-/// The scene file and the external buffers and images a .gltf references.
+/// The scene file and the external buffers and images a .gltf references, and
+/// the environment image its scenes' extras name.
 pub fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
     let mut files = vec![scene.to_owned()];
     let bytes = std::fs::read(scene).with_context(|| format!("{}: cannot read", scene.display()))?;
@@ -229,6 +231,11 @@ pub fn scene_inputs(scene: &Path) -> Result<Vec<PathBuf>> {
                 if let Some(uri) = item["uri"].as_str().filter(|u| !u.starts_with("data:")) {
                     files.push(dir.join(uri));
                 }
+            }
+        }
+        for scene in doc["scenes"].as_array().into_iter().flatten() {
+            if let Some(f) = scene["extras"]["environment"]["file"].as_str() {
+                files.push(dir.join(f));
             }
         }
     }

@@ -75,8 +75,10 @@ fn path_radiance(
     let mut beta = Rgb::ONE;
     let mut l = Components::default();
     let mut prev_pdf = 0.0f32;
-    // The last non-specular shading point (light sampling's densities depend on it).
+    // The last non-specular shading point and its normal on the side light comes
+    // from (light sampling's densities depend on them).
     let mut prev_p = o;
+    let mut prev_n = Vec3::Z;
     let mut prev_specular = true;
     // Classification of emission found at the next hit, and the path's history.
     let mut emission_layer = Layer::Direct;
@@ -84,7 +86,16 @@ fn path_radiance(
     let mut n_diffuse = 0u32;
     for depth in 0..MAX_PATH {
         let hit = if depth == 0 { first.resolve(scene, o, d) } else { scene.intersect(o, d, f32::INFINITY) };
-        let Some(hit) = hit else { return l };
+        let Some(hit) = hit else {
+            // Left the scene: the environment and sun discs, weighed against light
+            // sampling like emission found on a surface.
+            let le = scene.escaped(d);
+            if le.max_element() > 0.0 {
+                let w = if prev_specular { 1.0 } else { power_heuristic(prev_pdf, light.pdf_escaped(prev_n, d)) };
+                l.add_to(emission_layer, beta * le * w);
+            }
+            return l;
+        };
         beta *= scene.transmittance(&hit, d);
         let wo = -d;
         let le = scene.emitted(&hit, wo);
@@ -161,6 +172,7 @@ fn path_radiance(
             return l;
         }
         prev_p = hit.p;
+        prev_n = pm_scene::facing(hit.ng, wo);
         o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;
     }

@@ -300,6 +300,29 @@ pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
     1.0 / (TAU * (1.0 - cos_max))
 }
 
+/// Uniform direction in a small cone around +z given by `cap` = 1 - cos(theta_max)
+/// (the sun's disc: a 0.5-degree sun has cap 9.5e-6, which 1 - cos_max in f32
+/// holds only to 0.6%); pdf = [`uniform_cap_pdf`].
+pub fn uniform_cap(u: Vec2, cap: f32) -> Vec3 {
+    let one_minus_cos = u.x * cap;
+    let cos_t = 1.0 - one_minus_cos;
+    let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+/// Density of [`uniform_cap`] [sr^-1]: 1 / (2 pi cap).
+pub fn uniform_cap_pdf(cap: f32) -> f32 {
+    1.0 / (TAU * cap)
+}
+
+/// True when unit direction `d` lies in the cone of `cap` = 1 - cos(theta_max)
+/// around unit `axis`: |d - axis|^2 = 2 (1 - cos) <= 2 cap, precise for small
+/// cones where d . axis rounds to 1.
+pub fn in_cap(d: Vec3, axis: Vec3, cap: f32) -> bool {
+    (d - axis).length_squared() <= 2.0 * cap
+}
+
 /// Uniform barycentrics (b0, b1) on a triangle (pbrt-v4's area-preserving warp,
 /// Heitz 2019 "A Low-Distortion Map Between Triangle and Square").
 pub fn uniform_triangle(u: Vec2) -> Vec2 {

@@ -198,7 +198,7 @@ impl Scene {
                         *direction = axis;
                     }
                 }
-                LightKind::Area { .. } => {}
+                LightKind::Area { .. } | LightKind::Environment { .. } => {}
             }
         }
         if !anim.meshes.is_empty() {

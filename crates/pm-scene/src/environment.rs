@@ -34,6 +34,71 @@ pub struct Environment {
     distribution: Option<Distribution2D>,
 }
 
+/// Where an environment's radiance comes from, before it is read.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentSource {
+    /// An equirectangular image file (.exr or .hdr).
+    File(std::path::PathBuf),
+    /// One colour of radiance [W sr^-1 m^-2 per channel].
+    Colour(Vec3),
+}
+
+/// An environment as settings name it: where it comes from, a multiplier of its
+/// radiance and its rotation about +Y \[degrees\].
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentSpec {
+    /// The image or colour.
+    pub source: EnvironmentSource,
+    /// Multiplier of the radiance.
+    pub strength: f32,
+    /// Rotation about +Y \[degrees\].
+    pub rotation_deg: f32,
+}
+
+impl EnvironmentSpec {
+    /// The environment a glTF scene's `extras` name, if any:
+    /// `"environment": {"file": "sky.hdr"}` (relative to `base_dir`, the glTF
+    /// file's folder) or `{"color": [r, g, b]}` (radiance), each with optional
+    /// `"strength"` (default 1) and `"rotation_deg"` (default 0). Anything else
+    /// under `"environment"` is an error saying what is expected.
+    pub fn from_extras(extras: &str, base_dir: &std::path::Path) -> Result<Option<EnvironmentSpec>, String> {
+        #[derive(serde::Deserialize)]
+        struct Extras {
+            environment: Option<Env>,
+        }
+        #[derive(serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Env {
+            file: Option<std::path::PathBuf>,
+            color: Option<[f32; 3]>,
+            #[serde(default = "one")]
+            strength: f32,
+            #[serde(default)]
+            rotation_deg: f32,
+        }
+        fn one() -> f32 {
+            1.0
+        }
+        let Ok(x) = serde_json::from_str::<Extras>(extras) else {
+            // The extras of other tools: only an "environment" key is ours.
+            let v: serde_json::Value = serde_json::from_str(extras).map_err(|e| e.to_string())?;
+            return match v.get("environment") {
+                None => Ok(None),
+                Some(e) => Err(format!(
+                    "scene extras \"environment\": {e} is not {{\"file\": PATH}} or {{\"color\": [R, G, B]}} with optional \"strength\" and \"rotation_deg\""
+                )),
+            };
+        };
+        let Some(e) = x.environment else { return Ok(None) };
+        let source = match (e.file, e.color) {
+            (Some(f), None) => EnvironmentSource::File(base_dir.join(f)),
+            (None, Some(c)) => EnvironmentSource::Colour(Vec3::from_array(c)),
+            _ => return Err("scene extras \"environment\": give exactly one of \"file\" and \"color\"".into()),
+        };
+        Ok(Some(EnvironmentSpec { source, strength: e.strength, rotation_deg: e.rotation_deg }))
+    }
+}
+
 /// A direction toward the environment, sampled by [`Environment::sample`].
 #[derive(Clone, Copy, Debug)]
 pub struct EnvironmentSample {
@@ -108,6 +173,22 @@ impl Environment {
             texels,
             rotation: (a.cos(), a.sin()),
         })
+    }
+
+    /// A hash of everything that decides the radiance (size, texels, rotation):
+    /// what the scene's content hash records of its environment.
+    pub fn identity(&self) -> [u8; 32] {
+        let mut h = blake3::Hasher::new();
+        h.update(&(self.width as u64).to_le_bytes());
+        h.update(&self.rotation.0.to_le_bytes());
+        h.update(&self.rotation.1.to_le_bytes());
+        let mut bytes = Vec::with_capacity(12 * 4096);
+        for row in self.texels.chunks(4096) {
+            bytes.clear();
+            bytes.extend(row.iter().flat_map(|t| t.to_array()).flat_map(f32::to_le_bytes));
+            h.update(&bytes);
+        }
+        *h.finalize().as_bytes()
     }
 
     /// True when every direction has the same radiance.

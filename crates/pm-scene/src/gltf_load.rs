@@ -84,6 +84,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     // camera is within 8 m of it keeps its coordinates unchanged. (A 1,024 m grid
     // left the 0.5 m test box at 1e6 m 448 m from its origin, 30 um apart, and
     // image-space photon mapping lost 1% of its indirect light there; issue 36.)
+    let gltf_scene_extras = scene.extras().clone();
     let nodes = node_worlds(&scene).map_err(content)?;
     let origin = nodes
         .iter()
@@ -134,6 +135,10 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         Scene::build(triangles, mats.materials, mats.textures, lights, objects, camera, content_hash, warnings);
     scene.animation = animation;
     scene.origin = origin;
+    scene.environment_spec = match gltf_scene_extras {
+        Some(x) => crate::EnvironmentSpec::from_extras(x.get(), base_dir).map_err(content)?,
+        None => None,
+    };
     scene.load_seconds = start.elapsed().as_secs_f64();
     Ok(scene)
 }
@@ -511,7 +516,7 @@ impl NodeWalk {
                 if axis == Vec3::ZERO {
                     return Err(format!("light '{node_name}': degenerate orientation"));
                 }
-                LightKind::Directional { direction: axis, irradiance: value, center: Vec3::ZERO, radius: 0.0 }
+                LightKind::Directional { direction: axis, irradiance: value, cap: 0.0, center: Vec3::ZERO, radius: 0.0 }
             }
         };
         if animation.moves(node.index()) {

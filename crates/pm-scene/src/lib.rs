@@ -28,10 +28,14 @@ mod mesh;
 
 pub use anim::Animation;
 pub use camera::{Camera, CameraRays};
-pub use environment::{Environment, EnvironmentSample, direction_to_uv, uv_to_direction};
+pub use environment::{
+    Environment, EnvironmentSample, EnvironmentSource, EnvironmentSpec, direction_to_uv, uv_to_direction,
+};
 pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin};
 pub use gltf_load::{SceneError, load, load_with};
-pub use light::{EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff};
+pub use light::{
+    EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff, sun_radiance,
+};
 pub use material::{AlphaMode, Material, Texture, TextureRef, Wrap};
 pub use memory::MemoryUse;
 pub use mesh::{Bounds, Object, Triangle, TriangleExtras, bounds_of};
@@ -98,8 +102,11 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Base-colour textures.
     pub textures: Vec<Texture>,
-    /// Light sources (emissive meshes and punctual lights).
+    /// Light sources (emissive meshes, punctual lights and the environment).
     pub lights: Vec<Light>,
+    /// The lights that rays leaving the scene see (an environment, suns with a
+    /// size), by index into `lights`: what [`Scene::escaped`] sums.
+    pub infinite_lights: Vec<u32>,
     /// Mesh primitive instances, in file order, covering every triangle.
     pub objects: Vec<Object>,
     /// For each triangle, the index of the area light it belongs to (u32::MAX: none).
@@ -119,6 +126,9 @@ pub struct Scene {
     pub content_hash: [u8; 32],
     /// Problems that did not stop loading, each reported once.
     pub warnings: Vec<String>,
+    /// The environment the glTF file's scene extras name (`"environment"`), not yet
+    /// read: a program reads it unless its own settings name another.
+    pub environment_spec: Option<EnvironmentSpec>,
     /// The glTF animations that move lights and the camera ([`Scene::set_time`]).
     pub animation: Animation,
     /// What loading took \[s\]: reading and decoding the file (geometry, textures,
@@ -172,6 +182,8 @@ impl Scene {
             bvh_seconds,
             any_alpha,
             light_of_triangle,
+            infinite_lights: Vec::new(),
+            environment_spec: None,
             animation: Animation::default(),
             triangles,
             materials,
@@ -231,6 +243,75 @@ impl Scene {
     /// Sum of the power of all lights [W per channel].
     pub fn total_power(&self) -> Rgb {
         self.lights.iter().map(|l| l.power).sum()
+    }
+
+    /// Radiance L [W sr^-1 m^-2 per channel] arriving along a ray that leaves the
+    /// scene in unit direction `d`: the environment and the discs of suns with a
+    /// size (zero in a scene without them).
+    #[inline]
+    pub fn escaped(&self, d: Vec3) -> Rgb {
+        let mut l = Rgb::ZERO;
+        for &i in &self.infinite_lights {
+            l += self.lights[i as usize].radiance_escaped(d);
+        }
+        l
+    }
+
+    /// The environment light, if the scene has one.
+    pub fn environment(&self) -> Option<&Environment> {
+        self.lights.iter().find_map(|l| match &l.kind {
+            LightKind::Environment { env, .. } => Some(&**env),
+            _ => None,
+        })
+    }
+
+    /// Light the scene with `env` from infinitely far away (replacing an
+    /// environment it had): a light named "environment" whose power is pi R^2
+    /// times the integral of its radiance, R the bounding sphere's radius.
+    /// The environment's radiance and rotation join the scene's content hash, so
+    /// photon maps traced under another sky are refused.
+    pub fn set_environment(&mut self, env: Environment) {
+        let identity = env.identity();
+        self.lights.retain(|l| !matches!(l.kind, LightKind::Environment { .. }));
+        self.lights.push(Light {
+            name: "environment".into(),
+            kind: LightKind::Environment { env: std::sync::Arc::new(env), center: Vec3::ZERO, radius: 0.0 },
+            power: Rgb::ZERO,
+        });
+        self.relight(b"environment", &identity);
+    }
+
+    /// Give directional lights a size: a disc of angular diameter `angle_deg`
+    /// (0 < angle < 180) with the same irradiance at normal incidence, for the
+    /// lights named `name` (all directional lights when `None`). Returns how many
+    /// lights changed. The content hash records the change.
+    pub fn set_sun_angle(&mut self, name: Option<&str>, angle_deg: f32) -> usize {
+        let half = 0.5 * angle_deg.to_radians();
+        // 1 - cos(half) = 2 sin^2(half / 2), exact for small angles.
+        let cap = 2.0 * (0.5 * half).sin().powi(2);
+        let mut n = 0;
+        for l in &mut self.lights {
+            if let LightKind::Directional { cap: c, .. } = &mut l.kind
+                && name.is_none_or(|want| l.name == want)
+            {
+                *c = cap;
+                n += 1;
+            }
+        }
+        let tag = format!("sun {name:?} {angle_deg}");
+        self.relight(tag.as_bytes(), &[]);
+        n
+    }
+
+    /// Recompute the lights' powers and fold a change of the lighting (`what`,
+    /// `identity`) into the content hash.
+    fn relight(&mut self, what: &[u8], identity: &[u8]) {
+        light::finish_lights(self);
+        let mut h = blake3::Hasher::new();
+        h.update(&self.content_hash);
+        h.update(what);
+        h.update(identity);
+        self.content_hash = *h.finalize().as_bytes();
     }
 }
 

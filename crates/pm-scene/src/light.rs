@@ -5,8 +5,8 @@ use crate::Scene;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_sampling::{
-    FOUR_PI, Sampler, concentric_disk, cosine_hemisphere, sample_cdf, to_world, uniform_cone, uniform_cone_pdf,
-    uniform_sphere,
+    FOUR_PI, Sampler, concentric_disk, cosine_hemisphere, in_cap, sample_cdf, to_world, uniform_cap, uniform_cap_pdf,
+    uniform_cone, uniform_cone_pdf, uniform_sphere,
 };
 use std::f32::consts::{PI, TAU};
 
@@ -59,17 +59,39 @@ pub enum LightKind {
         /// cos(outer cone angle).
         cos_outer: f32,
     },
-    /// Distant light: parallel rays.
+    /// Distant light: parallel rays, or a sun with a size: a disc of directions
+    /// of uniform radiance (issue 37, `sun_angle_deg`).
     Directional {
-        /// Unit direction the light travels (the node's -Z).
+        /// Unit direction the light travels (the node's -Z; the disc's axis).
         direction: Vec3,
-        /// Irradiance E on a surface facing the light [W m^-2 per channel].
+        /// Irradiance E on a surface facing the light [W m^-2 per channel]; a sun
+        /// with a size keeps it at normal incidence (its radiance is E over the
+        /// disc's projected solid angle, [`sun_radiance`]).
         irradiance: Rgb,
+        /// 1 - cos of the disc's angular radius; 0 for parallel rays (a delta light).
+        cap: f32,
         /// Centre of the scene's bounding sphere \[m\].
         center: Vec3,
         /// Radius of the scene's bounding sphere \[m\]: photons start on a disk this big.
         radius: f32,
     },
+    /// Light from infinitely far away in every direction: an environment image or
+    /// colour ([`crate::Environment`]; pbrt-v4's `ImageInfiniteLight`).
+    Environment {
+        /// The radiance at infinity.
+        env: std::sync::Arc<crate::Environment>,
+        /// Centre of the scene's bounding sphere \[m\].
+        center: Vec3,
+        /// Radius of the scene's bounding sphere \[m\]: photons start on a disk this big.
+        radius: f32,
+    },
+}
+
+/// Radiance L [W sr^-1 m^-2 per channel] of a sun disc of `cap` = 1 - cos(theta_max)
+/// that gives irradiance `e` [W m^-2] at normal incidence: E = L pi sin^2(theta_max)
+/// and sin^2 = cap (2 - cap).
+pub fn sun_radiance(e: Rgb, cap: f32) -> Rgb {
+    e / (PI * cap * (2.0 - cap))
 }
 
 /// A light source.
@@ -79,8 +101,10 @@ pub struct Light {
     pub name: String,
     /// Parameters.
     pub kind: LightKind,
-    /// Emitted power Phi [W per channel]; for directional lights the power crossing
-    /// the scene's bounding disk, E pi R^2.
+    /// Emitted power Phi [W per channel]; for lights at infinity the power crossing
+    /// a disc of the scene's bounding radius R facing each direction they shine
+    /// from: E pi R^2 for parallel rays, pi R^2 times the integral of the radiance
+    /// over the directions for a sun with a size and an environment.
     pub power: Rgb,
 }
 
@@ -290,36 +314,68 @@ impl Light {
                 let f = spot_falloff(d.dot(*direction), *cos_inner, *cos_outer);
                 (f > 0.0 && pdf > 0.0).then(|| EmittedRay { origin: *position, dir: d, power: *intensity * (f / pdf) })
             }
-            LightKind::Directional { direction, irradiance, center, radius } => {
-                let (t, b) = pm_sampling::basis(*direction);
-                let (disk_center, disk_radius, area_pdf) = if targets.is_empty() {
-                    (*center, *radius, 1.0 / (PI * radius * radius))
+            LightKind::Directional { direction, irradiance, cap, center, radius } => {
+                if *cap > 0.0 {
+                    // A direction in the disc, each carrying L / pdf = L 2 pi cap.
+                    let wi = to_world(uniform_cap(u_dir, *cap), -*direction);
+                    let e = sun_radiance(*irradiance, *cap) / uniform_cap_pdf(*cap);
+                    from_disc(-wi, e, *center, *radius, targets, u_pos, u_tgt)
                 } else {
-                    let tg = pick(u_tgt);
-                    (tg.center, tg.radius, 0.0)
-                };
-                let q = concentric_disk(u_pos) * disk_radius;
-                // Start outside the scene's bounding sphere, on the plane through disk_center.
-                let along = (disk_center - *center).dot(*direction);
-                let origin = disk_center + t * q.x + b * q.y - *direction * (along + *radius * 1.01 + 1e-6);
-                let area_pdf = if targets.is_empty() {
-                    area_pdf
-                } else {
-                    // Mixture of uniform densities over each target's disk (in the plane).
-                    let mut pdf = 0.0;
-                    for tg in targets {
-                        let off = origin - tg.center;
-                        let perp = off - *direction * off.dot(*direction);
-                        if perp.length_squared() <= tg.radius * tg.radius {
-                            pdf += 1.0 / (PI * tg.radius * tg.radius);
-                        }
-                    }
-                    pdf / targets.len() as f32
-                };
-                (area_pdf > 0.0).then(|| EmittedRay { origin, dir: *direction, power: *irradiance / area_pdf })
+                    from_disc(*direction, *irradiance, *center, *radius, targets, u_pos, u_tgt)
+                }
+            }
+            LightKind::Environment { env, center, radius } => {
+                // pbrt-v4's ImageInfiniteLight::SampleLe: a direction by the image's
+                // radiance, carrying L / pdf, then a point on the disc facing it.
+                let es = env.sample(u_dir)?;
+                from_disc(-es.wi, es.l / es.pdf, *center, *radius, targets, u_pos, u_tgt)
             }
         }
     }
+}
+
+/// A ray of light at infinity travelling in unit direction `dir`, whose
+/// directions carry "irradiance" `e` (E of parallel rays, or L / pdf of a sampled
+/// direction) [W m^-2 per channel]: from a point uniform on the disc of the
+/// scene's bounding sphere (`center`, `radius`) perpendicular to `dir`, or with
+/// `targets` on one target's disc, chosen by `u_tgt` (the mixture of the targets'
+/// discs that hold the point weighs it), started outside the bounding sphere.
+/// Power e / pdf_area (Jensen 2001, section 5.1; pbrt-v4's `SampleLe`).
+fn from_disc(
+    dir: Vec3,
+    e: Rgb,
+    center: Vec3,
+    radius: f32,
+    targets: &[Target],
+    u_pos: glam::Vec2,
+    u_tgt: f32,
+) -> Option<EmittedRay> {
+    let (t, b) = pm_sampling::basis(dir);
+    let (disk_center, disk_radius) = if targets.is_empty() {
+        (center, radius)
+    } else {
+        let tg = &targets[((u_tgt * targets.len() as f32) as usize).min(targets.len() - 1)];
+        (tg.center, tg.radius)
+    };
+    let q = concentric_disk(u_pos) * disk_radius;
+    // Start outside the scene's bounding sphere, on the plane through disk_center.
+    let along = (disk_center - center).dot(dir);
+    let origin = disk_center + t * q.x + b * q.y - dir * (along + radius * 1.01 + 1e-6);
+    let area_pdf = if targets.is_empty() {
+        1.0 / (PI * radius * radius)
+    } else {
+        // Mixture of uniform densities over each target's disk (in the plane).
+        let mut pdf = 0.0;
+        for tg in targets {
+            let off = origin - tg.center;
+            let perp = off - dir * off.dot(dir);
+            if perp.length_squared() <= tg.radius * tg.radius {
+                pdf += 1.0 / (PI * tg.radius * tg.radius);
+            }
+        }
+        pdf / targets.len() as f32
+    };
+    (area_pdf > 0.0).then(|| EmittedRay { origin, dir, power: e / area_pdf })
 }
 
 /// Area-light triangles are sampled by solid angle from points nearer to them than
@@ -564,13 +620,24 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
             LightKind::Spot { intensity, cos_inner, cos_outer, .. } => {
                 *intensity * (TAU * ((1.0 - *cos_inner) + (*cos_inner - *cos_outer) / 3.0))
             }
-            LightKind::Directional { irradiance, center: c, radius: r, .. } => {
+            LightKind::Directional { irradiance, cap, center: c, radius: r, .. } => {
                 *c = center;
                 *r = radius;
-                *irradiance * (PI * radius * radius)
+                if *cap > 0.0 {
+                    // L times the disc's solid angle 2 pi cap, through pi R^2.
+                    sun_radiance(*irradiance, *cap) * (TAU * *cap * PI * radius * radius)
+                } else {
+                    *irradiance * (PI * radius * radius)
+                }
+            }
+            LightKind::Environment { env, center: c, radius: r } => {
+                *c = center;
+                *r = radius;
+                env.integral() * (PI * radius * radius)
             }
         };
     }
+    scene.infinite_lights = (0..lights.len() as u32).filter(|&i| lights[i as usize].radiance_escaped_any()).collect();
     scene.lights = lights;
 }
 
@@ -586,7 +653,8 @@ pub struct LightSample {
     pub li: Rgb,
     /// Solid-angle density of `wi` [sr^-1]; 1 for punctual lights (delta).
     pub pdf: f32,
-    /// True for point, spot and directional lights (no MIS with BSDF sampling).
+    /// True for point, spot and parallel directional lights (no MIS with BSDF
+    /// sampling).
     pub delta: bool,
 }
 
@@ -596,8 +664,11 @@ impl Light {
     /// area, converted to solid angle; or, when `p` is near the triangle (see
     /// `near_solid_angle`), a direction uniform in the solid angle it subtends
     /// (Arvo 1995), whose weight stays bounded where the area density's d^2 /
-    /// cos goes to zero.
-    pub fn sample_li(&self, scene: &Scene, p: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
+    /// cos goes to zero. A sun with a size: uniform over its disc. An environment:
+    /// by its radiance ([`crate::Environment::sample`]), or, one colour, over the
+    /// cosine-weighted hemisphere of `n` (the unit normal on the side light may
+    /// arrive from), which is then the exact importance of a Lambertian surface.
+    pub fn sample_li(&self, scene: &Scene, p: Vec3, n: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
             LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. } => {
                 let i = sample_cdf(cdf, u_sel);
@@ -660,9 +731,64 @@ impl Light {
                 let f = spot_falloff((-wi).dot(*direction), *cos_inner, *cos_outer);
                 (f > 0.0).then(|| LightSample { wi, dist, li: *intensity * (f / dist2), pdf: 1.0, delta: true })
             }
-            LightKind::Directional { direction, irradiance, .. } => {
-                Some(LightSample { wi: -*direction, dist: f32::INFINITY, li: *irradiance, pdf: 1.0, delta: true })
+            LightKind::Directional { direction, irradiance, cap, .. } => {
+                if *cap > 0.0 {
+                    let wi = to_world(uniform_cap(u, *cap), -*direction);
+                    let li = sun_radiance(*irradiance, *cap);
+                    Some(LightSample { wi, dist: f32::INFINITY, li, pdf: uniform_cap_pdf(*cap), delta: false })
+                } else {
+                    Some(LightSample { wi: -*direction, dist: f32::INFINITY, li: *irradiance, pdf: 1.0, delta: true })
+                }
             }
+            LightKind::Environment { env, .. } => {
+                let (wi, li, pdf) = if env.is_constant() {
+                    let wi = to_world(cosine_hemisphere(u), n);
+                    (wi, env.radiance(wi), pm_sampling::cosine_hemisphere_pdf(wi.dot(n)))
+                } else {
+                    let es = env.sample(u)?;
+                    (es.wi, es.l, es.pdf)
+                };
+                (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li, pdf, delta: false })
+            }
+        }
+    }
+
+    /// Radiance [W sr^-1 m^-2 per channel] this light sends along a ray that
+    /// leaves the scene in unit direction `wi` (toward the sky): an environment's,
+    /// a sun disc's inside the disc, zero for every other light.
+    pub fn radiance_escaped(&self, wi: Vec3) -> Rgb {
+        match &self.kind {
+            LightKind::Environment { env, .. } => env.radiance(wi),
+            LightKind::Directional { direction, irradiance, cap, .. }
+                if *cap > 0.0 && in_cap(wi, -*direction, *cap) =>
+            {
+                sun_radiance(*irradiance, *cap)
+            }
+            _ => Rgb::ZERO,
+        }
+    }
+
+    /// True for lights that rays leaving the scene can find (an environment, a sun
+    /// with a size): [`Self::radiance_escaped`] is not always zero.
+    pub fn radiance_escaped_any(&self) -> bool {
+        match &self.kind {
+            LightKind::Environment { .. } => true,
+            LightKind::Directional { cap, .. } => *cap > 0.0,
+            _ => false,
+        }
+    }
+
+    /// Solid-angle density [sr^-1] with which [`Light::sample_li`] (with normal `n`)
+    /// picks unit direction `wi` toward the sky, for MIS of BSDF-sampled rays that
+    /// leave the scene; 0 for lights other than an environment or a sun disc.
+    pub fn pdf_escaped(&self, n: Vec3, wi: Vec3) -> f32 {
+        match &self.kind {
+            LightKind::Environment { env, .. } if env.is_constant() => pm_sampling::cosine_hemisphere_pdf(wi.dot(n)),
+            LightKind::Environment { env, .. } => env.pdf(wi),
+            LightKind::Directional { direction, cap, .. } if *cap > 0.0 && in_cap(wi, -*direction, *cap) => {
+                uniform_cap_pdf(*cap)
+            }
+            _ => 0.0,
         }
     }
 

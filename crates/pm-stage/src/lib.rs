@@ -51,9 +51,9 @@ pub fn thread_count() -> usize {
     rayon::current_num_threads()
 }
 
-/// How a stage reads its scene file: `--light-units` on every stage that loads one,
-/// pipeline.toml's top-level `light_units` for the runner.
-#[derive(clap::Args, Debug, Clone, Copy)]
+/// How a stage reads its scene file and lights it: options of every stage that
+/// loads one, pipeline.toml's top-level keys of the same names for the runner.
+#[derive(clap::Args, Debug, Clone, Default)]
 pub struct SceneArgs {
     /// Units of the glTF file's point, spot and directional light intensities:
     /// photometric (the glTF specification: candela and lux, divided by 683 lm/W into
@@ -62,11 +62,86 @@ pub struct SceneArgs {
     /// radiance either way.
     #[arg(long, value_enum, default_value_t = pm_scene::LightUnits::Photometric)]
     pub light_units: pm_scene::LightUnits,
+    /// Light from infinitely far away: an equirectangular image (.exr or Radiance
+    /// .hdr, twice as wide as high, oriented as Blender's Environment Texture: the
+    /// image's centre faces +X, its top row the zenith) of radiance
+    /// [W sr^-1 m^-2 per channel], or one colour R,G,B of radiance. Replaces an
+    /// environment the glTF file's scene extras name.
+    #[arg(long, value_name = "FILE|R,G,B")]
+    pub environment: Option<String>,
+    /// Multiplier of the environment's radiance.
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    pub environment_strength: f32,
+    /// Rotation of the environment about the up (+Y) axis [degrees] (Blender's
+    /// mapping rotation about Z): 90 turns the image's centre from +X to -Z.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
+    pub environment_rotation_deg: f32,
+    /// Give directional lights a size: the angular diameter of the sun's disc
+    /// [degrees, 0 < DEG < 180] (Blender's sun "angle", lost in glTF export), with
+    /// the same irradiance at normal incidence: soft shadows. NAME=DEG for one
+    /// light, DEG for all; repeatable.
+    #[arg(long, value_name = "[NAME=]DEG")]
+    pub sun_angle_deg: Vec<String>,
+}
+
+/// One `--sun-angle-deg` value: the light's name (all directional lights when
+/// none) and the angular diameter [degrees].
+pub fn parse_sun_angle(s: &str) -> Result<(Option<String>, f32)> {
+    let (name, deg) = match s.rsplit_once('=') {
+        Some((n, d)) => (Some(n.trim().to_string()), d),
+        None => (None, s),
+    };
+    let deg: f32 = deg.trim().parse().map_err(|_| anyhow::anyhow!("--sun-angle-deg {s}: expected [NAME=]DEG"))?;
+    if !(deg > 0.0 && deg < 180.0) {
+        anyhow::bail!("--sun-angle-deg {s}: the angle must be in (0, 180) degrees");
+    }
+    Ok((name, deg))
+}
+
+/// An `--environment` value that is a colour: three comma-separated numbers.
+fn parse_colour(s: &str) -> Option<glam::Vec3> {
+    let v: Vec<f32> = s.split(',').map(|x| x.trim().parse().ok()).collect::<Option<_>>()?;
+    (v.len() == 3).then(|| glam::Vec3::new(v[0], v[1], v[2]))
+}
+
+/// Light `scene` (read from `path`) as `how` says: the environment (the command
+/// line's, else the one the glTF file's scene extras name) and sun sizes. Every
+/// error names the file at fault.
+pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneArgs) -> Result<()> {
+    let from_file = scene.environment_spec.clone();
+    let spec = match &how.environment {
+        Some(e) => Some(pm_scene::EnvironmentSpec {
+            source: match parse_colour(e) {
+                Some(c) => pm_scene::EnvironmentSource::Colour(c),
+                None => pm_scene::EnvironmentSource::File(e.into()),
+            },
+            strength: how.environment_strength,
+            rotation_deg: how.environment_rotation_deg,
+        }),
+        None => from_file,
+    };
+    if let Some(spec) = spec {
+        let env = match &spec.source {
+            pm_scene::EnvironmentSource::Colour(c) => pm_scene::Environment::constant(*c * spec.strength)
+                .map_err(|e| anyhow::anyhow!("{}: environment: {e}", path.display()))?,
+            pm_scene::EnvironmentSource::File(f) => read_environment(f, spec.strength, spec.rotation_deg)?,
+        };
+        scene.set_environment(env);
+    }
+    for s in &how.sun_angle_deg {
+        let (name, deg) = parse_sun_angle(s)?;
+        if scene.set_sun_angle(name.as_deref(), deg) == 0 {
+            let what = name.map_or("no directional light".to_string(), |n| format!("no directional light '{n}'"));
+            anyhow::bail!("{}: --sun-angle-deg {s}: the scene has {what}", path.display());
+        }
+    }
+    Ok(())
 }
 
 /// Load a scene, printing each of its warnings once on stderr.
-pub fn load_scene(stage: &str, path: &Path, how: SceneArgs) -> Result<pm_scene::Scene> {
-    let scene = pm_scene::load_with(path, how.light_units)?;
+pub fn load_scene(stage: &str, path: &Path, how: &SceneArgs) -> Result<pm_scene::Scene> {
+    let mut scene = pm_scene::load_with(path, how.light_units)?;
+    light_scene(&mut scene, path, how)?;
     for w in &scene.warnings {
         eprintln!("{stage}: warning: {}: {w}", path.display());
     }

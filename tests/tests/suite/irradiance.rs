@@ -31,6 +31,7 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
         kind: LightKind::Directional {
             direction: Vec3::new(theta.sin(), -theta.cos(), 0.0),
             irradiance: Rgb::splat(2.0),
+            cap: 0.0,
             center: Vec3::ZERO,
             radius: 0.0,
         },

@@ -3,6 +3,7 @@
 //! module is one area; TESTING.md says what each test compares against.
 
 mod effects;
+mod environment;
 mod hard_cases;
 mod hard_geometry;
 mod hard_scenes;

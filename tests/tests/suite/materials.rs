@@ -354,7 +354,7 @@ fn textured_emitters_emit_and_are_sampled_in_proportion_to_their_texture() {
             emitted += r.power.as_dvec3();
         }
         let (u_sel, u) = (sampler.next_1d(), sampler.next_2d());
-        if let Some(ls) = light.sample_li(&s, x, u_sel, u) {
+        if let Some(ls) = light.sample_li(&s, x, Vec3::Z, u_sel, u) {
             nee += (ls.li * (ls.wi.z / ls.pdf)).as_dvec3();
         }
     }
@@ -377,6 +377,7 @@ fn over_floor(mut tris: Vec<pm_scene::Triangle>, m: pm_scene::Material, floor_em
         kind: pm_scene::LightKind::Directional {
             direction: Vec3::NEG_Y,
             irradiance: Rgb::ONE,
+            cap: 0.0,
             center: Vec3::ZERO,
             radius: 0.0,
         },

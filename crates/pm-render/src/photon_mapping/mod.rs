@@ -242,7 +242,16 @@ fn trace_from<G: PhotonRecord>(
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
-    let Some(hit) = hit else { return Components::default() };
+    let Some(hit) = hit else {
+        // Left the scene: the environment and sun discs, seen directly (a
+        // background pixel's direct layer) or through specular bounces.
+        let l = ctx.scene.escaped(d);
+        return if depth == 0 {
+            Components { direct: l, ..Default::default() }
+        } else {
+            Components { specular: l, ..Default::default() }
+        };
+    };
     let tr = ctx.scene.transmittance(&hit, d);
     let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
     if tr == Rgb::ONE { c } else { c.scaled(tr) }
