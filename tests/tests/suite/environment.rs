@@ -181,7 +181,7 @@ fn environment_photons_carry_the_irradiance_it_sends() {
 fn marker_texels_light_the_side_of_a_sphere_that_faces_them() {
     let (w, h) = (128usize, 64usize);
     let axes = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
-    let at = |u: f32, t: f32| ((u * w as f32) as usize, (t * h as f32) as usize);
+    let at = move |u: f32, t: f32| ((u * w as f32) as usize, (t * h as f32) as usize);
     type Lit = Box<dyn Fn(usize, usize) -> bool>;
     let cases: [(&str, Lit, f32, Vec3); 5] = [
         ("centre faces +X", Box::new(move |x, y| (x, y) == at(0.5, 0.5)), 0.0, Vec3::X),
