@@ -45,9 +45,13 @@ pub fn bin_dir() -> PathBuf {
     std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
 }
 
-/// Load a scene from `scenes/`.
+/// Load a scene from `scenes/`, lit as the stages light it by default (the
+/// environment its glTF extras name).
 pub fn load_scene(name: &str) -> Scene {
-    pm_scene::load(&scene_path(name)).unwrap_or_else(|e| panic!("{e}"))
+    let path = scene_path(name);
+    let mut scene = pm_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    pm_stage::light_scene(&mut scene, &path, &pm_stage::SceneArgs::default()).unwrap_or_else(|e| panic!("{e}"));
+    scene
 }
 
 /// Trace a global map with at least `stored` photons and balance it into a kd-tree
@@ -204,10 +208,16 @@ pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
 /// specular 8%, total 3% (the tolerances `components_agree_with_the_path_tracers_
 /// components` justifies). Prints each, naming `scene`.
 pub fn assert_components_agree(scene: &str, full: &pm_render::Image, path: &pm_render::Image) {
+    assert_components_agree_where(scene, full, path, &vec![true; full.total().len()]);
+}
+
+/// [`assert_components_agree`] over the pixels `keep` marks.
+pub fn assert_components_agree_where(scene: &str, full: &pm_render::Image, path: &pm_render::Image, keep: &[bool]) {
     use pm_color::Layer;
     let mean = |img: &pm_render::Image, layer: Option<Layer>| {
         let px = img.total_or_layer(layer);
-        px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
+        let kept = px.iter().zip(keep).filter(|(_, k)| **k);
+        kept.clone().map(|(p, _)| p.element_sum() as f64).sum::<f64>() / (3 * kept.count()).max(1) as f64
     };
     let tolerances = [
         (Some(Layer::Direct), 0.03),

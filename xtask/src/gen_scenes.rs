@@ -613,6 +613,121 @@ fn sphere_room(seg: u32) -> Doc {
     doc
 }
 
+/// Direction toward the sun of `sky()`: 40 degrees above the horizon, 30 degrees
+/// from +X toward -Z (glTF axes, y up).
+const SUN_ELEVATION_DEG: f32 = 40.0;
+const SUN_AZIMUTH_DEG: f32 = -30.0;
+/// The sun disc's angular radius in `sky()` \[degrees\] and its radiance
+/// [W sr^-1 m^-2]: irradiance pi (1.5 deg)^2 x 1500 = 3.2 W m^-2 at normal
+/// incidence, about three times the sky's on a horizontal surface.
+const SUN_RADIUS_DEG: f32 = 1.5;
+const SUN_RADIANCE: f32 = 1500.0;
+
+/// The environment of the HDRI scenes (`sky.hdr`, 512 x 256, Blender's
+/// equirectangular orientation): a sky from a bright horizon (radiance 0.4) to a
+/// deeper blue zenith, a darker ground below the horizon (0.05), and a sun disc.
+fn sky() -> (usize, usize, Vec<[f32; 3]>) {
+    let (w, h) = (512usize, 256usize);
+    let (el, az) = (SUN_ELEVATION_DEG.to_radians(), SUN_AZIMUTH_DEG.to_radians());
+    let sun = glam::Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
+    let cos_sun = SUN_RADIUS_DEG.to_radians().cos();
+    let px = (0..w * h)
+        .map(|i| {
+            let uv = glam::Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
+            let d = pm_scene::uv_to_direction(uv);
+            if d.dot(sun) >= cos_sun {
+                return [SUN_RADIANCE; 3];
+            }
+            if d.y < 0.0 {
+                return [0.05, 0.045, 0.04];
+            }
+            let t = d.y.sqrt();
+            let horizon = glam::Vec3::new(0.4, 0.4, 0.38);
+            let zenith = glam::Vec3::new(0.09, 0.16, 0.34);
+            // Brighter toward the sun (a little forward scattering).
+            let glow = 1.0 + 0.5 * d.dot(sun).max(0.0).powi(8);
+            ((horizon + (zenith - horizon) * t) * glow).to_array()
+        })
+        .collect();
+    (w, h, px)
+}
+
+/// The camera rotation (x, y, z, w) that turns glTF's view direction -z toward
+/// `target` from `eye`, keeping +y up.
+fn look_at(eye: [f32; 3], target: [f32; 3]) -> [f64; 4] {
+    let f = (glam::Vec3::from(target) - glam::Vec3::from(eye)).normalize();
+    let right = f.cross(glam::Vec3::Y).normalize();
+    let up = right.cross(f);
+    let q = glam::Quat::from_mat3(&glam::Mat3::from_cols(right, up, -f)).normalize();
+    q.to_array().map(|c| ((c as f64) * 1e6).round() / 1e6)
+}
+
+/// An outdoor scene lit only by `sky.hdr` (issue 37): an 8 m x 8 m grey ground,
+/// a glass sphere (the sun's caustic), a chrome sphere and a diffuse block.
+fn hdri_spheres() -> Doc {
+    let mut doc = Doc::default();
+    let ground = doc.material(diffuse("ground", [0.5, 0.5, 0.5]));
+    let red = doc.material(diffuse("block", [0.7, 0.2, 0.15]));
+    let chrome = doc.material(json!({"name": "chrome", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}}));
+    let glass = doc.material(json!({
+        "name": "glass",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {
+            "KHR_materials_transmission": {"transmissionFactor": 1.0},
+            "KHR_materials_ior": {"ior": 1.5},
+            "KHR_materials_volume": {"thicknessFactor": 0.8}
+        }
+    }));
+    doc.extensions.extend(["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"]);
+    let g = 4.0;
+    doc.mesh_node("ground", &quad([-g, 0.0, g], [g, 0.0, g], [g, 0.0, -g], [-g, 0.0, -g]), ground);
+    doc.mesh_node("sphere_glass", &sphere([0.45, 0.4, 0.35], 0.4, 48, 24, false), glass);
+    doc.mesh_node("sphere_chrome", &sphere([-0.7, 0.4, -0.3], 0.4, 48, 24, false), chrome);
+    doc.mesh_node("block", &block(0.9, -0.9, 0.5, 0.7, 0.5, 0.4), red);
+    let eye = [0.0, 1.4, 3.6];
+    doc.camera(eye, Some(look_at(eye, [0.0, 0.3, 0.0])), 0.69, 1.0);
+    doc.scene_extras = Some(json!({"environment": {"file": "sky.hdr"}}));
+    doc
+}
+
+/// A closed room (4 m x 2.6 m x 3 m, white walls, a beige floor, a block) lit
+/// only by `sky.hdr` through one window in its +X wall (1.2 m x 1 m, an opening
+/// with an invisible pane named "window": the portal of issue 37). The sun
+/// shines through it onto the floor.
+fn window_room() -> Doc {
+    let mut doc = Doc::default();
+    let white = doc.material(diffuse("walls", [0.75, 0.75, 0.75]));
+    let floor = doc.material(diffuse("floor", [0.6, 0.5, 0.4]));
+    let blocks = doc.material(diffuse("block", [0.3, 0.45, 0.7]));
+    let pane = doc.material(json!({
+        "name": "opening",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "alphaMode": "MASK"
+    }));
+    let (x0, x1, h, z) = (-2.0, 2.0, 2.6, 1.5);
+    // The window: y in [w0, w1], z in [-wz, wz] in the wall x = x1.
+    let (w0, w1, wz) = (0.9, 1.9, 0.6);
+    let walls = merge(&[
+        quad([x0, h, -z], [x1, h, -z], [x1, h, z], [x0, h, z]), // ceiling, -y
+        quad([x0, 0.0, -z], [x1, 0.0, -z], [x1, h, -z], [x0, h, -z]), // back, +z
+        quad([x0, 0.0, z], [x0, h, z], [x1, h, z], [x1, 0.0, z]), // front, -z
+        quad([x0, 0.0, z], [x0, 0.0, -z], [x0, h, -z], [x0, h, z]), // left, +x
+        // The window wall (x = x1, facing -x) around the opening.
+        quad([x1, 0.0, -z], [x1, 0.0, z], [x1, w0, z], [x1, w0, -z]),
+        quad([x1, w1, -z], [x1, w1, z], [x1, h, z], [x1, h, -z]),
+        quad([x1, w0, -z], [x1, w0, -wz], [x1, w1, -wz], [x1, w1, -z]),
+        quad([x1, w0, wz], [x1, w0, z], [x1, w1, z], [x1, w1, wz]),
+    ]);
+    doc.mesh_node("walls", &walls, white);
+    doc.mesh_node("floor", &quad([x0, 0.0, z], [x1, 0.0, z], [x1, 0.0, -z], [x0, 0.0, -z]), floor);
+    doc.mesh_node("block", &block(-0.6, -0.5, 0.6, 0.9, 0.6, 0.5), blocks);
+    doc.mesh_node("window", &quad([x1, w0, -wz], [x1, w0, wz], [x1, w1, wz], [x1, w1, -wz]), pane);
+    let eye = [-1.8, 1.4, 1.3];
+    doc.camera(eye, Some(look_at(eye, [1.5, 0.9, -0.4])), 1.1, 1.0);
+    doc.scene_extras = Some(json!({"environment": {"file": "sky.hdr"}}));
+    doc
+}
+
 /// Write the memory benchmark's big scenes into `dir` (not committed: 28 and 280 MB).
 pub fn run_big(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
@@ -640,10 +755,24 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("jozwowski_room_256", jozwowski_room(4)),
         ("jozwowski_room_1024", jozwowski_room(8)),
         ("jozwowski_room_4096", jozwowski_room(16)),
+        ("hdri_spheres", hdri_spheres()),
+        ("window_room", window_room()),
     ] {
         doc.write(dir, name, check)?;
         println!("{} {name}", if check { "up to date:" } else { "wrote" });
     }
+    // The HDRI scenes' environment.
+    let (w, h, px) = sky();
+    let path = dir.join("sky.hdr");
+    let px: Vec<glam::Vec3> = px.into_iter().map(glam::Vec3::from).collect();
+    if check {
+        if pm_image::radiance_hdr_bytes(w, h, &px)? != std::fs::read(&path).unwrap_or_default() {
+            anyhow::bail!("{} is stale: run `cargo xtask gen-scenes`", path.display());
+        }
+    } else {
+        pm_image::write_radiance_hdr(&path, w, h, &px)?;
+    }
+    println!("{} sky.hdr", if check { "up to date:" } else { "wrote" });
     Ok(())
 }
 

@@ -35,6 +35,8 @@ pub struct Doc {
     pub images: Vec<Image>,
     /// Top-level members written over the generated ones (a test's own extensions).
     pub top_level: serde_json::Map<String, Value>,
+    /// The scene's `extras` (the environment it is lit by), if any.
+    pub scene_extras: Option<Value>,
 }
 
 /// A texture image and its sampler.
@@ -252,6 +254,9 @@ impl Doc {
             "bufferViews": self.views,
             "buffers": [{"uri": format!("{name}.bin"), "byteLength": self.bin.len()}],
         });
+        if let Some(x) = &self.scene_extras {
+            root["scenes"][0]["extras"] = x.clone();
+        }
         if !self.cameras.is_empty() {
             root["cameras"] = json!(self.cameras);
         }

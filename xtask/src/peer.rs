@@ -211,6 +211,9 @@ fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>) -> Result<(
 pub(crate) fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u32) -> Result<PathBuf> {
     let refuse = |why: String| anyhow::anyhow!("{name}: {why}");
     let cam = scene.camera.as_ref().ok_or_else(|| refuse("the scene has no camera".into()))?;
+    if scene.environment_spec.is_some() || scene.environment().is_some() {
+        return Err(refuse("environment lighting is not translated".into()));
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let mut xml = String::from("<scene version=\"3.0.0\">\n");
     // Unbiased path tracing to any depth, Russian roulette from the fourth vertex

@@ -64,6 +64,10 @@ pub struct Args {
     /// Mitsuba variant of the peer rows.
     #[arg(long, default_value = "llvm_ad_rgb")]
     peer_variant: String,
+    /// A mesh of the scene that is a portal of its environment (every stage gets
+    /// `--portal`; the reference too, which converges to the same image).
+    #[arg(long)]
+    portal: Vec<String>,
 }
 
 /// One point of the sweep: the stage parameters it runs with.
@@ -240,13 +244,14 @@ fn peer_time_at(rows: &[Row], error: f64) -> Option<f64> {
 /// time after warm-up is the row's time [s].
 fn live_frame(
     bins: &Bins,
-    scene: &str,
+    scene_args: &[String],
     p: &photon_live::LiveParams,
     seed: u64,
     dir: &Path,
 ) -> Result<(pm_image::Layers, f64)> {
     let frames = (p.vertex.total / p.vertex.per_frame.max(1)).max(1) + 3;
-    let mut a = vec!["--scene".to_string(), scene.into(), "--out".into(), dir.display().to_string()];
+    let mut a = scene_args.to_vec();
+    a.extend(["--out".into(), dir.display().to_string()]);
     a.extend(["--frames".into(), frames.to_string(), "--exr".into(), "--seed".into(), seed.to_string()]);
     a.extend(p.to_args());
     stages::run(bins, "photon-live", &a, "photon-live", true)?;
@@ -269,16 +274,22 @@ fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String
 }
 
 /// The reference: two path-traced halves of `spp / 2` paths per pixel with their
-/// own seeds, cached by scene content, size and count. Returns their layers.
+/// own seeds, cached by the content of the scene and every file it reads (its
+/// environment too), the scene options, size and count. Returns their layers.
 fn reference_halves(
     bins: &Bins,
     base: &pm_pipeline::Pipeline,
-    scene: &Path,
+    (scene, scene_args): (&Path, &[String]),
     out: &Path,
     size: u32,
     spp: u32,
 ) -> Result<[pm_image::Layers; 2]> {
-    let key = format!("{}-{size}-{spp}", blake3::hash(&std::fs::read(scene)?).to_hex());
+    let mut h = blake3::Hasher::new();
+    for f in pm_pipeline::steps::scene_inputs(scene)? {
+        h.update(&std::fs::read(&f).with_context(|| format!("{}: cannot read", f.display()))?);
+    }
+    h.update(scene_args.join(" ").as_bytes());
+    let key = format!("{}-{size}-{spp}", h.finalize().to_hex());
     let key_file = out.join(format!("reference-{size}-{spp}.key"));
     let halves = [0, 1].map(|h| out.join(format!("reference-{size}-{spp}-{h}.exr")));
     if std::fs::read_to_string(&key_file).ok().as_deref() != Some(key.as_str()) || !halves.iter().all(|p| p.exists()) {
@@ -291,8 +302,8 @@ fn reference_halves(
                 height: size,
                 ..base.render.clone()
             };
-            let mut a =
-                vec!["--scene".to_string(), scene.display().to_string(), "--seed".into(), (1001 + h).to_string()];
+            let mut a = scene_args.to_vec();
+            a.extend(["--seed".into(), (1001 + h).to_string()]);
             a.extend(["--out".into(), exr.display().to_string()]);
             a.extend(p.to_args());
             let r: photon_render::Report =
@@ -322,6 +333,11 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
     let s = |v: &dyn std::fmt::Display| v.to_string();
     let scene_s = scene.display().to_string();
+    // What every stage gets to read and light the scene.
+    let mut scene_args = vec![s(&"--scene"), scene_s.clone()];
+    for p in &args.portal {
+        scene_args.extend([s(&"--portal"), p.clone()]);
+    }
 
     // The scene once, for its size and, with --peer, Mitsuba's copy of it: a Python
     // without Mitsuba or a scene it cannot take fails before the reference renders.
@@ -338,7 +354,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         };
         (diagonal, mitsuba)
     };
-    let [half_a, half_b] = reference_halves(&bins, &base, &scene, &out, size, args.reference_spp)?;
+    let [half_a, half_b] = reference_halves(&bins, &base, (&scene, &scene_args), &out, size, args.reference_spp)?;
     let n = (size * size) as usize;
     let total = |h: &pm_image::Layers| layer(h, None);
     let (a, b) = (total(&half_a), total(&half_b));
@@ -384,7 +400,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             }
             if let Some(lp) = &st.live {
                 let dir = out.join("live").join(format!("{}-s{seed}", st.label.replace(' ', "_")));
-                let (img, secs) = live_frame(&bins, &scene_s, lp, seed, &dir)?;
+                let (img, secs) = live_frame(&bins, &scene_args, lp, seed, &dir)?;
                 times[3] += secs / args.seeds as f64;
                 images.push(img);
                 continue;
@@ -397,7 +413,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
                 if !maps.contains_key(&key) {
                     std::fs::create_dir_all(&mdir)?;
                     let o = |f: &str| mdir.join(f).display().to_string();
-                    let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), mdir.display().to_string()];
+                    let mut a = scene_args.clone();
+                    a.extend([s(&"--out"), mdir.display().to_string()]);
                     a.extend(st.trace.to_args());
                     a.extend([s(&"--seed"), s(&seed)]);
                     let t: photon_trace::Report = stage(&bins, "photon-trace", &a, &mdir.join("trace.json"))?;
@@ -421,7 +438,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             }
             let id = format!("{}-s{seed}", st.label.replace(' ', "_"));
             let img = out.join(format!("{id}.exr"));
-            let mut a = vec![s(&"--scene"), scene_s.clone(), s(&"--out"), img.display().to_string()];
+            let mut a = scene_args.clone();
+            a.extend([s(&"--out"), img.display().to_string()]);
             a.extend(st.render.to_args());
             a.extend([s(&"--seed"), s(&seed)]);
             if photon_mapping {

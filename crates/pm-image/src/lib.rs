@@ -223,13 +223,18 @@ pub fn read_radiance_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>)> {
 /// shared exponent, 1% steps), atomically: what [`read_radiance_image`] reads
 /// back (generated environments, tests).
 pub fn write_radiance_hdr(path: &Path, width: usize, height: usize, pixels: &[Vec3]) -> Result<()> {
-    let rgb: Vec<image::Rgb<f32>> = pixels.iter().map(|p| image::Rgb(p.to_array())).collect();
-    let mut bytes = Vec::new();
-    image::codecs::hdr::HdrEncoder::new(&mut bytes)
-        .encode(&rgb, width, height)
+    let bytes = radiance_hdr_bytes(width, height, pixels)
         .map_err(|e| anyhow::anyhow!("{}: cannot encode Radiance HDR: {e}", path.display()))?;
     pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
         .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// The bytes [`write_radiance_hdr`] writes.
+pub fn radiance_hdr_bytes(width: usize, height: usize, pixels: &[Vec3]) -> Result<Vec<u8>> {
+    let rgb: Vec<image::Rgb<f32>> = pixels.iter().map(|p| image::Rgb(p.to_array())).collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes).encode(&rgb, width, height)?;
+    Ok(bytes)
 }
 
 /// [`read_exr`] with where the file's pixels sit in its image (a region written by

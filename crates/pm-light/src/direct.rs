@@ -243,14 +243,14 @@ impl DirectLighting<'_> {
         })
     }
 
-    /// The density [sr^-1] with which [`Self::light_sample`] at a shading point
+    /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p`
     /// with unit normal `n` (on the side light arrives from) picks unit direction
     /// `wi` toward the sky, over the lights at infinity (light choice included): for
     /// MIS weights of BSDF-sampled rays that leave the scene.
-    pub fn pdf_escaped(&self, n: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf_escaped(&self, p: Vec3, n: Vec3, wi: Vec3) -> f32 {
         let mut pdf = 0.0;
         for &i in &self.scene.infinite_lights {
-            pdf += self.scene.lights[i as usize].pdf_escaped(n, wi) * self.lights.probs[i as usize] as f32;
+            pdf += self.scene.lights[i as usize].pdf_escaped(p, n, wi) * self.lights.probs[i as usize] as f32;
         }
         pdf
     }
@@ -325,7 +325,7 @@ impl DirectLighting<'_> {
                         None => {
                             let le = scene.escaped(bs.wi);
                             if le.max_element() > 0.0 {
-                                let p_l = self.pdf_escaped(pm_scene::facing(hit.ng, wo), bs.wi);
+                                let p_l = self.pdf_escaped(hit.p, pm_scene::facing(hit.ng, wo), bs.wi);
                                 sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
                             }
                         }

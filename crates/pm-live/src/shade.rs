@@ -101,8 +101,9 @@ impl<I: IndirectLight> LiveShading<'_, I> {
 
     /// The components seen along direction `d` whose first hit is `first`.
     fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
-        let Some(hit) = first else { return Components::default() };
         let scene = self.light.scene;
+        // Nothing hit: the environment and sun discs (the background).
+        let Some(hit) = first else { return Components { direct: scene.escaped(d), ..Default::default() } };
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         let bsdf = scene.bsdf(&hit);
@@ -147,7 +148,7 @@ impl<I: IndirectLight> LiveShading<'_, I> {
         let scene = self.light.scene;
         let follow = |s: &mut Sampler, wi: Vec3| -> Rgb {
             let Some(next) = scene.intersect(scene.offset_origin(hit.p, hit.ng, wi), wi, f32::INFINITY) else {
-                return Rgb::ZERO;
+                return scene.escaped(wi);
             };
             let (wo, bsdf) = (-wi, scene.bsdf(&next));
             let l = if bsdf.is_specular() {

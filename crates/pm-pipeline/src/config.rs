@@ -64,6 +64,11 @@ pub struct Pipeline {
     /// all, or a table by light name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sun_angle_deg: Option<SunAngleCfg>,
+    /// Meshes (one quad each: windows, doors) through which the environment
+    /// lights an interior (portals: its photons and light samples go through
+    /// them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub portals: Vec<String>,
     /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
     pub effects: EffectsCfg,
     /// Light name to fraction of the photon budget; the other lights share the rest
@@ -283,6 +288,9 @@ impl Pipeline {
         for (name, deg) in self.sun_angles() {
             let v = name.map_or(deg.to_string(), |n| format!("{n}={deg}"));
             a.extend(["--sun-angle-deg".into(), v]);
+        }
+        for p in &self.portals {
+            a.extend(["--portal".into(), p.clone()]);
         }
         a
     }

@@ -91,7 +91,8 @@ fn path_radiance(
             // sampling like emission found on a surface.
             let le = scene.escaped(d);
             if le.max_element() > 0.0 {
-                let w = if prev_specular { 1.0 } else { power_heuristic(prev_pdf, light.pdf_escaped(prev_n, d)) };
+                let w =
+                    if prev_specular { 1.0 } else { power_heuristic(prev_pdf, light.pdf_escaped(prev_p, prev_n, d)) };
                 l.add_to(emission_layer, beta * le * w);
             }
             return l;

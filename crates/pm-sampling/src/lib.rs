@@ -506,6 +506,11 @@ pub struct Distribution2D {
 }
 
 impl Distribution2D {
+    /// Bytes its tables hold.
+    pub fn memory_bytes(&self) -> usize {
+        (self.rows.capacity() + self.marginal.capacity()) * 8
+    }
+
     /// The density of `weights` (row-major, `width` x `height`). None when the
     /// grid is empty, a weight is negative or not finite, or all are zero.
     pub fn new(width: usize, height: usize, weights: &[f64]) -> Option<Distribution2D> {

@@ -191,6 +191,11 @@ impl Environment {
         *h.finalize().as_bytes()
     }
 
+    /// Bytes its texels and sampling distribution hold.
+    pub fn memory_bytes(&self) -> usize {
+        self.texels.capacity() * size_of::<Rgb>() + self.distribution.as_ref().map_or(0, Distribution2D::memory_bytes)
+    }
+
     /// True when every direction has the same radiance.
     pub fn is_constant(&self) -> bool {
         self.texels.len() == 1

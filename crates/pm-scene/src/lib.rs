@@ -25,6 +25,7 @@ mod light;
 mod material;
 mod memory;
 mod mesh;
+mod portal;
 
 pub use anim::Animation;
 pub use camera::{Camera, CameraRays};
@@ -39,6 +40,7 @@ pub use light::{
 pub use material::{AlphaMode, Material, Texture, TextureRef, Wrap};
 pub use memory::MemoryUse;
 pub use mesh::{Bounds, Object, Triangle, TriangleExtras, bounds_of};
+pub use portal::Portal;
 
 use accel::{BvhTris, build_bvh};
 use glam::{Vec2, Vec3};
@@ -275,7 +277,12 @@ impl Scene {
         self.lights.retain(|l| !matches!(l.kind, LightKind::Environment { .. }));
         self.lights.push(Light {
             name: "environment".into(),
-            kind: LightKind::Environment { env: std::sync::Arc::new(env), center: Vec3::ZERO, radius: 0.0 },
+            kind: LightKind::Environment {
+                env: std::sync::Arc::new(env),
+                center: Vec3::ZERO,
+                radius: 0.0,
+                portals: Vec::new(),
+            },
             power: Rgb::ZERO,
         });
         self.relight(b"environment", &identity);
@@ -301,6 +308,67 @@ impl Scene {
         let tag = format!("sun {name:?} {angle_deg}");
         self.relight(tag.as_bytes(), &[]);
         n
+    }
+
+    /// Make the meshes named `names` the portals the environment lights the scene
+    /// through ([`Portal`]): each must be one quad; it becomes an opening (its
+    /// triangles are made invisible to every ray) whose outward side faces away
+    /// from the scene's centre. A name matches an object whose name equals it or
+    /// starts with it followed by " (". Fails, saying why, without an
+    /// environment, for a name no mesh has, and for a mesh that is not a quad or
+    /// emits light.
+    pub fn set_portals(&mut self, names: &[String]) -> Result<(), String> {
+        if names.is_empty() {
+            return Ok(());
+        }
+        if self.environment().is_none() {
+            return Err("portals need an environment to let in".into());
+        }
+        let inside = self.bounds.center();
+        let mut portals = Vec::new();
+        let invisible = self.materials.len() as u32;
+        let mut material = Material::new("portal opening", pm_bsdf::Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::ZERO);
+        material.alpha_mode = AlphaMode::Mask { cutoff: 0.5 };
+        material.base_alpha = 0.0;
+        for name in names {
+            let matching: Vec<usize> = (0..self.objects.len())
+                .filter(|&i| {
+                    let o = &self.objects[i].name;
+                    o == name || o.starts_with(&format!("{name} ("))
+                })
+                .collect();
+            if matching.is_empty() {
+                let all: Vec<&str> = self.objects.iter().map(|o| o.name.as_str()).collect();
+                return Err(format!("portal '{name}': no mesh of that name (meshes: {})", all.join(", ")));
+            }
+            for i in matching {
+                let tris = self.objects[i].tris.clone();
+                if tris.clone().any(|t| self.light_of_triangle[t as usize] != u32::MAX) {
+                    return Err(format!("portal '{name}': the mesh emits light"));
+                }
+                let t: Vec<&Triangle> = tris.clone().map(|t| &self.triangles[t as usize]).collect();
+                portals.push(Portal::of(&t, inside).map_err(|e| format!("portal '{name}': {e}"))?);
+                for t in tris {
+                    self.triangles[t as usize].material = invisible;
+                }
+                self.objects[i].material = invisible;
+            }
+        }
+        self.materials.push(material);
+        self.any_alpha = true;
+        let mut tag = Vec::new();
+        for l in &mut self.lights {
+            if let LightKind::Environment { portals: p, .. } = &mut l.kind {
+                *p = portals.clone();
+            }
+        }
+        for p in &portals {
+            for v in [p.corner, p.u, p.v, p.outward] {
+                tag.extend(v.to_array().map(f32::to_bits).map(u32::to_le_bytes).concat());
+            }
+        }
+        self.relight(b"portals", &tag);
+        Ok(())
     }
 
     /// Recompute the lights' powers and fold a change of the lighting (`what`,

@@ -84,6 +84,9 @@ pub enum LightKind {
         center: Vec3,
         /// Radius of the scene's bounding sphere \[m\]: photons start on a disk this big.
         radius: f32,
+        /// The openings it lights the scene through ([`crate::Portal`]); empty: the
+        /// whole sphere of directions.
+        portals: Vec<crate::Portal>,
     },
 }
 
@@ -324,14 +327,43 @@ impl Light {
                     from_disc(*direction, *irradiance, *center, *radius, targets, u_pos, u_tgt)
                 }
             }
-            LightKind::Environment { env, center, radius } => {
+            LightKind::Environment { env, center, radius, portals } if portals.is_empty() => {
                 // pbrt-v4's ImageInfiniteLight::SampleLe: a direction by the image's
                 // radiance, carrying L / pdf, then a point on the disc facing it.
                 let es = env.sample(u_dir)?;
                 from_disc(-es.wi, es.l / es.pdf, *center, *radius, targets, u_pos, u_tgt)
             }
+            LightKind::Environment { env, portals, .. } => {
+                // Through a portal (chosen by area, a point uniform on it): a
+                // direction by the image's radiance from outside it, carrying
+                // L cos A / pdf (A all portals' area); the caustic pass does not aim.
+                let (portal, total_area) = pick_portal(portals, u_sel);
+                let es = env.sample(u_dir)?;
+                let cos = es.wi.dot(portal.outward);
+                if cos <= 0.0 {
+                    return None;
+                }
+                let q = portal.point(u_pos);
+                let origin = q + es.wi * (1e-4 * scene.bounds.diagonal());
+                Some(EmittedRay { origin, dir: -es.wi, power: es.l * (cos * total_area / es.pdf) })
+            }
         }
     }
+}
+
+/// The portal that `u` in [0, 1) picks, in proportion to area, and all portals'
+/// area [m^2]: choosing by area and then a point uniformly gives every point of
+/// every portal the same density, 1 / area.
+fn pick_portal(portals: &[crate::Portal], u: f32) -> (&crate::Portal, f32) {
+    let total: f32 = portals.iter().map(|p| p.area).sum();
+    let mut acc = 0.0;
+    for p in portals {
+        acc += p.area;
+        if u * total < acc {
+            return (p, total);
+        }
+    }
+    (portals.last().expect("at least one portal"), total)
 }
 
 /// A ray of light at infinity travelling in unit direction `dir`, whose
@@ -630,10 +662,30 @@ pub(crate) fn finish_lights(scene: &mut Scene) {
                     *irradiance * (PI * radius * radius)
                 }
             }
-            LightKind::Environment { env, center: c, radius: r } => {
+            LightKind::Environment { env, center: c, radius: r, portals } => {
                 *c = center;
                 *r = radius;
-                env.integral() * (PI * radius * radius)
+                if portals.is_empty() {
+                    env.integral() * (PI * radius * radius)
+                } else {
+                    // What crosses the portals inward: A times the irradiance E_n on
+                    // each from outside, estimated by the photons' own sampling
+                    // (only the light choice uses it: photon power stays exact).
+                    portals
+                        .iter()
+                        .map(|q| {
+                            let n = 4096;
+                            let mut e = Rgb::ZERO;
+                            for k in 0..n {
+                                let mut s = Sampler::new(0x706f_7274, k);
+                                if let Some(x) = env.sample(s.next_2d()) {
+                                    e += x.l * (x.wi.dot(q.outward).max(0.0) / x.pdf);
+                                }
+                            }
+                            e * (q.area / n as f32)
+                        })
+                        .sum()
+                }
             }
         };
     }
@@ -740,6 +792,22 @@ impl Light {
                     Some(LightSample { wi: -*direction, dist: f32::INFINITY, li: *irradiance, pdf: 1.0, delta: true })
                 }
             }
+            LightKind::Environment { env, portals, .. } if !portals.is_empty() => {
+                // One of two strategies, each with probability 1/2 (a defensive
+                // mixture, weighed by its mean density): a point uniform over the
+                // portals' area, which finds the sky through a window, or the
+                // image's own importance, which finds a sun that a point on the
+                // window hits too seldom (from a floor 2 m away the sun's disc is
+                // 1 in 2,000 of the window's solid angle).
+                let wi = if u_sel < 0.5 {
+                    env.sample(u)?.wi
+                } else {
+                    let (portal, _) = pick_portal(portals, 2.0 * u_sel - 1.0);
+                    (portal.point(u) - p).normalize_or_zero()
+                };
+                let pdf = self.pdf_escaped(p, n, wi);
+                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: env.radiance(wi), pdf, delta: false })
+            }
             LightKind::Environment { env, .. } => {
                 let (wi, li, pdf) = if env.is_constant() {
                     let wi = to_world(cosine_hemisphere(u), n);
@@ -778,11 +846,24 @@ impl Light {
         }
     }
 
-    /// Solid-angle density [sr^-1] with which [`Light::sample_li`] (with normal `n`)
-    /// picks unit direction `wi` toward the sky, for MIS of BSDF-sampled rays that
-    /// leave the scene; 0 for lights other than an environment or a sun disc.
-    pub fn pdf_escaped(&self, n: Vec3, wi: Vec3) -> f32 {
+    /// Solid-angle density [sr^-1] with which [`Light::sample_li`] at point `p` (with
+    /// normal `n`) picks unit direction `wi` toward the sky, for MIS of
+    /// BSDF-sampled rays that leave the scene; 0 for lights other than an
+    /// environment or a sun disc. With portals: the mixture's, half the image's
+    /// density plus half that of the point where the ray leaves through a portal
+    /// (none if it leaves through none).
+    pub fn pdf_escaped(&self, p: Vec3, n: Vec3, wi: Vec3) -> f32 {
         match &self.kind {
+            LightKind::Environment { env, portals, .. } if !portals.is_empty() => {
+                let total_area: f32 = portals.iter().map(|q| q.area).sum();
+                let mut pdf_portal = 0.0;
+                for q in portals {
+                    if let Some(t) = q.exit(p, wi) {
+                        pdf_portal += t * t / (wi.dot(q.outward) * total_area);
+                    }
+                }
+                0.5 * (env.pdf(wi) + pdf_portal)
+            }
             LightKind::Environment { env, .. } if env.is_constant() => pm_sampling::cosine_hemisphere_pdf(wi.dot(n)),
             LightKind::Environment { env, .. } => env.pdf(wi),
             LightKind::Directional { direction, cap, .. } if *cap > 0.0 && in_cap(wi, -*direction, *cap) => {

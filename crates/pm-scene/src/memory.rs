@@ -65,6 +65,7 @@ impl Scene {
                 LightKind::Area { cdf, area_per_pick, spheres, .. } => {
                     bytes(cdf.capacity(), 8) + bytes(area_per_pick.capacity(), 4) + bytes(spheres.capacity(), 16)
                 }
+                LightKind::Environment { env, .. } => env.memory_bytes(),
                 _ => 0,
             })
             .sum();

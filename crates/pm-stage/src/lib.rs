@@ -53,7 +53,7 @@ pub fn thread_count() -> usize {
 
 /// How a stage reads its scene file and lights it: options of every stage that
 /// loads one, pipeline.toml's top-level keys of the same names for the runner.
-#[derive(clap::Args, Debug, Clone, Default)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct SceneArgs {
     /// Units of the glTF file's point, spot and directional light intensities:
     /// photometric (the glTF specification: candela and lux, divided by 683 lm/W into
@@ -82,6 +82,26 @@ pub struct SceneArgs {
     /// light, DEG for all; repeatable.
     #[arg(long, value_name = "[NAME=]DEG")]
     pub sun_angle_deg: Vec<String>,
+    /// A mesh (one quad: a window, a door) through which the environment lights an
+    /// interior: it becomes an opening, and the environment's photons and light
+    /// samples go through it instead of the whole sky (Bitterli et al. 2015).
+    /// Repeatable; needs an environment.
+    #[arg(long, value_name = "MESH")]
+    pub portal: Vec<String>,
+}
+
+/// The options' defaults: the file as it is.
+impl Default for SceneArgs {
+    fn default() -> Self {
+        SceneArgs {
+            light_units: pm_scene::LightUnits::Photometric,
+            environment: None,
+            environment_strength: 1.0,
+            environment_rotation_deg: 0.0,
+            sun_angle_deg: Vec::new(),
+            portal: Vec::new(),
+        }
+    }
 }
 
 /// One `--sun-angle-deg` value: the light's name (all directional lights when
@@ -128,6 +148,7 @@ pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneArgs) ->
         };
         scene.set_environment(env);
     }
+    scene.set_portals(&how.portal).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     for s in &how.sun_angle_deg {
         let (name, deg) = parse_sun_angle(s)?;
         if scene.set_sun_angle(name.as_deref(), deg) == 0 {
