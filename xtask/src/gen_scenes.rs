@@ -124,9 +124,10 @@ fn cornell_shell(doc: &mut Doc) {
     doc.camera([0.0f32, 1.0, 3.8], None, 0.69, 1.0);
 }
 
-fn cornell_spheres() -> Doc {
-    let mut doc = Doc::default();
-    cornell_shell(&mut doc);
+/// A chrome material (metal, roughness 0) and a solid glass one (ior 1.5,
+/// KHR_materials_volume of `thickness`: without it glTF glass is thin-walled and
+/// focuses nothing), as the spheres scenes use them.
+fn chrome_and_glass(doc: &mut Doc, thickness: f64) -> (usize, usize) {
     let chrome = doc.material(json!({"name": "chrome", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}}));
     let glass = doc.material(json!({
         "name": "glass",
@@ -134,10 +135,17 @@ fn cornell_spheres() -> Doc {
         "extensions": {
             "KHR_materials_transmission": {"transmissionFactor": 1.0},
             "KHR_materials_ior": {"ior": 1.5},
-            "KHR_materials_volume": {"thicknessFactor": 0.7}
+            "KHR_materials_volume": {"thicknessFactor": thickness}
         }
     }));
     doc.extensions.extend(["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"]);
+    (chrome, glass)
+}
+
+fn cornell_spheres() -> Doc {
+    let mut doc = Doc::default();
+    cornell_shell(&mut doc);
+    let (chrome, glass) = chrome_and_glass(&mut doc, 0.7);
     doc.mesh_node("sphere_chrome", &sphere([-0.45, 0.35, -0.35], 0.35, 48, 24, false), chrome);
     doc.mesh_node("sphere_glass", &sphere([0.45, 0.35, 0.3], 0.35, 48, 24, false), glass);
     doc
@@ -668,17 +676,7 @@ fn hdri_spheres() -> Doc {
     let mut doc = Doc::default();
     let ground = doc.material(diffuse("ground", [0.5, 0.5, 0.5]));
     let red = doc.material(diffuse("block", [0.7, 0.2, 0.15]));
-    let chrome = doc.material(json!({"name": "chrome", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}}));
-    let glass = doc.material(json!({
-        "name": "glass",
-        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
-        "extensions": {
-            "KHR_materials_transmission": {"transmissionFactor": 1.0},
-            "KHR_materials_ior": {"ior": 1.5},
-            "KHR_materials_volume": {"thicknessFactor": 0.8}
-        }
-    }));
-    doc.extensions.extend(["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"]);
+    let (chrome, glass) = chrome_and_glass(&mut doc, 0.8);
     let g = 4.0;
     doc.mesh_node("ground", &quad([-g, 0.0, g], [g, 0.0, g], [g, 0.0, -g], [-g, 0.0, -g]), ground);
     doc.mesh_node("sphere_glass", &sphere([0.45, 0.4, 0.35], 0.4, 48, 24, false), glass);

@@ -64,6 +64,16 @@ fn path_and_full(scene: &Scene, w: u32, h: u32, spp: u32) -> [(&'static str, pm_
     [("path", path), ("full", full)]
 }
 
+/// A Lambertian sphere (rho = 0.5) under a constant sky `l`, and the pixels of a
+/// `w` x `h` image that see it and that see the sky.
+fn sphere_under_sky(l: Rgb, w: u32, h: u32) -> (Scene, Vec<usize>, Vec<usize>) {
+    let mut tris = Vec::new();
+    sphere(&mut tris, Vec3::ZERO, 1.0, false, 0);
+    let scene = lit_by(tris, 0.5, Vec3::new(0.3, 0.4, 2.6), Vec3::ZERO, Environment::constant(l).unwrap());
+    let (on, off) = (pixels_that_see(&scene, w, h, true), pixels_that_see(&scene, w, h, false));
+    (scene, on, off)
+}
+
 /// A convex object under a constant environment L sees nothing but the sky: a
 /// Lambertian sphere of reflectance rho = 0.5 has outgoing radiance rho L at
 /// every point, and the background is L. In every layer: all of it is direct
@@ -74,12 +84,8 @@ fn path_and_full(scene: &Scene, w: u32, h: u32, spp: u32) -> [(&'static str, pm_
 /// flat facets every sample is rho L exactly, so the tolerance is tight (0.5%).
 #[test]
 fn convex_sphere_under_a_constant_sky_reflects_rho_l() {
-    let l = Rgb::new(1.0, 0.5, 0.25);
-    let mut tris = Vec::new();
-    sphere(&mut tris, Vec3::ZERO, 1.0, false, 0);
-    let scene = lit_by(tris, 0.5, Vec3::new(0.3, 0.4, 2.6), Vec3::ZERO, Environment::constant(l).unwrap());
-    let (w, h) = (24, 24);
-    let (on, off) = (pixels_that_see(&scene, w, h, true), pixels_that_see(&scene, w, h, false));
+    let (l, (w, h)) = (Rgb::new(1.0, 0.5, 0.25), (24, 24));
+    let (scene, on, off) = sphere_under_sky(l, w, h);
     assert!(on.len() > 100 && off.len() > 50, "{} sphere and {} sky pixels", on.len(), off.len());
     for (name, img) in path_and_full(&scene, w, h, 16) {
         let sphere = mean_at(img.total(), &on);
@@ -435,12 +441,8 @@ fn bad_environment_images_stop_the_run_before_anything_is_written() {
 #[test]
 fn real_time_methods_light_a_convex_sphere_by_the_sky() {
     use pm_live::{DirectMode, FrameParams};
-    let l = Rgb::new(1.0, 0.5, 0.25);
-    let mut tris = Vec::new();
-    sphere(&mut tris, Vec3::ZERO, 1.0, false, 0);
-    let scene = lit_by(tris, 0.5, Vec3::new(0.3, 0.4, 2.6), Vec3::ZERO, Environment::constant(l).unwrap());
-    let (w, h) = (24, 24);
-    let (on, off) = (pixels_that_see(&scene, w, h, true), pixels_that_see(&scene, w, h, false));
+    let (l, (w, h)) = (Rgb::new(1.0, 0.5, 0.25), (24, 24));
+    let (scene, on, off) = sphere_under_sky(l, w, h);
     let want = (l * 0.5).as_dvec3();
     for direct in [DirectMode::Rays, DirectMode::ShadowMap] {
         let fp = FrameParams { width: w, height: h, direct, ..Default::default() };
