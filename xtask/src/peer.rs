@@ -345,7 +345,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             halves.push(pm_image::read_exr(&exr)?.total().context("the reference image")?.to_vec());
         }
         let size = args.size as usize;
-        let keep = pm_image::accuracy::keep_mask_of_halves(&halves[0], &halves[1], size, size);
+        let keep = pm_image::accuracy::keep_mask_of_halves(&halves[0], &halves[1], size, size, None);
         let (reference, reference_var) = pm_image::accuracy::reference_from_halves(&halves[0], &halves[1], &keep);
         let error = |runs: &[Vec<Vec3>]| {
             let r: Vec<&[Vec3]> = runs.iter().map(Vec::as_slice).collect();

@@ -27,6 +27,7 @@ mod integrator;
 mod path;
 mod photon_mapping;
 mod render;
+mod sppm;
 
 pub use icache::IrradianceCache;
 pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, VisibleSurface};
@@ -34,6 +35,7 @@ pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
 pub use render::{FrameBuffers, Image, Visibility, render_into, render_region, render_region_with};
+pub use sppm::{PassStats, PixelState, Sppm, SppmParams};
 
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;

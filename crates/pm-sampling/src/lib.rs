@@ -135,7 +135,30 @@ impl Sampler {
     }
 }
 
-include!(concat!(env!("OUT_DIR"), "/sobol_nibbles.rs"));
+/// Dimension sets of 4 that `sobol_burley` has direction numbers for.
+const SOBOL_SETS: usize = 64;
+
+/// The Sobol' generator's direction numbers as nibble tables, `[set][group][value]`,
+/// 4 lanes: for each 4-D dimension set and each 4-bit group of the (bit-reversed,
+/// scrambled) index's top 16 bits, the Sobol' point of the index with only that
+/// group's bits set to each of their 16 values (an XOR of direction vectors; the
+/// point of an index is the XOR of its groups' entries). Read from
+/// `sobol_nibbles.bin`, which `sobol_burley` itself generates
+/// (`nibble_tables_are_sobol_burleys` checks it and, with
+/// `PM_WRITE_TABLES=1`, rewrites it), so that the two can never disagree.
+static SOBOL_NIBBLES: [[[[u32; 4]; 16]; 4]; SOBOL_SETS] = nibbles_from_le_bytes(include_bytes!("sobol_nibbles.bin"));
+
+/// [`SOBOL_NIBBLES`] from its file: little-endian u32s in the table's order.
+const fn nibbles_from_le_bytes(b: &[u8; SOBOL_SETS * 4 * 16 * 4 * 4]) -> [[[[u32; 4]; 16]; 4]; SOBOL_SETS] {
+    let mut t = [[[[0u32; 4]; 16]; 4]; SOBOL_SETS];
+    let mut i = 0;
+    while i < SOBOL_SETS * 4 * 16 * 4 {
+        let v = u32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]);
+        t[i / 256][i / 64 % 4][i / 4 % 16][i % 4] = v;
+        i += 1;
+    }
+    t
+}
 
 /// Index `index` (below 2^16) of the sequence `seed`, bit-reversed and shuffled by
 /// a nested uniform scramble: `sobol_burley::sample_4d`'s first step, done once per
@@ -681,6 +704,31 @@ mod tests {
         assert!(Distribution2D::new(2, 1, &[1.0, f64::NAN]).is_none());
         assert!(Distribution2D::new(2, 1, &[0.0, 0.0]).is_none());
         assert!(Distribution2D::new(2, 2, &[1.0, 1.0]).is_none());
+    }
+
+    /// `sobol_nibbles.bin` is what `sobol_burley` generates: for each set, group
+    /// and value, the Sobol' point of the reversed index holding only that group's
+    /// bits. With `PM_WRITE_TABLES=1` the file is written instead (after a
+    /// `sobol_burley` update).
+    #[test]
+    fn nibble_tables_are_sobol_burleys() {
+        assert_eq!(sobol_burley::NUM_DIMENSION_SETS_4D as usize, SOBOL_SETS);
+        let mut bytes = Vec::new();
+        for set in 0..SOBOL_SETS as u32 {
+            for group in 0..4u32 {
+                for value in 0..16u32 {
+                    let rev = value << (28 - 4 * group);
+                    let v: [u32; 4] = sobol_burley::parts::sobol_int4_rev(rev, set).into();
+                    bytes.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+                }
+            }
+        }
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/sobol_nibbles.bin");
+        if std::env::var_os("PM_WRITE_TABLES").is_some() {
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        let committed = std::fs::read(&path).unwrap_or_default();
+        assert!(committed == bytes, "{} is stale: run PM_WRITE_TABLES=1 cargo test -p pm-sampling", path.display());
     }
 
     /// The nibble tables give `sobol_burley::sample_4d` bit for bit: every

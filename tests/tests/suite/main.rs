@@ -16,4 +16,5 @@ mod regions;
 mod render;
 mod runner;
 mod scenes;
+mod sppm;
 mod tidy;

@@ -1,0 +1,406 @@
+//! Stochastic progressive photon mapping (Hachisuka and Jensen 2009, "Stochastic
+//! progressive photon mapping"; the pass structure of pbrt-v4's `SPPMIntegrator`):
+//! the batch pipeline's consistent limit. Each pass traces one eye path per pixel
+//! to its first non-specular surface (a *visible point*, through mirrors and
+//! glass), takes direct light there by next-event estimation, traces a pass of
+//! photons with the photon tracer's own paths and streams, and gathers into each
+//! visible point the photons within its radius. Each pixel keeps a radius r, a
+//! photon count N and a flux tau; after a pass that found M photons,
+//!
+//! ```text
+//! N' = N + alpha M,   r' = r sqrt(N' / (N + M)),   tau' = (tau + beta Phi) (r' / r)^2
+//! ```
+//!
+//! (Hachisuka, Ogaki and Jensen 2008, equations 6-11; alpha = 2/3 by default), so
+//! the radius shrinks, the estimate's bias goes to zero and its memory stays fixed
+//! at one record per pixel. After P passes of N_p photons a pixel's radiance is
+//! L = L_d / P + tau / (P N_p pi r^2) [W sr^-1 m^-2].
+//!
+//! Photons only carry indirect and caustic light: a photon's first hit (direct
+//! light) is left to next-event estimation, as in pbrt-v4. Deterministic: pass k's
+//! eye sample of a pixel is point k of the pixel's stream, its photons the photon
+//! tracer's paths keyed by (seed, pass, index), and each visible point sums its
+//! photons in their index order, so any thread count gives the same image.
+
+use crate::integrator::pixel_salt;
+use crate::render::Image;
+use glam::Vec3;
+use pm_bsdf::Bsdf;
+use pm_color::{Layer, Rgb};
+use pm_light::DirectLighting;
+use pm_params::{above, between};
+use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
+use pm_sampling::{Sampler, mix64};
+use pm_scene::{Camera, Scene};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+pm_params::params! {
+    /// Progressive photon mapping's parameters (`photon-render --mode sppm`).
+    pub struct SppmParams {
+        /// Passes (each: one eye sample a pixel and a photon pass).
+        passes: u32 = 64 => between(1, 1 << 24);
+        /// Photon paths traced per pass.
+        photons_per_pass: u64 = 100_000 => between(1, 1 << 30);
+        /// Hachisuka's alpha: the fraction of a pass's photons a pixel keeps as it
+        /// shrinks its radius (0 < alpha < 1; smaller shrinks faster, noisier).
+        alpha: f32 = 2.0 / 3.0 => between(0.01, 0.99);
+        /// Starting gather radius, as a fraction of the scene diagonal.
+        initial_radius_rel_diag: f32 = 0.01 => above(0.0);
+    }
+}
+
+/// One pixel's progressive state: what a long render keeps between passes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelState {
+    /// Gather radius r \[m\].
+    pub radius: f32,
+    /// Photon count N (fractional: alpha of each pass's photons).
+    pub n: f32,
+    /// Accumulated flux tau [W per channel] of photons seen directly by the eye's
+    /// first non-specular surface: caustic (photons that reached it through
+    /// specular bounces only), then indirect.
+    pub tau: [Rgb; 2],
+    /// tau of visible points reached through mirrors and glass (the specular layer).
+    pub tau_specular: Rgb,
+    /// Sum over the passes of the pixel's emission and direct light, by layer
+    /// ([`Layer::ALL`] order) [W sr^-1 m^-2].
+    pub ld: [Rgb; 4],
+}
+
+impl PixelState {
+    /// Count in one pass's `m` photons, whose flux beta f Phi at the pixel's
+    /// visible point is `phi` [W per channel] (caustic, indirect, and all of it
+    /// when the point was reached through a mirror or glass), and shrink the
+    /// radius (Hachisuka, Ogaki and Jensen 2008, equations 6-11):
+    /// N' = N + alpha M, r'^2 = r^2 N' / (N + M), tau' = (tau + phi) r'^2 / r^2.
+    /// A pass without photons changes nothing.
+    pub fn add_photons(&mut self, phi: [Rgb; 3], m: u64, alpha: f32) {
+        if m == 0 {
+            return;
+        }
+        let n_new = self.n + alpha * m as f32;
+        let shrink = n_new / (self.n + m as f32);
+        self.tau = [(self.tau[0] + phi[0]) * shrink, (self.tau[1] + phi[1]) * shrink];
+        self.tau_specular = (self.tau_specular + phi[2]) * shrink;
+        self.n = n_new;
+        self.radius *= shrink.sqrt();
+    }
+}
+
+/// A pass's visible point: the first non-specular surface of the pixel's eye path.
+struct VisiblePoint {
+    p: Vec3,
+    /// Unit geometric normal on the side the eye path arrived from.
+    n: Vec3,
+    /// Unit shading normal.
+    ns: Vec3,
+    wo: Vec3,
+    bsdf: Bsdf,
+    /// The eye path's throughput to the point.
+    beta: Rgb,
+    /// Reached through a mirror or glass.
+    specular: bool,
+}
+
+/// A stored photon of a pass: where, from where, with what power, and whether it
+/// came from the light through specular bounces only.
+struct PassPhoton {
+    p: Vec3,
+    wi: Vec3,
+    n: Vec3,
+    power: Rgb,
+    caustic: bool,
+}
+
+/// Progressive photon mapping of one image: the pixels' state and the passes done.
+pub struct Sppm<'a> {
+    light: DirectLighting<'a>,
+    params: SppmParams,
+    width: u32,
+    height: u32,
+    seed: u64,
+    light_samples: u32,
+    max_depth: u32,
+    pixels: Vec<PixelState>,
+    passes: u32,
+}
+
+/// What a pass did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassStats {
+    /// Photons stored (after their first bounce) in the pass.
+    pub photons: u64,
+    /// Visible points that found at least one photon.
+    pub pixels_with_photons: u64,
+    /// The largest radius after the pass \[m\].
+    pub max_radius: f32,
+}
+
+impl<'a> Sppm<'a> {
+    /// Start an image of `width` x `height` of `scene`: every pixel at the initial
+    /// radius, nothing accumulated. Fails when nothing emits.
+    pub fn new(
+        scene: &'a Scene,
+        width: u32,
+        height: u32,
+        params: SppmParams,
+        seed: u64,
+        light_samples: u32,
+        max_depth: u32,
+    ) -> Result<Self, pm_light::LightSelectError> {
+        let r0 = params.initial_radius_rel_diag * scene.bounds.diagonal();
+        let empty = PixelState { radius: r0, n: 0.0, tau: [Rgb::ZERO; 2], tau_specular: Rgb::ZERO, ld: [Rgb::ZERO; 4] };
+        Ok(Sppm {
+            light: DirectLighting::new(scene)?,
+            params,
+            width,
+            height,
+            seed,
+            light_samples,
+            max_depth,
+            pixels: vec![empty; (width * height) as usize],
+            passes: 0,
+        })
+    }
+
+    /// Passes done.
+    pub fn passes(&self) -> u32 {
+        self.passes
+    }
+
+    /// The pixels' state (row by row).
+    pub fn pixels(&self) -> &[PixelState] {
+        &self.pixels
+    }
+
+    /// One pass: eye paths, photons, gathering, the radius update.
+    pub fn pass(&mut self, camera: &Camera) -> PassStats {
+        let k = self.passes;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let rays = camera.rays(w as f32 / h as f32);
+        // Eye paths: each pixel's visible point and its direct light.
+        let points: Vec<(Option<VisiblePoint>, [Rgb; 4])> = (0..w * h)
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|i| {
+                let mut s = Sampler::salted(self.seed, pixel_salt(i), k as u64);
+                let j = s.next_2d();
+                let d = rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
+                self.eye_path(camera.position, d, &mut s)
+            })
+            .collect();
+        // The pass's photons after their first bounce, in index order.
+        let photons = self.photons(k);
+        let max_r = self.pixels.iter().map(|p| p.radius).fold(0.0f32, f32::max);
+        let grid = Grid::new(&photons, max_r);
+        let alpha = self.params.alpha;
+        let found: Vec<u64> = self
+            .pixels
+            .par_iter_mut()
+            .zip(points.par_iter())
+            .with_min_len(64)
+            .map(|(px, (vp, ld))| {
+                for (a, b) in px.ld.iter_mut().zip(ld) {
+                    *a += *b;
+                }
+                let Some(vp) = vp else { return 0 };
+                let (phi, m) = grid.gather(&photons, vp, px.radius);
+                let phi = phi.map(|f| vp.beta * f);
+                px.add_photons(
+                    if vp.specular { [Rgb::ZERO, Rgb::ZERO, phi[0] + phi[1]] } else { [phi[0], phi[1], Rgb::ZERO] },
+                    m,
+                    alpha,
+                );
+                (m > 0) as u64
+            })
+            .collect();
+        self.passes += 1;
+        PassStats {
+            photons: photons.len() as u64,
+            pixels_with_photons: found.iter().sum(),
+            max_radius: self.pixels.iter().map(|p| p.radius).fold(0.0f32, f32::max),
+        }
+    }
+
+    /// The eye path of one pass through a pixel: emission and direct light along it
+    /// by layer, and its visible point (none when it leaves the scene, is absorbed
+    /// or reaches the depth limit).
+    fn eye_path(&self, o: Vec3, d: Vec3, s: &mut Sampler) -> (Option<VisiblePoint>, [Rgb; 4]) {
+        let scene = self.light.scene;
+        let mut ld = [Rgb::ZERO; 4];
+        let (mut o, mut d, mut beta, mut specular) = (o, d, Rgb::ONE, false);
+        let layer = |specular: bool| if specular { Layer::Specular } else { Layer::Direct }.index();
+        for _ in 0..=self.max_depth {
+            let Some(hit) = scene.intersect(o, d, f32::INFINITY) else {
+                ld[layer(specular)] += beta * scene.escaped(d);
+                return (None, ld);
+            };
+            beta *= scene.transmittance(&hit, d);
+            let wo = -d;
+            ld[layer(specular)] += beta * scene.emitted(&hit, wo);
+            let bsdf = scene.bsdf(&hit);
+            if !bsdf.is_specular() {
+                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples);
+                let n = pm_scene::facing(hit.ng, wo);
+                return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular }), ld);
+            }
+            let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return (None, ld) };
+            beta *= bs.weight;
+            if !beta.is_finite() || beta == Rgb::ZERO {
+                return (None, ld);
+            }
+            specular = true;
+            o = scene.offset_origin(hit.p, hit.ng, bs.wi);
+            d = bs.wi;
+        }
+        (None, ld)
+    }
+
+    /// Pass `k`'s photons that have bounced at least once (direct light is the eye
+    /// paths'), in path-index order: the photon tracer's global-map paths with the
+    /// pass's own seed, power Phi-hat / p_select (not yet divided by the count).
+    fn photons(&self, k: u32) -> Vec<PassPhoton> {
+        let scene = self.light.scene;
+        let cfg = TraceConfig {
+            pass: MapPass::Global,
+            budget: Budget::Emitted(self.params.photons_per_pass),
+            seed: mix64(self.seed ^ 0x7370_706d ^ (k as u64) << 32),
+            selector: self.light.lights.clone(),
+        };
+        let n = self.params.photons_per_pass;
+        let chunk = 1024u64;
+        (0..n.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| {
+                let mut out = PathOut::default();
+                let mut v = Vec::new();
+                for i in c * chunk..((c + 1) * chunk).min(n) {
+                    pm_photon::trace_path(scene, &cfg, &[], i, &mut out);
+                    for (ph, bounce) in &out.photons {
+                        if *bounce > 0 {
+                            v.push(PassPhoton {
+                                p: ph.position,
+                                wi: ph.wi,
+                                n: ph.normal,
+                                power: ph.power,
+                                caustic: ph.flags & pm_format::flags::CAUSTIC != 0,
+                            });
+                        }
+                    }
+                }
+                v
+            })
+            .flatten()
+            .collect()
+    }
+
+    /// The image after the passes done: per pixel L_d / P + tau / (P N_p pi r^2),
+    /// by layer.
+    pub fn image(&self) -> Image {
+        let p = self.passes.max(1) as f32;
+        let np = self.params.photons_per_pass as f32;
+        let mut layers: [Vec<Rgb>; 4] = std::array::from_fn(|_| Vec::with_capacity(self.pixels.len()));
+        for px in &self.pixels {
+            let area = p * np * std::f32::consts::PI * px.radius * px.radius;
+            let photon = |t: Rgb| if area > 0.0 { t / area } else { Rgb::ZERO };
+            let mut l = px.ld.map(|v| v / p);
+            l[Layer::Caustic.index()] += photon(px.tau[0]);
+            l[Layer::Indirect.index()] += photon(px.tau[1]);
+            l[Layer::Specular.index()] += photon(px.tau_specular);
+            for (layer, v) in layers.iter_mut().zip(l) {
+                layer.push(if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO });
+            }
+        }
+        let total = (0..self.pixels.len()).map(|i| layers.iter().map(|l| l[i]).sum()).collect();
+        Image {
+            rect: pm_raster::Rect { x0: 0, y0: 0, x1: self.width, y1: self.height },
+            width: self.width,
+            height: self.height,
+            total,
+            layers,
+            gbuffer: None,
+        }
+    }
+}
+
+/// A uniform grid over a pass's photons, cells of the largest gather radius: a
+/// gather reads the 27 cells around its point, each cell's photons in index order.
+struct Grid {
+    cell: f32,
+    cells: HashMap<[i32; 3], Vec<u32>>,
+}
+
+impl Grid {
+    fn new(photons: &[PassPhoton], max_radius: f32) -> Grid {
+        let cell = max_radius.max(f32::MIN_POSITIVE);
+        let mut cells: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        for (i, ph) in photons.iter().enumerate() {
+            cells.entry(Self::key(ph.p, cell)).or_default().push(i as u32);
+        }
+        Grid { cell, cells }
+    }
+
+    fn key(p: Vec3, cell: f32) -> [i32; 3] {
+        (p / cell).floor().as_ivec3().to_array()
+    }
+
+    /// The flux f(wo, wi) Phi of the photons within `r` of visible point `vp` on
+    /// its surface (stored normal within [`pm_estimate::SAME_SURFACE_COS`]):
+    /// caustic, then the rest, and their count.
+    fn gather(&self, photons: &[PassPhoton], vp: &VisiblePoint, r: f32) -> ([Rgb; 2], u64) {
+        let (mut phi, mut m) = ([Rgb::ZERO; 2], 0u64);
+        let c = Self::key(vp.p, self.cell);
+        let r2 = r * r;
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(list) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
+                    for &i in list {
+                        let ph = &photons[i as usize];
+                        if (ph.p - vp.p).length_squared() > r2 || ph.n.dot(vp.n) <= pm_estimate::SAME_SURFACE_COS {
+                            continue;
+                        }
+                        let f = vp.bsdf.f(vp.wo, ph.wi, vp.ns);
+                        phi[!ph.caustic as usize] += f * ph.power;
+                        m += 1;
+                    }
+                }
+            }
+        }
+        (phi, m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The radius update against a hand-computed sequence (alpha = 2/3, r = 1):
+    /// 6 photons: N = 4, r^2 = 4/6, tau = (0 + 6) x 4/6 = 4; then 3 photons:
+    /// N = 6, r^2 = 4/6 x 6/7 = 4/7, tau = (4 + 3) x 6/7 = 6; a pass without
+    /// photons changes nothing. The radius never grows and tau / r^2 (the
+    /// estimate's numerator over its area) is the sum of the fluxes over the
+    /// first radius's area scaled only by what alpha keeps.
+    #[test]
+    fn radius_update_follows_the_alpha_rule() {
+        let mut px =
+            PixelState { radius: 1.0, n: 0.0, tau: [Rgb::ZERO; 2], tau_specular: Rgb::ZERO, ld: [Rgb::ZERO; 4] };
+        let one = |v: f32| [Rgb::ZERO, Rgb::splat(v), Rgb::ZERO];
+        px.add_photons(one(6.0), 6, 2.0 / 3.0);
+        assert!((px.n - 4.0).abs() < 1e-6 && (px.radius.powi(2) - 4.0 / 6.0).abs() < 1e-6);
+        assert!((px.tau[1].x - 4.0).abs() < 1e-5, "{:?}", px.tau);
+        px.add_photons(one(3.0), 3, 2.0 / 3.0);
+        assert!((px.n - 6.0).abs() < 1e-6 && (px.radius.powi(2) - 4.0 / 7.0).abs() < 1e-6);
+        assert!((px.tau[1].x - 6.0).abs() < 1e-5, "{:?}", px.tau);
+        let before = px;
+        px.add_photons(one(5.0), 0, 2.0 / 3.0);
+        assert_eq!(px, before);
+        let mut r = px.radius;
+        for m in [1u64, 10, 100, 1000, 3] {
+            px.add_photons(one(1.0), m, 2.0 / 3.0);
+            assert!(px.radius <= r);
+            r = px.radius;
+        }
+    }
+}

@@ -1,0 +1,106 @@
+//! Stochastic progressive photon mapping (issue 39): the batch pipeline's
+//! consistent limit, against the furnace's closed form and the path tracer.
+
+use pm_render::{Sppm, SppmParams};
+use pm_tests::load_scene;
+
+/// `passes` passes of SPPM over `scene` at `w` x `h` with `photons` photon paths a
+/// pass and `seed`: the image's pixels.
+fn sppm(scene: &pm_scene::Scene, w: u32, h: u32, passes: u32, photons: u64, seed: u64) -> pm_render::Image {
+    let params = SppmParams { passes, photons_per_pass: photons, ..Default::default() };
+    let camera = scene.camera.clone().unwrap();
+    let mut s = Sppm::new(scene, w, h, params, seed, 1, 12).unwrap();
+    for _ in 0..passes {
+        s.pass(&camera);
+    }
+    s.image()
+}
+
+/// The furnace (a closed sphere of albedo 0.8 and emission 1 seen from inside:
+/// radiance 5 everywhere): after 64 passes of 20,000 photon paths at 8 x 8 the
+/// mean is 5 within 1% (measured 4.974) and the pixels' RMS spread about it is
+/// under 5% (measured 3.0%, of one light sample and about 24 photons a pass).
+/// Emission and direct light (1 + 0.8) come from the eye paths, the other 3.2
+/// from the photons.
+#[test]
+fn sppm_furnace_is_five() {
+    let scene = load_scene("furnace.gltf");
+    let img = sppm(&scene, 8, 8, 64, 20_000, 1);
+    let (mean, rms, worst) = pm_tests::against_constant(img.total(), 5.0);
+    eprintln!("SPPM furnace: mean {mean:.4} (exact 5), RMS {:.2}%, worst {:.2}%", 100.0 * rms, 100.0 * worst);
+    assert!((mean / 5.0 - 1.0).abs() < 0.01, "mean {mean}");
+    assert!(rms < 0.05, "pixels {:.1}% RMS apart", 100.0 * rms);
+}
+
+/// The same seed and pass count give the same image whatever the thread count.
+#[test]
+fn sppm_is_deterministic_across_thread_counts() {
+    let scene = load_scene("cornell_spheres.gltf");
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| sppm(&scene, 16, 16, 4, 5_000, 3))
+            .total()
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(f32::to_bits)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run(1), run(3));
+}
+
+/// Consistency (issue 39's test): on cornell_boxes at 64 x 64, against a
+/// path-traced reference of 4,096 paths a pixel (two halves, its own noise taken
+/// out), SPPM's error falls as the passes go 4, 16, 64, 256 (20,000 photon paths
+/// a pass, two seeds; measured 35.6%, 18.6%, 11.4%, 7.3%), and its bias (the
+/// seeds' mean against the reference, both noises taken out, as the accuracy
+/// study measures it) is under half the batch pipeline's (defaults, 100,000
+/// photons: 4.5%). Not yet asserted: the issue's 0.5%. Measured with four
+/// seeds, SPPM's bias is 1.4% after 256 passes and 1.2% after 1,024 (the radius
+/// shrinks as passes^(-1/6) at alpha = 2/3); with a third of the starting radius
+/// the noise (18% at 256 passes) hides the bias from a CI-sized measurement.
+#[test]
+fn sppm_error_and_bias_fall_with_passes() {
+    use pm_image::accuracy;
+    let scene = load_scene("cornell_boxes.gltf");
+    let camera = scene.camera.clone().unwrap();
+    let (w, h) = (64u32, 64u32);
+    let path = pm_render::PathTracer::new(&scene).unwrap();
+    let half = |seed: u64| {
+        let film = pm_render::Film { width: w, height: h, spp: 2048, contrast: 0.0, seed };
+        pm_render::render_region(&camera, &film, film.rect(), &path, false, &|_, _| {}).unwrap().0.total().to_vec()
+    };
+    let (a, b) = (half(101), half(102));
+    let keep = accuracy::keep_mask_of_halves(&a, &b, w as usize, h as usize, None);
+    let (reference, var) = accuracy::reference_from_halves(&a, &b, &keep);
+    let mut last = f64::INFINITY;
+    let mut bias = 1.0;
+    for passes in [4, 16, 64, 256] {
+        let renders: Vec<Vec<glam::Vec3>> =
+            (1..=2).map(|seed| sppm(&scene, w, h, passes, 20_000, seed).total().to_vec()).collect();
+        let refs: Vec<&[glam::Vec3]> = renders.iter().map(Vec::as_slice).collect();
+        let s = accuracy::split(&refs, &reference, var, &keep);
+        eprintln!(
+            "SPPM {passes} passes: error {:.2}% = bias {:.2}% (+) noise {:.2}%",
+            100.0 * s.error,
+            100.0 * s.bias,
+            100.0 * s.noise
+        );
+        assert!(s.error < last, "{passes} passes: error {} after {last}", s.error);
+        (last, bias) = (s.error, s.bias);
+    }
+    let batch: Vec<Vec<glam::Vec3>> = (1..=2)
+        .map(|seed| {
+            let maps = pm_tests::photon_maps_seeded(&scene, 100_000, 0, 0.25, seed);
+            pm_tests::render(&scene, &maps, &pm_tests::render_params(pm_render::Method::Full, w, h)).0.total().to_vec()
+        })
+        .collect();
+    let refs: Vec<&[glam::Vec3]> = batch.iter().map(Vec::as_slice).collect();
+    let s = accuracy::split(&refs, &reference, var, &keep);
+    eprintln!(
+        "batch pipeline: error {:.2}% = bias {:.2}% (+) noise {:.2}%",
+        100.0 * s.error,
+        100.0 * s.bias,
+        100.0 * s.noise
+    );
+    assert!(s.bias > 2.0 * bias, "the batch pipeline's bias {} against SPPM's {bias}", s.bias);
+}
