@@ -139,7 +139,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let mode = if cli.icache_out.is_some() { Method::Indirect } else { p.mode };
     let indirect = !cli.no_indirect;
     let full = mode == Method::Full;
-    let needs_global = mode != Method::Path && (indirect || !full);
+    let needs_global = !matches!(mode, Method::Path | Method::Sppm) && (indirect || !full);
     let needs_irradiance =
         matches!(mode, Method::Full | Method::Indirect | Method::Radiance) && p.gather_lookup == Lookup::Precomputed;
     let caustic = match (&cli.caustic, full) {
@@ -329,11 +329,22 @@ impl Job<'_> {
             }
             pm = pm.with_cache(c);
         }
-        let progress = Progress::new("render", self.rect.area() as u64);
-        let (img, stats) =
-            pm_render::render_method(self.mode, pm, self.camera, &self.film, self.rect, false, &|d, _| progress.set(d))
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
-        progress.finish();
+        let (img, stats) = if self.mode == Method::Sppm {
+            // Progressive photon mapping traces its own photons, pass by pass.
+            let progress = Progress::new("sppm passes", self.cli.params.passes as u64);
+            let p = &self.cli.params;
+            let r = pm_sppm::render(self.scene, p, self.camera, &self.film, self.rect, &|d, _| progress.set(d));
+            progress.finish();
+            r
+        } else {
+            let progress = Progress::new("render", self.rect.area() as u64);
+            let r = pm_render::render_method(self.mode, pm, self.camera, &self.film, self.rect, false, &|d, _| {
+                progress.set(d)
+            });
+            progress.finish();
+            r
+        }
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
         Ok((Some(img), stats, cache))
     }
 }
@@ -342,7 +353,7 @@ impl Job<'_> {
 /// trade-off study and figure1 into this type.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Report {
-    /// "full", "photons", "radiance", "indirect", "path", or "icache" (--icache-out).
+    /// "full", "photons", "radiance", "indirect", "path", "sppm", or "icache" (--icache-out).
     pub mode: String,
     /// Soft indirect light computed.
     pub indirect: bool,

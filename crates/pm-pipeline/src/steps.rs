@@ -92,6 +92,24 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
     let mut scene_files = scene_inputs(scene)?;
     scene_files.extend(cfg.environment_file().map(Path::to_owned));
     let seed = ["--seed".to_string(), cfg.seed.to_string()];
+    if matches!(cfg.render.mode, pm_render::Method::Path | pm_render::Method::Sppm) {
+        // Methods that trace their own paths (and photons): no maps, one step.
+        let mut args = vec!["--scene".into(), s(scene)];
+        args.extend(cfg.scene_args());
+        args.extend(seed);
+        args.extend(cfg.render.to_args());
+        return Ok(vec![Step {
+            name: "photon-render".into(),
+            kind: Kind::Render,
+            args,
+            writes: vec![("--out", o("image.exr")), ("--png", o("image.png"))],
+            stats: o("render.stats.json"),
+            inputs: scene_files,
+            outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
+            needs: None,
+            optional: vec![],
+        }]);
+    }
     let mut trace = cfg.trace.clone();
     if !indirect {
         trace.global_photons = 0;

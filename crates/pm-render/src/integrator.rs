@@ -306,6 +306,6 @@ pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
 }
 
 /// The salt of pixel `i` (see [`pixel_seed`]).
-pub(crate) fn pixel_salt(i: usize) -> u64 {
+pub fn pixel_salt(i: usize) -> u64 {
     0x7069_7865_6c00 ^ i as u64
 }

@@ -27,15 +27,13 @@ mod integrator;
 mod path;
 mod photon_mapping;
 mod render;
-mod sppm;
 
 pub use icache::IrradianceCache;
-pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, VisibleSurface};
+pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, VisibleSurface, pixel_salt};
 pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
 pub use render::{FrameBuffers, Image, Visibility, render_into, render_region, render_region_with};
-pub use sppm::{PassStats, PixelState, Sppm, SppmParams};
 
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
@@ -53,6 +51,10 @@ pm_params::value_enum! {
         Indirect,
         /// Unbiased path tracing: the reference (needs no photon maps).
         Path,
+        /// Stochastic progressive photon mapping: passes of eye paths and photons
+        /// with shrinking radii, the batch pipeline's consistent limit (needs no
+        /// photon maps; Hachisuka and Jensen 2009; the pm-sppm crate).
+        Sppm,
     }
 }
 
@@ -116,6 +118,14 @@ pm_params::params! {
         max_depth: u32 = 12 => between(0, 1000);
         /// PNG exposure in stops (the PNG shows radiance x 2^exposure).
         exposure: f32 = 0.0 => between(-64.0, 64.0);
+        /// Progressive photon mapping (sppm mode): passes, each one eye sample a pixel and a photon pass.
+        passes: u32 = 64 => between(1, 1 << 24);
+        /// Progressive photon mapping: photon paths traced per pass.
+        photons_per_pass: u64 = 100_000 => between(1, 1 << 30);
+        /// Progressive photon mapping: Hachisuka's alpha, the share of a pass's photons a pixel keeps as its radius shrinks.
+        sppm_alpha: f32 = 0.6666667 => between(0.01, 0.99);
+        /// Progressive photon mapping: starting gather radius, as a fraction of the scene diagonal.
+        sppm_radius_rel_diag: f32 = 0.01 => above(0.0);
     }
 }
 
@@ -287,6 +297,8 @@ pub fn render_method<G: PhotonRecord>(
             let pt = PathTracer::new(pm.scene).map_err(|e| e.to_string())?;
             render_region(camera, film, rect, &pt, gbuffer, progress)
         }
+        // Progressive photon mapping traces its own photons: `pm_sppm::render`.
+        Method::Sppm => Err("progressive photon mapping renders through pm_sppm::render".into()),
     }
 }
 
@@ -301,7 +313,7 @@ pub fn method_uses_cache(method: Method) -> bool {
 /// gather-ray hits); otherwise the global map is only searched through its
 /// precomputed-irradiance subset, for the nearest photon.
 pub fn method_searches_global(method: Method, lookup: Lookup) -> bool {
-    method == Method::Photons || (lookup == Lookup::Exact && method != Method::Path)
+    method == Method::Photons || (lookup == Lookup::Exact && !matches!(method, Method::Path | Method::Sppm))
 }
 
 #[cfg(test)]

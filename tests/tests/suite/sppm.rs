@@ -1,7 +1,7 @@
 //! Stochastic progressive photon mapping (issue 39): the batch pipeline's
 //! consistent limit, against the furnace's closed form and the path tracer.
 
-use pm_render::{Sppm, SppmParams};
+use pm_sppm::{Sppm, SppmParams};
 use pm_tests::load_scene;
 
 /// `passes` passes of SPPM over `scene` at `w` x `h` with `photons` photon paths a
@@ -103,4 +103,33 @@ fn sppm_error_and_bias_fall_with_passes() {
         100.0 * s.noise
     );
     assert!(s.bias > 2.0 * bias, "the batch pipeline's bias {} against SPPM's {bias}", s.bias);
+}
+
+/// `[render] mode = "sppm"` in pipeline.toml: `cargo xtask run` runs
+/// photon-render alone (no maps to trace), and its image's mean agrees with the
+/// path tracer's through the same runner within 5% (24 x 24, 32 passes of
+/// 20,000 photon paths against 256 paths a pixel).
+#[test]
+fn the_runner_renders_sppm_without_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let bins = xtask::stages::Bins { dir: pm_tests::bin_dir() };
+    let mean = |mode: pm_render::Method, name: &str| {
+        let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 256, name);
+        pm_tests::edit_pipeline(&p, |c| {
+            c.render.mode = mode;
+            (c.render.passes, c.render.photons_per_pass) = (32, 20_000);
+        });
+        let out = dir.path().join(name);
+        let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
+        let ran = xtask::run::run_with(&args, &root, &bins).unwrap();
+        let steps: Vec<&str> = ran.iter().filter(|o| o.ran).map(|o| o.step.as_str()).collect();
+        assert_eq!(steps, ["photon-render"], "{name}");
+        let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
+        let px = img.total().unwrap();
+        px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
+    };
+    let (s, p) = (mean(pm_render::Method::Sppm, "sppm"), mean(pm_render::Method::Path, "path"));
+    eprintln!("runner: SPPM mean {s:.4}, path tracer {p:.4}");
+    assert!((s / p - 1.0).abs() < 0.05, "SPPM {s} vs path {p}");
 }

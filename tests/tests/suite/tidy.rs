@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// each other); 6 the stage shell; 7 stage binaries (never on each other); 8 the
 /// pipeline as data (pm-pipeline: settings, steps, job graph, above the stages whose
 /// parameter types it holds); 9 the test crate.
-const LAYERS: [(&str, u8); 25] = [
+const LAYERS: [(&str, u8); 26] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -30,6 +30,7 @@ const LAYERS: [(&str, u8); 25] = [
     ("pm-image", 2),
     ("pm-render", 3),
     ("pm-live", 4),
+    ("pm-sppm", 4),
     ("pm-vertex", 5),
     ("pm-ispm", 5),
     ("pm-stage", 6),
@@ -47,7 +48,7 @@ const LAYERS: [(&str, u8); 25] = [
 const STAGE: u8 = 7;
 
 /// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
-const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 15] = [
+const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 16] = [
     ("pm-params", &["pm-color", "pm-sampling", "pm-bsdf"]),
     ("pm-sampling", &["pm-color", "pm-bsdf", "pm-scene"]),
     ("pm-bsdf", &["pm-scene", "pm-format", "pm-photon"]),
@@ -62,6 +63,7 @@ const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 15] = [
     ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
     ("pm-live", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-image"]),
     ("pm-vertex", &["pm-ispm", "pm-image"]),
+    ("pm-sppm", &["pm-kdtree", "pm-live", "pm-image"]),
     ("pm-ispm", &["pm-vertex", "pm-format", "pm-estimate", "pm-image"]),
 ];
 

@@ -22,32 +22,91 @@
 //! tracer's paths keyed by (seed, pass, index), and each visible point sums its
 //! photons in their index order, so any thread count gives the same image.
 
-use crate::integrator::pixel_salt;
-use crate::render::Image;
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::{Layer, Rgb};
 use pm_light::DirectLighting;
-use pm_params::{above, between};
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
+use pm_render::{Image, pixel_salt};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-pm_params::params! {
-    /// Progressive photon mapping's parameters (`photon-render --mode sppm`).
-    pub struct SppmParams {
-        /// Passes (each: one eye sample a pixel and a photon pass).
-        passes: u32 = 64 => between(1, 1 << 24);
-        /// Photon paths traced per pass.
-        photons_per_pass: u64 = 100_000 => between(1, 1 << 30);
-        /// Hachisuka's alpha: the fraction of a pass's photons a pixel keeps as it
-        /// shrinks its radius (0 < alpha < 1; smaller shrinks faster, noisier).
-        alpha: f32 = 2.0 / 3.0 => between(0.01, 0.99);
-        /// Starting gather radius, as a fraction of the scene diagonal.
-        initial_radius_rel_diag: f32 = 0.01 => above(0.0);
+/// Progressive photon mapping's parameters (`pm_render::RenderParams`' `passes`,
+/// `photons_per_pass`, `sppm_alpha`, `sppm_radius_rel_diag`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SppmParams {
+    /// Passes (each: one eye sample a pixel and a photon pass).
+    pub passes: u32,
+    /// Photon paths traced per pass.
+    pub photons_per_pass: u64,
+    /// Hachisuka's alpha: the fraction of a pass's photons a pixel keeps as it
+    /// shrinks its radius (0 < alpha < 1; smaller shrinks faster, noisier).
+    pub alpha: f32,
+    /// Starting gather radius, as a fraction of the scene diagonal.
+    pub initial_radius_rel_diag: f32,
+}
+
+impl Default for SppmParams {
+    fn default() -> Self {
+        SppmParams::of(&pm_render::RenderParams::default())
     }
+}
+
+impl SppmParams {
+    /// The progressive settings of render parameters `p`.
+    pub fn of(p: &pm_render::RenderParams) -> SppmParams {
+        SppmParams {
+            passes: p.passes,
+            photons_per_pass: p.photons_per_pass,
+            alpha: p.sppm_alpha,
+            initial_radius_rel_diag: p.sppm_radius_rel_diag,
+        }
+    }
+}
+
+/// Render `rect` of `film` by `params.passes` passes of progressive photon
+/// mapping (the whole film is traced, its `rect` kept: a pixel's value depends
+/// only on its own eye paths and each pass's photons, so a region equals the same
+/// pixels of the whole image), reporting passes done as progress.
+pub fn render(
+    scene: &Scene,
+    params: &pm_render::RenderParams,
+    camera: &Camera,
+    film: &pm_render::Film,
+    rect: pm_raster::Rect,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Image, pm_render::RenderStats), String> {
+    let t0 = std::time::Instant::now();
+    let p = SppmParams::of(params);
+    let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, params.light_samples, params.max_depth)
+        .map_err(|e| e.to_string())?;
+    for k in 0..p.passes {
+        s.pass(camera);
+        progress(k as u64 + 1, p.passes as u64);
+    }
+    let whole = s.image();
+    let keep = |v: &[Rgb]| -> Vec<Rgb> {
+        (rect.y0..rect.y1)
+            .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
+            .map(|(x, y)| v[(y * film.width + x) as usize])
+            .collect()
+    };
+    let image = Image {
+        rect,
+        width: rect.x1 - rect.x0,
+        height: rect.y1 - rect.y0,
+        total: keep(&whole.total),
+        layers: whole.layers.each_ref().map(|l| keep(l)),
+        gbuffer: None,
+    };
+    let stats = pm_render::RenderStats {
+        seconds: t0.elapsed().as_secs_f64(),
+        samples: p.passes as u64 * image.total.len() as u64,
+        ..Default::default()
+    };
+    Ok((image, stats))
 }
 
 /// One pixel's progressive state: what a long render keeps between passes.
