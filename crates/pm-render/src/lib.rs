@@ -160,6 +160,10 @@ impl RenderParams {
             exposure: d.exposure,
             caustic_k: d.caustic_k,
             caustic_radius_rel_diag: d.caustic_radius_rel_diag,
+            passes: d.passes,
+            photons_per_pass: d.photons_per_pass,
+            sppm_alpha: d.sppm_alpha,
+            sppm_radius_rel_diag: d.sppm_radius_rel_diag,
             ..self.clone()
         })
     }
@@ -168,7 +172,8 @@ impl RenderParams {
 /// The settings that shape an irradiance cache, said once: render parameters with
 /// every value that cannot shape a cache at its default (how the image is sampled
 /// and shown: spp, contrast, mode, exposure; the caustic estimate: caustic_k,
-/// caustic_radius_rel_diag). What remains is the image size (the prepass samples
+/// caustic_radius_rel_diag; progressive photon mapping's, which has no cache).
+/// What remains is the image size (the prepass samples
 /// the image), the final gather's settings, the global map's estimate, the cache's
 /// accuracy and spacing, direct light and the specular depth. The runner's cache
 /// step takes exactly these ([`Self::render_params`]), so a change of anything
@@ -378,6 +383,10 @@ mod tests {
             }
             shaping += in_settings as usize;
         }
-        assert_eq!(shaping, RenderParams::FIELDS.len() - 6, "spp, contrast, mode, exposure and the caustic two");
+        assert_eq!(
+            shaping,
+            RenderParams::FIELDS.len() - 10,
+            "spp, contrast, mode, exposure, the caustic two and progressive photon mapping's four"
+        );
     }
 }
