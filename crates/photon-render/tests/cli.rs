@@ -286,3 +286,52 @@ fn grid(w: u32, h: u32, tw: u32, th: u32) -> Vec<[u32; 4]> {
         .flat_map(|j| (0..w.div_ceil(tw)).map(move |i| [i * tw, j * th, ((i + 1) * tw).min(w), ((j + 1) * th).min(h)]))
         .collect()
 }
+
+/// `--mode sppm` renders without photon maps; `--checkpoint 2` writes the image
+/// after passes 2 and 4 of 6 (and says so) and leaves the finished image the
+/// 6-pass render's, byte for byte; a tiny `--time-budget` stops after the first
+/// pass (the report counts one sample a pixel); both options are refused outside
+/// sppm mode.
+#[test]
+fn sppm_checkpoints_and_time_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_boxes.gltf");
+    let sppm = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let stats = dir.path().join(format!("{name}.json"));
+        let mut a = vec![
+            "--scene",
+            s.to_str().unwrap(),
+            "--mode",
+            "sppm",
+            "--photons-per-pass",
+            "2000",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats-json",
+            stats.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        let o = render(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let said = String::from_utf8_lossy(&o.stderr).into_owned();
+        (std::fs::read(&out).unwrap(), std::fs::read_to_string(&stats).unwrap(), said)
+    };
+    let (four, _, _) = sppm("four.exr", &["--passes", "4"]);
+    let (six, _, _) = sppm("six.exr", &["--passes", "6"]);
+    assert_ne!(four, six);
+    let (six_checkpointed, _, said) = sppm("six_k.exr", &["--passes", "6", "--checkpoint", "2"]);
+    assert_eq!(six_checkpointed, six, "checkpoints do not change the image");
+    for k in [2, 4] {
+        assert!(said.contains(&format!("checkpoint: {k} passes written")), "{said}");
+    }
+    let (_, stats, _) = sppm("budget.exr", &["--passes", "50", "--time-budget", "0.000001"]);
+    let report: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    assert_eq!(report["samples"], 16 * 12, "one pass: {stats}");
+    let o = render(&["--scene", s.to_str().unwrap(), "--mode", "path", "--checkpoint", "2", "--out", "x.exr"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--mode sppm"));
+}

@@ -78,32 +78,38 @@ pub fn render(
     rect: pm_raster::Rect,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
+    let passes = params.passes as u64;
+    render_with(scene, params, camera, film, rect, &mut |s| {
+        progress(s.passes() as u64, passes);
+        Ok(true)
+    })
+}
+
+/// [`render`], calling `after_pass` after each pass with the state so far (to
+/// write a checkpoint image, or stop: `Ok(false)` ends the render with the
+/// passes done; an error ends it with that error).
+pub fn render_with(
+    scene: &Scene,
+    params: &pm_render::RenderParams,
+    camera: &Camera,
+    film: &pm_render::Film,
+    rect: pm_raster::Rect,
+    after_pass: &mut dyn FnMut(&Sppm) -> Result<bool, String>,
+) -> Result<(Image, pm_render::RenderStats), String> {
     let t0 = std::time::Instant::now();
     let p = SppmParams::of(params);
     let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, params.light_samples, params.max_depth)
         .map_err(|e| e.to_string())?;
-    for k in 0..p.passes {
+    while s.passes() < p.passes {
         s.pass(camera);
-        progress(k as u64 + 1, p.passes as u64);
+        if !after_pass(&s)? {
+            break;
+        }
     }
-    let whole = s.image();
-    let keep = |v: &[Rgb]| -> Vec<Rgb> {
-        (rect.y0..rect.y1)
-            .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
-            .map(|(x, y)| v[(y * film.width + x) as usize])
-            .collect()
-    };
-    let image = Image {
-        rect,
-        width: rect.x1 - rect.x0,
-        height: rect.y1 - rect.y0,
-        total: keep(&whole.total),
-        layers: whole.layers.each_ref().map(|l| keep(l)),
-        gbuffer: None,
-    };
+    let image = s.region_image(rect);
     let stats = pm_render::RenderStats {
         seconds: t0.elapsed().as_secs_f64(),
-        samples: p.passes as u64 * image.total.len() as u64,
+        samples: s.passes() as u64 * image.total.len() as u64,
         ..Default::default()
     };
     Ok((image, stats))
@@ -352,6 +358,25 @@ impl<'a> Sppm<'a> {
             })
             .flatten()
             .collect()
+    }
+
+    /// [`Self::image`]'s pixels of `rect`.
+    pub fn region_image(&self, rect: pm_raster::Rect) -> Image {
+        let whole = self.image();
+        let keep = |v: &[Rgb]| -> Vec<Rgb> {
+            (rect.y0..rect.y1)
+                .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
+                .map(|(x, y)| v[(y * self.width + x) as usize])
+                .collect()
+        };
+        Image {
+            rect,
+            width: rect.x1 - rect.x0,
+            height: rect.y1 - rect.y0,
+            total: keep(&whole.total),
+            layers: whole.layers.each_ref().map(|l| keep(l)),
+            gbuffer: None,
+        }
     }
 
     /// The image after the passes done: per pixel L_d / P + tau / (P N_p pi r^2),
