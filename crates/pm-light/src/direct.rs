@@ -260,9 +260,10 @@ impl DirectLighting<'_> {
     /// area light that encloses space, also sample the BSDF and weigh the two by the
     /// power heuristic, and so does every surface of a scene with lights at
     /// infinity (an environment, a sun disc; issue 37). Inside such a light (the
-    /// furnace's emitting sphere) the facets next to a point subtend large solid angles but are chosen by their small
-    /// areas: a light sample on one weighed up to 11 times the mean, and made the
-    /// furnace test's worst pixel; cosine-sampled directions find those facets often.
+    /// furnace's emitting sphere) the facets next to a point subtend large solid
+    /// angles but are chosen by their small areas: a light sample on one weighed up
+    /// to 11 times the mean, and made the furnace test's worst pixel;
+    /// cosine-sampled directions find those facets often.
     /// Built [`Self::with_closed_form`], Lambertian surfaces in a scene of at most
     /// `CLOSED_FORM_LIGHTS` lights that all have a closed-form irradiance take the
     /// closed form with stochastic shadows instead (see `closed_form_direct`).

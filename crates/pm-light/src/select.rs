@@ -42,14 +42,10 @@ impl LightSelector {
             return Err(LightSelectError::BadShares(format!("{shares:?}")));
         }
         for (name, share) in shares {
-            let i = scene
-                .lights
-                .iter()
-                .position(|l| l.name == *name || l.name.starts_with(&format!("{name} (")))
-                .ok_or_else(|| {
-                    let names: Vec<_> = scene.lights.iter().map(|l| l.name.clone()).collect();
-                    LightSelectError::UnknownLight(name.clone(), names.join(", "))
-                })?;
+            let i = scene.lights.iter().position(|l| Scene::names(&l.name, name)).ok_or_else(|| {
+                let names: Vec<_> = scene.lights.iter().map(|l| l.name.clone()).collect();
+                LightSelectError::UnknownLight(name.clone(), names.join(", "))
+            })?;
             fixed[i] = Some(*share);
         }
         let free_power: f64 = power.iter().zip(&fixed).filter(|(_, f)| f.is_none()).map(|(p, _)| p.max(0.0)).sum();

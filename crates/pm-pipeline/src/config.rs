@@ -198,13 +198,11 @@ impl Pipeline {
         check("environment_strength", strength, strength.is_none_or(|v| v.is_finite() && v >= 0.0), ">= 0")?;
         let rotation = p.environment_rotation_deg;
         check("environment_rotation_deg", rotation, rotation.is_none_or(f32::is_finite), "finite")?;
-        if let Some(EnvironmentCfg::Colour(c)) = &p.environment
-            && !c.iter().all(|v| v.is_finite() && *v >= 0.0)
-        {
-            bail!("{file}: environment = {c:?}: radiance must be finite and non-negative");
+        if let Some(EnvironmentCfg::Colour(c)) = &p.environment {
+            pm_scene::Environment::constant(glam::Vec3::from_array(*c)).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
         }
         for (name, deg) in p.sun_angles() {
-            if !(deg > 0.0 && deg < 180.0) {
+            if !pm_scene::Scene::sun_angle_ok(deg) {
                 let key = name.map_or("sun_angle_deg".to_string(), |n| format!("sun_angle_deg.{n}"));
                 bail!("{file}: {key} = {deg} is out of range (0 < degrees < 180)");
             }

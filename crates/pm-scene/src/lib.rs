@@ -242,6 +242,14 @@ impl Scene {
         self.objects.get(i).filter(|o| o.tris.contains(&tri)).map(|_| i as u32)
     }
 
+    /// True when `name` (a light's or an object's, as the loader makes them) is
+    /// what a user's `wanted` names: equal to it, or `wanted` followed by " ("
+    /// (the loader's suffix for a primitive or a material). The one rule by which
+    /// light shares and portals find what they name.
+    pub fn names(name: &str, wanted: &str) -> bool {
+        name.strip_prefix(wanted).is_some_and(|rest| rest.is_empty() || rest.starts_with(" ("))
+    }
+
     /// Sum of the power of all lights [W per channel].
     pub fn total_power(&self) -> Rgb {
         self.lights.iter().map(|l| l.power).sum()
@@ -288,11 +296,17 @@ impl Scene {
         self.relight(b"environment", &identity);
     }
 
+    /// True for an angular diameter a sun disc can have \[degrees\]: 0 < angle < 180.
+    pub fn sun_angle_ok(angle_deg: f32) -> bool {
+        angle_deg > 0.0 && angle_deg < 180.0
+    }
+
     /// Give directional lights a size: a disc of angular diameter `angle_deg`
     /// (0 < angle < 180) with the same irradiance at normal incidence, for the
     /// lights named `name` (all directional lights when `None`). Returns how many
     /// lights changed. The content hash records the change.
     pub fn set_sun_angle(&mut self, name: Option<&str>, angle_deg: f32) -> usize {
+        debug_assert!(Scene::sun_angle_ok(angle_deg), "sun angle {angle_deg}");
         let half = 0.5 * angle_deg.to_radians();
         // 1 - cos(half) = 2 sin^2(half / 2), exact for small angles.
         let cap = 2.0 * (0.5 * half).sin().powi(2);
@@ -313,8 +327,8 @@ impl Scene {
     /// Make the meshes named `names` the portals the environment lights the scene
     /// through ([`Portal`]): each must be one quad; it becomes an opening (its
     /// triangles are made invisible to every ray) whose outward side faces away
-    /// from the scene's centre. A name matches an object whose name equals it or
-    /// starts with it followed by " (". Fails, saying why, without an
+    /// from the scene's centre. A name matches objects as [`Scene::names`] says.
+    /// Fails, saying why, without an
     /// environment, for a name no mesh has, and for a mesh that is not a quad or
     /// emits light.
     pub fn set_portals(&mut self, names: &[String]) -> Result<(), String> {
@@ -331,12 +345,8 @@ impl Scene {
         material.alpha_mode = AlphaMode::Mask { cutoff: 0.5 };
         material.base_alpha = 0.0;
         for name in names {
-            let matching: Vec<usize> = (0..self.objects.len())
-                .filter(|&i| {
-                    let o = &self.objects[i].name;
-                    o == name || o.starts_with(&format!("{name} ("))
-                })
-                .collect();
+            let matching: Vec<usize> =
+                (0..self.objects.len()).filter(|&i| Scene::names(&self.objects[i].name, name)).collect();
             if matching.is_empty() {
                 let all: Vec<&str> = self.objects.iter().map(|o| o.name.as_str()).collect();
                 return Err(format!("portal '{name}': no mesh of that name (meshes: {})", all.join(", ")));

@@ -20,18 +20,19 @@
 //! light) is left to next-event estimation, as in pbrt-v4. Deterministic: pass k's
 //! eye sample of a pixel is point k of the pixel's stream, its photons the photon
 //! tracer's paths keyed by (seed, pass, index), and each visible point sums its
-//! photons in their index order, so any thread count gives the same image.
+//! photons in a fixed order (pm-kdtree's `RadiusGrid`: cell by cell, by index
+//! within a cell), so any thread count gives the same image.
 
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::{Layer, Rgb};
+use pm_kdtree::RadiusGrid;
 use pm_light::DirectLighting;
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
 use pm_render::{Image, pixel_salt};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// Progressive photon mapping's parameters (`pm_render::RenderParams`' `passes`,
 /// `photons_per_pass`, `sppm_alpha`, `sppm_radius_rel_diag`).
@@ -258,7 +259,8 @@ impl<'a> Sppm<'a> {
         // The pass's photons after their first bounce, in index order.
         let photons = self.photons(k);
         let max_r = self.pixels.iter().map(|p| p.radius).fold(0.0f32, f32::max);
-        let grid = Grid::new(&photons, max_r);
+        let positions: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
+        let grid = RadiusGrid::new(&positions, max_r);
         let alpha = self.params.alpha;
         let found: Vec<u64> = self
             .pixels
@@ -270,7 +272,7 @@ impl<'a> Sppm<'a> {
                     *a += *b;
                 }
                 let Some(vp) = vp else { return 0 };
-                let (phi, m) = grid.gather(&photons, vp, px.radius);
+                let (phi, m) = gather(&grid, &photons, vp, px.radius);
                 let phi = phi.map(|f| vp.beta * f);
                 px.add_photons(
                     if vp.specular { [Rgb::ZERO, Rgb::ZERO, phi[0] + phi[1]] } else { [phi[0], phi[1], Rgb::ZERO] },
@@ -408,52 +410,20 @@ impl<'a> Sppm<'a> {
     }
 }
 
-/// A uniform grid over a pass's photons, cells of the largest gather radius: a
-/// gather reads the 27 cells around its point, each cell's photons in index order.
-struct Grid {
-    cell: f32,
-    cells: HashMap<[i32; 3], Vec<u32>>,
-}
-
-impl Grid {
-    fn new(photons: &[PassPhoton], max_radius: f32) -> Grid {
-        let cell = max_radius.max(f32::MIN_POSITIVE);
-        let mut cells: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
-        for (i, ph) in photons.iter().enumerate() {
-            cells.entry(Self::key(ph.p, cell)).or_default().push(i as u32);
+/// The flux f(wo, wi) Phi of the pass's `photons` within `r` of visible point
+/// `vp` on its surface (stored normal within [`pm_estimate::SAME_SURFACE_COS`]),
+/// found through `grid` (built over their positions for the largest radius, so
+/// the order of the sum is fixed): caustic, then the rest, and their count.
+fn gather(grid: &RadiusGrid, photons: &[PassPhoton], vp: &VisiblePoint, r: f32) -> ([Rgb; 2], u64) {
+    let (mut phi, mut m) = ([Rgb::ZERO; 2], 0u64);
+    grid.for_each_within(vp.p, r * r, |i, _| {
+        let ph = &photons[i as usize];
+        if ph.n.dot(vp.n) > pm_estimate::SAME_SURFACE_COS {
+            phi[!ph.caustic as usize] += vp.bsdf.f(vp.wo, ph.wi, vp.ns) * ph.power;
+            m += 1;
         }
-        Grid { cell, cells }
-    }
-
-    fn key(p: Vec3, cell: f32) -> [i32; 3] {
-        (p / cell).floor().as_ivec3().to_array()
-    }
-
-    /// The flux f(wo, wi) Phi of the photons within `r` of visible point `vp` on
-    /// its surface (stored normal within [`pm_estimate::SAME_SURFACE_COS`]):
-    /// caustic, then the rest, and their count.
-    fn gather(&self, photons: &[PassPhoton], vp: &VisiblePoint, r: f32) -> ([Rgb; 2], u64) {
-        let (mut phi, mut m) = ([Rgb::ZERO; 2], 0u64);
-        let c = Self::key(vp.p, self.cell);
-        let r2 = r * r;
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let Some(list) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
-                    for &i in list {
-                        let ph = &photons[i as usize];
-                        if (ph.p - vp.p).length_squared() > r2 || ph.n.dot(vp.n) <= pm_estimate::SAME_SURFACE_COS {
-                            continue;
-                        }
-                        let f = vp.bsdf.f(vp.wo, ph.wi, vp.ns);
-                        phi[!ph.caustic as usize] += f * ph.power;
-                        m += 1;
-                    }
-                }
-            }
-        }
-        (phi, m)
-    }
+    });
+    (phi, m)
 }
 
 #[cfg(test)]

@@ -112,7 +112,7 @@ pub fn parse_sun_angle(s: &str) -> Result<(Option<String>, f32)> {
         None => (None, s),
     };
     let deg: f32 = deg.trim().parse().map_err(|_| anyhow::anyhow!("--sun-angle-deg {s}: expected [NAME=]DEG"))?;
-    if !(deg > 0.0 && deg < 180.0) {
+    if !pm_scene::Scene::sun_angle_ok(deg) {
         anyhow::bail!("--sun-angle-deg {s}: the angle must be in (0, 180) degrees");
     }
     Ok((name, deg))

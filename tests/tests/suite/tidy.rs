@@ -63,7 +63,7 @@ const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 16] = [
     ("pm-image", &["pm-scene", "pm-kdtree", "pm-photon", "pm-estimate", "pm-render"]),
     ("pm-live", &["pm-format", "pm-kdtree", "pm-photon", "pm-estimate", "pm-image"]),
     ("pm-vertex", &["pm-ispm", "pm-image"]),
-    ("pm-sppm", &["pm-kdtree", "pm-live", "pm-image"]),
+    ("pm-sppm", &["pm-live", "pm-image"]),
     ("pm-ispm", &["pm-vertex", "pm-format", "pm-estimate", "pm-image"]),
 ];
 
