@@ -82,6 +82,21 @@ pub struct Cli {
     /// the image, then depends on the machine: `--passes` alone is deterministic).
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
+    /// Progressive photon mapping: keep the pixels' state (radii, photon counts,
+    /// fluxes: 100 bytes a pixel) in this file. When it exists the render
+    /// continues from the passes it holds (refused if it was made from another
+    /// scene or with other settings; --passes is the total); it is written at
+    /// every checkpoint and when the render stops. A render that --time-budget
+    /// stops before --passes then exits with code 75 (sysexits' EX_TEMPFAIL):
+    /// run the same command again to continue (a Slurm job re-queues itself so).
+    /// A stop and a resume equal one run bit for bit.
+    #[arg(long, value_name = "FILE")]
+    pub state: Option<PathBuf>,
+    /// Progressive photon mapping: run K of N independent runs, K/N (seed + K;
+    /// `cargo xtask assemble --average` averages the runs' images, which is still
+    /// consistent).
+    #[arg(long, value_parser = parse_run, value_name = "K/N")]
+    pub run: Option<(u32, u32)>,
     /// Write statistics (time per component, gathers, rays) as JSON.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
@@ -92,6 +107,10 @@ pub struct Cli {
 
 fn parse_tile(s: &str) -> Result<(u32, u32), String> {
     pm_stage::parse_part(s, "tile")
+}
+
+fn parse_run(s: &str) -> Result<(u32, u32), String> {
+    pm_stage::parse_part(s, "run")
 }
 
 /// The rectangle --region or --tile asks for, checked against the image.
@@ -133,8 +152,9 @@ fn parse_region(s: &str) -> Result<[u32; 4], String> {
 pub fn run(cli: &Cli) -> Result<Report> {
     let p = &cli.params;
     p.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
-    if (cli.checkpoint.is_some() || cli.time_budget.is_some()) && p.mode != Method::Sppm {
-        bail!("--checkpoint and --time-budget are progressive photon mapping's (--mode sppm)");
+    let progressive = cli.checkpoint.is_some() || cli.time_budget.is_some() || cli.state.is_some() || cli.run.is_some();
+    if progressive && p.mode != Method::Sppm {
+        bail!("--checkpoint, --time-budget, --state and --run are progressive photon mapping's (--mode sppm)");
     }
     if let Some(b) = cli.time_budget {
         ensure!(b.is_finite() && b > 0.0, "--time-budget {b}: give a positive number of seconds");
@@ -145,7 +165,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
         .camera
         .clone()
         .with_context(|| format!("{}: the scene has no perspective camera", cli.scene.display()))?;
-    let film = p.film(cli.seed);
+    let film = p.film(cli.seed.wrapping_add(cli.run.map_or(0, |(k, _)| k as u64)));
     let region = requested_region(cli, &film)?;
     let rect = match region {
         Some([x0, y0, x1, y1]) => Rect { x0, y0, x1, y1 },
@@ -201,7 +221,8 @@ pub fn run(cli: &Cli) -> Result<Report> {
     for n in &notes {
         eprintln!("photon-render: note: {n}");
     }
-    let job = Job { cli, scene: &scene, camera: &camera, film, rect, mode, indirect };
+    let unfinished = std::cell::Cell::new(false);
+    let job = Job { cli, scene: &scene, camera: &camera, film, rect, mode, indirect, unfinished: &unfinished };
     let (image, stats, cache) = match &global {
         Some(pm_format::AnyMap::CompactIrr(m)) => job.run(Some(m), caustic.as_ref())?,
         Some(pm_format::AnyMap::FullIrr(m)) => job.run(Some(m), caustic.as_ref())?,
@@ -225,7 +246,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             )?;
         }
     }
-    let report = report(cli, region, &scene, &stats, &cache, &notes);
+    let report = Report { unfinished: unfinished.get(), ..report(cli, region, &scene, &stats, &cache, &notes) };
     if let Some(path) = &cli.stats_json {
         pm_stage::write_json(path, &serde_json::to_value(&report)?)?;
     }
@@ -254,6 +275,8 @@ struct Job<'a> {
     rect: Rect,
     mode: Method,
     indirect: bool,
+    /// Set when --time-budget stopped a render with --state before its passes.
+    unfinished: &'a std::cell::Cell<bool>,
 }
 
 impl Job<'_> {
@@ -295,14 +318,7 @@ impl Job<'_> {
             ensure!(file.scene_hash == self.scene.content_hash, "{}: made from another scene", path.display());
             ensure!(file.map_hash == map_hash, "{}: made from another global photon map", path.display());
             let key = pm.cache_key(&self.film);
-            if file.params != key {
-                // Name the first setting that differs (the keys are "name=value" words).
-                let stored: Vec<&str> = file.params.split_whitespace().collect();
-                let (had, has) = key
-                    .split_whitespace()
-                    .zip(stored.iter().chain(std::iter::repeat(&"(none)")))
-                    .find(|(a, b)| a != *b)
-                    .map_or(("?".into(), "?".into()), |(a, b)| (b.to_string(), a.to_string()));
+            if let Some((had, has)) = pm_format::key_difference(&file.params, &key) {
                 bail!("{}: made with {had}, this render has {has}: run --icache-out again", path.display());
             }
             pm = pm.with_cache_records(&file.records);
@@ -329,26 +345,9 @@ impl Job<'_> {
             pm = pm.with_cache(c);
         }
         let (img, stats) = if self.mode == Method::Sppm {
-            // Progressive photon mapping traces its own photons, pass by pass.
-            let progress = Progress::new("sppm passes", self.cli.params.passes as u64);
-            let (p, cli) = (&self.cli.params, self.cli);
-            let region =
-                (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
-            let start = std::time::Instant::now();
-            let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, &mut |s| {
-                progress.set(s.passes() as u64);
-                if let (Some(k), Some(out)) = (cli.checkpoint, &cli.out)
-                    && k > 0
-                    && s.passes().is_multiple_of(k)
-                    && s.passes() < p.passes
-                {
-                    write_exr(cli, out, region, &layers_of(s.region_image(self.rect))).map_err(|e| format!("{e:#}"))?;
-                    eprintln!("photon-render: checkpoint: {} passes written to {}", s.passes(), out.display());
-                }
-                Ok(cli.time_budget.is_none_or(|b| start.elapsed().as_secs_f64() < b))
-            });
-            progress.finish();
-            r
+            let (img, stats, passes) = self.sppm().map_err(|e| anyhow::anyhow!(e))?;
+            self.unfinished.set(passes < self.cli.params.passes && self.cli.state.is_some());
+            Ok((img, stats))
         } else {
             let progress = Progress::new("render", self.rect.area() as u64);
             let r = pm_render::render_method(self.mode, pm, self.camera, &self.film, self.rect, false, &|d, _| {
@@ -359,6 +358,68 @@ impl Job<'_> {
         }
         .map_err(|e| anyhow::anyhow!("{e}"))?;
         Ok((Some(img), stats, cache))
+    }
+
+    /// Progressive photon mapping: its own photons, pass by pass, from the state
+    /// file's passes when there is one, with checkpoints and the time budget.
+    /// Returns the image, its statistics and the passes it holds.
+    fn sppm(&self) -> Result<(Image, RenderStats, u32), String> {
+        let (p, cli) = (&self.cli.params, self.cli);
+        let start = match &cli.state {
+            Some(path) if path.exists() => {
+                let file = pm_format::read_state(path).map_err(|e| e.to_string())?;
+                if (file.width, file.height) != (self.film.width, self.film.height) {
+                    return Err(format!(
+                        "{}: a state of a {}x{} image, this render is {}x{}",
+                        path.display(),
+                        file.width,
+                        file.height,
+                        self.film.width,
+                        self.film.height
+                    ));
+                }
+                Some(file)
+            }
+            _ => None,
+        };
+        let progress = Progress::new("sppm passes", p.passes as u64);
+        let region =
+            (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
+        let t0 = std::time::Instant::now();
+        let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, start.as_ref(), &mut |s| {
+            let done = s.passes();
+            let photons = done as u64 * p.photons_per_pass;
+            let noise = s.noise().map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
+            progress.set(done as u64);
+            progress.message(&format!("{photons} photon paths{noise}"));
+            let go_on = cli.time_budget.is_none_or(|b| t0.elapsed().as_secs_f64() < b);
+            let checkpoint = cli.checkpoint.is_some_and(|k| k > 0 && done.is_multiple_of(k));
+            if checkpoint || !go_on || done == p.passes {
+                if let Some(path) = &cli.state {
+                    pm_format::write_state(path, &s.to_file()).map_err(|e| e.to_string())?;
+                }
+            }
+            if let (true, Some(out)) = (checkpoint && done < p.passes, &cli.out) {
+                write_exr(cli, out, region, &layers_of(s.region_image(self.rect))).map_err(|e| format!("{e:#}"))?;
+                eprintln!(
+                    "photon-render: checkpoint: {done} passes written to {} ({photons} photon paths{noise})",
+                    out.display()
+                );
+            }
+            Ok(go_on)
+        });
+        progress.finish();
+        if let (Some(file), Ok(_)) = (&start, &r) {
+            eprintln!(
+                "photon-render: continued from the {} passes in {}",
+                file.passes,
+                cli.state.as_ref().expect("read from it").display()
+            );
+        }
+        r.map_err(|e| match &cli.state {
+            Some(path) if e.starts_with("made ") || e.starts_with("holds ") => format!("{}: {e}", path.display()),
+            _ => e,
+        })
     }
 }
 
@@ -418,6 +479,11 @@ pub struct Report {
     pub threads: usize,
     /// Notes printed on stderr.
     pub notes: Vec<String>,
+    /// Progressive photon mapping: --time-budget stopped the render before its
+    /// --passes, and its --state holds the passes done (run the same command again
+    /// to continue; the program exits with [`pm_stage::EXIT_UNFINISHED`]).
+    #[serde(default)]
+    pub unfinished: bool,
 }
 
 /// Write the render's layers to `out` (and create the folders of the other
@@ -488,5 +554,6 @@ fn report(
         scene_diagonal_m: scene.bounds.diagonal(),
         threads: pm_stage::thread_count(),
         notes: notes.to_vec(),
+        unfinished: false,
     }
 }

@@ -335,3 +335,70 @@ fn sppm_checkpoints_and_time_budget() {
     let o = render(&["--scene", s.to_str().unwrap(), "--mode", "path", "--checkpoint", "2", "--out", "x.exr"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--mode sppm"));
 }
+
+/// `--state`: 8 passes, a stop, and 8 more from the state file (the render runs
+/// to `--passes 16` from the 8 it holds) equal 16 passes in one run bit for bit,
+/// image and state; a render stopped by `--time-budget` with a state exits with
+/// code 75 and continues from the state with the same command; a state is
+/// refused, naming the file and the setting, when the settings, the image size
+/// or the scene differ, or when it holds more passes than asked for; and
+/// `--run K/N` is the render with seed + K.
+#[test]
+fn sppm_state_resumes_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_boxes.gltf");
+    let p = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    let sppm_of = |scene: &Path, width: &str, out: &str, extra: &[&str]| {
+        let out = p(out);
+        let mut a = vec!["--scene", scene.to_str().unwrap(), "--mode", "sppm", "--photons-per-pass", "2000"];
+        a.extend(["--width", width, "--height", "12", "--out", &out]);
+        a.extend_from_slice(extra);
+        render(&a)
+    };
+    let sppm = |out: &str, extra: &[&str]| sppm_of(&s, "16", out, extra);
+    let ok = |o: std::process::Output| {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    ok(sppm("one.exr", &["--passes", "16", "--state", &p("one.state")]));
+    ok(sppm("two.exr", &["--passes", "8", "--state", &p("two.state")]));
+    let said = ok(sppm("two.exr", &["--passes", "16", "--state", &p("two.state")]));
+    assert!(said.contains("continued from the 8 passes"), "{said}");
+    let read = |f: &str| std::fs::read(p(f)).unwrap();
+    assert_eq!(read("one.exr"), read("two.exr"), "8 + 8 passes against 16");
+    assert_eq!(read("one.state"), read("two.state"));
+    assert_eq!(pm_format::read_state(Path::new(&p("one.state"))).unwrap().passes, 16);
+    // Stopped by the time budget: exit 75, the state holds the passes done; the
+    // same command continues and finishes with the one-run image.
+    let budget = ["--passes", "16", "--state", &p("b.state"), "--time-budget", "0.000001"];
+    let o = sppm("b.exr", &budget);
+    assert_eq!(o.status.code(), Some(75), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unfinished: 1 of 16 passes"));
+    assert_eq!(pm_format::read_state(Path::new(&p("b.state"))).unwrap().passes, 1);
+    ok(sppm("b.exr", &["--passes", "16", "--state", &p("b.state")]));
+    assert_eq!(read("one.exr"), read("b.exr"));
+    // Refusals: one line naming the state file and what differs.
+    let one_state = p("one.state");
+    let refused_of = |scene: &Path, width: &str, extra: &[&str], what: &str| {
+        let mut a = vec!["--state", one_state.as_str()];
+        a.extend_from_slice(extra);
+        let o = sppm_of(scene, width, "refused.exr", &a);
+        let said = String::from_utf8_lossy(&o.stderr);
+        let e = said.lines().find(|l| l.contains("error:")).unwrap_or_default();
+        assert!(!o.status.success() && e.contains("one.state") && e.contains(what), "{said}");
+        assert!(!dir.path().join("refused.exr").exists());
+    };
+    let refused = |extra: &[&str], what: &str| refused_of(&s, "16", extra, what);
+    refused(&["--passes", "32", "--sppm-alpha", "0.5"], "sppm_alpha=0.5");
+    refused(&["--passes", "32", "--seed", "2"], "seed=2");
+    refused_of(&s, "20", &["--passes", "32"], "16x12");
+    refused(&["--passes", "8"], "holds 16 passes");
+    refused_of(&scene("furnace.gltf"), "16", &["--passes", "32"], "another scene");
+    std::fs::write(p("bad.state"), b"not a state").unwrap();
+    let o = sppm("refused.exr", &["--passes", "4", "--state", &p("bad.state")]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a usable progressive state"));
+    // Run 2 of 4 is the render with seed 3.
+    ok(sppm("run.exr", &["--passes", "4", "--run", "2/4"]));
+    ok(sppm("seed.exr", &["--passes", "4", "--seed", "3"]));
+    assert_eq!(read("run.exr"), read("seed.exr"));
+}

@@ -264,9 +264,12 @@ pub enum Problem {
         /// What the file is.
         found: String,
     },
-    /// An irradiance-cache file that cannot be used (see [`crate::icache`]).
-    #[error("not a usable irradiance cache: {what}")]
-    NotCache {
+    /// An irradiance-cache or progressive-state file that cannot be used (see
+    /// [`crate::framed`]).
+    #[error("not a usable {kind}: {what}")]
+    Unusable {
+        /// What the file should have been ("irradiance cache").
+        kind: &'static str,
         /// What is wrong.
         what: String,
     },

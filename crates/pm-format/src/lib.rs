@@ -1,6 +1,7 @@
 //! The pipeline's binary intermediate files: photon maps (the photon records, the
-//! vocabulary every stage shares, and their file) and irradiance caches
-//! ([`icache`]). The only code that reads or writes their bytes.
+//! vocabulary every stage shares, and their file), irradiance caches
+//! ([`icache`]) and progressive photon mapping's per-pixel state ([`sppm`]). The
+//! only code that reads or writes their bytes.
 //!
 //! A file is a versioned header of our own (explicit little-endian fields, see
 //! [`header`]) followed by a flat array of fixed-size records that is read into
@@ -21,15 +22,18 @@ compile_error!("photon-map records are cast from little-endian bytes; big-endian
 
 mod atomic;
 mod direction;
+mod framed;
 pub mod header;
 pub mod icache;
 mod record;
+pub mod sppm;
 
 pub use atomic::write_atomically;
 pub use direction::{DIRECTION_MAX_ERROR_RAD, decode_direction, encode_direction};
 pub use header::{FormatError, Header, Layout, MapKind, Order, ReadExpect};
 pub use icache::{CacheFile, CacheRecord, read_cache, write_cache};
 pub use record::{CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Photon, PhotonRecord, flags};
+pub use sppm::{StateFile, StateRecord, read_state, write_state};
 
 use std::path::Path;
 
@@ -139,6 +143,18 @@ impl<R: PhotonRecord> PhotonMap<R> {
         let records = self.records.iter().map(|r| S::encode(&r.decode())).collect();
         PhotonMap::new(self.header.clone(), records)
     }
+}
+
+/// The first setting in which a file's key `stored` differs from a reader's key
+/// `current` (both "name=value" words, as the irradiance cache and progressive
+/// state hold them): (the file's word, the reader's word), "(none)" where one
+/// key is shorter. None when they are equal.
+pub fn key_difference(stored: &str, current: &str) -> Option<(String, String)> {
+    let (a, b): (Vec<&str>, Vec<&str>) = (stored.split_whitespace().collect(), current.split_whitespace().collect());
+    (0..a.len().max(b.len())).find(|&i| a.get(i) != b.get(i)).map(|i| {
+        let word = |v: &[&str]| v.get(i).map_or("(none)".to_string(), |w| w.to_string());
+        (word(&a), word(&b))
+    })
 }
 
 /// Read a photon map, checking it against `expect`.

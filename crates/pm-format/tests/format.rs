@@ -253,6 +253,74 @@ fn irradiance_cache_files_round_trip_and_every_bad_one_is_refused() {
     assert!(crate::read_cache(&path).unwrap_err().to_string().contains("record 2"));
 }
 
+fn state_file(w: u32, h: u32) -> crate::StateFile {
+    let records = (0..w * h)
+        .map(|i| {
+            let f = i as f32;
+            crate::StateRecord {
+                radius: 0.01 + f,
+                n: 2.0 * f,
+                tau: [f * 0.5; 9],
+                ld: [f * 0.25; 12],
+                l_sum: f,
+                l_sq: f * f,
+            }
+        })
+        .collect();
+    crate::StateFile { width: w, height: h, passes: 12, scene_hash: [5; 32], params: "width=4 seed=1".into(), records }
+}
+
+/// The progressive state file round-trips, and every bad one (short, another
+/// kind, another version, a flipped header or record byte, truncated, records
+/// that do not cover the image, a NaN, a negative count or a zero radius) is
+/// refused with one line naming the file; a key difference names the setting.
+#[test]
+fn progressive_state_files_round_trip_and_every_bad_one_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sppm.state");
+    let st = state_file(4, 3);
+    crate::write_state(&path, &st).unwrap();
+    assert_eq!(crate::read_state(&path).unwrap(), st);
+    let good = std::fs::read(&path).unwrap();
+    let header_len = u32::from_le_bytes(good[12..16].try_into().unwrap()) as usize;
+    let refused = |bytes: &[u8]| {
+        std::fs::write(&path, bytes).unwrap();
+        let e = crate::read_state(&path).unwrap_err().to_string();
+        assert!(e.starts_with(&path.display().to_string()) && !e.contains('\n'), "{e}");
+        e
+    };
+    let mutate = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = good.clone();
+        f(&mut b);
+        refused(&b)
+    };
+    assert!(mutate(&|b| b.truncate(20)).contains("only 20 bytes"));
+    assert!(mutate(&|b| b[0] = b'X').contains("magic"));
+    assert!(mutate(&|b| b[8] = 2).contains("progressive state format version 2"));
+    assert!(mutate(&|b| b[28] ^= 1).contains("checksum"));
+    assert!(mutate(&|b| b.truncate(b.len() - 1)).contains("truncated"));
+    assert!(mutate(&|b| b[header_len + 5] ^= 0x40).contains("corrupted"));
+    let cache = dir.path().join("icache.bin");
+    crate::write_cache(&cache, &cache_file(2)).unwrap();
+    assert!(refused(&std::fs::read(&cache).unwrap()).contains("magic"));
+    let write_bad = |f: &dyn Fn(&mut crate::StateFile)| {
+        let mut bad = state_file(4, 3);
+        f(&mut bad);
+        crate::write_state(&path, &bad).unwrap();
+        crate::read_state(&path).unwrap_err().to_string()
+    };
+    assert!(write_bad(&|s| s.width = 5).contains("12 records for a 5x3 image"));
+    assert!(write_bad(&|s| s.records[7].tau[4] = f32::NAN).contains("record 7"));
+    assert!(write_bad(&|s| s.records[2].n = -1.0).contains("record 2"));
+    assert!(write_bad(&|s| s.records[0].radius = 0.0).contains("record 0"));
+    assert_eq!(
+        crate::key_difference("width=4 seed=1", "width=4 seed=2"),
+        Some(("seed=1".to_string(), "seed=2".to_string()))
+    );
+    assert_eq!(crate::key_difference("width=4", "width=4 seed=2"), Some(("(none)".to_string(), "seed=2".to_string())));
+    assert_eq!(crate::key_difference("width=4 seed=2", "width=4 seed=2"), None);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
 

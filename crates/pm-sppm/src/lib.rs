@@ -80,27 +80,35 @@ pub fn render(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
     let passes = params.passes as u64;
-    render_with(scene, params, camera, film, rect, &mut |s| {
+    let (image, stats, _) = render_with(scene, params, camera, film, rect, None, &mut |s| {
         progress(s.passes() as u64, passes);
         Ok(true)
-    })
+    })?;
+    Ok((image, stats))
 }
 
-/// [`render`], calling `after_pass` after each pass with the state so far (to
-/// write a checkpoint image, or stop: `Ok(false)` ends the render with the
-/// passes done; an error ends it with that error).
+/// [`render`], continuing from the passes of `start` when given (a state file
+/// of the same scene and settings: see [`Sppm::resume`]) and calling
+/// `after_pass` after each pass with the state so far (to write a checkpoint
+/// image or state, or stop: `Ok(false)` ends the render with the passes done;
+/// an error ends it with that error). Returns the image, its statistics and the
+/// passes it holds.
 pub fn render_with(
     scene: &Scene,
     params: &pm_render::RenderParams,
     camera: &Camera,
     film: &pm_render::Film,
     rect: pm_raster::Rect,
+    start: Option<&pm_format::StateFile>,
     after_pass: &mut dyn FnMut(&Sppm) -> Result<bool, String>,
-) -> Result<(Image, pm_render::RenderStats), String> {
+) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
     let p = SppmParams::of(params);
     let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, params.light_samples, params.max_depth)
         .map_err(|e| e.to_string())?;
+    if let Some(file) = start {
+        s.resume(file)?;
+    }
     while s.passes() < p.passes {
         s.pass(camera);
         if !after_pass(&s)? {
@@ -113,7 +121,7 @@ pub fn render_with(
         samples: s.passes() as u64 * image.total.len() as u64,
         ..Default::default()
     };
-    Ok((image, stats))
+    Ok((image, stats, s.passes()))
 }
 
 /// One pixel's progressive state: what a long render keeps between passes.
@@ -132,9 +140,36 @@ pub struct PixelState {
     /// Sum over the passes of the pixel's emission and direct light, by layer
     /// ([`Layer::ALL`] order) [W sr^-1 m^-2].
     pub ld: [Rgb; 4],
+    /// Sum over the passes of each pass's own estimate of the pixel, the mean of
+    /// its channels [W sr^-1 m^-2]: the image is their mean (tau / r^2 sums each
+    /// pass's flux over that pass's radius squared), so their spread measures its
+    /// noise ([`Sppm::noise`]).
+    pub l_sum: f32,
+    /// Sum of their squares [W^2 sr^-2 m^-4].
+    pub l_sq: f32,
 }
 
 impl PixelState {
+    /// A pixel at radius `r0` \[m\] with nothing accumulated.
+    pub fn new(r0: f32) -> PixelState {
+        PixelState {
+            radius: r0,
+            n: 0.0,
+            tau: [Rgb::ZERO; 2],
+            tau_specular: Rgb::ZERO,
+            ld: [Rgb::ZERO; 4],
+            l_sum: 0.0,
+            l_sq: 0.0,
+        }
+    }
+
+    /// Count in one pass's own estimate `l` of the pixel (the mean of its
+    /// channels) [W sr^-1 m^-2], for the noise estimate.
+    fn add_estimate(&mut self, l: f32) {
+        self.l_sum += l;
+        self.l_sq += l * l;
+    }
+
     /// Count in one pass's `m` photons, whose flux beta f Phi at the pixel's
     /// visible point is `phi` [W per channel] (caustic, indirect, and all of it
     /// when the point was reached through a mirror or glass), and shrink the
@@ -216,7 +251,7 @@ impl<'a> Sppm<'a> {
         max_depth: u32,
     ) -> Result<Self, pm_light::LightSelectError> {
         let r0 = params.initial_radius_rel_diag * scene.bounds.diagonal();
-        let empty = PixelState { radius: r0, n: 0.0, tau: [Rgb::ZERO; 2], tau_specular: Rgb::ZERO, ld: [Rgb::ZERO; 4] };
+        let empty = PixelState::new(r0);
         Ok(Sppm {
             light: DirectLighting::new(scene)?,
             params,
@@ -238,6 +273,102 @@ impl<'a> Sppm<'a> {
     /// The pixels' state (row by row).
     pub fn pixels(&self) -> &[PixelState] {
         &self.pixels
+    }
+
+    /// The image's estimated noise after the passes done: the relative RMS of the
+    /// pixels' standard errors, sqrt(mean_i s_i^2 / P) / mean_i L_i, with s_i^2
+    /// the sample variance of pixel i's per-pass estimates (the mean of the
+    /// channels; the passes are independent). It leaves out the bias, which
+    /// shrinks with the radius (Hachisuka and Jensen 2009, section 4). None before
+    /// two passes or for a black image.
+    pub fn noise(&self) -> Option<f64> {
+        let p = self.passes as f64;
+        if self.passes < 2 {
+            return None;
+        }
+        let (mut var, mut mean) = (0.0f64, 0.0f64);
+        for px in &self.pixels {
+            let (s, s2) = (px.l_sum as f64, px.l_sq as f64);
+            var += ((s2 - s * s / p) / (p - 1.0)).max(0.0) / p;
+            mean += s / p;
+        }
+        let n = self.pixels.len() as f64;
+        (mean > 0.0).then(|| (var / n).sqrt() / (mean / n))
+    }
+
+    /// The settings that shape the state, as "name=value" words (the state file's
+    /// key: a state made with other settings is refused).
+    pub fn key(&self) -> String {
+        let p = &self.params;
+        format!(
+            "width={} height={} photons_per_pass={} sppm_alpha={} sppm_radius_rel_diag={} seed={} light_samples={} max_depth={}",
+            self.width,
+            self.height,
+            p.photons_per_pass,
+            p.alpha,
+            p.initial_radius_rel_diag,
+            self.seed,
+            self.light_samples,
+            self.max_depth
+        )
+    }
+
+    /// The state as its file holds it.
+    pub fn to_file(&self) -> pm_format::StateFile {
+        let records = self
+            .pixels
+            .iter()
+            .map(|px| {
+                let rgb = |v: Rgb| v.to_array();
+                let mut tau = [0.0; 9];
+                for (k, v) in [px.tau[0], px.tau[1], px.tau_specular].into_iter().enumerate() {
+                    tau[3 * k..3 * k + 3].copy_from_slice(&rgb(v));
+                }
+                let mut ld = [0.0; 12];
+                for (k, v) in px.ld.into_iter().enumerate() {
+                    ld[3 * k..3 * k + 3].copy_from_slice(&rgb(v));
+                }
+                pm_format::StateRecord { radius: px.radius, n: px.n, tau, ld, l_sum: px.l_sum, l_sq: px.l_sq }
+            })
+            .collect();
+        pm_format::StateFile {
+            width: self.width,
+            height: self.height,
+            passes: self.passes,
+            scene_hash: self.light.scene.content_hash,
+            params: self.key(),
+            records,
+        }
+    }
+
+    /// Continue from a state file's passes: refused when it was made from another
+    /// scene or with other settings (naming the first that differs).
+    pub fn resume(&mut self, file: &pm_format::StateFile) -> Result<(), String> {
+        if file.scene_hash != self.light.scene.content_hash {
+            return Err("made from another scene".into());
+        }
+        if let Some((had, has)) = pm_format::key_difference(&file.params, &self.key()) {
+            return Err(format!("made with {had}, this render has {has}"));
+        }
+        if file.passes > self.params.passes {
+            return Err(format!("holds {} passes, more than the {} asked for", file.passes, self.params.passes));
+        }
+        let v = |a: &[f32], k: usize| Rgb::new(a[3 * k], a[3 * k + 1], a[3 * k + 2]);
+        self.pixels = file
+            .records
+            .iter()
+            .map(|r| PixelState {
+                radius: r.radius,
+                n: r.n,
+                tau: [v(&r.tau, 0), v(&r.tau, 1)],
+                tau_specular: v(&r.tau, 2),
+                ld: std::array::from_fn(|k| v(&r.ld, k)),
+                l_sum: r.l_sum,
+                l_sq: r.l_sq,
+            })
+            .collect();
+        self.passes = file.passes;
+        Ok(())
     }
 
     /// One pass: eye paths, photons, gathering, the radius update.
@@ -262,6 +393,7 @@ impl<'a> Sppm<'a> {
         let positions: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
         let grid = RadiusGrid::new(&positions, max_r);
         let alpha = self.params.alpha;
+        let np = self.params.photons_per_pass as f32;
         let found: Vec<u64> = self
             .pixels
             .par_iter_mut()
@@ -271,9 +403,16 @@ impl<'a> Sppm<'a> {
                 for (a, b) in px.ld.iter_mut().zip(ld) {
                     *a += *b;
                 }
-                let Some(vp) = vp else { return 0 };
+                let direct = ld.iter().copied().sum::<Rgb>().element_sum() / 3.0;
+                let Some(vp) = vp else {
+                    px.add_estimate(direct);
+                    return 0;
+                };
                 let (phi, m) = gather(&grid, &photons, vp, px.radius);
                 let phi = phi.map(|f| vp.beta * f);
+                let photon =
+                    (phi[0] + phi[1]).element_sum() / 3.0 / (np * std::f32::consts::PI * px.radius * px.radius);
+                px.add_estimate(direct + if photon.is_finite() { photon } else { 0.0 });
                 px.add_photons(
                     if vp.specular { [Rgb::ZERO, Rgb::ZERO, phi[0] + phi[1]] } else { [phi[0], phi[1], Rgb::ZERO] },
                     m,
@@ -438,8 +577,7 @@ mod tests {
     /// first radius's area scaled only by what alpha keeps.
     #[test]
     fn radius_update_follows_the_alpha_rule() {
-        let mut px =
-            PixelState { radius: 1.0, n: 0.0, tau: [Rgb::ZERO; 2], tau_specular: Rgb::ZERO, ld: [Rgb::ZERO; 4] };
+        let mut px = PixelState::new(1.0);
         let one = |v: f32| [Rgb::ZERO, Rgb::splat(v), Rgb::ZERO];
         px.add_photons(one(6.0), 6, 2.0 / 3.0);
         assert!((px.n - 4.0).abs() < 1e-6 && (px.radius.powi(2) - 4.0 / 6.0).abs() < 1e-6);

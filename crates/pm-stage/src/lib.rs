@@ -13,8 +13,28 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// The exit code of a stage that stopped before its work was done but kept what
+/// it did, so that the same command continues it (sysexits' EX_TEMPFAIL; a
+/// progressive render stopped by its time budget).
+pub const EXIT_UNFINISHED: u8 = 75;
+
+/// A stage's body stopped before its work was done and can be continued: its
+/// outputs are written, and [`main_with`] prints `<stage>: unfinished: <what>`
+/// and exits with [`EXIT_UNFINISHED`].
+#[derive(Debug)]
+pub struct Unfinished(pub String);
+
+impl std::fmt::Display for Unfinished {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Unfinished {}
+
 /// Run a stage's body and turn its result into the process exit: on error, print
-/// `<stage>: error: <message chain>` as one line on stderr and return exit code 1.
+/// `<stage>: error: <message chain>` as one line on stderr and return exit code 1
+/// ([`EXIT_UNFINISHED`] for [`Unfinished`]).
 pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
     // Built for x86-64-v3 (.cargo/config.toml): say so on a CPU without it rather
     // than die of an illegal instruction.
@@ -27,6 +47,10 @@ pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
     }
     match body() {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<Unfinished>().is_some() => {
+            eprintln!("{stage}: unfinished: {e}");
+            ExitCode::from(EXIT_UNFINISHED)
+        }
         Err(e) => {
             let msg = format!("{e:#}").replace('\n', " ");
             eprintln!("{stage}: error: {msg}");
@@ -236,7 +260,7 @@ impl Progress {
         let bar = if terminal {
             let bar = indicatif::ProgressBar::new(total);
             bar.set_style(
-                indicatif::ProgressStyle::with_template("{prefix:>12} [{bar:40}] {pos}/{len} ({per_sec}, {eta})")
+                indicatif::ProgressStyle::with_template("{prefix:>12} [{bar:40}] {pos}/{len} ({per_sec}, {eta}) {msg}")
                     .expect("static template")
                     .progress_chars("=> "),
             );
@@ -252,6 +276,11 @@ impl Progress {
     /// Set the number of units done.
     pub fn set(&self, done: u64) {
         self.bar.set_position(done);
+    }
+
+    /// Show `msg` after the bar (on a terminal; elsewhere nothing).
+    pub fn message(&self, msg: &str) {
+        self.bar.set_message(msg.to_owned());
     }
 
     /// Finish, printing the elapsed time when not on a terminal. Returns seconds.

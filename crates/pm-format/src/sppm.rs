@@ -1,0 +1,101 @@
+//! The progressive state file: what stochastic progressive photon mapping
+//! (Hachisuka and Jensen 2009) keeps per pixel between passes, so that a long
+//! render can stop and continue (a stop and a resume equal one run bit for bit).
+//!
+//! The file is [`crate::framed`]'s frame (magic `b"PMSPPMST"`, version 1, records
+//! of 100 bytes, count the passes the records hold, source hash zero, params the
+//! settings that shaped the state as "name=value" words: a reader refuses a
+//! state made with other settings). Records are [`StateRecord`]s, one a pixel,
+//! row by row.
+
+use crate::FormatError;
+use crate::framed::{self, Fields, Kind};
+use bytemuck::{Pod, Zeroable};
+use std::path::Path;
+
+/// File signature.
+pub const STATE_MAGIC: [u8; 8] = *b"PMSPPMST";
+/// The only version this build reads and writes.
+pub const STATE_VERSION: u32 = 1;
+const KIND: Kind = Kind {
+    magic: STATE_MAGIC,
+    version: STATE_VERSION,
+    record_size: size_of::<StateRecord>(),
+    name: "progressive state",
+};
+
+/// One pixel's progressive state (100 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct StateRecord {
+    /// Gather radius r \[m\].
+    pub radius: f32,
+    /// Photon count N (fractional).
+    pub n: f32,
+    /// Accumulated photon flux tau [W per channel]: caustic RGB, indirect RGB,
+    /// through mirrors and glass RGB.
+    pub tau: [f32; 9],
+    /// Sum over the passes of emission and direct light [W sr^-1 m^-2 per
+    /// channel]: the direct, caustic, indirect and specular layers' RGB.
+    pub ld: [f32; 12],
+    /// Sum over the passes of each pass's own estimate of the pixel (the mean of
+    /// its channels) [W sr^-1 m^-2], and of its square, for the noise estimate.
+    pub l_sum: f32,
+    /// Sum of the squares [W^2 sr^-2 m^-4].
+    pub l_sq: f32,
+}
+
+/// A progressive state file in memory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateFile {
+    /// Image width \[pixels\].
+    pub width: u32,
+    /// Image height \[pixels\].
+    pub height: u32,
+    /// Passes accumulated in the records.
+    pub passes: u32,
+    /// blake3 of the scene.
+    pub scene_hash: [u8; 32],
+    /// The settings that shaped the state ("name=value" words).
+    pub params: String,
+    /// One record a pixel, row by row.
+    pub records: Vec<StateRecord>,
+}
+
+/// Write `s` to `path` atomically.
+pub fn write_state(path: &Path, s: &StateFile) -> Result<(), FormatError> {
+    let fields = Fields {
+        width: s.width,
+        height: s.height,
+        count: s.passes,
+        scene_hash: s.scene_hash,
+        source_hash: [0; 32],
+        params: s.params.clone(),
+    };
+    framed::write(path, &KIND, &fields, bytemuck::cast_slice(&s.records))
+}
+
+/// Read and check a progressive state file: one record a pixel, every value
+/// finite, radii above zero, counts, fluxes and sums not negative.
+pub fn read_state(path: &Path) -> Result<StateFile, FormatError> {
+    let (f, payload) = framed::read(path, &KIND)?;
+    let records: Vec<StateRecord> = payload.chunks_exact(KIND.record_size).map(bytemuck::pod_read_unaligned).collect();
+    if records.len() as u64 != f.width as u64 * f.height as u64 {
+        let what = format!("{} records for a {}x{} image", records.len(), f.width, f.height);
+        return Err(framed::unusable(path, &KIND, what));
+    }
+    for (i, r) in records.iter().enumerate() {
+        let values = [r.radius, r.n, r.l_sum, r.l_sq].into_iter().chain(r.tau).chain(r.ld);
+        if !(r.radius > 0.0) || values.into_iter().any(|v| !v.is_finite() || v < 0.0) {
+            return Err(framed::bad_record(path, &KIND, i, "holds a non-finite or negative value, or a radius <= 0"));
+        }
+    }
+    Ok(StateFile {
+        width: f.width,
+        height: f.height,
+        passes: f.count,
+        scene_hash: f.scene_hash,
+        params: f.params,
+        records,
+    })
+}
