@@ -1,5 +1,6 @@
 //! Running a job plan on this machine: its steps one after another, an array
-//! step's tasks side by side in waves (`cargo xtask run --tiles/--trace-slices`,
+//! step's tasks side by side in waves, a resumable task run again until it
+//! finishes (`cargo xtask run --tiles/--trace-slices`,
 //! `cargo xtask live --frame-tasks`).
 
 use anyhow::{Context, Result};
@@ -19,8 +20,21 @@ pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
             let name =
                 if step.tasks > 1 { format!("{} (task {k} of {})", step.name, step.tasks) } else { step.name.clone() };
             let t = std::time::Instant::now();
-            crate::stages::run_program(Path::new(&step.program), &args, &name, true)
-                .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", plan.out))?;
+            let program = Path::new(&step.program);
+            let intact = |e: anyhow::Error| anyhow::anyhow!("{e}; earlier outputs in {} are intact", plan.out);
+            if step.resumable {
+                // Stopped at its time budget with its state saved: run it again from
+                // the state, as a re-queued Slurm task does.
+                let mut runs = 1;
+                while !crate::stages::run_resumable(program, &args, &name, true).map_err(intact)? {
+                    runs += 1;
+                }
+                if runs > 1 {
+                    println!("  {name}: ran {runs} times, each continuing from the state the one before saved");
+                }
+            } else {
+                crate::stages::run_program(program, &args, &name, true).map_err(intact)?;
+            }
             let seconds = t.elapsed().as_secs_f64();
             println!("  {name}: done in {seconds:.2} s");
             Ok(TaskTime { step: step.name.clone(), tasks: step.tasks, task: k, seconds })

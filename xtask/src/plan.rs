@@ -51,11 +51,11 @@ pub enum Emit {
     Openjd,
 }
 
-/// The job graph of `args` (its pipeline, scene, output, `tiles` and
-/// `trace_slices`), with the stage binaries in `bins`.
+/// The job graph of `args` (its pipeline, scene, output, `tiles`,
+/// `trace_slices`, `runs` and `run_time_budget`), with the stage binaries in `bins`.
 pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
     let setup = setup(args, root, bins)?;
-    job_plan(&setup, &|name: &str| bins.path(name), args.tiles.max(1), args.trace_slices.max(1))
+    job_plan(&setup, &|name: &str| bins.path(name), args.parts())
 }
 
 /// The job graph of the real-time animation `args` describes: `frame_tasks` runs

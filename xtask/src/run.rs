@@ -44,10 +44,42 @@ pub struct RunArgs {
     /// to one trace's. 1: one trace.
     #[arg(long, default_value_t = 1)]
     pub trace_slices: u32,
-    /// With --tiles or --trace-slices: run this many tasks of a step at a time
-    /// (each its own process).
+    /// With --tiles, --trace-slices or --runs: run this many tasks of a step at a
+    /// time (each its own process).
     #[arg(long, default_value_t = 1)]
     pub workers: u32,
+    /// Render mode instead of the pipeline file's ([render] mode: full, path,
+    /// sppm, ...).
+    #[arg(long)]
+    pub method: Option<pm_render::Method>,
+    /// Progressive photon mapping (mode sppm): this many independent runs (seeds
+    /// seed to seed + K - 1, each its own process) averaged into the image, as the
+    /// job plan does; the mean of consistent estimates is consistent. 1: one run.
+    #[arg(long, default_value_t = 1)]
+    pub runs: u32,
+    /// Progressive photon mapping: each run stops after this many seconds [s]
+    /// with its state saved and is run again from it until its passes are done
+    /// (what a Slurm task does to fit a queue's time limit: it re-queues itself).
+    /// The image is the same as without it.
+    #[arg(long, value_name = "SECONDS")]
+    pub run_time_budget: Option<f64>,
+}
+
+impl RunArgs {
+    /// How the job plan cuts the work.
+    pub fn parts(&self) -> pm_pipeline::jobs::Parts {
+        pm_pipeline::jobs::Parts {
+            tiles: self.tiles.max(1),
+            slices: self.trace_slices.max(1),
+            runs: self.runs.max(1),
+            run_budget_s: self.run_time_budget,
+        }
+    }
+
+    /// True when the run is a job plan executed here rather than the steps.
+    fn planned(&self) -> bool {
+        self.tiles > 1 || self.trace_slices > 1 || self.runs > 1 || self.run_time_budget.is_some()
+    }
 }
 
 /// What happened to one step of a run.
@@ -72,6 +104,7 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let mut cfg = Pipeline::load(&pipeline)?;
     cfg.render.width = args.width.unwrap_or(cfg.render.width);
     cfg.render.height = args.height.unwrap_or(cfg.render.height);
+    cfg.render.mode = args.method.unwrap_or(cfg.render.mode);
     cfg.render.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let scene = args.scene.clone().unwrap_or_else(|| cfg.scene_path(&pipeline));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
@@ -97,16 +130,17 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
 /// Run the pipeline with the stage binaries in `bins`.
 pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
     let set = setup(args, root, bins)?;
-    if args.tiles > 1 || args.trace_slices > 1 {
+    if args.planned() {
         // The job plan, executed here.
         let program = |name: &str| bins.path(name);
-        let plan = pm_pipeline::jobs::job_plan(&set, &program, args.tiles.max(1), args.trace_slices.max(1))?;
+        let plan = pm_pipeline::jobs::job_plan(&set, &program, args.parts())?;
         println!(
-            "plan ({} -> {}, {} trace slices, {} tiles):",
+            "plan ({} -> {}, {} trace slices, {} tiles, {} runs):",
             set.scene.display(),
             set.out.display(),
             args.trace_slices,
-            args.tiles
+            args.tiles,
+            args.runs
         );
         let (times, wall) = crate::exec::execute_and_record(&plan, args.workers)?;
         println!(

@@ -75,6 +75,30 @@ pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool)
 
 /// [`run`] for a program given by its path.
 pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<()> {
+    let (status, last) = wait_for(program, args, quiet)?;
+    if !status.success() {
+        bail!("stage {step} failed ({status}): {}", last.trim());
+    }
+    Ok(())
+}
+
+/// [`run_program`] for a stage that may stop before its work is done, keeping
+/// it (exit code [`pm_stage::EXIT_UNFINISHED`]): false when it did, true when it
+/// finished.
+pub fn run_resumable(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<bool> {
+    let (status, last) = wait_for(program, args, quiet)?;
+    if status.code() == Some(pm_stage::EXIT_UNFINISHED as i32) {
+        return Ok(false);
+    }
+    if !status.success() {
+        bail!("stage {step} failed ({status}): {}", last.trim());
+    }
+    Ok(true)
+}
+
+/// Run `program` with `args` to its end: its exit status and the last line it
+/// wrote on stderr (echoed unless `quiet`).
+fn wait_for(program: &Path, args: &[String], quiet: bool) -> Result<(std::process::ExitStatus, String)> {
     let mut child = Command::new(program)
         .args(args)
         .stdout(if quiet { Stdio::null() } else { Stdio::inherit() })
@@ -94,10 +118,7 @@ pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> 
         }
     }
     let status = child.wait().with_context(|| format!("{} did not finish", program.display()))?;
-    if !status.success() {
-        bail!("stage {step} failed ({status}): {}", last.trim());
-    }
-    Ok(())
+    Ok((status, last))
 }
 
 /// Read a stage's statistics file into its typed report.

@@ -382,6 +382,9 @@ impl Job<'_> {
             }
             _ => None,
         };
+        if let Some(dir) = cli.state.as_deref().and_then(|p| p.parent()).filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+        }
         let progress = Progress::new("sppm passes", p.passes as u64);
         let region =
             (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
@@ -389,7 +392,7 @@ impl Job<'_> {
         let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, start.as_ref(), &mut |s| {
             let done = s.passes();
             let photons = done as u64 * p.photons_per_pass;
-            let noise = s.noise().map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
+            let noise = noise(s).map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
             progress.set(done as u64);
             progress.message(&format!("{photons} photon paths{noise}"));
             let go_on = cli.time_budget.is_none_or(|b| t0.elapsed().as_secs_f64() < b);
@@ -421,6 +424,18 @@ impl Job<'_> {
             _ => e,
         })
     }
+}
+
+/// Progressive photon mapping's estimated noise after the passes done (relative
+/// RMS, bias not included): each pixel's variance from its passes' spread, over
+/// the pixels the accuracy study compares (all but the light seen directly and
+/// its neighbours, whose anti-aliased edge would decide the figure). None before
+/// two passes.
+fn noise(s: &pm_sppm::Sppm) -> Option<f64> {
+    let var = s.variances()?;
+    let image = s.image();
+    let keep = pm_image::accuracy::keep_mask(&image.total, image.width as usize, image.height as usize, None);
+    Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
 }
 
 /// What a render did: written as `--stats-json` and read back by the runner, the

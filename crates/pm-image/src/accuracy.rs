@@ -91,6 +91,15 @@ pub fn kept_mean(image: &[Vec3], keep: &[bool]) -> f64 {
     sum / n.max(1) as f64
 }
 
+/// The relative noise of one render from its own per-pixel noise variances
+/// `var` (of the mean of a pixel's channels, as a progressive render estimates
+/// them from its passes) over the `keep` pixels: sqrt(mean var) / kept mean,
+/// the [`Split::noise`] of a render with that variance.
+pub fn noise_of_variances(image: &[Vec3], var: &[f32], keep: &[bool]) -> f64 {
+    let (sum, n) = var.iter().zip(keep).filter(|x| *x.1).fold((0.0, 0usize), |(s, n), (v, _)| (s + *v as f64, n + 1));
+    (sum / n.max(1) as f64).sqrt() / kept_mean(image, keep).abs().max(1e-30)
+}
+
 /// Split the error of `renders` (one per seed, at least two) against `reference`
 /// with per-pixel noise variance `reference_var`, over the `keep` pixels.
 pub fn split(renders: &[&[Vec3]], reference: &[Vec3], reference_var: f64, keep: &[bool]) -> Split {

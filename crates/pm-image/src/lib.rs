@@ -140,6 +140,36 @@ fn encode_exr_into(
     written.map_err(|e| format!("cannot encode EXR: {e}"))
 }
 
+/// The mean of independent renders of one image (progressive photon mapping's
+/// runs with their own seeds: the mean of consistent estimates is consistent, its
+/// noise variance 1/K of one run's), layer by layer, summed in the order given
+/// so the same files give the same bytes. Every image must have the same size
+/// and layers; errors say which does not.
+pub fn average(images: &[Layers]) -> std::result::Result<Layers, String> {
+    let Some(first) = images.first() else { return Err("no images to average".into()) };
+    let mut out = first.clone();
+    for (k, img) in images.iter().enumerate().skip(1) {
+        if (img.width, img.height) != (first.width, first.height) {
+            return Err(format!("image {k} is {}x{}, image 0 {}x{}", img.width, img.height, first.width, first.height));
+        }
+        if img.layers.iter().map(|l| l.0.as_str()).ne(first.layers.iter().map(|l| l.0.as_str())) {
+            return Err(format!("image {k} has other layers than image 0"));
+        }
+        for (dst, src) in out.layers.iter_mut().zip(&img.layers) {
+            for (d, v) in dst.1.iter_mut().zip(&src.1) {
+                *d += *v;
+            }
+        }
+    }
+    let n = images.len() as f32;
+    for (_, px) in &mut out.layers {
+        for v in px.iter_mut() {
+            *v /= n;
+        }
+    }
+    Ok(out)
+}
+
 /// Join regions of one image into the whole (tiles rendered separately): every
 /// region must belong to the same image size and carry the same layers, and
 /// together they must cover every pixel exactly once. Errors say which region

@@ -2,8 +2,10 @@
 //! [`crate::steps`] makes, with the photon trace cut into `slices` array tasks
 //! (`photon-trace --slice J/M`) and a merge step, and the final render cut into
 //! `tiles` array tasks (`photon-render --tile K/N`, each writing its own region EXR)
-//! and an assemble step; or the real-time animation as runs of frames and an
-//! assemble step. Every step has its command line, inputs, outputs and the steps it
+//! and an assemble step; progressive photon mapping as `runs` independent runs
+//! (`photon-render --run K/N`, each with its own seed and resumable state) and a
+//! step that averages their images; or the real-time animation as runs of frames
+//! and an assemble step. Every step has its command line, inputs, outputs and the steps it
 //! waits for (those that write its inputs). Written as Slurm sbatch scripts (one
 //! job array per parallel step, chained by `--dependency=afterok` in `submit.sh`)
 //! or as one Open Job Description template. Assumed: every task sees the same
@@ -37,6 +39,10 @@ pub struct JobStep {
     pub outputs: Vec<String>,
     /// Steps that must have finished (they write its inputs).
     pub after: Vec<String>,
+    /// A task that exits with code 75 (`pm_stage::EXIT_UNFINISHED`) stopped at
+    /// its time budget with its state saved: running it again continues it (a
+    /// Slurm task re-queues itself; `cargo xtask run` runs it again).
+    pub resumable: bool,
 }
 
 impl JobStep {
@@ -49,7 +55,16 @@ impl JobStep {
         inputs: Vec<String>,
         outputs: Vec<String>,
     ) -> Self {
-        JobStep { name: name.into(), program: program.into(), args, tasks, inputs, outputs, after: vec![] }
+        JobStep {
+            name: name.into(),
+            program: program.into(),
+            args,
+            tasks,
+            inputs,
+            outputs,
+            after: vec![],
+            resumable: false,
+        }
     }
 }
 
@@ -78,16 +93,52 @@ impl JobPlan {
     }
 }
 
-/// The job graph of `setup` with `tiles` render tiles and `slices` trace slices;
-/// `program(name)` is where the binary `name` is (the stages, and `xtask` for the
-/// assemble step).
-pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, tiles: u32, slices: u32) -> Result<JobPlan> {
+/// How a plan cuts the work into array tasks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Parts {
+    /// Render tiles (bands of rows).
+    pub tiles: u32,
+    /// Trace slices of the emission index space.
+    pub slices: u32,
+    /// Progressive photon mapping: independent runs averaged into the image.
+    pub runs: u32,
+    /// Progressive photon mapping: each run stops after this many seconds with
+    /// its state saved and is run again from it (None: each run in one go).
+    pub run_budget_s: Option<f64>,
+}
+
+impl Default for Parts {
+    fn default() -> Self {
+        Parts { tiles: 1, slices: 1, runs: 1, run_budget_s: None }
+    }
+}
+
+/// The job graph of `setup` cut into `parts`; `program(name)` is where the
+/// binary `name` is (the stages, and `xtask` for the assemble step).
+pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) -> Result<JobPlan> {
     let Setup { cfg, scene, out, caustics, indirect, .. } = setup;
+    let Parts { tiles, slices, runs, run_budget_s } = parts;
     if tiles == 0 || tiles > cfg.render.height {
         bail!("--tiles {tiles}: needs 1 to the image's {} rows", cfg.render.height);
     }
     if slices == 0 {
         bail!("--trace-slices 0: needs at least 1");
+    }
+    let sppm = cfg.render.mode == pm_render::Method::Sppm;
+    if runs == 0 || (runs > 1 || run_budget_s.is_some()) && !sppm {
+        bail!(
+            "--runs {runs}: independent runs are progressive photon mapping's (render mode sppm), and need at least 1"
+        );
+    }
+    if sppm && tiles > 1 {
+        bail!(
+            "--tiles {tiles}: progressive photon mapping traces the whole image every pass; cut it into --runs instead"
+        );
+    }
+    if let Some(b) = run_budget_s
+        && !(b.is_finite() && b > 0.0)
+    {
+        bail!("--run-time-budget {b}: give a positive number of seconds");
     }
     let s = |p: &Path| p.display().to_string();
     let mut jobs: Vec<JobStep> = Vec::new();
@@ -130,6 +181,26 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, tiles: u32, sl
                 a.extend((0..slices).map(|k| s(&dir(&k.to_string()))));
                 a.extend(["--out".into(), s(out), "--stats-json".into(), s(&step.stats)]);
                 jobs.push(JobStep::array("photon-trace merge", &bin, a, 1, slice_outputs, outputs));
+            }
+            Kind::Render if sppm && (runs > 1 || run_budget_s.is_some()) => {
+                // Independent runs, each with its seed (seed + K), image, statistics
+                // and state (to continue after a time budget), then their mean.
+                let run = |k: &str, ext: &str| s(&out.join("runs").join(format!("run-{k}.{ext}")));
+                args.extend(["--run".into(), format!("{TASK}/{runs}"), "--out".into(), run(TASK, "exr")]);
+                args.extend(["--stats-json".into(), run(TASK, "stats.json"), "--state".into(), run(TASK, "state")]);
+                if let Some(b) = run_budget_s {
+                    args.extend(["--time-budget".into(), b.to_string()]);
+                }
+                let run_outputs: Vec<String> = (0..runs).map(|k| run(&k.to_string(), "exr")).collect();
+                let mut step = JobStep::array("photon-render runs", &bin, args, runs, inputs, run_outputs.clone());
+                step.resumable = true;
+                jobs.push(step);
+                let mut a = vec!["assemble".to_string(), "--average".into()];
+                a.extend(run_outputs.iter().cloned());
+                a.extend(["--out".into(), s(&out.join("image.exr")), "--png".into(), s(&out.join("image.png"))]);
+                a.extend(["--exposure".into(), cfg.render.exposure.to_string()]);
+                let images = vec![s(&out.join("image.exr")), s(&out.join("image.png"))];
+                jobs.push(JobStep::array("average runs", &s(&program("xtask")), a, 1, run_outputs, images));
             }
             Kind::Render if tiles > 1 => {
                 // The render as tiles, each writing its own region and statistics.
@@ -254,9 +325,21 @@ pub fn slurm(plan: &JobPlan) -> Vec<(String, String)> {
             step.name,
             if step.after.is_empty() { "nothing".into() } else { step.after.join(", ") }
         );
+        if step.resumable {
+            t.push_str("#SBATCH --requeue\n");
+        }
         t.push_str("set -euo pipefail\nTASK=\"${SLURM_ARRAY_TASK_ID:-0}\"\n");
         let args: Vec<String> = step.args.iter().map(|a| sh(a).replace(TASK, "'\"${TASK}\"'")).collect();
-        let _ = writeln!(t, "exec {} {}", sh(&step.program), args.join(" "));
+        if step.resumable {
+            // Exit 75: stopped at its time budget with its state saved; the task
+            // goes back to the queue and continues from the state when it runs again.
+            let _ = writeln!(t, "rc=0\n{} {} || rc=$?", sh(&step.program), args.join(" "));
+            t.push_str(
+                "if [ \"$rc\" -eq 75 ]; then\n  scontrol requeue \"${SLURM_ARRAY_JOB_ID:-$SLURM_JOB_ID}${SLURM_ARRAY_TASK_ID:+_$SLURM_ARRAY_TASK_ID}\"\n  exit 0\nfi\nexit \"$rc\"\n",
+            );
+        } else {
+            let _ = writeln!(t, "exec {} {}", sh(&step.program), args.join(" "));
+        }
         files.push((format!("{stem}.sbatch"), t));
         let deps: Vec<String> = step
             .after

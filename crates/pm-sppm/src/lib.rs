@@ -143,7 +143,7 @@ pub struct PixelState {
     /// Sum over the passes of each pass's own estimate of the pixel, the mean of
     /// its channels [W sr^-1 m^-2]: the image is their mean (tau / r^2 sums each
     /// pass's flux over that pass's radius squared), so their spread measures its
-    /// noise ([`Sppm::noise`]).
+    /// noise ([`Sppm::variances`]).
     pub l_sum: f32,
     /// Sum of their squares [W^2 sr^-2 m^-4].
     pub l_sq: f32,
@@ -275,25 +275,22 @@ impl<'a> Sppm<'a> {
         &self.pixels
     }
 
-    /// The image's estimated noise after the passes done: the relative RMS of the
-    /// pixels' standard errors, sqrt(mean_i s_i^2 / P) / mean_i L_i, with s_i^2
-    /// the sample variance of pixel i's per-pass estimates (the mean of the
-    /// channels; the passes are independent). It leaves out the bias, which
-    /// shrinks with the radius (Hachisuka and Jensen 2009, section 4). None before
-    /// two passes or for a black image.
-    pub fn noise(&self) -> Option<f64> {
+    /// Each pixel's estimated noise variance after the passes done, s_i^2 / P
+    /// [W^2 sr^-2 m^-4], with s_i^2 the sample variance of its per-pass
+    /// estimates (the mean of the channels; the image is their mean and the
+    /// passes are independent). It leaves out the bias, which shrinks with the
+    /// radius (Hachisuka and Jensen 2009, section 4). None before two passes.
+    pub fn variances(&self) -> Option<Vec<f32>> {
         let p = self.passes as f64;
-        if self.passes < 2 {
-            return None;
-        }
-        let (mut var, mut mean) = (0.0f64, 0.0f64);
-        for px in &self.pixels {
-            let (s, s2) = (px.l_sum as f64, px.l_sq as f64);
-            var += ((s2 - s * s / p) / (p - 1.0)).max(0.0) / p;
-            mean += s / p;
-        }
-        let n = self.pixels.len() as f64;
-        (mean > 0.0).then(|| (var / n).sqrt() / (mean / n))
+        (self.passes >= 2).then(|| {
+            self.pixels
+                .iter()
+                .map(|px| {
+                    let (s, s2) = (px.l_sum as f64, px.l_sq as f64);
+                    (((s2 - s * s / p) / (p - 1.0)).max(0.0) / p) as f32
+                })
+                .collect()
+        })
     }
 
     /// The settings that shape the state, as "name=value" words (the state file's

@@ -1,7 +1,9 @@
 //! The job plan (`cargo xtask plan`): the trace cut into slices and the render cut
 //! into tiles give the same photon maps and image file as one trace and one render, the emitted Slurm scripts are valid bash chained in
 //! dependency order, the OpenJD template carries the same graph, and the local
-//! executor stops at a failing step with one line naming it.
+//! executor stops at a failing step with one line naming it. Progressive photon
+//! mapping's independent runs average to the mean of the runs' images, and runs
+//! stopped by a time budget and continued give the same image.
 
 use pm_pipeline::jobs::{JobPlan, JobStep, openjd, slurm};
 use std::path::{Path, PathBuf};
@@ -133,6 +135,7 @@ fn the_local_executor_names_the_failing_task() {
         inputs: vec![],
         outputs: vec![],
         after: vec![],
+        resumable: false,
     };
     let plan = JobPlan {
         out: dir.path().display().to_string(),
@@ -197,4 +200,89 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
     let read = |d: &str, f: &str| std::fs::read(dir.path().join(d).join(f)).unwrap();
     assert!(read("one", "live.apng") == read("split", "live.apng"), "the assembled preview differs from one run's");
     assert!(read("one", "frames/0004.png") == read("split", "frames/0004.png"));
+}
+
+/// Progressive photon mapping as K runs (issue 39): `cargo xtask run --method
+/// sppm --runs 3` runs photon-render as 3 array tasks with seeds seed, seed + 1
+/// and seed + 2 and averages them: image.exr holds the mean of three one-run
+/// renders with those seeds, exactly. With a tiny `--run-time-budget` every run
+/// stops after each pass (exit 75) and is run again from its state until its
+/// passes are done: the same image, byte for byte. The Slurm script of the runs
+/// asks to be re-queued and, run with a stand-in `scontrol`, re-queues its own
+/// array task on exit 75; tiles and runs of other methods are refused.
+#[test]
+fn sppm_runs_average_and_continue_after_a_time_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 1, "sppm");
+    pm_tests::edit_pipeline(&p, |c| (c.render.passes, c.render.photons_per_pass) = (4, 2_000));
+    let base = pm_pipeline::Pipeline::load(&p).unwrap().seed;
+    let run = |out: &str, runs: u32, budget: Option<f64>, pipeline: &Path| {
+        let a = RunArgs {
+            pipeline: Some(pipeline.to_owned()),
+            out: Some(dir.path().join(out)),
+            method: Some(pm_render::Method::Sppm),
+            runs,
+            run_time_budget: budget,
+            workers: 2,
+            ..Default::default()
+        };
+        run_with(&a, &root(), &bins()).unwrap()
+    };
+    let outcomes = run("three", 3, None, &p);
+    let steps: Vec<&str> = outcomes.iter().map(|o| o.step.as_str()).collect();
+    assert_eq!(steps, ["photon-render runs", "average runs"]);
+    let singles: Vec<pm_image::Layers> = (0..3)
+        .map(|k| {
+            let q = dir.path().join(format!("seed{k}.toml"));
+            std::fs::copy(&p, &q).unwrap();
+            pm_tests::edit_pipeline(&q, |c| c.seed = base + k);
+            run(&format!("seed{k}"), 1, None, &q);
+            pm_image::read_exr(&dir.path().join(format!("seed{k}/image.exr"))).unwrap()
+        })
+        .collect();
+    let mean = pm_image::average(&singles).unwrap();
+    assert_eq!(pm_image::read_exr(&dir.path().join("three/image.exr")).unwrap(), mean);
+    run("budget", 3, Some(1e-6), &p);
+    let read = |d: &str| std::fs::read(dir.path().join(d).join("image.exr")).unwrap();
+    assert!(read("budget") == read("three"), "runs continued from their states differ from runs in one go");
+    assert_eq!(pm_format::read_state(&dir.path().join("budget/runs/run-2.state")).unwrap().passes, 4);
+
+    // Slurm: the runs' script asks to be re-queued, and re-queues its own task
+    // when photon-render stops at its budget (a stand-in scontrol records it).
+    let a = RunArgs {
+        pipeline: Some(p.clone()),
+        out: Some(dir.path().join("planned")),
+        method: Some(pm_render::Method::Sppm),
+        runs: 2,
+        run_time_budget: Some(1e-6),
+        ..Default::default()
+    };
+    let plan = plan_for(&a, &root(), &bins()).unwrap();
+    let files = slurm(&plan);
+    let (_, script) = files.iter().find(|(n, _)| n.contains("photon-render-runs")).unwrap();
+    assert!(script.contains("#SBATCH --requeue") && script.contains("#SBATCH --array=0-1"), "{script}");
+    let bin = dir.path().join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let record = dir.path().join("requeued.txt");
+    let fake = bin.join("scontrol");
+    std::fs::write(&fake, format!("#!/bin/sh\necho \"$@\" >> {}\n", record.display())).unwrap();
+    std::fs::set_permissions(&fake, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let sbatch = dir.path().join("runs.sbatch");
+    std::fs::write(&sbatch, script).unwrap();
+    let o = std::process::Command::new("bash")
+        .arg(&sbatch)
+        .env("PATH", format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()))
+        .env("SLURM_ARRAY_JOB_ID", "77")
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(&record).unwrap(), "requeue 77_1\n");
+    assert_eq!(pm_format::read_state(&dir.path().join("planned/runs/run-1.state")).unwrap().passes, 1);
+    // What a plan cannot cut so.
+    let e = plan_for(&RunArgs { tiles: 2, ..a.clone() }, &root(), &bins()).unwrap_err().to_string();
+    assert!(e.contains("--runs instead"), "{e}");
+    let e =
+        plan_for(&RunArgs { method: Some(pm_render::Method::Path), ..a }, &root(), &bins()).unwrap_err().to_string();
+    assert!(e.contains("progressive photon mapping's"), "{e}");
 }
