@@ -2,8 +2,8 @@
 //! path-traced reference as two independent halves (their difference measures the
 //! reference's own noise), then sweeps one setting at a time from the defaults
 //! (photon counts, k, precompute fraction, gather rays, irradiance-cache accuracy,
-//! light samples, samples per pixel, lookup, record layout, and path tracing at
-//! several sample counts), each with several seeds, timing every stage. Errors
+//! light samples, samples per pixel, lookup, record layout, path tracing at
+//! several sample counts and progressive photon mapping at several pass counts), each with several seeds, timing every stage. Errors
 //! leave out the light's pixels and their neighbours and are split into bias and
 //! noise ([`xtask::accuracy`]) for the image and for each layer (direct, caustic,
 //! indirect, specular). Writes results.csv, results.md, plot (error against time,
@@ -177,6 +177,14 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
         v.push(with("path", format!("path {spp} spp"), &|s| {
             s.render.mode = Method::Path;
             s.render.spp = spp
+        }));
+    }
+    // Progressive photon mapping (issue 39): passes of the default photons a pass;
+    // its bias shrinks with the radius, so long runs pass the batch pipeline.
+    for passes in [16u32, 64, 256, 1024] {
+        v.push(with("sppm", format!("sppm {passes} passes"), &|s| {
+            s.render.mode = Method::Sppm;
+            s.render.passes = passes
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
@@ -414,7 +422,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             // Photon maps, shared by settings that differ only in rendering.
             let key = st.maps_key(seed);
             let mdir = out.join("maps").join(&key);
-            let photon_mapping = st.render.mode != Method::Path;
+            // The path tracer and progressive photon mapping trace their own paths.
+            let photon_mapping = !matches!(st.render.mode, Method::Path | Method::Sppm);
             if photon_mapping {
                 if !maps.contains_key(&key) {
                     std::fs::create_dir_all(&mdir)?;
@@ -775,7 +784,7 @@ fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 15] = [
+const AXES: [&str; 16] = [
     "default",
     "global photons",
     "caustic photons",
@@ -788,6 +797,7 @@ const AXES: [&str; 15] = [
     "lookup",
     "records",
     "path",
+    "sppm",
     "live vertex",
     "live ispm",
     "peer",
@@ -854,7 +864,7 @@ fn panel(
         if pts.is_empty() {
             continue;
         }
-        if !matches!(*axis, "path" | "live vertex" | "live ispm") && vis.contains(&0) {
+        if !matches!(*axis, "path" | "sppm" | "live vertex" | "live ispm") && vis.contains(&0) {
             pts.push(0);
         }
         pts.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
@@ -936,7 +946,7 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
     }
     for axis in AXES.iter().skip(1) {
         let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
-        if !matches!(*axis, "path" | "live vertex" | "live ispm") && !pts.is_empty() {
+        if !matches!(*axis, "path" | "sppm" | "live vertex" | "live ispm") && !pts.is_empty() {
             pts.insert(pts.len() / 2, 0);
         }
         for wnd in pts.windows(2) {

@@ -83,7 +83,7 @@ pub struct Cli {
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
     /// Progressive photon mapping: keep the pixels' state (radii, photon counts,
-    /// fluxes: 100 bytes a pixel) in this file. When it exists the render
+    /// fluxes: 108 bytes a pixel) in this file. When it exists the render
     /// continues from the passes it holds (refused if it was made from another
     /// scene or with other settings; --passes is the total); it is written at
     /// every checkpoint and when the render stops. A render that --time-budget

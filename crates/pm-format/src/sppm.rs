@@ -3,7 +3,7 @@
 //! render can stop and continue (a stop and a resume equal one run bit for bit).
 //!
 //! The file is [`crate::framed`]'s frame (magic `b"PMSPPMST"`, version 1, records
-//! of 100 bytes, count the passes the records hold, source hash zero, params the
+//! of 108 bytes, count the passes the records hold, source hash zero, params the
 //! settings that shaped the state as "name=value" words: a reader refuses a
 //! state made with other settings). Records are [`StateRecord`]s, one a pixel,
 //! row by row.
@@ -24,7 +24,7 @@ const KIND: Kind = Kind {
     name: "progressive state",
 };
 
-/// One pixel's progressive state (100 bytes).
+/// One pixel's progressive state (108 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct StateRecord {
@@ -43,6 +43,11 @@ pub struct StateRecord {
     pub l_sum: f32,
     /// Sum of the squares [W^2 sr^-2 m^-4].
     pub l_sq: f32,
+    /// The share of the gather disc on the visible surface (a running mean of
+    /// the boundary probes; 1 without them), in [0, 1].
+    pub share: f32,
+    /// Passes that found a visible point (the running mean's count).
+    pub seen: f32,
 }
 
 /// A progressive state file in memory.
@@ -85,9 +90,10 @@ pub fn read_state(path: &Path) -> Result<StateFile, FormatError> {
         return Err(framed::unusable(path, &KIND, what));
     }
     for (i, r) in records.iter().enumerate() {
-        let values = [r.radius, r.n, r.l_sum, r.l_sq].into_iter().chain(r.tau).chain(r.ld);
-        if !(r.radius > 0.0) || values.into_iter().any(|v| !v.is_finite() || v < 0.0) {
-            return Err(framed::bad_record(path, &KIND, i, "holds a non-finite or negative value, or a radius <= 0"));
+        let values = [r.radius, r.n, r.l_sum, r.l_sq, r.share, r.seen].into_iter().chain(r.tau).chain(r.ld);
+        if !(r.radius > 0.0) || r.share > 1.0 || values.into_iter().any(|v| !v.is_finite() || v < 0.0) {
+            let what = "holds a non-finite or negative value, a radius <= 0 or a share above 1";
+            return Err(framed::bad_record(path, &KIND, i, what));
         }
     }
     Ok(StateFile {

@@ -264,6 +264,8 @@ fn state_file(w: u32, h: u32) -> crate::StateFile {
                 ld: [f * 0.25; 12],
                 l_sum: f,
                 l_sq: f * f,
+                share: 0.5,
+                seen: f,
             }
         })
         .collect();

@@ -126,6 +126,10 @@ pm_params::params! {
         sppm_alpha: f32 = 0.6666667 => between(0.01, 0.99);
         /// Progressive photon mapping: starting gather radius, as a fraction of the scene diagonal.
         sppm_radius_rel_diag: f32 = 0.01 => above(0.0);
+        /// Progressive photon mapping: probe rays a pixel a pass that measure how much of
+        /// the gather disc lies on the visible surface (walls and edges cut it), so the
+        /// density divides by that area instead of pi r^2 (0: pi r^2, Hachisuka's estimate).
+        sppm_boundary_probes: u32 = 0 => between(0, 64);
     }
 }
 
@@ -164,6 +168,7 @@ impl RenderParams {
             photons_per_pass: d.photons_per_pass,
             sppm_alpha: d.sppm_alpha,
             sppm_radius_rel_diag: d.sppm_radius_rel_diag,
+            sppm_boundary_probes: d.sppm_boundary_probes,
             ..self.clone()
         })
     }

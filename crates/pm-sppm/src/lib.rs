@@ -47,6 +47,9 @@ pub struct SppmParams {
     pub alpha: f32,
     /// Starting gather radius, as a fraction of the scene diagonal.
     pub initial_radius_rel_diag: f32,
+    /// Probe rays a pixel a pass that measure the share of the gather disc on the
+    /// visible surface ([`surface_share`]; 0: the whole disc, pi r^2).
+    pub boundary_probes: u32,
 }
 
 impl Default for SppmParams {
@@ -63,6 +66,7 @@ impl SppmParams {
             photons_per_pass: p.photons_per_pass,
             alpha: p.sppm_alpha,
             initial_radius_rel_diag: p.sppm_radius_rel_diag,
+            boundary_probes: p.sppm_boundary_probes,
         }
     }
 }
@@ -147,6 +151,11 @@ pub struct PixelState {
     pub l_sum: f32,
     /// Sum of their squares [W^2 sr^-2 m^-4].
     pub l_sq: f32,
+    /// The share of the gather disc that lies on the visible surface, a running
+    /// mean of the passes' probes over the last few passes (1 without probes).
+    pub share: f32,
+    /// Passes whose eye path found a visible point (the running mean's count).
+    pub seen: f32,
 }
 
 impl PixelState {
@@ -160,7 +169,24 @@ impl PixelState {
             ld: [Rgb::ZERO; 4],
             l_sum: 0.0,
             l_sq: 0.0,
+            share: 1.0,
+            seen: 0.0,
         }
+    }
+
+    /// Count in one pass's probed share `sample` of the gather disc on the surface
+    /// (with `probes` > 0) and return the share to divide by: the running mean
+    /// over the last [`SHARE_MEMORY`] passes or fewer (the radius barely changes
+    /// over them, and a mean of many probes keeps 1 / share nearly unbiased), at
+    /// least [`SHARE_FLOOR`]. Without probes, 1.
+    fn update_share(&mut self, sample: f32, probes: u32) -> f32 {
+        if probes == 0 {
+            return 1.0;
+        }
+        self.seen += 1.0;
+        let lambda = (1.0 / self.seen).max(1.0 / SHARE_MEMORY);
+        self.share += (sample - self.share) * lambda;
+        self.share.max(SHARE_FLOOR)
     }
 
     /// Count in one pass's own estimate `l` of the pixel (the mean of its
@@ -189,6 +215,13 @@ impl PixelState {
     }
 }
 
+/// Passes over which a pixel's share of the gather disc on its surface is
+/// averaged (an exponential mean after the first ones).
+pub const SHARE_MEMORY: f32 = 16.0;
+/// The smallest share divided by (a visible point lies on its surface, so its
+/// disc keeps about a quarter even at a box's corner; a lower probe count is noise).
+pub const SHARE_FLOOR: f32 = 0.125;
+
 /// A pass's visible point: the first non-specular surface of the pixel's eye path.
 struct VisiblePoint {
     p: Vec3,
@@ -202,6 +235,8 @@ struct VisiblePoint {
     beta: Rgb,
     /// Reached through a mirror or glass.
     specular: bool,
+    /// The share of the gather disc on the surface its probes found.
+    share: f32,
 }
 
 /// A stored photon of a pass: where, from where, with what power, and whether it
@@ -298,12 +333,13 @@ impl<'a> Sppm<'a> {
     pub fn key(&self) -> String {
         let p = &self.params;
         format!(
-            "width={} height={} photons_per_pass={} sppm_alpha={} sppm_radius_rel_diag={} seed={} light_samples={} max_depth={}",
+            "width={} height={} photons_per_pass={} sppm_alpha={} sppm_radius_rel_diag={} sppm_boundary_probes={} seed={} light_samples={} max_depth={}",
             self.width,
             self.height,
             p.photons_per_pass,
             p.alpha,
             p.initial_radius_rel_diag,
+            p.boundary_probes,
             self.seed,
             self.light_samples,
             self.max_depth
@@ -325,7 +361,16 @@ impl<'a> Sppm<'a> {
                 for (k, v) in px.ld.into_iter().enumerate() {
                     ld[3 * k..3 * k + 3].copy_from_slice(&rgb(v));
                 }
-                pm_format::StateRecord { radius: px.radius, n: px.n, tau, ld, l_sum: px.l_sum, l_sq: px.l_sq }
+                pm_format::StateRecord {
+                    radius: px.radius,
+                    n: px.n,
+                    tau,
+                    ld,
+                    l_sum: px.l_sum,
+                    l_sq: px.l_sq,
+                    share: px.share,
+                    seen: px.seen,
+                }
             })
             .collect();
         pm_format::StateFile {
@@ -362,6 +407,8 @@ impl<'a> Sppm<'a> {
                 ld: std::array::from_fn(|k| v(&r.ld, k)),
                 l_sum: r.l_sum,
                 l_sq: r.l_sq,
+                share: r.share,
+                seen: r.seen,
             })
             .collect();
         self.passes = file.passes;
@@ -381,7 +428,12 @@ impl<'a> Sppm<'a> {
                 let mut s = Sampler::salted(self.seed, pixel_salt(i), k as u64);
                 let j = s.next_2d();
                 let d = rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
-                self.eye_path(camera.position, d, &mut s)
+                let (mut vp, ld) = self.eye_path(camera.position, d, &mut s);
+                if let Some(vp) = &mut vp {
+                    vp.share =
+                        surface_share(self.light.scene, vp, self.pixels[i].radius, self.params.boundary_probes, &mut s);
+                }
+                (vp, ld)
             })
             .collect();
         // The pass's photons after their first bounce, in index order.
@@ -406,7 +458,11 @@ impl<'a> Sppm<'a> {
                     return 0;
                 };
                 let (phi, m) = gather(&grid, &photons, vp, px.radius);
-                let phi = phi.map(|f| vp.beta * f);
+                // The density divides by the disc's area on the surface: pi r^2 times
+                // its share there, folded into the flux so that the alpha rule's
+                // bookkeeping stays Hachisuka's.
+                let share = px.update_share(vp.share, self.params.boundary_probes);
+                let phi = phi.map(|f| vp.beta * f / share);
                 let photon =
                     (phi[0] + phi[1]).element_sum() / 3.0 / (np * std::f32::consts::PI * px.radius * px.radius);
                 px.add_estimate(direct + if photon.is_finite() { photon } else { 0.0 });
@@ -446,7 +502,7 @@ impl<'a> Sppm<'a> {
             if !bsdf.is_specular() {
                 ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples);
                 let n = pm_scene::facing(hit.ng, wo);
-                return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular }), ld);
+                return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 }), ld);
             }
             let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return (None, ld) };
             beta *= bs.weight;
@@ -544,6 +600,39 @@ impl<'a> Sppm<'a> {
             gbuffer: None,
         }
     }
+}
+
+/// The share of the gather disc of radius `r` around visible point `vp` that lies
+/// on its surface, from `probes` points q drawn uniformly on the disc in its
+/// tangent plane: q counts when the segment to it, lifted off the surface by
+/// r / 10, is clear (a wall of a concave corner cuts the disc) and a ray down from
+/// the lifted q finds a surface facing the same way within r / 2 (past a convex
+/// edge it finds none; a curved surface of radius down to r stays in reach). A
+/// photon is gathered by the same test (within r, stored normal alike), so the
+/// photons found over the disc's area on the surface estimate the density
+/// without the disc's missing part: the boundary bias, first order in r at every
+/// edge, goes. 1 without probes.
+fn surface_share(scene: &Scene, vp: &VisiblePoint, r: f32, probes: u32, s: &mut Sampler) -> f32 {
+    if probes == 0 {
+        return 1.0;
+    }
+    let (t, b) = pm_sampling::basis(vp.n);
+    let lift = 0.1 * r;
+    let o = vp.p + lift * vp.n;
+    let inside = (0..probes)
+        .filter(|_| {
+            let u = pm_sampling::concentric_disk(s.next_2d()) * r;
+            let off = t * u.x + b * u.y;
+            let dist = off.length();
+            if dist > 0.0 && scene.occluded(o, off / dist, dist) {
+                return false;
+            }
+            scene
+                .intersect(o + off, -vp.n, lift + 0.5 * r)
+                .is_some_and(|hit| pm_scene::facing(hit.ng, vp.n).dot(vp.n) > pm_estimate::SAME_SURFACE_COS)
+        })
+        .count();
+    inside as f32 / probes as f32
 }
 
 /// The flux f(wo, wi) Phi of the pass's `photons` within `r` of visible point
