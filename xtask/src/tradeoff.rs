@@ -179,12 +179,20 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
             s.render.spp = spp
         }));
     }
-    // Progressive photon mapping (issue 39): passes of the default photons a pass;
-    // its bias shrinks with the radius, so long runs pass the batch pipeline.
+    // Progressive photon mapping (issue 39): passes of the default photons a pass
+    // with the default boundary probes; its bias shrinks with the radius, so long
+    // runs pass the batch pipeline. Without probes (Hachisuka's pi r^2), the edge
+    // bias stays.
     for passes in [16u32, 64, 256, 1024] {
         v.push(with("sppm", format!("sppm {passes} passes"), &|s| {
             s.render.mode = Method::Sppm;
             s.render.passes = passes
+        }));
+    }
+    for passes in [16u32, 64, 256, 1024] {
+        v.push(with("sppm no probes", format!("sppm {passes} passes no probes"), &|s| {
+            s.render.mode = Method::Sppm;
+            (s.render.passes, s.render.sppm_boundary_probes) = (passes, 0)
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
@@ -784,7 +792,7 @@ fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 16] = [
+const AXES: [&str; 17] = [
     "default",
     "global photons",
     "caustic photons",
@@ -798,6 +806,7 @@ const AXES: [&str; 16] = [
     "records",
     "path",
     "sppm",
+    "sppm no probes",
     "live vertex",
     "live ispm",
     "peer",
@@ -864,7 +873,7 @@ fn panel(
         if pts.is_empty() {
             continue;
         }
-        if !matches!(*axis, "path" | "sppm" | "live vertex" | "live ispm") && vis.contains(&0) {
+        if !matches!(*axis, "path" | "sppm" | "sppm no probes" | "live vertex" | "live ispm") && vis.contains(&0) {
             pts.push(0);
         }
         pts.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
@@ -946,7 +955,7 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
     }
     for axis in AXES.iter().skip(1) {
         let mut pts: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].setting.axis == *axis).collect();
-        if !matches!(*axis, "path" | "sppm" | "live vertex" | "live ispm") && !pts.is_empty() {
+        if !matches!(*axis, "path" | "sppm" | "sppm no probes" | "live vertex" | "live ispm") && !pts.is_empty() {
             pts.insert(pts.len() / 2, 0);
         }
         for wnd in pts.windows(2) {

@@ -129,7 +129,7 @@ pm_params::params! {
         /// Progressive photon mapping: probe rays a pixel a pass that measure how much of
         /// the gather disc lies on the visible surface (walls and edges cut it), so the
         /// density divides by that area instead of pi r^2 (0: pi r^2, Hachisuka's estimate).
-        sppm_boundary_probes: u32 = 0 => between(0, 64);
+        sppm_boundary_probes: u32 = 4 => between(0, 64);
     }
 }
 

@@ -604,14 +604,16 @@ impl<'a> Sppm<'a> {
 
 /// The share of the gather disc of radius `r` around visible point `vp` that lies
 /// on its surface, from `probes` points q drawn uniformly on the disc in its
-/// tangent plane: q counts when the segment to it, lifted off the surface by
-/// r / 10, is clear (a wall of a concave corner cuts the disc) and a ray down from
-/// the lifted q finds a surface facing the same way within r / 2 (past a convex
-/// edge it finds none; a curved surface of radius down to r stays in reach). A
-/// photon is gathered by the same test (within r, stored normal alike), so the
-/// photons found over the disc's area on the surface estimate the density
-/// without the disc's missing part: the boundary bias, first order in r at every
-/// edge, goes. 1 without probes.
+/// tangent plane, each asking what the gather asks of a photon: is there a
+/// surface point within r of the visible point whose normal is alike
+/// ([`pm_estimate::SAME_SURFACE_COS`])? The segment to q, lifted off the surface
+/// by r / 10, either meets a surface (a gently curved, concave continuation
+/// counts; a wall of a concave corner does not) or runs clear, and then a ray
+/// down from the lifted q finds the surface within 2r (a convex bend of up to 60
+/// degrees counts; past a box's edge there is nothing, or only the floor farther
+/// than r). The photons found over the disc's area on the surface estimate the
+/// density without the disc's missing part: the boundary bias, first order in r
+/// at every edge, goes. 1 without probes.
 fn surface_share(scene: &Scene, vp: &VisiblePoint, r: f32, probes: u32, s: &mut Sampler) -> f32 {
     if probes == 0 {
         return 1.0;
@@ -619,17 +621,21 @@ fn surface_share(scene: &Scene, vp: &VisiblePoint, r: f32, probes: u32, s: &mut 
     let (t, b) = pm_sampling::basis(vp.n);
     let lift = 0.1 * r;
     let o = vp.p + lift * vp.n;
+    let alike = |hit: &pm_scene::Hit| {
+        pm_scene::facing(hit.ng, vp.n).dot(vp.n) > pm_estimate::SAME_SURFACE_COS
+            && hit.p.distance_squared(vp.p) <= r * r
+    };
     let inside = (0..probes)
         .filter(|_| {
             let u = pm_sampling::concentric_disk(s.next_2d()) * r;
             let off = t * u.x + b * u.y;
             let dist = off.length();
-            if dist > 0.0 && scene.occluded(o, off / dist, dist) {
-                return false;
+            if dist > 0.0
+                && let Some(hit) = scene.intersect(o, off / dist, dist)
+            {
+                return alike(&hit);
             }
-            scene
-                .intersect(o + off, -vp.n, lift + 0.5 * r)
-                .is_some_and(|hit| pm_scene::facing(hit.ng, vp.n).dot(vp.n) > pm_estimate::SAME_SURFACE_COS)
+            scene.intersect(o + off, -vp.n, lift + 2.0 * r).is_some_and(|hit| alike(&hit))
         })
         .count();
     inside as f32 / probes as f32
