@@ -390,8 +390,8 @@ mod tests {
         }
         assert_eq!(
             shaping,
-            RenderParams::FIELDS.len() - 10,
-            "spp, contrast, mode, exposure, the caustic two and progressive photon mapping's four"
+            RenderParams::FIELDS.len() - 11,
+            "spp, contrast, mode, exposure, the caustic two and progressive photon mapping's five"
         );
     }
 }
