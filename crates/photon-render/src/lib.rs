@@ -367,18 +367,7 @@ impl Job<'_> {
         let (p, cli) = (&self.cli.params, self.cli);
         let start = match &cli.state {
             Some(path) if path.exists() => {
-                let file = pm_format::read_state(path).map_err(|e| e.to_string())?;
-                if (file.width, file.height) != (self.film.width, self.film.height) {
-                    return Err(format!(
-                        "{}: a state of a {}x{} image, this render is {}x{}",
-                        path.display(),
-                        file.width,
-                        file.height,
-                        self.film.width,
-                        self.film.height
-                    ));
-                }
-                Some(file)
+                Some((path.as_path(), pm_format::read_state(path).map_err(|e| e.to_string())?))
             }
             _ => None,
         };
@@ -389,14 +378,19 @@ impl Job<'_> {
         let region =
             (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
         let t0 = std::time::Instant::now();
-        let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, start.as_ref(), &mut |s| {
+        let resume = start.as_ref().map(|(path, file)| (*path, file));
+        let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, resume, &mut |s| {
             let done = s.passes();
             let photons = done as u64 * p.photons_per_pass;
-            let noise = noise(s).map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
-            progress.set(done as u64);
-            progress.message(&format!("{photons} photon paths{noise}"));
             let go_on = cli.time_budget.is_none_or(|b| t0.elapsed().as_secs_f64() < b);
             let checkpoint = cli.checkpoint.is_some_and(|k| k > 0 && done.is_multiple_of(k));
+            // The noise estimate reads the whole image: only where it is shown.
+            let noise = (progress.shown() || checkpoint)
+                .then(|| noise(s))
+                .flatten()
+                .map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
+            progress.set(done as u64);
+            progress.message(&format!("{photons} photon paths{noise}"));
             if checkpoint || !go_on || done == p.passes {
                 if let Some(path) = &cli.state {
                     pm_format::write_state(path, &s.to_file()).map_err(|e| e.to_string())?;
@@ -412,17 +406,10 @@ impl Job<'_> {
             Ok(go_on)
         });
         progress.finish();
-        if let (Some(file), Ok(_)) = (&start, &r) {
-            eprintln!(
-                "photon-render: continued from the {} passes in {}",
-                file.passes,
-                cli.state.as_ref().expect("read from it").display()
-            );
+        if let (Some((path, file)), Ok(_)) = (&start, &r) {
+            eprintln!("photon-render: continued from the {} passes in {}", file.passes, path.display());
         }
-        r.map_err(|e| match &cli.state {
-            Some(path) if e.starts_with("made ") || e.starts_with("holds ") => format!("{}: {e}", path.display()),
-            _ => e,
-        })
+        r
     }
 }
 

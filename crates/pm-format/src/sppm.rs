@@ -34,10 +34,10 @@ pub struct StateRecord {
     pub n: f32,
     /// Accumulated photon flux tau [W per channel]: caustic RGB, indirect RGB,
     /// through mirrors and glass RGB.
-    pub tau: [f32; 9],
+    pub tau: [[f32; 3]; 3],
     /// Sum over the passes of emission and direct light [W sr^-1 m^-2 per
     /// channel]: the direct, caustic, indirect and specular layers' RGB.
-    pub ld: [f32; 12],
+    pub ld: [[f32; 3]; 4],
     /// Sum over the passes of each pass's own estimate of the pixel (the mean of
     /// its channels) [W sr^-1 m^-2], and of its square, for the noise estimate.
     pub l_sum: f32,
@@ -90,7 +90,10 @@ pub fn read_state(path: &Path) -> Result<StateFile, FormatError> {
         return Err(framed::unusable(path, &KIND, what));
     }
     for (i, r) in records.iter().enumerate() {
-        let values = [r.radius, r.n, r.l_sum, r.l_sq, r.share, r.seen].into_iter().chain(r.tau).chain(r.ld);
+        let values = [r.radius, r.n, r.l_sum, r.l_sq, r.share, r.seen]
+            .into_iter()
+            .chain(r.tau.into_iter().flatten())
+            .chain(r.ld.into_iter().flatten());
         if !(r.radius > 0.0) || r.share > 1.0 || values.into_iter().any(|v| !v.is_finite() || v < 0.0) {
             let what = "holds a non-finite or negative value, a radius <= 0 or a share above 1";
             return Err(framed::bad_record(path, &KIND, i, what));

@@ -260,8 +260,8 @@ fn state_file(w: u32, h: u32) -> crate::StateFile {
             crate::StateRecord {
                 radius: 0.01 + f,
                 n: 2.0 * f,
-                tau: [f * 0.5; 9],
-                ld: [f * 0.25; 12],
+                tau: [[f * 0.5; 3]; 3],
+                ld: [[f * 0.25; 3]; 4],
                 l_sum: f,
                 l_sq: f * f,
                 share: 0.5,
@@ -312,7 +312,7 @@ fn progressive_state_files_round_trip_and_every_bad_one_is_refused() {
         crate::read_state(&path).unwrap_err().to_string()
     };
     assert!(write_bad(&|s| s.width = 5).contains("12 records for a 5x3 image"));
-    assert!(write_bad(&|s| s.records[7].tau[4] = f32::NAN).contains("record 7"));
+    assert!(write_bad(&|s| s.records[7].tau[1][1] = f32::NAN).contains("record 7"));
     assert!(write_bad(&|s| s.records[2].n = -1.0).contains("record 2"));
     assert!(write_bad(&|s| s.records[0].radius = 0.0).contains("record 0"));
     assert_eq!(

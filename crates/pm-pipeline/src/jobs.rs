@@ -141,6 +141,17 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
         bail!("--run-time-budget {b}: give a positive number of seconds");
     }
     let s = |p: &Path| p.display().to_string();
+    // `cargo xtask assemble [how] PARTS` into image.exr and image.png: tiles
+    // joined, or runs averaged.
+    let assemble = |name: &str, how: &[&str], parts: Vec<String>| {
+        let mut a = vec!["assemble".to_string()];
+        a.extend(how.iter().map(|w| w.to_string()));
+        a.extend(parts.iter().cloned());
+        a.extend(["--out".into(), s(&out.join("image.exr")), "--png".into(), s(&out.join("image.png"))]);
+        a.extend(["--exposure".into(), cfg.render.exposure.to_string()]);
+        let images = vec![s(&out.join("image.exr")), s(&out.join("image.png"))];
+        JobStep::array(name, &s(&program("xtask")), a, 1, parts, images)
+    };
     let mut jobs: Vec<JobStep> = Vec::new();
     for step in steps(cfg, scene, out, *caustics, *indirect)? {
         // A step whose input the scene does not need (no caustic photons, no global
@@ -195,12 +206,7 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
                 let mut step = JobStep::array("photon-render runs", &bin, args, runs, inputs, run_outputs.clone());
                 step.resumable = true;
                 jobs.push(step);
-                let mut a = vec!["assemble".to_string(), "--average".into()];
-                a.extend(run_outputs.iter().cloned());
-                a.extend(["--out".into(), s(&out.join("image.exr")), "--png".into(), s(&out.join("image.png"))]);
-                a.extend(["--exposure".into(), cfg.render.exposure.to_string()]);
-                let images = vec![s(&out.join("image.exr")), s(&out.join("image.png"))];
-                jobs.push(JobStep::array("average runs", &s(&program("xtask")), a, 1, run_outputs, images));
+                jobs.push(assemble("average runs", &["--average"], run_outputs));
             }
             Kind::Render if tiles > 1 => {
                 // The render as tiles, each writing its own region and statistics.
@@ -209,12 +215,7 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
                 args.extend(["--stats-json".into(), tile(TASK, "stats.json")]);
                 let tile_outputs: Vec<String> = (0..tiles).map(|k| tile(&k.to_string(), "exr")).collect();
                 jobs.push(JobStep::array("photon-render tiles", &bin, args, tiles, inputs, tile_outputs.clone()));
-                let mut a = vec!["assemble".to_string()];
-                a.extend(tile_outputs.iter().cloned());
-                a.extend(["--out".into(), s(&out.join("image.exr")), "--png".into(), s(&out.join("image.png"))]);
-                a.extend(["--exposure".into(), cfg.render.exposure.to_string()]);
-                let images = vec![s(&out.join("image.exr")), s(&out.join("image.png"))];
-                jobs.push(JobStep::array("assemble", &s(&program("xtask")), a, 1, tile_outputs, images));
+                jobs.push(assemble("assemble", &[], tile_outputs));
             }
             _ => {
                 args.extend(step.write_args());

@@ -91,8 +91,9 @@ pub fn render(
     Ok((image, stats))
 }
 
-/// [`render`], continuing from the passes of `start` when given (a state file
-/// of the same scene and settings: see [`Sppm::resume`]) and calling
+/// [`render`], continuing from the passes of `start` when given (a state file,
+/// read from the path it names, of the same scene and settings: see
+/// [`Sppm::resume`]; a refusal names the file) and calling
 /// `after_pass` after each pass with the state so far (to write a checkpoint
 /// image or state, or stop: `Ok(false)` ends the render with the passes done;
 /// an error ends it with that error). Returns the image, its statistics and the
@@ -103,15 +104,15 @@ pub fn render_with(
     camera: &Camera,
     film: &pm_render::Film,
     rect: pm_raster::Rect,
-    start: Option<&pm_format::StateFile>,
+    start: Option<(&std::path::Path, &pm_format::StateFile)>,
     after_pass: &mut dyn FnMut(&Sppm) -> Result<bool, String>,
 ) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
     let p = SppmParams::of(params);
     let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, params.light_samples, params.max_depth)
         .map_err(|e| e.to_string())?;
-    if let Some(file) = start {
-        s.resume(file)?;
+    if let Some((path, file)) = start {
+        s.resume(file).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     while s.passes() < p.passes {
         s.pass(camera);
@@ -351,26 +352,15 @@ impl<'a> Sppm<'a> {
         let records = self
             .pixels
             .iter()
-            .map(|px| {
-                let rgb = |v: Rgb| v.to_array();
-                let mut tau = [0.0; 9];
-                for (k, v) in [px.tau[0], px.tau[1], px.tau_specular].into_iter().enumerate() {
-                    tau[3 * k..3 * k + 3].copy_from_slice(&rgb(v));
-                }
-                let mut ld = [0.0; 12];
-                for (k, v) in px.ld.into_iter().enumerate() {
-                    ld[3 * k..3 * k + 3].copy_from_slice(&rgb(v));
-                }
-                pm_format::StateRecord {
-                    radius: px.radius,
-                    n: px.n,
-                    tau,
-                    ld,
-                    l_sum: px.l_sum,
-                    l_sq: px.l_sq,
-                    share: px.share,
-                    seen: px.seen,
-                }
+            .map(|px| pm_format::StateRecord {
+                radius: px.radius,
+                n: px.n,
+                tau: [px.tau[0], px.tau[1], px.tau_specular].map(<[f32; 3]>::from),
+                ld: px.ld.map(<[f32; 3]>::from),
+                l_sum: px.l_sum,
+                l_sq: px.l_sq,
+                share: px.share,
+                seen: px.seen,
             })
             .collect();
         pm_format::StateFile {
@@ -384,8 +374,15 @@ impl<'a> Sppm<'a> {
     }
 
     /// Continue from a state file's passes: refused when it was made from another
-    /// scene or with other settings (naming the first that differs).
+    /// scene, for another image size or with other settings (naming the first
+    /// that differs), or holds more passes than asked for.
     pub fn resume(&mut self, file: &pm_format::StateFile) -> Result<(), String> {
+        if (file.width, file.height) != (self.width, self.height) {
+            return Err(format!(
+                "a state of a {}x{} image, this render is {}x{}",
+                file.width, file.height, self.width, self.height
+            ));
+        }
         if file.scene_hash != self.light.scene.content_hash {
             return Err("made from another scene".into());
         }
@@ -395,16 +392,15 @@ impl<'a> Sppm<'a> {
         if file.passes > self.params.passes {
             return Err(format!("holds {} passes, more than the {} asked for", file.passes, self.params.passes));
         }
-        let v = |a: &[f32], k: usize| Rgb::new(a[3 * k], a[3 * k + 1], a[3 * k + 2]);
         self.pixels = file
             .records
             .iter()
             .map(|r| PixelState {
                 radius: r.radius,
                 n: r.n,
-                tau: [v(&r.tau, 0), v(&r.tau, 1)],
-                tau_specular: v(&r.tau, 2),
-                ld: std::array::from_fn(|k| v(&r.ld, k)),
+                tau: [Rgb::from_array(r.tau[0]), Rgb::from_array(r.tau[1])],
+                tau_specular: Rgb::from_array(r.tau[2]),
+                ld: r.ld.map(Rgb::from_array),
                 l_sum: r.l_sum,
                 l_sq: r.l_sq,
                 share: r.share,

@@ -278,6 +278,11 @@ impl Progress {
         self.bar.set_position(done);
     }
 
+    /// True when the bar is drawn (stderr is a terminal), so a message is seen.
+    pub fn shown(&self) -> bool {
+        self.terminal
+    }
+
     /// Show `msg` after the bar (on a terminal; elsewhere nothing).
     pub fn message(&self, msg: &str) {
         self.bar.set_message(msg.to_owned());
