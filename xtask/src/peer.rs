@@ -123,7 +123,7 @@ fn rgb(c: Vec3) -> String {
 }
 
 /// The Mitsuba BSDF element for material `m`, or why it cannot be translated.
-fn bsdf_xml(m: &pm_scene::Material) -> Result<String, String> {
+fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, String> {
     let textured = [
         &m.base_texture,
         &m.metallic_roughness_texture,
@@ -152,7 +152,7 @@ fn bsdf_xml(m: &pm_scene::Material) -> Result<String, String> {
             rgb(r)
         ),
         Bsdf::Glass { eta, tint, thin } => {
-            if m.attenuation != pm_color::Rgb::ZERO && m.attenuation != pm_color::Rgb::ONE {
+            if scene.medium(m.interior).is_some_and(|v| !v.is_clear()) {
                 return Err(format!("material {}: volume attenuation is not translated", m.name));
             }
             format!(
@@ -236,7 +236,7 @@ pub(crate) fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u
     );
     for (i, o) in scene.objects.iter().enumerate() {
         let m = &scene.materials[o.material as usize];
-        let bsdf = bsdf_xml(m).map_err(refuse)?;
+        let bsdf = bsdf_xml(scene, m).map_err(refuse)?;
         let ply = format!("mesh_{i}.ply");
         write_ply(&dir.join(&ply), scene, o.tris.clone())?;
         let mut emitter = String::new();

@@ -1,7 +1,8 @@
 //! The scattering models of the scene (one place for all of them): Lambertian
 //! diffuse, perfect mirror, smooth dielectric (glass, solid or thin-walled), and GGX
 //! microfacet glossy reflection (conductor, and the glTF 2.0 dielectric: a GGX
-//! specular layer Fresnel-mixed over a diffuse base, Appendix B).
+//! specular layer Fresnel-mixed over a diffuse base, Appendix B), and scattering
+//! inside media (the Henyey-Greenstein phase function).
 //!
 //! Conventions (pbrt-v4, chapter 9): `wo` and `wi` are unit vectors pointing away
 //! from the surface; `n` is the unit shading normal on the side the geometry was
@@ -16,6 +17,9 @@ use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 mod albedo;
+mod phase;
+
+pub use phase::{HenyeyGreenstein, PhaseSample};
 
 /// One scattering model. Built once per material by the scene crate.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,7 +9,7 @@ use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_sampling::Sampler;
-use pm_scene::{Hit, Scene};
+use pm_scene::{Hit, MediumId, Scene};
 use std::f32::consts::PI;
 
 /// Direct light from the scene's lights, chosen by power: what every integrator
@@ -74,20 +74,66 @@ impl<'a> DirectLighting<'a> {
     }
 
     /// One light-sampling estimate of reflected direct radiance: pick a light by power,
-    /// sample a point or direction on it, trace a shadow ray. With `mis`, non-delta
-    /// lights are weighted by the power heuristic against BSDF sampling (the caller
-    /// then also samples the BSDF).
-    pub fn light_sample(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler, mis: bool) -> Rgb {
-        self.light_sample_at(hit, bsdf, wo, light_numbers(s), mis)
+    /// sample a point or direction on it, trace a shadow ray, which starts in
+    /// `medium` (attenuated by media and passing index-matched boundaries:
+    /// [`Scene::transmittance_along`]). With `mis`, non-delta lights are weighted by
+    /// the power heuristic against BSDF sampling (the caller then also samples the
+    /// BSDF).
+    pub fn light_sample(
+        &self,
+        hit: &Hit,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        s: &mut Sampler,
+        mis: bool,
+        medium: Option<MediumId>,
+    ) -> Rgb {
+        match self.unshadowed(hit, bsdf, wo, light_numbers(s), mis) {
+            Some((_, c, o, wi, t_max)) => c * self.scene.transmittance_along(o, wi, t_max, medium),
+            None => Rgb::ZERO,
+        }
     }
 
-    /// [`Self::light_sample`] with its random numbers given: the point on the light
-    /// (u\[0\], u\[1\]), the emitting triangle (u\[2\]) and the light (u\[3\]).
+    /// [`Self::light_sample`] in vacuum with its random numbers given: the point on
+    /// the light (u\[0\], u\[1\]), the emitting triangle (u\[2\]) and the light
+    /// (u\[3\]).
     pub fn light_sample_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Rgb {
         match self.unshadowed(hit, bsdf, wo, u, mis) {
             Some((_, c, o, wi, t_max)) if !self.scene.occluded(o, wi, t_max) => c,
             _ => Rgb::ZERO,
         }
+    }
+
+    /// One light-sampling estimate of the radiance [W sr^-1 m^-2] scattered toward
+    /// `wo` at point `p` inside medium `medium` by its phase function, per unit
+    /// sigma_s (the caller's free-flight weight holds sigma_s): pick a light, sample
+    /// it from `p` over the whole sphere, p(wo, wi) L_i T / pdf with the shadow ray's
+    /// transmittance T. With `mis`, non-delta lights are weighted by the power
+    /// heuristic against phase-function sampling (the caller then samples the
+    /// phase function and weighs the emission it finds).
+    pub fn medium_sample(
+        &self,
+        p: Vec3,
+        wo: Vec3,
+        phase: &pm_bsdf::HenyeyGreenstein,
+        medium: Option<MediumId>,
+        s: &mut Sampler,
+        mis: bool,
+    ) -> Rgb {
+        let u = light_numbers(s);
+        let (li, p_sel) = self.lights.pick(u[3]);
+        let scene = self.scene;
+        let Some(ls) = scene.lights[li].sample_li(scene, p, Vec3::ZERO, u[2], glam::Vec2::new(u[0], u[1])) else {
+            return Rgb::ZERO;
+        };
+        let f = phase.p(wo, ls.wi);
+        let p_l = ls.pdf * p_sel as f32;
+        if !(f > 0.0 && p_l > 0.0) {
+            return Rgb::ZERO;
+        }
+        let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, f) };
+        let t_max = shadow_length(p, p, &ls);
+        ls.li * (f * w / p_l) * scene.transmittance_along(p, ls.wi, t_max, medium)
     }
 
     /// A light sample's light, its contribution as if nothing blocked it, and its

@@ -69,6 +69,11 @@ pub struct Pipeline {
     /// them).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub portals: Vec<String>,
+    /// Participating media by material name (`[media.NAME]`: inside that
+    /// material's closed meshes) or filling the scene (`[media.scene]`); each wins
+    /// over the glTF file's KHR_materials_volume(_scatter).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub media: BTreeMap<String, MediumCfg>,
     /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
     pub effects: EffectsCfg,
     /// Light name to fraction of the photon budget; the other lights share the rest
@@ -101,6 +106,28 @@ pub struct Pipeline {
     /// What quality or time_budget_s chose (not a key of the file).
     #[serde(skip)]
     pub chosen: Option<String>,
+}
+
+/// A `[media.NAME]` table: a homogeneous medium in physical units.
+#[derive(Deserialize, Serialize, Debug, Clone, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct MediumCfg {
+    /// Absorption coefficient sigma_a [m^-1 per channel].
+    #[serde(default)]
+    pub sigma_a: [f32; 3],
+    /// Scattering coefficient sigma_s [m^-1 per channel].
+    #[serde(default)]
+    pub sigma_s: [f32; 3],
+    /// Henyey-Greenstein asymmetry g in (-1, 1) (0: isotropic).
+    #[serde(default)]
+    pub g: f32,
+}
+
+impl MediumCfg {
+    /// As the stages' `--medium` option takes it.
+    fn arg(&self, name: &str) -> pm_stage::MediumArg {
+        pm_stage::MediumArg { name: name.to_string(), sigma_a: self.sigma_a, sigma_s: self.sigma_s, g: self.g }
+    }
 }
 
 /// `environment = "sky.exr"` or `environment = [r, g, b]`.
@@ -212,6 +239,9 @@ impl Pipeline {
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
         p.render.check(Naming::File("render")).map_err(fail)?;
         p.live.check(Naming::File("live")).map_err(fail)?;
+        for (name, m) in &p.media {
+            m.arg(name).medium().map_err(|e| anyhow::anyhow!("{file}: [media.{name}]: {e}"))?;
+        }
         for (name, share) in &p.light_shares {
             if !(0.0..=1.0).contains(share) {
                 bail!("{file}: light_shares.{name} = {share} is out of range (in [0, 1])");
@@ -289,6 +319,9 @@ impl Pipeline {
         }
         for p in &self.portals {
             a.extend(["--portal".into(), p.clone()]);
+        }
+        for (name, m) in &self.media {
+            a.extend(["--medium".into(), m.arg(name).to_string()]);
         }
         a
     }

@@ -7,7 +7,7 @@ use glam::Vec3;
 use pm_color::{Layer, Rgb};
 use pm_light::{DirectLighting, power_heuristic};
 use pm_sampling::Sampler;
-use pm_scene::Scene;
+use pm_scene::{FreeFlight, Scene};
 use std::sync::atomic::Ordering::Relaxed;
 
 /// The path tracer: needs the scene and its lights, no photon map.
@@ -60,7 +60,13 @@ const MAX_PATH: u32 = 1000;
 // anything that has been diffusely reflected twice is indirect.
 
 /// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2], split into the
-/// renderer's component layers.
+/// renderer's component layers. In a scene with media the path carries the medium
+/// it is in (from the eye's, [`Scene::eye_medium`]): free-flight sampling by
+/// channel with the balance heuristic over channels ([`pm_scene::Medium::sample_distance`]),
+/// next-event estimation at every scattering point and surface through media
+/// (shadow rays attenuated, index-matched boundaries passed), the phase function
+/// sampled and weighed against light sampling by the power heuristic as a BSDF is
+/// (pbrt-v4 section 14.2). Index-matched boundaries are passed without a bounce.
 fn path_radiance(
     light: &DirectLighting,
     counters: &Counters,
@@ -75,40 +81,99 @@ fn path_radiance(
     let mut beta = Rgb::ONE;
     let mut l = Components::default();
     let mut prev_pdf = 0.0f32;
-    // The last non-specular shading point and its normal on the side light comes
-    // from (light sampling's densities depend on them).
+    // The last non-specular vertex (a surface or a point in a medium) and its normal
+    // on the side light comes from (zero in a medium): light sampling's densities
+    // depend on them. `travelled` is the distance from it along the current
+    // direction to the current ray's origin (index-matched boundaries passed).
     let mut prev_p = o;
     let mut prev_n = Vec3::Z;
     let mut prev_specular = true;
+    let mut travelled = 0.0f32;
     // Classification of emission found at the next hit, and the path's history.
     let mut emission_layer = Layer::Direct;
     let mut specular_before_d1 = false;
     let mut n_diffuse = 0u32;
+    let media = scene.has_media();
+    let mut medium = if media { scene.eye_medium(o) } else { None };
+    // In media: the hero channel distances are sampled in, and the path's density
+    // in each channel over the hero's (`FreeFlight`); `w` = 1 / their mean is what
+    // every contribution and the roulette weigh by (one without media).
+    let hero = if media { ((s.next_1d() * 3.0) as usize).min(2) } else { 0 };
+    let mut ratio = Rgb::ONE;
+    let mut w = 1.0f32;
+    let mut eye_ray = true;
     for depth in 0..MAX_PATH {
         let hit = if depth == 0 { first.resolve(scene, o, d) } else { scene.intersect(o, d, f32::INFINITY) };
+        // The segment's medium: scatter inside it, or attenuate what lies beyond.
+        if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+            let u = if m.scatters() { s.next_1d() } else { 0.0 };
+            match m.sample_distance(t_seg, hero, u) {
+                FreeFlight::Through { weight, ratio: r } => {
+                    beta *= weight;
+                    ratio *= r;
+                    w = 3.0 / ratio.element_sum();
+                }
+                FreeFlight::Scatter { t, weight, ratio: r } => {
+                    beta *= weight;
+                    ratio *= r;
+                    w = 3.0 / ratio.element_sum();
+                    eye_ray = false;
+                    let p = o + d * t;
+                    let wo = -d;
+                    n_diffuse += 1;
+                    let nee_layer = layer_of_light_at(specular_before_d1, n_diffuse);
+                    l.add_to(nee_layer, beta * w * light.medium_sample(p, wo, &m.phase, medium, s, true));
+                    let ps = m.phase.sample(wo, s.next_2d());
+                    emission_layer = if specular_before_d1 {
+                        Layer::Specular
+                    } else if n_diffuse >= 2 {
+                        Layer::Indirect
+                    } else {
+                        Layer::Direct
+                    };
+                    prev_pdf = ps.pdf;
+                    prev_specular = false;
+                    (prev_p, prev_n, travelled) = (p, Vec3::ZERO, 0.0);
+                    if !roulette(&mut beta, w, depth, s) {
+                        return l;
+                    }
+                    (o, d) = (p, ps.wi);
+                    continue;
+                }
+            }
+        }
         let Some(hit) = hit else {
             // Left the scene: the environment and sun discs, weighed against light
             // sampling like emission found on a surface.
             let le = scene.escaped(d);
             if le.max_element() > 0.0 {
-                let w =
+                let mis =
                     if prev_specular { 1.0 } else { power_heuristic(prev_pdf, light.pdf_escaped(prev_p, prev_n, d)) };
-                l.add_to(emission_layer, beta * le * w);
+                l.add_to(emission_layer, beta * w * le * mis);
             }
             return l;
         };
-        beta *= scene.transmittance(&hit, d);
+        if let Some(tint) = scene.index_matched(&hit) {
+            // Straight through, into the medium beyond: no bounce.
+            beta *= tint;
+            medium = scene.medium_after(&hit, d, medium);
+            let next = scene.offset_origin(hit.p, hit.ng, d);
+            travelled += (next - o).dot(d);
+            o = next;
+            continue;
+        }
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         if le.max_element() > 0.0 {
             if prev_specular {
-                l.add_to(emission_layer, beta * le);
-            } else if let Some(p_l) = light.pdf_emitter(prev_p, hit.tri, d, hit.t) {
-                l.add_to(emission_layer, beta * le * power_heuristic(prev_pdf, p_l));
+                l.add_to(emission_layer, beta * w * le);
+            } else if let Some(p_l) = light.pdf_emitter(prev_p, hit.tri, d, travelled + hit.t) {
+                l.add_to(emission_layer, beta * w * le * power_heuristic(prev_pdf, p_l));
             }
         }
         let bsdf = scene.bsdf(&hit);
-        if depth == 0
+        if eye_ray
             && let Some(v) = vs.as_deref_mut()
         {
             *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
@@ -121,21 +186,16 @@ fn path_radiance(
             n_diffuse += 1;
             // Next-event estimation, one light sample, MIS against BSDF sampling
             // (the BSDF-sampled continuation below picks up emission with its weight).
-            let nee_layer = if specular_before_d1 {
-                Layer::Specular
-            } else if n_diffuse == 1 {
-                Layer::Direct
-            } else {
-                Layer::Indirect
-            };
-            let nee = beta * light.light_sample(&hit, &bsdf, wo, s, true);
+            let nee_layer = layer_of_light_at(specular_before_d1, n_diffuse);
+            let nee = beta * w * light.light_sample(&hit, &bsdf, wo, s, true, medium);
             l.add_to(nee_layer, nee);
-            if depth == 0
+            if eye_ray
                 && let Some(v) = vs.as_deref_mut()
             {
                 v.direct = nee;
             }
         }
+        eye_ray = false;
         let u = s.next_2d();
         let uc = s.next_1d();
         let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return l };
@@ -155,28 +215,48 @@ fn path_radiance(
         beta *= bs.weight;
         prev_pdf = bs.pdf;
         prev_specular = bs.specular;
-        // Russian roulette after a few bounces (pbrt-v4): survive with probability
-        // equal to the throughput's largest channel, so surviving paths keep a weight
-        // near 1. A cap below 1 (as this code once had, 0.95) makes weights grow
-        // geometrically on bright paths and the long tail is then undersampled: the
-        // albedo-0.99 furnace came out 13% dark at 1024 spp.
-        if depth >= 3 {
-            let q = beta.max_element();
-            if q < 1.0 {
-                if !(q > 0.0) || s.next_1d() >= q {
-                    return l;
-                }
-                beta /= q;
-            }
-        }
-        if !beta.is_finite() {
+        if !roulette(&mut beta, w, depth, s) {
             return l;
         }
-        prev_p = hit.p;
-        prev_n = pm_scene::facing(hit.ng, wo);
+        (prev_p, prev_n, travelled) = (hit.p, pm_scene::facing(hit.ng, wo), 0.0);
+        if media {
+            medium = scene.medium_after(&hit, bs.wi, medium);
+        }
         o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;
     }
     counters.terminated_paths.fetch_add(1, Relaxed);
     l
+}
+
+/// The layer of light arriving at the path's `n_diffuse`-th non-specular vertex
+/// (a surface or a point in a medium) straight from a light.
+fn layer_of_light_at(specular_before_d1: bool, n_diffuse: u32) -> Layer {
+    if specular_before_d1 {
+        Layer::Specular
+    } else if n_diffuse == 1 {
+        Layer::Direct
+    } else {
+        Layer::Indirect
+    }
+}
+
+/// Russian roulette after a few bounces (pbrt-v4): survive with probability equal
+/// to the throughput's largest channel, so surviving paths keep a weight near 1. A
+/// cap below 1 (as this code once had, 0.95) makes weights grow geometrically on
+/// bright paths and the long tail is then undersampled: the albedo-0.99 furnace
+/// came out 13% dark at 1024 spp. The throughput is `beta` times `w` (the spectral
+/// MIS factor in media, one elsewhere). False when the path ends (or its weight is
+/// not finite).
+fn roulette(beta: &mut Rgb, w: f32, depth: u32, s: &mut Sampler) -> bool {
+    if depth >= 3 {
+        let q = beta.max_element() * w;
+        if q < 1.0 {
+            if !(q > 0.0) || s.next_1d() >= q {
+                return false;
+            }
+            *beta /= q;
+        }
+    }
+    beta.is_finite()
 }

@@ -266,5 +266,8 @@ impl Scene {
                 cam.up = right.cross(forward);
             }
         }
+        if self.has_media() {
+            self.locate_media();
+        }
     }
 }

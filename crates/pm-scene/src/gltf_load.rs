@@ -43,13 +43,14 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 7] = [
+const SUPPORTED_EXTENSIONS: [&str; 8] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
     "KHR_materials_volume",
+    "KHR_materials_volume_scatter",
     "KHR_materials_specular",
 ];
 
@@ -133,6 +134,13 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     drop((decoded, buffers));
     let mut scene =
         Scene::build(triangles, mats.materials, mats.textures, lights, objects, camera, content_hash, warnings);
+    for (i, m) in mats.media.into_iter().enumerate() {
+        if let Some(m) = m {
+            let id = scene.add_medium(m);
+            scene.set_material_medium(i, id);
+        }
+    }
+    scene.finish_media().map_err(content)?;
     scene.animation = animation;
     scene.origin = origin;
     scene.environment_spec = match gltf_scene_extras {
@@ -171,14 +179,15 @@ fn read_document(
 }
 
 /// One glTF material: its BSDF factors, the textures it reads (decoded by
-/// `loader`), alpha, volume attenuation and emission; with whether a texture reads
-/// TEXCOORD_1 and the set its normal texture reads. Errors name the material.
+/// `loader`), alpha and emission, and the medium it bounds (volume attenuation and
+/// scattering); with whether a texture reads TEXCOORD_1 and the set its normal
+/// texture reads. Errors name the material.
 fn read_material(
     m: gltf::Material,
     i: usize,
     loader: &mut TextureLoader,
     warnings: &mut Vec<String>,
-) -> Result<(Material, bool, Option<u8>), String> {
+) -> Result<(Material, Option<crate::Medium>, bool, Option<u8>), String> {
     let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
     let pbr = m.pbr_metallic_roughness();
     let bc = pbr.base_color_factor();
@@ -266,7 +275,7 @@ fn read_material(
     // What is not read, said once per material: material extensions the loader
     // does not know (clearcoat, sheen, iridescence, ...), then textures.
     if let Some(ext) = m.extensions() {
-        for k in ext.keys() {
+        for k in ext.keys().filter(|k| *k != "KHR_materials_volume_scatter") {
             warnings.push(format!("material '{name}': extension {k} ignored"));
         }
     }
@@ -287,23 +296,51 @@ fn read_material(
         gltf::material::AlphaMode::Blend => AlphaMode::Blend,
     };
     // KHR_materials_volume: attenuationColor is what is left after
-    // attenuationDistance, so sigma_a = -ln(colour) / distance (a colour of 0 is
-    // taken as 1e-6: opaque within a few distances).
-    let mut attenuation = Rgb::ZERO;
+    // attenuationDistance, so sigma_t = -ln(colour) / distance; with the draft
+    // KHR_materials_volume_scatter, scatterAlbedo (earlier drafts:
+    // multiscatterColor) is the multiple-scattering albedo, mapped to the
+    // single-scattering albedo by Kulla and Conty's fit as the draft says, and
+    // scatterAnisotropy is Henyey-Greenstein's g. A volume that is not thin (a
+    // thicknessFactor above 0) bounds a medium, clear when nothing attenuates.
+    let scatter = m.extension_value("KHR_materials_volume_scatter");
+    let mut medium = None;
     if let Some(v) = m.volume() {
         let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
-        if !c.is_finite() || c.min_element() < 0.0 || !(d > 0.0) {
-            return Err(format!("material '{name}': volume attenuation colour {c} or distance {d} is not valid"));
-        }
+        let (albedo, g) = match scatter {
+            Some(x) => {
+                let colour = x.get("scatterAlbedo").or_else(|| x.get("multiscatterColor"));
+                let rho_ms = match colour.and_then(|v| v.as_array()) {
+                    Some(a) if a.len() == 3 && a.iter().all(|v| v.as_f64().is_some()) => {
+                        let c: Vec<f32> = a.iter().map(|v| v.as_f64().unwrap_or(0.0) as f32).collect();
+                        Rgb::new(c[0], c[1], c[2])
+                    }
+                    Some(_) => return Err(format!("material '{name}': scatterAlbedo is not three numbers")),
+                    None => Rgb::ZERO,
+                };
+                if !rho_ms.is_finite() || rho_ms.min_element() < 0.0 || rho_ms.max_element() > 1.0 {
+                    return Err(format!("material '{name}': scatterAlbedo {rho_ms} is not in [0, 1]"));
+                }
+                let g = match x.get("scatterAnisotropy") {
+                    Some(v) => v.as_f64().ok_or_else(|| format!("material '{name}': scatterAnisotropy is not a number"))?,
+                    None => 0.0,
+                } as f32;
+                (crate::single_scattering_albedo(rho_ms), g)
+            }
+            None => (Rgb::ZERO, 0.0),
+        };
+        let volume = crate::Medium::from_attenuation(name.clone(), c, d, albedo, g)
+            .map_err(|e| e.replace(&format!("medium '{name}'"), &format!("material '{name}': scatter")))?;
         if factors.thin {
-            if d.is_finite() && c != Rgb::ONE {
+            if !volume.is_clear() {
                 warnings.push(format!(
                     "material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"
                 ));
             }
-        } else if d.is_finite() {
-            attenuation = -c.min(Rgb::ONE).max(Rgb::splat(1e-6)).ln() / d;
+        } else {
+            medium = Some(volume);
         }
+    } else if scatter.is_some() {
+        warnings.push(format!("material '{name}': KHR_materials_volume_scatter ignored (it needs KHR_materials_volume)"));
     }
     let ef = m.emissive_factor();
     let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
@@ -325,9 +362,9 @@ fn read_material(
         normal_scale,
         emission,
         double_sided: m.double_sided(),
-        attenuation,
+        interior: None,
     };
-    Ok((material, uses_uv1, normal_texture.map(|t| t.uv_set)))
+    Ok((material, medium, uses_uv1, normal_texture.map(|t| t.uv_set)))
 }
 
 /// What the walk over the scene's nodes collects: triangles in world (camera-world)
@@ -348,6 +385,8 @@ struct NodeWalk {
 /// The materials of a file with what decoding their meshes needs to know.
 struct Materials {
     materials: Vec<Material>,
+    /// Per material, the medium it bounds (attached once the scene is built).
+    media: Vec<Option<crate::Medium>>,
     textures: Vec<Texture>,
     /// Per material, whether a texture reads TEXCOORD_1 (only then is it read).
     uv1_needed: Vec<bool>,
@@ -369,8 +408,10 @@ impl Materials {
     ) -> Result<Materials, String> {
         let mut loader = TextureLoader { base_dir, buffers, textures: Vec::new(), cache: Default::default() };
         let (mut materials, mut uv1_needed, mut tangent_sets) = (Vec::new(), Vec::new(), Vec::new());
+        let mut media = Vec::new();
         for (i, m) in doc.materials().enumerate() {
-            let (material, uses_uv1, tangent_set) = read_material(m, i, &mut loader, warnings)?;
+            let (material, medium, uses_uv1, tangent_set) = read_material(m, i, &mut loader, warnings)?;
+            media.push(medium);
             uv1_needed.push(uses_uv1);
             tangent_sets.push(tangent_set);
             materials.push(material);
@@ -382,7 +423,8 @@ impl Materials {
             pbr: default_factors,
             ..Material::new("default", Bsdf::from_pbr(&default_factors), Rgb::ZERO)
         });
-        Ok(Materials { materials, textures: loader.textures, uv1_needed, tangent_sets, default })
+        media.push(None);
+        Ok(Materials { materials, media, textures: loader.textures, uv1_needed, tangent_sets, default })
     }
 }
 

@@ -23,6 +23,7 @@ mod geometry;
 mod gltf_load;
 mod light;
 mod material;
+mod medium;
 mod memory;
 mod mesh;
 mod portal;
@@ -38,6 +39,7 @@ pub use light::{
     EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff, sun_radiance,
 };
 pub use material::{AlphaMode, Material, Texture, TextureRef, Wrap};
+pub use medium::{FreeFlight, Medium, MediumId, single_scattering_albedo};
 pub use memory::MemoryUse;
 pub use mesh::{Bounds, Object, Triangle, TriangleExtras, bounds_of};
 pub use portal::Portal;
@@ -106,6 +108,12 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// Light sources (emissive meshes, punctual lights and the environment).
     pub lights: Vec<Light>,
+    /// Participating media (homogeneous), by [`MediumId`]: the insides of meshes
+    /// whose material bounds one ([`Material::interior`]) and the one filling the
+    /// scene ([`Scene::scene_medium`]).
+    pub media: Vec<Medium>,
+    /// Where the media are (outside each mesh, at the camera and the lights).
+    layout: medium::MediaLayout,
     /// The lights that rays leaving the scene see (an environment, suns with a
     /// size), by index into `lights`: what [`Scene::escaped`] sums.
     pub infinite_lights: Vec<u32>,
@@ -191,6 +199,8 @@ impl Scene {
             materials,
             textures,
             lights,
+            media: Vec::new(),
+            layout: medium::MediaLayout::default(),
             objects,
             camera,
             origin: glam::DVec3::ZERO,
@@ -202,6 +212,7 @@ impl Scene {
             bvh_inv_scale: 1.0 / bounds.diagonal().max(f32::MIN_POSITIVE),
         };
         light::finish_lights(&mut scene);
+        scene.media_flags();
         scene
     }
 

@@ -719,7 +719,8 @@ impl Light {
     /// cos goes to zero. A sun with a size: uniform over its disc. An environment:
     /// by its radiance ([`crate::Environment::sample`]), or, one colour, over the
     /// cosine-weighted hemisphere of `n` (the unit normal on the side light may
-    /// arrive from), which is then the exact importance of a Lambertian surface.
+    /// arrive from), which is then the exact importance of a Lambertian surface, or
+    /// for `n` zero (a point in a medium) the whole sphere uniformly.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, n: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
             LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. } => {
@@ -809,7 +810,11 @@ impl Light {
                 (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: env.radiance(wi), pdf, delta: false })
             }
             LightKind::Environment { env, .. } => {
-                let (wi, li, pdf) = if env.is_constant() {
+                let (wi, li, pdf) = if env.is_constant() && n == Vec3::ZERO {
+                    // A point in a medium: no hemisphere, the whole sphere.
+                    let wi = pm_sampling::uniform_sphere(u);
+                    (wi, env.radiance(wi), 0.25 * std::f32::consts::FRAC_1_PI)
+                } else if env.is_constant() {
                     let wi = to_world(cosine_hemisphere(u), n);
                     (wi, env.radiance(wi), pm_sampling::cosine_hemisphere_pdf(wi.dot(n)))
                 } else {
@@ -864,6 +869,7 @@ impl Light {
                 }
                 0.5 * (env.pdf(wi) + pdf_portal)
             }
+            LightKind::Environment { env, .. } if env.is_constant() && n == Vec3::ZERO => 0.25 * std::f32::consts::FRAC_1_PI,
             LightKind::Environment { env, .. } if env.is_constant() => pm_sampling::cosine_hemisphere_pdf(wi.dot(n)),
             LightKind::Environment { env, .. } => env.pdf(wi),
             LightKind::Directional { direction, cap, .. } if *cap > 0.0 && in_cap(wi, -*direction, *cap) => {

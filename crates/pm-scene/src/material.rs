@@ -158,10 +158,11 @@ pub struct Material {
     pub emission: Rgb,
     /// Both faces scatter and emit (glTF `doubleSided`); otherwise only the front emits.
     pub double_sided: bool,
-    /// Absorption coefficient sigma_a [m^-1 per channel] of the medium this closed
-    /// surface bounds (KHR_materials_volume: -ln(attenuationColor) /
-    /// attenuationDistance); zero for a clear medium or no volume.
-    pub attenuation: Rgb,
+    /// The medium this closed surface bounds (its inside: KHR_materials_volume and
+    /// KHR_materials_volume_scatter, or pipeline.toml's `[media.NAME]`), by index
+    /// into [`Scene::media`]; `None` for a surface with the same medium on both
+    /// sides (thin-walled, opaque).
+    pub interior: Option<crate::MediumId>,
 }
 
 impl Material {
@@ -183,7 +184,7 @@ impl Material {
             normal_scale: 1.0,
             emission,
             double_sided: false,
-            attenuation: Rgb::ZERO,
+            interior: None,
         }
     }
 
@@ -374,20 +375,21 @@ impl Scene {
         self.emission_at(hit.tri, hit.b)
     }
 
-    /// Beer-Lambert transmittance exp(-sigma_a t) of the segment a ray along unit `d`
-    /// travelled to reach `hit` (per channel, in [0, 1]): below one when the ray
-    /// arrives at the back of a surface whose material bounds an absorbing medium
-    /// (KHR_materials_volume), that is when the segment ran inside it; one otherwise.
-    /// Every integrator multiplies its path throughput (or photon power) by this
-    /// after each intersection. A surface inside the medium that is not its boundary
-    /// does not see the attenuation (media are not nested).
+    /// Beer-Lambert transmittance exp(-sigma_t t) of the segment a ray along unit `d`
+    /// travelled to reach `hit` (per channel, in [0, 1]) for an integrator that does
+    /// not track media: below one when the ray arrives at the back of a surface whose
+    /// material bounds an absorbing medium (KHR_materials_volume), that is when the
+    /// segment ran inside it; one otherwise. Such integrators multiply their path
+    /// throughput (or photon power) by this after each intersection: a surface
+    /// inside the medium that is not its boundary does not see the attenuation, and
+    /// scattering only attenuates. Integrators that simulate media carry the ray's
+    /// medium instead ([`Scene::medium_after`], [`crate::Medium::transmittance`]).
     #[inline]
     pub fn transmittance(&self, hit: &Hit, d: Vec3) -> Rgb {
-        let sigma = self.material(hit).attenuation;
-        if sigma == Rgb::ZERO || d.dot(hit.ng) <= 0.0 {
-            return Rgb::ONE;
+        match self.material(hit).interior {
+            Some(id) if d.dot(hit.ng) > 0.0 => self.media[id as usize].transmittance(hit.t),
+            _ => Rgb::ONE,
         }
-        (-sigma * hit.t).exp()
     }
 
     /// Emitted radiance [W sr^-1 m^-2 per channel] at barycentrics `b` of triangle

@@ -356,6 +356,9 @@ impl Scene {
         scene.bounds = self.bounds;
         scene.animation = self.animation.clone();
         scene.origin = self.origin;
+        // The same media, in the same places (objects keep their indices).
+        scene.media = self.media.clone();
+        scene.layout = self.layout.clone();
         scene
     }
 }

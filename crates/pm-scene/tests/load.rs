@@ -368,7 +368,7 @@ fn ignored_material_features_are_warned_naming_the_material() {
     m["alphaMode"] = "MASK".into();
     m["extensions"] = serde_json::json!({
         "KHR_materials_transmission": {"transmissionFactor": 1.0},
-        "KHR_materials_volume": {"thicknessFactor": 0.1, "attenuationDistance": 0.5, "attenuationColor": [1.0, 0.5, 0.5]}
+        "KHR_materials_volume": {"thicknessFactor": 0.1, "attenuationDistance": 0.5, "attenuationColor": [1.0, 1.0, 1.0]}
     });
     m["extensions"]["KHR_materials_clearcoat"] = serde_json::json!({"clearcoatFactor": 1.0});
     g["extensionsUsed"] =
@@ -386,16 +386,20 @@ fn ignored_material_features_are_warned_naming_the_material() {
     for read in ["metallicRoughness", "normal texture", "alphaMode", "COLOR_0", "attenuation"] {
         assert!(!s.warnings.iter().any(|w| w.contains(read)), "{read} is read: {:?}", s.warnings);
     }
-    // The volume's attenuation: sigma_a = -ln(attenuationColor) / attenuationDistance.
-    let m = &s.materials[0];
-    let want = Vec3::new(0.0, 2.0f32.ln() / 0.5, 2.0f32.ln() / 0.5);
-    assert!(close(m.attenuation, want), "{} want {want}", m.attenuation);
+    // A clear volume bounds a clear medium (the inside of solid glass), even open.
+    let clear = s.medium(s.materials[0].interior).expect("a clear medium");
+    assert!(clear.is_clear() && !s.has_media());
+    // An absorbing one on the open quad is refused, naming the material.
+    let text = g.to_string().replace("[1.0,1.0,1.0]", "[1.0,0.5,0.5]");
+    std::fs::write(&path, text).unwrap();
+    let e = load(&path).err().expect("an open mesh bounding a medium").to_string();
+    assert!(e.contains("material 'checker'") && e.contains("closed mesh") && !e.contains('\n'), "{e}");
     // A thin-walled volume (thicknessFactor 0) has no inside: its attenuation is said
     // to be ignored.
-    let text = g.to_string().replace("\"thicknessFactor\":0.1", "\"thicknessFactor\":0.0");
+    let text = g.to_string().replace("\"thicknessFactor\":0.1", "\"thicknessFactor\":0.0").replace("[1.0,1.0,1.0]", "[1.0,0.5,0.5]");
     std::fs::write(&path, text).unwrap();
     let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(s.materials[0].attenuation, Vec3::ZERO);
+    assert!(s.materials[0].interior.is_none() && s.media.is_empty());
     assert_eq!(s.warnings.iter().filter(|w| w.contains("volume attenuation ignored")).count(), 1, "{:?}", s.warnings);
     // The plain file warns of none of them.
     assert!(load(&data("textured.gltf")).unwrap().warnings.is_empty());
@@ -495,4 +499,92 @@ fn plain_lambert_equals_the_hit_record_and_bsdf() {
     }
     let (p, o) = check_plain_lambert(&s, "cornell_dense, coloured and normal-mapped");
     assert!(p == 0 && o > 1000, "{p} plain, {o} other");
+}
+
+/// A glTF file of one closed unit cube (12 outward triangles, centred on the origin)
+/// with material `material` (JSON) and a camera at `eye`, its buffer beside it.
+fn cube_file(dir: &Path, material: serde_json::Value, eye: [f32; 3]) -> PathBuf {
+    let c = |i: usize| -> [f32; 3] { [(i & 1) as f32 - 0.5, ((i >> 1) & 1) as f32 - 0.5, ((i >> 2) & 1) as f32 - 0.5] };
+    // Faces as corner indices (x = bit 0, y = bit 1, z = bit 2), counter-clockwise
+    // seen from outside.
+    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+    let mut bytes = Vec::new();
+    for q in quads {
+        for i in [q[0], q[1], q[2], q[0], q[2], q[3]] {
+            for v in c(i) {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(dir.join("cube.bin"), &bytes).unwrap();
+    let g = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_volume_scatter"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"name": "cube", "mesh": 0}, {"name": "eye", "camera": 0, "translation": eye}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.01}}],
+        "materials": [material],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 36, "type": "VEC3",
+            "min": [-0.5, -0.5, -0.5], "max": [0.5, 0.5, 0.5]}],
+        "bufferViews": [{"buffer": 0, "byteLength": bytes.len()}],
+        "buffers": [{"byteLength": bytes.len(), "uri": "cube.bin"}]
+    });
+    let path = dir.join("cube.gltf");
+    std::fs::write(&path, g.to_string()).unwrap();
+    path
+}
+
+/// KHR_materials_volume with KHR_materials_volume_scatter: sigma_t = -ln(c) / d,
+/// the single-scattering albedo from scatterAlbedo (or the earlier draft's
+/// multiscatterColor) by Kulla and Conty's fit, g from scatterAnisotropy; the camera
+/// inside the cube is in its medium, outside it is not; bad values and an open
+/// mesh are refused in one line naming the material.
+#[test]
+fn media_are_read_from_the_volume_extensions() {
+    let dir = tempfile::tempdir().unwrap();
+    let material = |scatter: serde_json::Value| {
+        serde_json::json!({"name": "fog",
+            "extensions": {
+                "KHR_materials_transmission": {"transmissionFactor": 1.0},
+                "KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationDistance": 2.0,
+                    "attenuationColor": [0.5, 0.5, 0.25]},
+                "KHR_materials_volume_scatter": scatter}})
+    };
+    let sigma_t = Vec3::new(0.5f32.ln(), 0.5f32.ln(), 0.25f32.ln()) / -2.0;
+    for key in ["scatterAlbedo", "multiscatterColor"] {
+        let path = cube_file(dir.path(), material(serde_json::json!({key: [0.8, 0.8, 0.0], "scatterAnisotropy": 0.3})), [0.0, 0.0, 0.1]);
+        let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        let id = s.materials[0].interior.expect("the cube bounds a medium");
+        let m = &s.media[id as usize];
+        let rho = pm_scene::single_scattering_albedo(Vec3::new(0.8, 0.8, 0.0));
+        assert!(close(m.sigma_t(), sigma_t) && close(m.sigma_s, sigma_t * rho), "{key}: {m:?}");
+        assert!((rho.x - 0.9906).abs() < 1e-3 && rho.z < 1e-4, "Kulla and Conty's fit: {rho}");
+        assert_eq!(m.phase.g, 0.3);
+        assert!(s.has_media() && s.has_scattering_media());
+        assert_eq!(s.eye_medium(s.camera.as_ref().unwrap().position), Some(id), "the camera is inside the cube");
+        assert_eq!(s.medium_at(Vec3::new(0.0, 2.0, 0.0)), None);
+    }
+    let path = cube_file(dir.path(), material(serde_json::json!({"scatterAlbedo": [0.5, 0.5, 0.5]})), [0.0, 0.0, 3.0]);
+    let s = load(&path).unwrap();
+    assert_eq!(s.eye_medium(s.camera.as_ref().unwrap().position), None, "the camera is outside the cube");
+    // Bad values, each refused in one line naming the material.
+    for (scatter, what) in [
+        (serde_json::json!({"scatterAnisotropy": 1.0}), "g 1"),
+        (serde_json::json!({"scatterAnisotropy": -1.5}), "g -1.5"),
+        (serde_json::json!({"scatterAlbedo": [0.5, -0.1, 0.5]}), "scatterAlbedo"),
+        (serde_json::json!({"scatterAlbedo": [0.5, 0.5]}), "scatterAlbedo"),
+    ] {
+        let path = cube_file(dir.path(), material(scatter), [0.0, 0.0, 3.0]);
+        let e = load(&path).err().expect("refused").to_string();
+        assert!(e.contains("material 'fog'") && e.contains(what) && !e.contains('\n'), "{what}: {e}");
+    }
+    // The cube less one triangle is open.
+    let path = cube_file(dir.path(), material(serde_json::json!({})), [0.0, 0.0, 3.0]);
+    let text = std::fs::read_to_string(&path).unwrap().replace("\"count\":36", "\"count\":33");
+    std::fs::write(&path, text).unwrap();
+    let e = load(&path).err().expect("an open cube").to_string();
+    assert!(e.contains("material 'fog'") && e.contains("open edges"), "{e}");
 }

@@ -112,6 +112,74 @@ pub struct SceneArgs {
     /// Repeatable; needs an environment.
     #[arg(long, value_name = "MESH")]
     pub portal: Vec<String>,
+    /// A homogeneous participating medium inside the closed meshes of material
+    /// NAME, or filling the scene for NAME "scene" (fog, haze, water: the camera
+    /// and lights are in it unless inside a mesh with a medium of its own; it fills
+    /// the scene's bounding sphere). Coefficients per metre per channel, g the
+    /// Henyey-Greenstein asymmetry in (-1, 1); keys left out are zero. Wins over the
+    /// glTF file's KHR_materials_volume(_scatter). Repeatable.
+    #[arg(long, value_name = "NAME:sigma_a=R,G,B:sigma_s=R,G,B:g=G")]
+    pub medium: Vec<String>,
+}
+
+/// One `--medium` value: a material's name (or "scene") and its medium's
+/// coefficients, the form pipeline.toml's `[media.NAME]` is passed on in.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MediumArg {
+    /// The material, or "scene".
+    pub name: String,
+    /// Absorption coefficient sigma_a [m^-1 per channel].
+    pub sigma_a: [f32; 3],
+    /// Scattering coefficient sigma_s [m^-1 per channel].
+    pub sigma_s: [f32; 3],
+    /// Henyey-Greenstein asymmetry.
+    pub g: f32,
+}
+
+impl MediumArg {
+    /// Parse NAME:key=value:... (keys sigma_a, sigma_s, g; the name is everything
+    /// before the first of them, so it may hold a colon).
+    pub fn parse(s: &str) -> Result<MediumArg> {
+        let bad = |why: &str| anyhow::anyhow!("--medium {s}: {why} (expected NAME:sigma_a=R,G,B:sigma_s=R,G,B:g=G)");
+        let parts: Vec<&str> = s.split(':').collect();
+        let is_key = |p: &str| ["sigma_a=", "sigma_s=", "g="].iter().any(|k| p.trim_start().starts_with(k));
+        let first_key = parts.iter().position(|p| is_key(p)).unwrap_or(parts.len());
+        let name = parts[..first_key].join(":");
+        if name.is_empty() {
+            return Err(bad("no material name"));
+        }
+        let mut m = MediumArg { name, sigma_a: [0.0; 3], sigma_s: [0.0; 3], g: 0.0 };
+        for p in &parts[first_key..] {
+            let (k, v) = p.split_once('=').ok_or_else(|| bad(&format!("'{p}' is not key=value")))?;
+            let rgb = |v: &str| -> Result<[f32; 3]> {
+                let c = parse_colour(v).ok_or_else(|| bad(&format!("{k}={v} is not three numbers")))?;
+                Ok(c.to_array())
+            };
+            match k.trim() {
+                "sigma_a" => m.sigma_a = rgb(v)?,
+                "sigma_s" => m.sigma_s = rgb(v)?,
+                "g" => m.g = v.trim().parse().map_err(|_| bad(&format!("g={v} is not a number")))?,
+                other => return Err(bad(&format!("unknown key '{other}'"))),
+            }
+        }
+        Ok(m)
+    }
+
+    /// The medium it gives (refused, naming it, when a coefficient is negative or
+    /// not finite or g is outside (-1, 1)).
+    pub fn medium(&self) -> Result<pm_scene::Medium, String> {
+        let rgb = glam::Vec3::from_array;
+        pm_scene::Medium::new(self.name.clone(), rgb(self.sigma_a), rgb(self.sigma_s), self.g)
+    }
+}
+
+/// The `--medium` value [`MediumArg::parse`] reads back equal.
+impl std::fmt::Display for MediumArg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [a, b, c] = self.sigma_a;
+        let [d, e, g3] = self.sigma_s;
+        write!(f, "{}:sigma_a={a},{b},{c}:sigma_s={d},{e},{g3}:g={}", self.name, self.g)
+    }
 }
 
 /// The options' defaults: the file as it is.
@@ -124,6 +192,7 @@ impl Default for SceneArgs {
             environment_rotation_deg: 0.0,
             sun_angle_deg: Vec::new(),
             portal: Vec::new(),
+            medium: Vec::new(),
         }
     }
 }
@@ -180,6 +249,13 @@ pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneArgs) ->
             anyhow::bail!("{}: --sun-angle-deg {s}: the scene has {what}", path.display());
         }
     }
+    for s in &how.medium {
+        let m = MediumArg::parse(s)?;
+        let medium = m.medium().map_err(|e| anyhow::anyhow!("--medium {s}: {e}"))?;
+        scene.set_medium(&m.name, medium).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    }
+    // Lights and media as they now are: where each light and the camera sit.
+    scene.finish_media().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(())
 }
 

@@ -9,6 +9,7 @@ mod hard_geometry;
 mod hard_scenes;
 mod irradiance;
 mod materials;
+mod media;
 mod plan;
 mod quality;
 mod raster;

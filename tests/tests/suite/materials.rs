@@ -439,9 +439,11 @@ fn absorbing_glass_transmits_the_beer_lambert_fraction() {
         let mut inward = Vec::new();
         closed_box(&mut inward, Vec3::new(-1.0, 0.5, -1.0), Vec3::new(2.0, 0.5 + thick, 2.0), 0);
         let slab = inward.iter().map(|t| pm_scene::Triangle::new([t.p[0], t.p[2], t.p[1]], 0).unwrap()).collect();
-        let mut glass = material("absorbing glass", Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false }, 0.0);
-        glass.attenuation = sigma;
-        over_floor(slab, glass, floor_emission, sun)
+        let glass = material("absorbing glass", Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false }, 0.0);
+        let mut scene = over_floor(slab, glass, floor_emission, sun);
+        scene.set_medium("absorbing glass", pm_scene::Medium::new("glass", sigma, Rgb::ZERO, 0.0).unwrap()).unwrap();
+        scene.finish_media().unwrap();
+        scene
     };
     // Photons.
     let photons = emitted_photons(&build(0.0, true));
@@ -656,7 +658,8 @@ fn every_material_feature_agrees_with_the_path_tracer() {
     let m = |name: &str| scene.materials.iter().find(|m| m.name == name).unwrap();
     assert!(m("textured").normal_texture.is_some() && m("textured").metallic_roughness_texture.is_some());
     assert!(m("vertex_coloured").specular_texture.is_some_and(|t| t.uv_set == 1));
-    assert!(m("absorbing_glass").attenuation.min_element() > 0.0);
+    let absorbing = scene.medium(m("absorbing_glass").interior).expect("the glass bounds a medium");
+    assert!(absorbing.sigma_a.min_element() > 0.0 && !absorbing.scatters());
     assert!(m("glowing_panel").emissive_texture.is_some());
     assert!(scene.has_alpha() && scene.has_stochastic_surfaces());
     let maps = pm_tests::photon_maps(&scene, 200_000, 35_000, 0.25);
