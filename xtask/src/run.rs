@@ -151,8 +151,8 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
         );
         return Ok(plan.steps.iter().map(|s| Outcome { step: s.name.clone(), ran: true }).collect());
     }
-    let Setup { cfg, scene, out, analysis, caustics, indirect } = set;
-    let steps = steps(&cfg, &scene, &out, caustics, indirect)?;
+    let Setup { cfg, scene, out, analysis, caustics, indirect, volume } = set;
+    let steps = steps(&cfg, &scene, &out, caustics, indirect, volume)?;
 
     let keys_path = out.join(".stage-keys.json");
     let mut keys: serde_json::Map<String, serde_json::Value> =
@@ -166,6 +166,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
         ("indirect", &analysis.indirect),
         ("specular_seen", &analysis.specular_seen),
         ("glossy", &analysis.glossy),
+        ("volume", &analysis.volume),
     ] {
         println!("  {key}: {} ({})", if d.yes { "yes" } else { "no" }, d.reason);
     }
@@ -176,6 +177,9 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
     }
     if !indirect {
         skipped_effects.push("global photon map, irradiance precompute and final gathering");
+    }
+    if !volume {
+        skipped_effects.push("volume photon tracing and sorting (no medium that light reaches scatters)");
     }
     for s in &skipped_effects {
         println!("  skipped: {s}");

@@ -391,10 +391,10 @@ impl Job<'_> {
                 .map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
             progress.set(done as u64);
             progress.message(&format!("{photons} photon paths{noise}"));
-            if checkpoint || !go_on || done == p.passes {
-                if let Some(path) = &cli.state {
-                    pm_format::write_state(path, &s.to_file()).map_err(|e| e.to_string())?;
-                }
+            if (checkpoint || !go_on || done == p.passes)
+                && let Some(path) = &cli.state
+            {
+                pm_format::write_state(path, &s.to_file()).map_err(|e| e.to_string())?;
             }
             if let (true, Some(out)) = (checkpoint && done < p.passes, &cli.out) {
                 write_exr(cli, out, region, &layers_of(s.region_image(self.rect))).map_err(|e| format!("{e:#}"))?;

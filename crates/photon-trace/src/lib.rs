@@ -1,6 +1,7 @@
 //! Stage 1 of the pipeline (Christensen 1999 section 1.1): emit photons from the
-//! scene's lights, trace them, and write `global.pmap` and `caustic.pmap`
-//! (unsorted) in the photon-map format. A thin layer over `pm-photon`.
+//! scene's lights, trace them, and write `global.pmap`, `caustic.pmap` and, in a
+//! scene with a scattering medium, `volume.pmap` (unsorted) in the photon-map
+//! format. A thin layer over `pm-photon`.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
@@ -18,12 +19,13 @@ use std::time::Instant;
 #[derive(Parser, Debug)]
 #[command(
     name = "photon-trace",
-    about = "Stage 1: emit photons from the lights and trace them into global and caustic photon maps",
+    about = "Stage 1: emit photons from the lights and trace them into global, caustic and volume photon maps",
     long_about = "Stage 1 (Christensen 1999, section 1.1). Emits photons from the scene's lights (chosen in \
 proportion to power in W), traces them with the scene's BSDFs and Russian roulette, and writes DIR/global.pmap \
 (every non-specular hit, 23-byte records with surface normal) and DIR/caustic.pmap (light-specular+-diffuse \
-paths only, 18-byte records). Photon power is in W per RGB channel. The caustic map is absent when the scene \
-has no mirror or glass.",
+paths only, 18-byte records) and, when the scene has a scattering medium, DIR/volume.pmap (every scattering \
+event in a medium, Jensen and Christensen 1998, 18-byte records flagged volume). Photon power is in W per RGB \
+channel. The caustic map is absent when the scene has no mirror or glass.",
     args_conflicts_with_subcommands = true
 )]
 pub struct Cli {
@@ -36,7 +38,8 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Merge the output folders of every `--slice J/M` of one trace into
-    /// global.pmap and caustic.pmap, byte-identical to tracing in one run.
+    /// global.pmap, caustic.pmap and volume.pmap, byte-identical to tracing in one
+    /// run.
     Merge {
         /// The slices' output folders (any order), one per slice.
         #[arg(required = true)]
@@ -59,7 +62,8 @@ pub struct TraceArgs {
     /// How the scene file is read.
     #[command(flatten)]
     pub scene_args: pm_stage::SceneArgs,
-    /// Output folder for global.pmap and caustic.pmap (created if missing).
+    /// Output folder for global.pmap, caustic.pmap and volume.pmap (created if
+    /// missing).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Photon counts and record layout (pipeline.toml's [trace] section).
@@ -72,6 +76,9 @@ pub struct TraceArgs {
     /// Emit exactly M caustic photons instead of a stored target (overrides --caustic-photons).
     #[arg(long)]
     pub emit_caustic: Option<u64>,
+    /// Emit exactly V volume photons instead of a stored target (overrides --volume-photons).
+    #[arg(long)]
+    pub emit_volume: Option<u64>,
     /// Stop emitting for a map after this many photons even if its target is not reached
     /// [default: 100 x target + 1,000,000].
     #[arg(long)]
@@ -126,6 +133,9 @@ pub struct Report {
     pub global: MapReport,
     /// The caustic map.
     pub caustic: MapReport,
+    /// The volume map.
+    #[serde(default)]
+    pub volume: MapReport,
     /// Wall time of the stage \[s\].
     pub seconds: f64,
 }
@@ -230,16 +240,23 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
         ..Default::default()
     };
     let lights: Vec<String> = scene.lights.iter().map(|l| l.name.clone()).collect();
-    let passes = [
-        (MapPass::Global, MapKind::Global, "global", budget(args.emit_global, args.params.global_photons)),
-        (MapPass::Caustic, MapKind::Caustic, "caustic", budget(args.emit_caustic, args.params.caustic_photons)),
-    ];
-    for (pass, kind, name, budget) in passes {
+    for (pass, kind, name) in MAPS {
+        let budget = match pass {
+            MapPass::Global => budget(args.emit_global, args.params.global_photons),
+            MapPass::Caustic => budget(args.emit_caustic, args.params.caustic_photons),
+            MapPass::Volume => budget(args.emit_volume, args.params.volume_photons),
+        };
         let path = out.join(format!("{name}.pmap"));
         let wanted = !matches!(budget, Budget::Stored { target: 0, .. } | Budget::Emitted(0));
-        let no_targets = pass == MapPass::Caustic && pm_photon::specular_targets(&scene).is_empty();
-        if !wanted || no_targets {
-            let why = if wanted { "the scene has no mirror or glass surface" } else { "no photons requested" };
+        let cannot = match pass {
+            MapPass::Caustic if pm_photon::specular_targets(&scene).is_empty() => {
+                Some("the scene has no mirror or glass surface")
+            }
+            MapPass::Volume if !scene.has_scattering_media() => Some("the scene has no scattering medium"),
+            _ => None,
+        };
+        if !wanted || cannot.is_some() {
+            let why = cannot.filter(|_| wanted).unwrap_or("no photons requested");
             remove_stale(&path)?;
             *map_slot(&mut report, pass) = MapReport { skipped: Some(why.into()), ..Default::default() };
             eprintln!("photon-trace: no {name} map: {why}");
@@ -302,10 +319,18 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
     Ok(Some(report))
 }
 
+/// The maps stage 1 writes: its pass, its kind and its file's name (NAME.pmap).
+const MAPS: [(MapPass, MapKind, &str); 3] = [
+    (MapPass::Global, MapKind::Global, "global"),
+    (MapPass::Caustic, MapKind::Caustic, "caustic"),
+    (MapPass::Volume, MapKind::Volume, "volume"),
+];
+
 fn map_slot(report: &mut Report, pass: MapPass) -> &mut MapReport {
     match pass {
         MapPass::Global => &mut report.global,
         MapPass::Caustic => &mut report.caustic,
+        MapPass::Volume => &mut report.volume,
     }
 }
 
@@ -320,8 +345,8 @@ fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, pass: 
     match (pass, full) {
         (MapPass::Global, false) => write::<CompactIrrPhoton>(path, header, photons),
         (MapPass::Global, true) => write::<FullIrrPhoton>(path, header, photons),
-        (MapPass::Caustic, false) => write::<CompactPhoton>(path, header, photons),
-        (MapPass::Caustic, true) => write::<FullPhoton>(path, header, photons),
+        (MapPass::Caustic | MapPass::Volume, false) => write::<CompactPhoton>(path, header, photons),
+        (MapPass::Caustic | MapPass::Volume, true) => write::<FullPhoton>(path, header, photons),
     }
 }
 
@@ -388,14 +413,13 @@ struct SliceParams {
 }
 
 /// Merge the output folders of every slice of one trace (`--slice J/M`) into
-/// `out`/global.pmap and `out`/caustic.pmap, byte-identical to one run's maps.
+/// `out`/global.pmap, caustic.pmap and volume.pmap, byte-identical to one run's
+/// maps.
 pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
     let start = Instant::now();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
     let mut report = Report { scene: format!("{} slices", inputs.len()), threads: 1, ..Default::default() };
-    for (pass, kind, name) in
-        [(MapPass::Global, MapKind::Global, "global"), (MapPass::Caustic, MapKind::Caustic, "caustic")]
-    {
+    for (pass, kind, name) in MAPS {
         let file = format!("{name}.pmap");
         let present: Vec<&PathBuf> = inputs.iter().filter(|d| d.join(&file).exists()).collect();
         let target = out.join(&file);

@@ -51,6 +51,9 @@ pub enum MapKind {
     Global = 1,
     /// Photons that reached a non-specular surface through specular bounces only.
     Caustic = 2,
+    /// Photons at scattering events inside participating media (Jensen and
+    /// Christensen 1998), each flagged `flags::VOLUME`.
+    Volume = 3,
 }
 
 /// The order of the records.
@@ -426,6 +429,7 @@ fn decode(path: &Path, bytes: &[u8], file_len: u64) -> Result<(Header, usize), F
     let kind = match kind {
         1 => MapKind::Global,
         2 => MapKind::Caustic,
+        3 => MapKind::Volume,
         v => return Err(err(Problem::Field { field: "kind", value: v as u64 })),
     };
     let order = match order {

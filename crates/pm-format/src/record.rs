@@ -21,8 +21,14 @@ pub mod flags {
     pub const UNUSED: u8 = 1 << 4;
     /// Carries a precomputed irradiance (Christensen 1999 section 2.1).
     pub const HAS_IRRADIANCE: u8 = 1 << 5;
+    /// Stored at a scattering event inside a participating medium, not on a surface
+    /// (a volume map's photon, Jensen and Christensen 1998): its `wi` is the
+    /// direction it arrived from, its normal zero. With [`DIRECT`], the first event
+    /// of a path straight from the light; with [`CAUSTIC`], after specular bounces
+    /// only (L S+ V).
+    pub const VOLUME: u8 = 1 << 6;
     /// Every bit with a meaning; the rest must be zero in a valid file.
-    pub const KNOWN: u8 = AXIS_MASK | DIRECT | CAUSTIC | UNUSED | HAS_IRRADIANCE;
+    pub const KNOWN: u8 = AXIS_MASK | DIRECT | CAUSTIC | UNUSED | HAS_IRRADIANCE | VOLUME;
 }
 
 /// A photon with every field decoded.

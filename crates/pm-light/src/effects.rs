@@ -38,6 +38,9 @@ pub struct Effects {
     pub specular_seen: Decision,
     /// Glossy (GGX) materials present.
     pub glossy: Decision,
+    /// Light scattered in participating media (a volume photon map, in-scattering
+    /// along rays): a medium that scatters, which some light's photons reach.
+    pub volume: Decision,
     /// Lights by kind, e.g. "1 area light".
     pub direct: String,
 }
@@ -210,5 +213,46 @@ pub fn analyze(scene: &Scene) -> Effects {
         .map(|(k, c)| format!("{c} {k} light{}", if c == 1 { "" } else { "s" }))
         .collect::<Vec<_>>()
         .join(", ");
-    Effects { caustics, indirect, specular_seen, glossy, direct }
+    let volume = volume_reached(scene);
+    Effects { caustics, indirect, specular_seen, glossy, volume, direct }
+}
+
+/// Whether light reaches a scattering medium: probe photons leave the lights by
+/// power and follow specular bounces and index-matched boundaries (up to 8 events,
+/// tracking the medium they are in) until one runs through a medium that scatters.
+fn volume_reached(scene: &Scene) -> Decision {
+    let scattering: Vec<&str> = scene.media.iter().filter(|m| m.scatters()).map(|m| m.name.as_str()).collect();
+    if scattering.is_empty() {
+        return Decision::no("no medium that scatters".into());
+    }
+    let Ok(selector) = crate::LightSelector::new(scene, &[]) else {
+        return Decision::no("no light".into());
+    };
+    for i in 0..PROBES {
+        let mut s = Sampler::new(0x766f_6c75, i);
+        let (l, _) = selector.pick(s.next_1d());
+        let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
+        let (mut o, mut d, mut medium) = (ray.origin, ray.dir, scene.light_medium(l));
+        for _ in 0..8 {
+            if let Some(m) = scene.medium(medium).filter(|m| m.scatters()) {
+                return Decision::yes(format!("light from '{}' enters medium '{}'", scene.lights[l].name, m.name));
+            }
+            let Some(h) = scene.intersect(o, d, f32::INFINITY) else { break };
+            let wi = if scene.index_matched(&h).is_some() {
+                d
+            } else {
+                let bsdf = scene.bsdf(&h);
+                if !bsdf.is_specular() {
+                    break;
+                }
+                let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { break };
+                bs.wi
+            };
+            medium = scene.medium_after(&h, wi, medium);
+            o = scene.offset_origin(h.p, h.ng, wi);
+            d = wi;
+        }
+    }
+    let names: Vec<String> = scattering.iter().map(|n| format!("'{n}'")).collect();
+    Decision::no(format!("no probe of {PROBES} from the lights reaches medium {}", names.join(", ")))
 }

@@ -19,7 +19,7 @@ use pm_color::Rgb;
 use pm_format::{Photon, flags};
 pub use pm_light::{LightSelectError, LightSelector};
 use pm_sampling::{Sampler, mix64};
-use pm_scene::{Scene, Target};
+use pm_scene::{FreeFlight, Scene, Target};
 use rayon::prelude::*;
 
 /// Path length limit. Russian roulette ends paths long before this in physical
@@ -54,6 +54,10 @@ pm_params::params! {
         global_photons: u64 = 400_000 => pm_params::between(0, MAX_PHOTONS);
         /// Target number of photons stored in the caustic map (0: no caustic map).
         caustic_photons: u64 = 35_000 => pm_params::between(0, MAX_PHOTONS);
+        /// Target number of photons stored in the volume map (0: none): scattering
+        /// events in participating media, traced only when the scene has a medium
+        /// that scatters and a light that reaches it.
+        volume_photons: u64 = 200_000 => pm_params::between(0, MAX_PHOTONS);
         /// Record layout: compact (RGBE power, 1-byte directions; 18/23 bytes) or full (f32; 40/64 bytes).
         layout: RecordLayout = RecordLayout::Compact => pm_params::Any;
     }
@@ -75,13 +79,21 @@ pub enum Budget {
     Emitted(u64),
 }
 
-/// Which map a pass fills.
+/// Which map a pass fills. Every pass simulates the same transport (surfaces and
+/// media alike); they differ in what they store.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapPass {
     /// Global map: every non-specular hit.
     Global,
-    /// Caustic map: the first non-specular hit after one or more specular bounces.
+    /// Caustic map: the first non-specular hit after one or more specular bounces
+    /// (a path that scatters in a medium first is no caustic and ends there).
     Caustic,
+    /// Volume map (Jensen and Christensen 1998): every scattering event in a
+    /// medium, flagged [`flags::VOLUME`], [`flags::DIRECT`] for the first event of
+    /// a path straight from the light (single scattering, which renderers take from
+    /// the lights instead) and [`flags::CAUSTIC`] after specular bounces only
+    /// (L S+ V: volumetric caustics).
+    Volume,
 }
 
 /// Inputs of a tracing pass.
@@ -184,40 +196,106 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     let stream = match cfg.pass {
         MapPass::Global => 0x676c_6f62_616c,
         MapPass::Caustic => 0x6361_7573_7469,
+        MapPass::Volume => 0x766f_6c75_6d65,
     };
     let mut s = Sampler::new(mix64(cfg.seed ^ stream), index);
     let (li, p_sel) = cfg.selector.pick(s.next_1d());
     out.light = li;
     let light = &scene.lights[li];
     let emitted = match cfg.pass {
-        MapPass::Global => light.sample_emission(scene, &mut s),
+        MapPass::Global | MapPass::Volume => light.sample_emission(scene, &mut s),
         MapPass::Caustic => light.sample_emission_toward(scene, &mut s, targets),
     };
     let Some(ray) = emitted else { return };
     let mut phi = ray.power / p_sel as f32;
     let (mut o, mut d) = (ray.origin, ray.dir);
     let mut specular_chain = true;
-    for bounce in 0..MAX_BOUNCES {
+    // In media: the medium the photon is in, the hero channel its flights are
+    // sampled in and its density ratios (pm_scene::FreeFlight); the power it carries
+    // is phi times `w` = 3 / (sum of the ratios), one without media.
+    let media = scene.has_media();
+    let mut medium = if media { scene.light_medium(li) } else { None };
+    let hero = if media { ((s.next_1d() * 3.0) as usize).min(2) } else { 0 };
+    let (mut ratio, mut w) = (Rgb::ONE, 1.0f32);
+    // Scattering events so far (surfaces, specular ones included, and points in
+    // media; index-matched boundaries are not events).
+    let mut events = 0u32;
+    for _ in 0..MAX_BOUNCES {
         if !pm_color::is_valid(phi) || phi == Rgb::ZERO {
             return;
         }
         out.rays += 1;
-        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
+        let hit = scene.intersect(o, d, f32::INFINITY);
+        if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+            let u = if m.scatters() { s.next_1d() } else { 0.0 };
+            let flight = m.sample_distance(t_seg, hero, u);
+            let (FreeFlight::Through { weight, ratio: r } | FreeFlight::Scatter { weight, ratio: r, .. }) = flight;
+            phi *= weight;
+            ratio *= r;
+            w = 3.0 / ratio.element_sum();
+            if let FreeFlight::Scatter { t, .. } = flight {
+                out.reached = true;
+                if cfg.pass == MapPass::Caustic {
+                    return; // L S+ V ...: no caustic
+                }
+                let (p, wo) = (o + d * t, -d);
+                if cfg.pass == MapPass::Volume {
+                    let mut f = flags::AXIS_LEAF | flags::VOLUME;
+                    if events == 0 {
+                        f |= flags::DIRECT;
+                    } else if specular_chain {
+                        f |= flags::CAUSTIC;
+                    }
+                    let photon = Photon {
+                        position: p,
+                        power: phi * w,
+                        wi: wo,
+                        flags: f,
+                        normal: Vec3::ZERO,
+                        irradiance: Rgb::ZERO,
+                    };
+                    out.photons.push((photon, events));
+                }
+                // Russian roulette by the single-scattering albedo.
+                let q = pm_color::mean(m.albedo()).min(1.0);
+                if !(q > 0.0) || s.next_1d() >= q {
+                    return;
+                }
+                phi /= q;
+                let ps = m.phase.sample(wo, s.next_2d());
+                specular_chain = false;
+                events += 1;
+                (o, d) = (p, ps.wi);
+                continue;
+            }
+        }
+        let Some(hit) = hit else { return };
         out.reached = true;
-        phi *= scene.transmittance(&hit, d);
+        if !media {
+            phi *= scene.transmittance(&hit, d);
+        }
+        if let Some(tint) = scene.index_matched(&hit) {
+            // Straight through, into the medium beyond: no event.
+            phi *= tint;
+            medium = scene.medium_after(&hit, d, medium);
+            o = scene.offset_origin(hit.p, hit.ng, d);
+            continue;
+        }
         let bsdf = scene.bsdf(&hit);
         let wo = -d;
         let specular = bsdf.is_specular();
         if !specular {
             let side_n = if wo.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-            let caustic = bounce > 0 && specular_chain;
+            let caustic = events > 0 && specular_chain;
             let store = match cfg.pass {
                 MapPass::Global => true,
                 MapPass::Caustic => caustic,
+                MapPass::Volume => false,
             };
             if store {
                 let mut f = flags::AXIS_LEAF;
-                if bounce == 0 {
+                if events == 0 {
                     f |= flags::DIRECT;
                 }
                 if caustic {
@@ -225,13 +303,13 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
                 }
                 let photon = Photon {
                     position: hit.p,
-                    power: phi / scene.store_probability(&hit),
+                    power: phi * w / scene.store_probability(&hit),
                     wi: wo,
                     flags: f,
                     normal: side_n,
                     irradiance: Rgb::ZERO,
                 };
-                out.photons.push((photon, bounce));
+                out.photons.push((photon, events));
             }
             if cfg.pass == MapPass::Caustic {
                 return; // the caustic map only needs the first non-specular hit
@@ -242,6 +320,10 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         specular_chain &= bs.specular;
         if cfg.pass == MapPass::Caustic && !specular_chain {
             return;
+        }
+        events += 1;
+        if media {
+            medium = scene.medium_after(&hit, bs.wi, medium);
         }
         o = scene.offset_origin(hit.p, hit.ng, bs.wi);
         d = bs.wi;

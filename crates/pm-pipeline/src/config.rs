@@ -177,6 +177,8 @@ pub enum EffectName {
     Caustics,
     /// The global map, irradiance precompute and final gathers.
     Indirect,
+    /// The volume map (light scattered in participating media).
+    Volume,
 }
 
 fn one() -> u64 {
@@ -351,17 +353,21 @@ pub struct Setup {
     pub caustics: bool,
     /// Trace a global map, precompute irradiance and gather.
     pub indirect: bool,
+    /// Trace a volume map (scattering media that light reaches).
+    pub volume: bool,
 }
 
 impl Setup {
     /// The effects to simulate: the analysis's (`effects = "auto"`) or the list
     /// pipeline.toml forces.
     pub fn new(cfg: Pipeline, scene: PathBuf, out: PathBuf, analysis: pm_light::Effects) -> Setup {
-        let (caustics, indirect) = match &cfg.effects {
-            EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes),
-            EffectsCfg::List(l) => (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect)),
+        let (caustics, indirect, volume) = match &cfg.effects {
+            EffectsCfg::Auto(_) => (analysis.caustics.yes, analysis.indirect.yes, analysis.volume.yes),
+            EffectsCfg::List(l) => {
+                (l.contains(&EffectName::Caustics), l.contains(&EffectName::Indirect), l.contains(&EffectName::Volume))
+            }
         };
-        Setup { cfg, scene, out, analysis, caustics, indirect }
+        Setup { cfg, scene, out, analysis, caustics, indirect, volume }
     }
 }
 

@@ -116,7 +116,7 @@ impl Default for Parts {
 /// The job graph of `setup` cut into `parts`; `program(name)` is where the
 /// binary `name` is (the stages, and `xtask` for the assemble step).
 pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) -> Result<JobPlan> {
-    let Setup { cfg, scene, out, caustics, indirect, .. } = setup;
+    let Setup { cfg, scene, out, caustics, indirect, volume, .. } = setup;
     let Parts { tiles, slices, runs, run_budget_s } = parts;
     if tiles == 0 || tiles > cfg.render.height {
         bail!("--tiles {tiles}: needs 1 to the image's {} rows", cfg.render.height);
@@ -153,7 +153,7 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
         JobStep::array(name, &s(&program("xtask")), a, 1, parts, images)
     };
     let mut jobs: Vec<JobStep> = Vec::new();
-    for step in steps(cfg, scene, out, *caustics, *indirect)? {
+    for step in steps(cfg, scene, out, *caustics, *indirect, *volume)? {
         // A step whose input the scene does not need (no caustic photons, no global
         // map) is not planned; optional inputs are passed when planned to exist.
         let planned = |p: &PathBuf| jobs.iter().any(|j| j.outputs.contains(&s(p))) || !p.starts_with(out);

@@ -1,4 +1,4 @@
-//! Christensen's steps as values: photon-trace, photon-sort (global, caustic),
+//! Christensen's steps as values: photon-trace, photon-sort (global, caustic, volume),
 //! photon-irradiance, the irradiance-cache step and photon-render, each with the
 //! stage it runs, its arguments, the files it reads and writes, and the key that
 //! decides whether it runs again. `cargo xtask run` executes them in one output
@@ -84,9 +84,16 @@ impl Step {
     }
 }
 
-/// The steps of the pipeline `cfg` on `scene` into `out`, simulating caustics and
-/// indirect light as told.
-pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect: bool) -> Result<Vec<Step>> {
+/// The steps of the pipeline `cfg` on `scene` into `out`, simulating caustics,
+/// indirect light and light in media as told.
+pub fn steps(
+    cfg: &Pipeline,
+    scene: &Path,
+    out: &Path,
+    caustics: bool,
+    indirect: bool,
+    volume: bool,
+) -> Result<Vec<Step>> {
     let o = |f: &str| out.join(f);
     let s = |p: &Path| p.display().to_string();
     let mut scene_files = scene_inputs(scene)?;
@@ -117,6 +124,9 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
     if !caustics {
         trace.caustic_photons = 0;
     }
+    if !volume {
+        trace.volume_photons = 0;
+    }
     let scene_args = cfg.scene_args();
     let mut trace_args = vec!["--scene".into(), s(scene)];
     trace_args.extend(scene_args.clone());
@@ -133,14 +143,19 @@ pub fn steps(cfg: &Pipeline, scene: &Path, out: &Path, caustics: bool, indirect:
         stats: o("trace.stats.json"),
         inputs: scene_files.clone(),
         // The maps the scene calls for (a skipped effect's map is not written).
-        outputs: [indirect.then(|| o("global.pmap")), caustics.then(|| o("caustic.pmap")), Some(o("trace.stats.json"))]
-            .into_iter()
-            .flatten()
-            .collect(),
+        outputs: [
+            indirect.then(|| o("global.pmap")),
+            caustics.then(|| o("caustic.pmap")),
+            volume.then(|| o("volume.pmap")),
+            Some(o("trace.stats.json")),
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
         needs: None,
         optional: vec![],
     }];
-    for map in ["global", "caustic"] {
+    for map in ["global", "caustic", "volume"] {
         let (input, output, stats) =
             (o(&format!("{map}.pmap")), o(&format!("{map}.kd.pmap")), o(&format!("sort-{map}.stats.json")));
         steps.push(Step {

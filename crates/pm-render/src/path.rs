@@ -173,9 +173,7 @@ fn path_radiance(
             }
         }
         let bsdf = scene.bsdf(&hit);
-        if eye_ray
-            && let Some(v) = vs.as_deref_mut()
-        {
+        if eye_ray && let Some(v) = vs.as_deref_mut() {
             *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
         }
         let specular = bsdf.is_specular();
@@ -189,9 +187,7 @@ fn path_radiance(
             let nee_layer = layer_of_light_at(specular_before_d1, n_diffuse);
             let nee = beta * w * light.light_sample(&hit, &bsdf, wo, s, true, medium);
             l.add_to(nee_layer, nee);
-            if eye_ray
-                && let Some(v) = vs.as_deref_mut()
-            {
+            if eye_ray && let Some(v) = vs.as_deref_mut() {
                 v.direct = nee;
             }
         }

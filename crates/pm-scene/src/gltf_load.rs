@@ -321,7 +321,9 @@ fn read_material(
                     return Err(format!("material '{name}': scatterAlbedo {rho_ms} is not in [0, 1]"));
                 }
                 let g = match x.get("scatterAnisotropy") {
-                    Some(v) => v.as_f64().ok_or_else(|| format!("material '{name}': scatterAnisotropy is not a number"))?,
+                    Some(v) => {
+                        v.as_f64().ok_or_else(|| format!("material '{name}': scatterAnisotropy is not a number"))?
+                    }
                     None => 0.0,
                 } as f32;
                 (crate::single_scattering_albedo(rho_ms), g)
@@ -340,7 +342,8 @@ fn read_material(
             medium = Some(volume);
         }
     } else if scatter.is_some() {
-        warnings.push(format!("material '{name}': KHR_materials_volume_scatter ignored (it needs KHR_materials_volume)"));
+        warnings
+            .push(format!("material '{name}': KHR_materials_volume_scatter ignored (it needs KHR_materials_volume)"));
     }
     let ef = m.emissive_factor();
     let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);

@@ -869,7 +869,9 @@ impl Light {
                 }
                 0.5 * (env.pdf(wi) + pdf_portal)
             }
-            LightKind::Environment { env, .. } if env.is_constant() && n == Vec3::ZERO => 0.25 * std::f32::consts::FRAC_1_PI,
+            LightKind::Environment { env, .. } if env.is_constant() && n == Vec3::ZERO => {
+                0.25 * std::f32::consts::FRAC_1_PI
+            }
             LightKind::Environment { env, .. } if env.is_constant() => pm_sampling::cosine_hemisphere_pdf(wi.dot(n)),
             LightKind::Environment { env, .. } => env.pdf(wi),
             LightKind::Directional { direction, cap, .. } if *cap > 0.0 && in_cap(wi, -*direction, *cap) => {

@@ -249,7 +249,7 @@ impl Scene {
     #[inline]
     pub fn index_matched(&self, hit: &Hit) -> Option<Rgb> {
         match self.uniform_bsdf(hit.tri) {
-            Some(pm_bsdf::Bsdf::Glass { eta, tint, .. }) if eta == 1.0 => Some(tint),
+            Some(pm_bsdf::Bsdf::Glass { eta: 1.0, tint, .. }) => Some(tint),
             _ => None,
         }
     }
@@ -485,10 +485,10 @@ fn closed(tris: &[crate::Triangle]) -> bool {
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(list) = cells.get(&(c + glam::IVec3::new(dx, dy, dz))) {
-                        if let Some(&v) = list.iter().find(|&&v| verts[v as usize].distance(p) <= eps) {
-                            return v;
-                        }
+                    if let Some(list) = cells.get(&(c + glam::IVec3::new(dx, dy, dz)))
+                        && let Some(&v) = list.iter().find(|&&v| verts[v as usize].distance(p) <= eps)
+                    {
+                        return v;
                     }
                 }
             }

@@ -396,7 +396,10 @@ fn ignored_material_features_are_warned_naming_the_material() {
     assert!(e.contains("material 'checker'") && e.contains("closed mesh") && !e.contains('\n'), "{e}");
     // A thin-walled volume (thicknessFactor 0) has no inside: its attenuation is said
     // to be ignored.
-    let text = g.to_string().replace("\"thicknessFactor\":0.1", "\"thicknessFactor\":0.0").replace("[1.0,1.0,1.0]", "[1.0,0.5,0.5]");
+    let text = g
+        .to_string()
+        .replace("\"thicknessFactor\":0.1", "\"thicknessFactor\":0.0")
+        .replace("[1.0,1.0,1.0]", "[1.0,0.5,0.5]");
     std::fs::write(&path, text).unwrap();
     let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert!(s.materials[0].interior.is_none() && s.media.is_empty());
@@ -554,7 +557,11 @@ fn media_are_read_from_the_volume_extensions() {
     };
     let sigma_t = Vec3::new(0.5f32.ln(), 0.5f32.ln(), 0.25f32.ln()) / -2.0;
     for key in ["scatterAlbedo", "multiscatterColor"] {
-        let path = cube_file(dir.path(), material(serde_json::json!({key: [0.8, 0.8, 0.0], "scatterAnisotropy": 0.3})), [0.0, 0.0, 0.1]);
+        let path = cube_file(
+            dir.path(),
+            material(serde_json::json!({key: [0.8, 0.8, 0.0], "scatterAnisotropy": 0.3})),
+            [0.0, 0.0, 0.1],
+        );
         let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
         assert!(s.warnings.is_empty(), "{:?}", s.warnings);
         let id = s.materials[0].interior.expect("the cube bounds a medium");
