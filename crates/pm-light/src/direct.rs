@@ -262,7 +262,7 @@ pub(crate) fn lambert_unoccluded(light: &pm_scene::Light, p: Vec3, n: Vec3, rho:
 /// 1e-4 relative margin of a 0.5 m ray is 5e-5 m): without it the ray found the
 /// light and the floor of a 0.55 m Cornell box 100 km away lost most of its direct
 /// light (issue 36). Infinite for lights at infinity.
-fn shadow_length(p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> f32 {
+pub(crate) fn shadow_length(p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> f32 {
     if !ls.dist.is_finite() {
         return f32::INFINITY;
     }

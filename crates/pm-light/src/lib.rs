@@ -6,7 +6,10 @@
 //! McGuire 2018) ([`DirectLighting`]), visibility from cube shadow maps drawn by the
 //! rasteriser ([`ShadowMaps`]; McGuire and Luebke 2009 section 3 step 1a), and the
 //! scene analysis of which effects the lights can produce ([`analyze`]: "simulate
-//! only the effects a scene calls for").
+//! only the effects a scene calls for"), and light in participating media: next
+//! event estimation at points in a medium and single scattering along a ray
+//! (equiangular sampling, Kulla and Fajardo 2012), every shadow ray attenuated by
+//! the media it crosses.
 //!
 //! The batch renderer's integrators, the path tracer, both real-time methods and
 //! the photon tracer take lights from here. The lights themselves (their kinds,
@@ -18,6 +21,7 @@
 
 mod direct;
 mod effects;
+mod media;
 mod select;
 mod shadow;
 

@@ -309,6 +309,34 @@ pub fn uniform_sphere(u: Vec2) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// Equiangular sampling of a distance along a ray segment [t0, t1] for a point at
+/// distance `h` > 0 from the ray's line whose foot is at `t_foot` (Kulla and Fajardo
+/// 2012, "Importance sampling techniques for path tracing in participating media",
+/// section 4.1): t = t_foot + h tan(theta), theta uniform between the segment ends'
+/// angles, so the density h / ((theta1 - theta0) (h^2 + (t - t_foot)^2)) [m^-1]
+/// cancels the 1 / r^2 of a point light. Returns (t, density); `None` for an
+/// empty segment or h not positive.
+pub fn equiangular(u: f32, h: f32, t_foot: f32, t0: f32, t1: f32) -> Option<(f32, f32)> {
+    if !(h > 0.0 && t1 > t0) {
+        return None;
+    }
+    let a0 = ((t0 - t_foot) / h).atan();
+    let a1 = ((t1 - t_foot) / h).atan();
+    if !(a1 > a0) {
+        return None;
+    }
+    let t = (t_foot + h * (a0 + u * (a1 - a0)).tan()).clamp(t0, t1);
+    Some((t, equiangular_pdf(t, h, t_foot, a1 - a0)))
+}
+
+/// Density [m^-1] of [`equiangular`] at `t`, for the angle `span` its segment
+/// subtends.
+#[inline]
+pub fn equiangular_pdf(t: f32, h: f32, t_foot: f32, span: f32) -> f32 {
+    let x = t - t_foot;
+    h / (span * (h * h + x * x))
+}
+
 /// Uniform direction in the cone of half-angle acos(cos_max) around +z;
 /// pdf = 1 / (2 pi (1 - cos_max)) [sr^-1].
 pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
