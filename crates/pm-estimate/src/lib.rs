@@ -1,7 +1,10 @@
 //! Photon density estimates, in one place: irradiance from the k nearest photons
 //! (Jensen 1996; Christensen 1999 section 1.3, item 1) with optional cone or
 //! Gaussian filtering, and the lookup of a precomputed irradiance at the nearest
-//! photon with a similar normal (Christensen 1999 section 2.2).
+//! photon with a similar normal (Christensen 1999 section 2.2), and radiance in
+//! participating media from a volume map: in-scattered radiance from the k nearest
+//! photons and its ray march along a ray (Jensen and Christensen 1998), and the
+//! beam radiance estimate (Jarosz, Zwicker and Jensen 2008).
 //!
 //! Every estimate counts only photons on the query's side of the surface, so light
 //! does not leak through thin walls or around corners: with a surface normal in the
@@ -11,8 +14,10 @@
 //! No I/O and no allocation per call (the caller owns the scratch).
 
 mod precompute;
+mod volume;
 
 pub use precompute::{PrecomputeStats, precompute, selected};
+pub use volume::{beam, beam_radii, beam_spheres, inscattered, multiple_scattered, ray_march};
 
 use glam::Vec3;
 use pm_color::Rgb;

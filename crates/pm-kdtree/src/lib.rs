@@ -13,7 +13,9 @@
 //! that satisfies a predicate in order of distance ([`KdTree::nearest`]), and all
 //! photons within a radius ([`KdTree::for_each_within`]). Queries allocate nothing
 //! (the caller owns the scratch), take `&self` so any number of threads can share a
-//! tree, and skip photons flagged [`flags::UNUSED`].
+//! tree, and skip photons flagged [`flags::UNUSED`]. [`SphereTree`] holds photons as
+//! spheres of their own radii for the beam radiance estimate: every sphere a ray
+//! segment crosses.
 //!
 //! This crate does no I/O and holds no global state.
 
@@ -22,9 +24,11 @@ use pm_format::{PhotonRecord, flags};
 use rayon::prelude::*;
 use std::collections::BinaryHeap;
 
+mod beam;
 mod buckets;
 mod cells;
 mod grid;
+pub use beam::SphereTree;
 pub use buckets::Buckets;
 pub use cells::RadiusGrid;
 pub use grid::PhotonGrid;
