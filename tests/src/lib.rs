@@ -127,6 +127,7 @@ pub fn with_photon_mapping<R>(
         global: Some(pm_kdtree::KdTree::new(&maps.0)),
         irradiance: Some(pm_kdtree::KdTree::new(&irr)),
         caustic: (!maps.1.is_empty()).then(|| pm_kdtree::KdTree::new(&maps.1)),
+        volume: None,
     };
     let camera = scene.camera.as_ref().expect("test scenes have a camera");
     let mut pm = pm_render::PhotonMapping::new(scene, m, p, true).unwrap();

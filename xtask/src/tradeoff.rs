@@ -616,7 +616,7 @@ fn results_csv(rows: &[Row], seeds: u64) -> Result<String> {
     let mut csv = String::from(
         "axis,setting,seeds,trace_s,sort_s,irradiance_s,render_s,total_s,error,bias,noise,reference_noise,mean_bias,measured_rmse,ssim",
     );
-    for l in Layer::ALL {
+    for l in Layer::SURFACE {
         write!(csv, ",{l}_error,{l}_bias,{l}_noise,{l}_reference_noise")?;
     }
     csv.push('\n');
@@ -973,7 +973,7 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
 
     // Per layer.
     let mut s = Vec::new();
-    for (k, name) in Layer::ALL.iter().enumerate() {
+    for (k, name) in Layer::SURFACE.iter().enumerate() {
         let (px, py) = ((k % 2) as f64 * 480.0, (k / 2) as f64 * 340.0);
         let f = pareto(rows, |r| r.splits[k + 1].error);
         panel(

@@ -34,6 +34,11 @@ pub struct Cli {
     /// Sorted caustic map (caustic.kd.pmap).
     #[arg(long)]
     pub caustic: Option<PathBuf>,
+    /// Sorted volume map (volume.kd.pmap): light scattered more than once in
+    /// participating media (full mode; without it, media still attenuate and
+    /// single scattering is computed from the lights).
+    #[arg(long)]
+    pub volume: Option<PathBuf>,
     /// Output OpenEXR image (of the --region when given: its data window says where
     /// the region sits, and `cargo xtask assemble` joins regions). Not needed with
     /// --icache-out.
@@ -192,7 +197,24 @@ pub fn run(cli: &Cli) -> Result<Report> {
         }
         _ => None,
     };
+    let volume = match (&cli.volume, full) {
+        (Some(path), true) => {
+            let expect = ReadExpect {
+                kind: Some(MapKind::Volume),
+                order: Some(Order::KdTree),
+                scene_hash: Some(scene.content_hash),
+                ..Default::default()
+            };
+            let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
+            pm_stage::verify_kd_tree(path, &map.records)?;
+            Some(map)
+        }
+        _ => None,
+    };
     let mut notes = Vec::new();
+    if full && scene.has_scattering_media() && volume.is_none() {
+        notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());
+    }
     let global = match (&cli.global, needs_global) {
         (Some(path), true) => {
             let expect = ReadExpect {
@@ -222,7 +244,17 @@ pub fn run(cli: &Cli) -> Result<Report> {
         eprintln!("photon-render: note: {n}");
     }
     let unfinished = std::cell::Cell::new(false);
-    let job = Job { cli, scene: &scene, camera: &camera, film, rect, mode, indirect, unfinished: &unfinished };
+    let job = Job {
+        cli,
+        scene: &scene,
+        camera: &camera,
+        film,
+        rect,
+        mode,
+        indirect,
+        volume: volume.as_ref(),
+        unfinished: &unfinished,
+    };
     let (image, stats, cache) = match &global {
         Some(pm_format::AnyMap::CompactIrr(m)) => job.run(Some(m), caustic.as_ref())?,
         Some(pm_format::AnyMap::FullIrr(m)) => job.run(Some(m), caustic.as_ref())?,
@@ -275,6 +307,8 @@ struct Job<'a> {
     rect: Rect,
     mode: Method,
     indirect: bool,
+    /// The volume map, when given.
+    volume: Option<&'a pm_format::PhotonMap<FullPhoton>>,
     /// Set when --time-budget stopped a render with --state before its passes.
     unfinished: &'a std::cell::Cell<bool>,
 }
@@ -301,6 +335,14 @@ impl Job<'_> {
             global: records.map(|r| KdTree::with_buckets(r, &global_buckets)),
             irradiance: (!irr_nodes.is_empty()).then(|| KdTree::new(&irr_nodes[..])),
             caustic: caustic.map(|c| KdTree::with_buckets(&c.records[..], &caustic_buckets)),
+            volume: self.volume.map(|v| {
+                let p = &self.cli.params;
+                pm_render::VolumeMap::new(
+                    &v.records,
+                    p.volume_k,
+                    p.volume_radius_rel_diag * self.scene.bounds.diagonal(),
+                )
+            }),
         };
         let map_hash = global.map_or([0; 32], |m| m.header.payload_hash);
         let mut pm = PhotonMapping::new(self.scene, maps, &self.cli.params, self.indirect)

@@ -31,11 +31,18 @@ pub enum Layer {
     Indirect,
     /// Everything seen through one or more mirror or glass bounces from the eye.
     Specular,
+    /// Light scattered toward the eye inside participating media along the eye
+    /// ray (single and multiple scattering; the path tracer's paths whose first
+    /// non-specular vertex is in a medium). Only renders of scenes with a medium
+    /// that scatters have it.
+    Volume,
 }
 
 impl Layer {
     /// Every layer, in file order.
-    pub const ALL: [Layer; 4] = [Layer::Direct, Layer::Caustic, Layer::Indirect, Layer::Specular];
+    pub const ALL: [Layer; 5] = [Layer::Direct, Layer::Caustic, Layer::Indirect, Layer::Specular, Layer::Volume];
+    /// The layers every render has (all but [`Layer::Volume`]).
+    pub const SURFACE: [Layer; 4] = [Layer::Direct, Layer::Caustic, Layer::Indirect, Layer::Specular];
 
     /// The name of the layer in files and on the command line (`direct`, ...).
     pub fn name(self) -> &'static str {
@@ -44,6 +51,7 @@ impl Layer {
             Layer::Caustic => "caustic",
             Layer::Indirect => "indirect",
             Layer::Specular => "specular",
+            Layer::Volume => "volume",
         }
     }
 

@@ -5,9 +5,10 @@
 //! the beam radiance estimate, which gathers every photon whose sphere the ray
 //! crosses (Jarosz, Zwicker and Jensen 2008, equation 9 with a constant kernel).
 //!
-//! Both count only photons not flagged [`flags::DIRECT`]: light scattered once
-//! straight from the lights is computed from the lights (single scattering), as
-//! direct light on surfaces is. The phase function is the caller's (`phase(wi)`:
+//! Along eye rays they count only photons not flagged [`flags::DIRECT`] (`all`
+//! false): light scattered once straight from the lights is computed from the
+//! lights (single scattering), as direct light on surfaces is; along final-gather
+//! rays they count every photon. The phase function is the caller's (`phase(wi)`:
 //! its value [sr^-1] for a photon that arrived from direction `wi`, toward the
 //! query's viewer).
 
@@ -19,11 +20,11 @@ use pm_kdtree::{KdTree, KnnScratch, Neighbours, SphereTree};
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
-/// True for the photons the volume estimates count: all but the first scattering
-/// event of paths straight from a light.
+/// True for the photons the volume estimates count: with `all`, every one;
+/// otherwise all but the first scattering event of paths straight from a light.
 #[inline]
-pub fn multiple_scattered<R: PhotonRecord>(r: &R) -> bool {
-    r.flags() & flags::DIRECT == 0
+pub fn counted<R: PhotonRecord>(r: &R, all: bool) -> bool {
+    all || r.flags() & flags::DIRECT == 0
 }
 
 /// In-scattered radiance per unit length at `x` [W sr^-1 m^-3 per channel]: the
@@ -34,11 +35,12 @@ pub fn multiple_scattered<R: PhotonRecord>(r: &R) -> bool {
 pub fn inscattered<R: PhotonRecord>(
     tree: &impl Neighbours<R>,
     x: Vec3,
+    all: bool,
     p: &KnnParams,
     scratch: &mut KnnScratch,
     phase: impl Fn(Vec3) -> f32,
 ) -> Rgb {
-    let res = tree.knn(x, p.k, p.max_d2, |_, r| multiple_scattered(r), scratch);
+    let res = tree.knn(x, p.k, p.max_d2, |_, r| counted(r, all), scratch);
     if res.count < 2 || !(res.max_dist2 > 0.0) {
         return Rgb::ZERO;
     }
@@ -70,6 +72,7 @@ pub fn ray_march<R: PhotonRecord>(
     sigma_t: Rgb,
     step: f32,
     u: f32,
+    all: bool,
     p: &KnnParams,
     scratch: &mut KnnScratch,
     phase: impl Fn(Vec3) -> f32,
@@ -86,7 +89,7 @@ pub fn ray_march<R: PhotonRecord>(
         if tr.max_element() < 1e-6 {
             break;
         }
-        sum += tr * inscattered(tree, o + d * t, p, scratch, &phase);
+        sum += tr * inscattered(tree, o + d * t, all, p, scratch, &phase);
     }
     sum * dt
 }
@@ -94,9 +97,9 @@ pub fn ray_march<R: PhotonRecord>(
 /// The beam estimate's radius of each photon of `tree` (heap order) \[m\]: the
 /// distance to its k-th nearest counted photon (itself included) within
 /// `max_d2`, or the largest radius when fewer are found; zero for photons the
-/// estimates do not count. In parallel, each photon on its own, so the radii do
-/// not depend on the thread count.
-pub fn beam_radii<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32) -> Vec<f32> {
+/// estimates do not count (see [`counted`]). In parallel, each photon on its own,
+/// so the radii do not depend on the thread count.
+pub fn beam_radii<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32, all: bool) -> Vec<f32> {
     tree.nodes()
         .par_chunks(1024)
         .flat_map_iter(|chunk| {
@@ -104,10 +107,10 @@ pub fn beam_radii<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32) -> V
             chunk
                 .iter()
                 .map(|r| {
-                    if !multiple_scattered(r) {
+                    if !counted(r, all) {
                         return 0.0;
                     }
-                    let res = tree.knn(r.position(), k, max_d2, |_, q| multiple_scattered(q), &mut scratch);
+                    let res = tree.knn(r.position(), k, max_d2, |_, q| counted(q, all), &mut scratch);
                     if res.count >= k { res.max_dist2.sqrt() } else { max_d2.sqrt() }
                 })
                 .collect::<Vec<f32>>()
@@ -117,9 +120,9 @@ pub fn beam_radii<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32) -> V
 
 /// The photons of a volume map as spheres of their beam radii ([`beam_radii`]),
 /// ready for [`beam`].
-pub fn beam_spheres<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32) -> SphereTree {
+pub fn beam_spheres<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32, all: bool) -> SphereTree {
     let centres: Vec<Vec3> = tree.nodes().iter().map(|r| r.position()).collect();
-    SphereTree::new(&centres, &beam_radii(tree, k, max_d2))
+    SphereTree::new(&centres, &beam_radii(tree, k, max_d2, all))
 }
 
 /// The beam radiance estimate [W sr^-1 m^-2 per channel] of the multiple-scattered
@@ -190,7 +193,7 @@ mod tests {
         let ls = counted * phi / (4.0 * PI);
         let iso = |_: Vec3| 1.0 / (4.0 * PI);
         let p = KnnParams { k: 50, max_d2: 0.04, filter: crate::Filter::None };
-        let spheres = beam_spheres(&tree, 50, 0.04);
+        let spheres = beam_spheres(&tree, 50, 0.04, false);
         let mut scratch = KnnScratch::with_capacity(50);
         let mut stack = Vec::new();
         for sigma in [0.0f32, 2.0] {
@@ -201,7 +204,7 @@ mod tests {
                 let y = 0.4 + 0.2 * (r as f32 + 0.5) / rays as f32;
                 let o = Vec3::new(0.2, y, 0.5 - 0.1 * (r % 3) as f32);
                 let u = (r as f32 + 0.5) / rays as f32;
-                march += ray_march(&tree, o, Vec3::X, 0.6, sigma_t, 0.02, u, &p, &mut scratch, iso);
+                march += ray_march(&tree, o, Vec3::X, 0.6, sigma_t, 0.02, u, false, &p, &mut scratch, iso);
                 beamed += beam(&nodes, &spheres, o, Vec3::X, 0.6, sigma_t, &mut stack, iso);
             }
             let (march, beamed) = (march / rays as f32, beamed / rays as f32);

@@ -91,7 +91,7 @@ fn the_closed_form_and_light_sampling_agree_with_integrating_over_the_panel() {
         assert!((3.0 * solid as f64 / e - 1.0).abs() < 1e-4, "{p}: the cosine integral");
         let hit = s.intersect(p + Vec3::Y * 0.5, -Vec3::Y, f32::INFINITY).unwrap();
         let mut sampler = pm_sampling::Sampler::new(5, 0);
-        let sampled = sampling.direct(&hit, &Bsdf::Lambert { rho }, Vec3::Y, &mut sampler, 2048);
+        let sampled = sampling.direct(&hit, &Bsdf::Lambert { rho }, Vec3::Y, &mut sampler, 2048, None);
         assert!((sampled.x as f64 / want - 1.0).abs() < 0.02, "{p}: light sampling {} vs {want}", sampled.x);
     }
 }

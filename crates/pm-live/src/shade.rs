@@ -128,10 +128,10 @@ impl<I: IndirectLight> LiveShading<'_, I> {
     fn direct_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
         match self.direct {
-            DirectMode::Rays => self.light.direct(hit, bsdf, wo, s, self.light_samples),
+            DirectMode::Rays => self.light.direct(hit, bsdf, wo, s, self.light_samples, None),
             DirectMode::ShadowMap => match self.shadow_maps {
                 Some(maps) => maps.direct(scene, LitPoint::of(hit), bsdf, wo, s),
-                None => self.light.direct(hit, bsdf, wo, s, self.light_samples),
+                None => self.light.direct(hit, bsdf, wo, s, self.light_samples, None),
             },
             DirectMode::Photons => Rgb::ZERO,
         }

@@ -15,4 +15,4 @@ pub mod jobs;
 pub mod quality;
 pub mod steps;
 
-pub use config::{AutoWord, EffectName, EffectsCfg, EnvironmentCfg, Pipeline, Quality, Setup, SunAngleCfg};
+pub use config::{AutoWord, EffectName, EffectsCfg, EnvironmentCfg, MediumCfg, Pipeline, Quality, Setup, SunAngleCfg};

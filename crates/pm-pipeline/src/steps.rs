@@ -195,7 +195,7 @@ pub fn steps(
     let map_inputs = [scene_files, vec![o("global.irr.pmap")]].concat();
     let uses_cache = indirect && r.icache_accuracy > 0.0 && pm_render::method_uses_cache(r.mode);
     let mut render_args = base.clone();
-    let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap")]].concat();
+    let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap"), o("volume.kd.pmap")]].concat();
     if uses_cache {
         // The cache step gets only what shapes the cache (the rest at defaults), so
         // changing the rest re-runs only the render.
@@ -225,7 +225,7 @@ pub fn steps(
         inputs: render_inputs,
         outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
         needs: None,
-        optional: vec![("--caustic", o("caustic.kd.pmap"))],
+        optional: vec![("--caustic", o("caustic.kd.pmap")), ("--volume", o("volume.kd.pmap"))],
     });
     Ok(steps)
 }

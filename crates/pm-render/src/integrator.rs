@@ -24,12 +24,14 @@ pub struct Components {
     pub indirect: Rgb,
     /// Everything seen through one or more specular bounces.
     pub specular: Rgb,
+    /// Light scattered toward the eye in media along the eye ray.
+    pub volume: Rgb,
 }
 
 impl Components {
     /// The sum of the components: the radiance of the sample.
     pub fn total(&self) -> Rgb {
-        self.direct + self.caustic + self.indirect + self.specular
+        self.direct + self.caustic + self.indirect + self.specular + self.volume
     }
 
     /// Every component times `w` (per channel).
@@ -39,6 +41,7 @@ impl Components {
             caustic: self.caustic * w,
             indirect: self.indirect * w,
             specular: self.specular * w,
+            volume: self.volume * w,
         }
     }
 
@@ -49,6 +52,7 @@ impl Components {
             Layer::Caustic => self.caustic,
             Layer::Indirect => self.indirect,
             Layer::Specular => self.specular,
+            Layer::Volume => self.volume,
         }
     }
 
@@ -59,6 +63,7 @@ impl Components {
             Layer::Caustic => self.caustic += v,
             Layer::Indirect => self.indirect += v,
             Layer::Specular => self.specular += v,
+            Layer::Volume => self.volume += v,
         }
     }
 
@@ -68,6 +73,7 @@ impl Components {
         self.caustic += c.caustic;
         self.indirect += c.indirect;
         self.specular += c.specular;
+        self.volume += c.volume;
     }
 }
 
@@ -168,6 +174,12 @@ pub trait Integrator: Sync {
     /// choice, and the image would be biased toward the likelier one.
     fn adaptive(&self) -> bool {
         true
+    }
+
+    /// True when its samples can carry light scattered in media
+    /// ([`Components::volume`]): the image then has a volume layer.
+    fn volume(&self) -> bool {
+        false
     }
 
     /// Work counters (final gathers, lookups, cut paths, time per component).

@@ -68,6 +68,17 @@ pm_params::value_enum! {
     }
 }
 
+pm_params::value_enum! {
+    /// How light scattered more than once in a medium is read from the volume map
+    /// along a ray.
+    pub enum VolumeEstimate {
+        /// Every photon whose sphere (its own k-nearest radius) the ray crosses (Jarosz, Zwicker and Jensen 2008).
+        Beam,
+        /// Steps along the ray, a k-nearest estimate at each (Jensen and Christensen 1998).
+        RayMarch,
+    }
+}
+
 use pm_params::{Any, above, at_least, between};
 
 pm_params::params! {
@@ -130,6 +141,16 @@ pm_params::params! {
         /// the gather disc lies on the visible surface (walls and edges cut it), so the
         /// density divides by that area instead of pi r^2 (0: pi r^2, Hachisuka's estimate).
         sppm_boundary_probes: u32 = 4 => between(0, 64);
+        /// Participating media: how the volume map gives multiple scattering along rays.
+        volume_estimate: VolumeEstimate = VolumeEstimate::Beam => Any;
+        /// Participating media: photons per volume estimate (and per beam radius).
+        volume_k: usize = 50 => between(2, 1 << 16);
+        /// Participating media: largest volume-estimate radius, as a fraction of the scene diagonal.
+        volume_radius_rel_diag: f32 = 0.05 => above(0.0);
+        /// Participating media: ray-march step, as a fraction of the scene diagonal.
+        volume_step_rel_diag: f32 = 0.01 => above(0.0);
+        /// Participating media: light samples of single scattering per ray segment in a medium (equiangular).
+        volume_light_samples: u32 = 4 => between(1, 1 << 16);
     }
 }
 
@@ -243,6 +264,13 @@ pub(crate) struct Settings {
     pub icache_spacing: (f32, f32),
     pub light_samples: u32,
     pub max_depth: u32,
+    pub volume_estimate: VolumeEstimate,
+    pub volume_k: usize,
+    /// [m]
+    pub max_radius_volume: f32,
+    /// [m]
+    pub volume_step: f32,
+    pub volume_light_samples: u32,
 }
 
 impl Settings {
@@ -262,6 +290,11 @@ impl Settings {
             icache_spacing: (p.icache_min_spacing_rel_diag * diag, p.icache_max_spacing_rel_diag * diag),
             light_samples: p.light_samples,
             max_depth: p.max_depth,
+            volume_estimate: p.volume_estimate,
+            volume_k: p.volume_k,
+            max_radius_volume: p.volume_radius_rel_diag * diag,
+            volume_step: p.volume_step_rel_diag * diag,
+            volume_light_samples: p.volume_light_samples,
         }
     }
 }
@@ -275,6 +308,34 @@ pub struct Maps<'a, G> {
     pub irradiance: Option<KdTree<'a, G>>,
     /// Caustic map.
     pub caustic: Option<KdTree<'a, FullPhoton>>,
+    /// Volume map (photons at scattering events in media), with its photons as
+    /// spheres for the beam estimate.
+    pub volume: Option<VolumeMap<'a>>,
+}
+
+/// A volume photon map as the renderer reads it: the kd-tree, and its photons as
+/// spheres of their k-nearest radii for the beam estimate, once with the photons
+/// eye rays count (all but single scattering, which comes from the lights) and
+/// once with every photon (final-gather rays).
+pub struct VolumeMap<'a> {
+    /// The photons, balanced.
+    pub tree: KdTree<'a, FullPhoton>,
+    /// Every photon but the direct ones, as beam spheres.
+    pub multiple: pm_kdtree::SphereTree,
+    /// Every photon, as beam spheres.
+    pub all: pm_kdtree::SphereTree,
+}
+
+impl<'a> VolumeMap<'a> {
+    /// The volume map of kd-tree `nodes` with beam radii from the `k` nearest
+    /// photons within `max_radius` \[m\].
+    pub fn new(nodes: &'a [FullPhoton], k: usize, max_radius: f32) -> VolumeMap<'a> {
+        let tree = KdTree::new(nodes);
+        let max_d2 = max_radius * max_radius;
+        let multiple = pm_estimate::beam_spheres(&tree, k, max_d2, false);
+        let all = pm_estimate::beam_spheres(&tree, k, max_d2, true);
+        VolumeMap { tree, multiple, all }
+    }
 }
 
 /// The photons of a kd-tree map that carry a precomputed irradiance, as their own

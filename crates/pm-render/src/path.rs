@@ -43,6 +43,10 @@ impl Integrator for PathTracer<'_> {
         false
     }
 
+    fn volume(&self) -> bool {
+        self.light.scene.has_scattering_media()
+    }
+
     fn counters(&self) -> &Counters {
         &self.counters
     }
@@ -57,7 +61,10 @@ const MAX_PATH: u32 = 1000;
 // from the eye is specular; otherwise, at the first non-specular vertex D1,
 // emission seen directly and light arriving at D1 straight from a light are
 // direct, light arriving at D1 through specular bounces only is caustic, and
-// anything that has been diffusely reflected twice is indirect.
+// anything that has been diffusely reflected twice is indirect. When D1 is a
+// point in a medium (the eye ray scattered before reaching a surface), everything
+// the path brings is the volume layer, as the photon-map renderer puts the light
+// scattered along its eye rays there.
 
 /// Radiance along the ray from `o` in direction `d` [W sr^-1 m^-2], split into the
 /// renderer's component layers. In a scene with media the path carries the medium
@@ -92,6 +99,7 @@ fn path_radiance(
     // Classification of emission found at the next hit, and the path's history.
     let mut emission_layer = Layer::Direct;
     let mut specular_before_d1 = false;
+    let mut d1_in_medium = false;
     let mut n_diffuse = 0u32;
     let media = scene.has_media();
     let mut medium = if media { scene.eye_medium(o) } else { None };
@@ -122,16 +130,19 @@ fn path_radiance(
                     let p = o + d * t;
                     let wo = -d;
                     n_diffuse += 1;
-                    let nee_layer = layer_of_light_at(specular_before_d1, n_diffuse);
+                    d1_in_medium |= n_diffuse == 1;
+                    let nee_layer =
+                        volume_or(d1_in_medium, specular_before_d1, layer_of_light_at(specular_before_d1, n_diffuse));
                     l.add_to(nee_layer, beta * w * light.medium_sample(p, wo, &m.phase, medium, s, true));
                     let ps = m.phase.sample(wo, s.next_2d());
-                    emission_layer = if specular_before_d1 {
+                    let sampled = if specular_before_d1 {
                         Layer::Specular
                     } else if n_diffuse >= 2 {
                         Layer::Indirect
                     } else {
                         Layer::Direct
                     };
+                    emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
                     prev_pdf = ps.pdf;
                     prev_specular = false;
                     (prev_p, prev_n, travelled) = (p, Vec3::ZERO, 0.0);
@@ -184,7 +195,8 @@ fn path_radiance(
             n_diffuse += 1;
             // Next-event estimation, one light sample, MIS against BSDF sampling
             // (the BSDF-sampled continuation below picks up emission with its weight).
-            let nee_layer = layer_of_light_at(specular_before_d1, n_diffuse);
+            let nee_layer =
+                volume_or(d1_in_medium, specular_before_d1, layer_of_light_at(specular_before_d1, n_diffuse));
             let nee = beta * w * light.light_sample(&hit, &bsdf, wo, s, true, medium);
             l.add_to(nee_layer, nee);
             if eye_ray && let Some(v) = vs.as_deref_mut() {
@@ -199,7 +211,7 @@ fn path_radiance(
         if same_side == bs.transmitted {
             return l;
         }
-        emission_layer = if specular_before_d1 {
+        let sampled = if specular_before_d1 {
             Layer::Specular
         } else if n_diffuse >= 2 {
             Layer::Indirect
@@ -208,6 +220,7 @@ fn path_radiance(
         } else {
             Layer::Direct // sampled from D1 itself
         };
+        emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
         beta *= bs.weight;
         prev_pdf = bs.pdf;
         prev_specular = bs.specular;
@@ -223,6 +236,13 @@ fn path_radiance(
     }
     counters.terminated_paths.fetch_add(1, Relaxed);
     l
+}
+
+/// `layer`, or the volume layer for a path whose first non-specular vertex is in a
+/// medium (and not seen through a mirror or glass first).
+#[inline]
+fn volume_or(d1_in_medium: bool, specular_before_d1: bool, layer: Layer) -> Layer {
+    if d1_in_medium && !specular_before_d1 && layer != Layer::Specular { Layer::Volume } else { layer }
 }
 
 /// The layer of light arriving at the path's `n_diffuse`-th non-specular vertex

@@ -26,8 +26,9 @@ pub struct Image {
     pub height: u32,
     /// The image: the sum of the layers.
     pub total: Vec<Rgb>,
-    /// Each [`Layer`], in [`Layer::ALL`]'s order.
-    pub layers: [Vec<Rgb>; 4],
+    /// Each [`Layer`], in [`Layer::ALL`]'s order; the volume layer is empty (no
+    /// pixels) when the integrator carries no light scattered in media.
+    pub layers: [Vec<Rgb>; 5],
     /// First-hit G-buffer, one entry per pixel (its first sample).
     pub gbuffer: Option<Vec<VisibleSurface>>,
 }
@@ -38,9 +39,14 @@ impl Image {
         &self.total
     }
 
-    /// The pixels of `layer`.
+    /// The pixels of `layer` (none for a volume layer the render does not have).
     pub fn layer(&self, layer: Layer) -> &[Rgb] {
         &self.layers[layer.index()]
+    }
+
+    /// True when the image has a volume layer (its scene scatters light in media).
+    pub fn has_volume(&self) -> bool {
+        !self.layers[Layer::Volume.index()].is_empty()
     }
 
     /// The total (`None`) or a layer.
@@ -48,10 +54,12 @@ impl Image {
         layer.map_or(self.total(), |l| self.layer(l))
     }
 
-    /// The total and every layer, by their names in files, moved out (the EXR
-    /// writer's input).
+    /// The total and every layer it has, by their names in files, moved out (the
+    /// EXR writer's input).
     pub fn into_named(self) -> impl Iterator<Item = (&'static str, Vec<Rgb>)> {
-        std::iter::once((pm_color::TOTAL, self.total)).chain(Layer::ALL.into_iter().map(Layer::name).zip(self.layers))
+        std::iter::once((pm_color::TOTAL, self.total))
+            .chain(Layer::ALL.into_iter().map(Layer::name).zip(self.layers))
+            .filter(|(name, px)| *name == pm_color::TOTAL || !px.is_empty())
     }
 
     /// The total and every layer, by their names in files (the EXR writer's input).
@@ -60,10 +68,15 @@ impl Image {
     }
 }
 
-/// `total` and `layers` by their names in files.
-fn named<'a>(total: &'a [Rgb], layers: &'a [Vec<Rgb>; 4]) -> impl Iterator<Item = (&'static str, &'a [Rgb])> {
-    std::iter::once((pm_color::TOTAL, total))
-        .chain(Layer::ALL.into_iter().map(|l| (l.name(), layers[l.index()].as_slice())))
+/// `total` and the layers present (a volume layer only when it has pixels) by
+/// their names in files.
+fn named<'a>(total: &'a [Rgb], layers: &'a [Vec<Rgb>; 5]) -> impl Iterator<Item = (&'static str, &'a [Rgb])> {
+    std::iter::once((pm_color::TOTAL, total)).chain(
+        Layer::ALL
+            .into_iter()
+            .filter(|l| !layers[l.index()].is_empty())
+            .map(|l| (l.name(), layers[l.index()].as_slice())),
+    )
 }
 
 /// How the image loop finds the surfaces seen at pixel centres.
@@ -103,7 +116,7 @@ pub struct FrameBuffers {
     pixels: Vec<(Components, u32)>,
     in_region: Vec<usize>,
     /// The rendered image (the total) and its layers in [`Layer::ALL`]'s order.
-    layers: [Vec<Rgb>; 5],
+    layers: [Vec<Rgb>; 6],
 }
 
 /// A value as a layer takes it: not finite or negative adds nothing.
@@ -258,7 +271,7 @@ pub fn render_into<I: Integrator>(
     };
     // Without supersampling, G-buffer or apron, the write-out computes each pixel
     // itself (a live frame: no per-pixel buffer to fill and read back).
-    let single_pass = !gbuffer && pass1 == rect && !supersampling;
+    let single_pass = !gbuffer && pass1 == rect && !supersampling && !integ.volume();
     let mut gbuffer_of_pass1 = Vec::new();
     let mut supersampled = 0;
     pixels.clear();
@@ -478,18 +491,34 @@ impl<I: Integrator> RegionLoop<'_, I> {
     /// one parallel pass over rows (every value is overwritten, so a layer of the
     /// right length is not cleared first). No NaN or Inf leaves the renderer: returns
     /// the values that were not finite (written as zero).
-    fn write_layers(&self, source: Pass1, layers: &mut [Vec<Rgb>; 5]) -> u64 {
+    fn write_layers(&self, source: Pass1, layers: &mut [Vec<Rgb>; 6]) -> u64 {
         let rect = self.rect;
         let n = rect.area();
-        for layer in layers.iter_mut() {
+        let [l0, l1, l2, l3, l4, volume] = layers;
+        for layer in [&mut *l0, &mut *l1, &mut *l2, &mut *l3, &mut *l4] {
             if layer.len() != n {
                 layer.clear();
                 layer.resize(n, Rgb::ZERO);
             }
         }
+        // The volume layer, from the stored pixels (an integrator with volume light
+        // is never rendered in one pass), or none.
+        volume.clear();
+        let mut bad_volume = 0u64;
+        if let (true, Pass1::Stored(pixels, in_region)) = (self.integ.volume(), &source) {
+            volume.extend((0..n).map(|r| {
+                let (px, k) = &pixels[pass1_index(in_region, r)];
+                let v = px.volume / *k as f32;
+                if v.is_finite() {
+                    v.max(Rgb::ZERO)
+                } else {
+                    bad_volume += 1;
+                    Rgb::ZERO
+                }
+            }));
+        }
         let rw = rect.width() as usize;
-        let [l0, l1, l2, l3, l4] = layers;
-        let nonfinite = (
+        let nonfinite: u64 = (
             l0.par_chunks_mut(rw),
             l1.par_chunks_mut(rw),
             l2.par_chunks_mut(rw),
@@ -533,6 +562,6 @@ impl<I: Integrator> RegionLoop<'_, I> {
         if matches!(source, Pass1::Compute) {
             (self.progress)(n as u64, n as u64);
         }
-        nonfinite
+        nonfinite + bad_volume
     }
 }

@@ -598,8 +598,7 @@ pub fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
 
 /// Power of each light, and the scene-dependent parameters of directional lights.
 pub(crate) fn finish_lights(scene: &mut Scene) {
-    let center = scene.bounds.center();
-    let radius = (0.5 * scene.bounds.diagonal()).max(1e-6);
+    let (center, radius) = scene.world_sphere();
     let mut lights = std::mem::take(&mut scene.lights);
     for light in &mut lights {
         light.power = match &mut light.kind {

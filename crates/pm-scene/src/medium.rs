@@ -197,6 +197,10 @@ pub(crate) struct MediaLayout {
     pub scattering: bool,
     /// Some material is an index-matched boundary ([`Scene::index_matched`]).
     pub index_matched: bool,
+    /// Radius \[m\] of the sphere about the bounds' centre that the scene medium
+    /// fills when it must be larger than the bounding sphere to hold the camera
+    /// (zero otherwise): see [`Scene::world_sphere`].
+    pub sphere_radius: f32,
 }
 
 /// Most surfaces a containment walk crosses before it gives up (and takes the
@@ -221,6 +225,13 @@ impl Scene {
     #[inline]
     pub fn has_scattering_media(&self) -> bool {
         self.layout.scattering
+    }
+
+    /// True when some material is an index-matched boundary
+    /// ([`Self::index_matched`]): an integrator that finds none skips the test.
+    #[inline]
+    pub fn has_index_matched(&self) -> bool {
+        self.layout.index_matched
     }
 
     /// The medium filling the scene, if any.
@@ -293,6 +304,37 @@ impl Scene {
         Rgb::ZERO
     }
 
+    /// The first hit along the ray from `o` in unit direction `d` (starting in
+    /// medium `medium`) that is not an index-matched boundary, the transmittance
+    /// of the media and boundaries before it (per channel), and its distance from
+    /// `o` \[m\] (infinite when the ray leaves the scene; the transmittance is then
+    /// to the scene medium's end). For rays that only look for what they hit (a
+    /// BSDF sample that may find a light); in a scene without media or
+    /// index-matched boundaries, [`Self::intersect`] with a transmittance of one.
+    pub fn intersect_through(&self, o: Vec3, d: Vec3, medium: Option<MediumId>) -> (Option<Hit>, Rgb, f32) {
+        if !self.has_media() && !self.layout.index_matched {
+            let hit = self.intersect(o, d, f32::INFINITY);
+            let t = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+            return (hit, Rgb::ONE, t);
+        }
+        let (mut o, mut cur, mut tr, mut travelled) = (o, medium, Rgb::ONE, 0.0f32);
+        for _ in 0..WALK_HITS {
+            let hit = self.intersect(o, d, f32::INFINITY);
+            let seg = hit.as_ref().map_or_else(|| self.escape_distance(o, d), |h| h.t);
+            if let Some(m) = self.medium(cur) {
+                tr *= m.transmittance(seg);
+            }
+            let Some(hit) = hit else { return (None, tr, f32::INFINITY) };
+            let Some(tint) = self.index_matched(&hit) else { return (Some(hit), tr, travelled + hit.t) };
+            tr *= tint;
+            cur = self.medium_after(&hit, d, cur);
+            let next = self.offset_origin(hit.p, hit.ng, d);
+            travelled += (next - o).dot(d);
+            o = next;
+        }
+        (None, Rgb::ZERO, f32::INFINITY)
+    }
+
     /// The medium at point `p` \[m\] (walking a ray out of the scene: the innermost
     /// medium mesh it is inside, else the scene's medium).
     pub fn medium_at(&self, p: Vec3) -> Option<MediumId> {
@@ -317,13 +359,20 @@ impl Scene {
         self.layout.lights.get(li).copied().flatten()
     }
 
+    /// The sphere (centre, radius \[m\]) lights at infinity shoot their photons
+    /// from and the scene medium fills: the scene's bounding sphere, grown to hold
+    /// the camera when a medium fills the scene (so every eye ray starts inside
+    /// it, and eye rays, shadow rays and photons all see fog of the same extent).
+    pub fn world_sphere(&self) -> (Vec3, f32) {
+        (self.bounds.center(), (0.5 * self.bounds.diagonal()).max(self.layout.sphere_radius).max(1e-6))
+    }
+
     /// How far a ray from `o` along unit `d` that hits nothing runs inside the
-    /// scene's medium \[m\]: to where it leaves the scene's bounding sphere (the
-    /// scene medium fills that sphere, the one lights at infinity shoot their
-    /// photons from, so the sky and the sun are seen through fog of finite depth).
+    /// scene's medium \[m\]: to where it leaves [`Self::world_sphere`] (the scene
+    /// medium fills that sphere, so the sky and the sun are seen through fog of
+    /// finite depth).
     pub fn escape_distance(&self, o: Vec3, d: Vec3) -> f32 {
-        let c = self.bounds.center();
-        let r = (0.5 * self.bounds.diagonal()).max(1e-6);
+        let (c, r) = self.world_sphere();
         let oc = o - c;
         let b = oc.dot(d);
         let disc = b * b - (oc.length_squared() - r * r);
@@ -443,6 +492,16 @@ impl Scene {
     /// at the camera and at each light: after the media are set, and again whenever
     /// lights, meshes or the camera move ([`Scene::set_time`]).
     pub(crate) fn locate_media(&mut self) {
+        // The world sphere holds the camera when fog fills the scene; lights at
+        // infinity then shoot from the larger disc.
+        let grown = match (&self.camera, self.layout.scene) {
+            (Some(c), Some(_)) => c.position.distance(self.bounds.center()) * 1.001 + 1e-4 * self.bounds.diagonal(),
+            _ => 0.0,
+        };
+        if grown != self.layout.sphere_radius {
+            self.layout.sphere_radius = grown;
+            crate::light::finish_lights(self);
+        }
         for o in 0..self.objects.len() {
             let obj = &self.objects[o];
             if self.materials[obj.material as usize].interior.is_none() {

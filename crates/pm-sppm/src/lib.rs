@@ -143,7 +143,7 @@ pub struct PixelState {
     /// tau of visible points reached through mirrors and glass (the specular layer).
     pub tau_specular: Rgb,
     /// Sum over the passes of the pixel's emission and direct light, by layer
-    /// ([`Layer::ALL`] order) [W sr^-1 m^-2].
+    /// ([`Layer::SURFACE`] order) [W sr^-1 m^-2].
     pub ld: [Rgb; 4],
     /// Sum over the passes of each pass's own estimate of the pixel, the mean of
     /// its channels [W sr^-1 m^-2]: the image is their mean (tau / r^2 sums each
@@ -496,7 +496,7 @@ impl<'a> Sppm<'a> {
             ld[layer(specular)] += beta * scene.emitted(&hit, wo);
             let bsdf = scene.bsdf(&hit);
             if !bsdf.is_specular() {
-                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples);
+                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples, None);
                 let n = pm_scene::facing(hit.ng, wo);
                 return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 }), ld);
             }
@@ -587,12 +587,14 @@ impl<'a> Sppm<'a> {
             }
         }
         let total = (0..self.pixels.len()).map(|i| layers.iter().map(|l| l[i]).sum()).collect();
+        let [direct, caustic, indirect, specular] = layers;
         Image {
             rect: pm_raster::Rect { x0: 0, y0: 0, x1: self.width, y1: self.height },
             width: self.width,
             height: self.height,
             total,
-            layers,
+            // No volume layer: progressive photon mapping does not simulate media.
+            layers: [direct, caustic, indirect, specular, Vec::new()],
             gbuffer: None,
         }
     }

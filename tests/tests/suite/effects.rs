@@ -171,7 +171,7 @@ fn spot_and_sun_in_candela_and_lux_give_the_analytic_direct_light() {
             let hit = scene.intersect(p + Vec3::Y * 0.5, Vec3::NEG_Y, f32::INFINITY).unwrap();
             let bsdf = scene.bsdf(&hit);
             let mut s = pm_sampling::Sampler::new(1, i);
-            let got = direct.direct(&hit, &bsdf, Vec3::Y, &mut s, 1).x;
+            let got = direct.direct(&hit, &bsdf, Vec3::Y, &mut s, 1, None).x;
             let rho_pi = 0.5 / std::f32::consts::PI;
             let want = match light["type"].as_str().unwrap() {
                 "spot" => {

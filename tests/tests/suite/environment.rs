@@ -205,7 +205,7 @@ fn marker_texels_light_the_side_of_a_sphere_that_faces_them() {
         let radiance = |d: Vec3| -> f32 {
             let hit = scene.intersect(d * 3.0, -d, f32::INFINITY).unwrap();
             let mut s = pm_sampling::Sampler::new(5, 0);
-            pm_color::mean(light.direct(&hit, &scene.bsdf(&hit), d, &mut s, 64))
+            pm_color::mean(light.direct(&hit, &scene.bsdf(&hit), d, &mut s, 64, None))
         };
         let lit_side = radiance(facing);
         for d in axes.iter().filter(|d| **d != facing) {

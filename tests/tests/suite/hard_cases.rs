@@ -248,7 +248,7 @@ fn light_samples_next_to_an_area_light_have_bounded_weights() {
                 ((k * 7919) % m) as f32 / m as f32,
                 0.5,
             ];
-            let w = light.light_sample_at(&hit, &bsdf, Vec3::Y, u, false).x;
+            let w = light.light_sample_at(&hit, &bsdf, Vec3::Y, u, false, None).x;
             sum += w as f64;
             max = max.max(w);
         }
@@ -327,7 +327,7 @@ fn closed_form_direct_light(second_light: bool) {
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for k in 0..m {
             let mut s = pm_sampling::Sampler::new(7, k);
-            let l = d.direct(&hit, &bsdf, Vec3::Y, &mut s, n).x as f64;
+            let l = d.direct(&hit, &bsdf, Vec3::Y, &mut s, n, None).x as f64;
             sum += l;
             sum2 += l * l;
         }
@@ -353,7 +353,7 @@ fn closed_form_direct_light(second_light: bool) {
     for n in [1, 8] {
         for k in 0..64 {
             let mut s = pm_sampling::Sampler::new(3, k);
-            let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, n).x as f64;
+            let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, n, None).x as f64;
             assert!((got / want - 1.0).abs() < 1e-4, "lit, {n} samples, stream {k}: {got} against {want}");
         }
     }
@@ -377,7 +377,7 @@ fn closed_form_direct_light(second_light: bool) {
     let (hit, bsdf) = at(0.0);
     for k in 0..64 {
         let mut s = pm_sampling::Sampler::new(5, k);
-        let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, 8).x as f64;
+        let got = closed.direct(&hit, &bsdf, Vec3::Y, &mut s, 8, None).x as f64;
         assert!((got - under).abs() <= 1e-4 * under, "under the blocker, stream {k}: {got} against {under}");
     }
 }
@@ -497,7 +497,7 @@ fn batch_layers(scene: &pm_scene::Scene, method: Method, seed: u64) -> Layers {
     let (img, _) = pm_tests::with_photon_mapping(scene, &maps, &cfg, |pm| {
         pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
     });
-    (pm_color::Layer::ALL.map(|l| img.layer(l).to_vec()), planes_seen(scene))
+    (pm_color::Layer::SURFACE.map(|l| img.layer(l).to_vec()), planes_seen(scene))
 }
 
 /// The same for both real-time methods, on their defaults but for the photon and
@@ -520,7 +520,7 @@ fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
             let params = pm_vertex::VertexParams { per_frame: 20_000, total: 20_000, ..Default::default() };
             let mut live = pm_vertex::live(scene, None, frame(direct), params, seed).unwrap();
             live.step().unwrap();
-            (pm_color::Layer::ALL.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
+            (pm_color::Layer::SURFACE.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
         });
     }
     // Image-space photon mapping's indirect light was 0.6% and 1.0% darker in mean
@@ -531,7 +531,7 @@ fn far_from_the_origin_the_real_time_methods_match_block_by_block() {
         let params = pm_ispm::IspmParams { bounce_res: 128, ..Default::default() };
         let mut live = pm_ispm::live(scene, frame(DirectMode::Rays), params, seed).unwrap();
         live.step().unwrap();
-        (pm_color::Layer::ALL.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
+        (pm_color::Layer::SURFACE.map(|l| live.frame_layers().layer(l).to_vec()), planes_seen(live.world().scene()))
     });
 }
 
@@ -607,7 +607,7 @@ fn layers_match_far_away(
             .collect();
         (rel, sum(&a) / sum(&b).max(1e-12))
     };
-    for layer in pm_color::Layer::ALL {
+    for layer in pm_color::Layer::SURFACE {
         let b = &base[layer.index()];
         if b.iter().all(|p| p.max_element() <= 0.0) {
             continue;

@@ -13,7 +13,7 @@ use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_kdtree::KnnScratch;
 use pm_sampling::{Sampler, basis};
-use pm_scene::Hit;
+use pm_scene::{Hit, MediumId};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -22,6 +22,8 @@ use std::sync::atomic::Ordering::Relaxed;
 pub struct Scratch {
     pub(crate) knn: KnnScratch,
     pub(crate) rejected: Vec<f32>,
+    /// The beam estimate's traversal stack.
+    pub(crate) stack: Vec<u32>,
     /// Calls of [`Scratch::clock`] so far (one in [`TIME_EVERY`] is timed).
     ticks: u32,
 }
@@ -122,47 +124,79 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
 /// Specular surfaces are followed (up to the depth limit); at the first non-specular hit the
 /// radiance is albedo / pi x irradiance. A ray shorter than the secondary-gather
 /// distance gets a small secondary gather there instead of a photon-map lookup.
+/// The ray starts in medium `medium`: in a medium each segment attenuates what
+/// lies beyond it and adds the light the volume map says scatters along it (every
+/// volume photon: what arrives at the gather's surface through the medium is
+/// indirect light, single scattering included); index-matched boundaries are
+/// passed.
 fn gather_radiance<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     o: Vec3,
     d: Vec3,
+    medium: Option<MediumId>,
     s: &mut Sampler,
     secondary: bool,
     scratch: &mut Scratch,
 ) -> (Rgb, f32) {
     let scene = ctx.scene;
-    let (mut o, mut d) = (o, d);
+    let (mut o, mut d, mut medium) = (o, d, medium);
     let mut beta = Rgb::ONE;
+    let mut l = Rgb::ZERO;
     let mut first_t = f32::INFINITY;
+    let media = scene.has_media();
     // Follow specular surfaces as far as the eye paths may (through two nested glass
     // spheres a gather ray meets four interfaces before a diffuse surface).
-    for bounce in 0..ctx.cfg.max_depth.max(1) {
-        let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return (Rgb::ZERO, first_t) };
-        beta *= scene.transmittance(&hit, d);
-        if bounce == 0 {
+    let (mut bounce, mut passed) = (0, 0u32);
+    while bounce < ctx.cfg.max_depth.max(1) && passed < 1024 {
+        let hit = scene.intersect(o, d, f32::INFINITY);
+        if media && let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+            if m.scatters() {
+                l += beta * super::volume::multiple(ctx, o, d, t_seg, m, true, s, scratch);
+            }
+            beta *= m.transmittance(t_seg);
+        }
+        let Some(hit) = hit else { return (l, first_t) };
+        if !media {
+            beta *= scene.transmittance(&hit, d);
+        }
+        if bounce == 0 && first_t == f32::INFINITY {
             first_t = hit.t;
+        }
+        if scene.has_index_matched()
+            && let Some(tint) = scene.index_matched(&hit)
+        {
+            beta *= tint;
+            medium = scene.medium_after(&hit, d, medium);
+            o = scene.offset_origin(hit.p, hit.ng, d);
+            passed += 1;
+            continue;
         }
         let bsdf = scene.bsdf(&hit);
         if bsdf.is_specular() {
             let u = s.next_2d();
             let uc = s.next_1d();
-            let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (Rgb::ZERO, first_t) };
+            let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (l, first_t) };
             beta *= bs.weight;
+            if media {
+                medium = scene.medium_after(&hit, bs.wi, medium);
+            }
             o = ctx.scene.offset_origin(hit.p, hit.ng, bs.wi);
             d = bs.wi;
+            bounce += 1;
             continue;
         }
         let n = facing(hit.ng, -d);
         let e = if secondary && bounce == 0 && hit.t < ctx.cfg.secondary_distance && ctx.cfg.secondary_rays > 0 {
             ctx.counters.secondary_gathers.fetch_add(1, Relaxed);
-            secondary_irradiance(ctx, &hit, n, s, scratch)
+            secondary_irradiance(ctx, &hit, n, medium, s, scratch)
         } else {
             lookup_irradiance(ctx, hit.p, n, scratch)
         };
-        return (beta * bsdf.diffuse_albedo() * e / PI, first_t);
+        return (l + beta * bsdf.diffuse_albedo() * e / PI, first_t);
     }
     ctx.counters.terminated_paths.fetch_add(1, Relaxed);
-    (Rgb::ZERO, first_t)
+    (l, first_t)
 }
 
 /// Total irradiance at a point reached by a short gather ray: direct light by light
@@ -172,6 +206,7 @@ fn secondary_irradiance<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     hit: &Hit,
     n: Vec3,
+    medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
 ) -> Rgb {
@@ -180,8 +215,8 @@ fn secondary_irradiance<G: PhotonRecord>(
     let unit = Bsdf::Lambert { rho: Rgb::splat(PI) };
     let mut h = *hit;
     h.ns = facing(hit.ns, n);
-    let e_direct = ctx.light.direct(&h, &unit, n, s, 1);
-    let g = final_gather(ctx, hit.p, h.ns, n, ctx.cfg.secondary_rays, s, GatherFor::Secondary, scratch);
+    let e_direct = ctx.light.direct(&h, &unit, n, s, 1, medium);
+    let g = final_gather(ctx, hit.p, h.ns, n, medium, ctx.cfg.secondary_rays, s, GatherFor::Secondary, scratch);
     e_direct + g.e
 }
 
@@ -201,7 +236,7 @@ pub(crate) enum GatherFor {
 }
 
 /// A final gather at `x` with shading normal `ns` and geometric normal `ng` (both on
-/// the side being lit): E = pi / (M N) sum L_jk over M x N strata with
+/// the side being lit, in medium `medium`): E = pi / (M N) sum L_jk over M x N strata with
 /// sin^2 theta_j uniform in [j/M, (j+1)/M) and phi_k in [2 pi k / N, 2 pi (k+1) / N)
 /// (cosine-weighted stratified sampling, Ward and Heckbert 1992).
 #[allow(clippy::too_many_arguments)]
@@ -210,6 +245,7 @@ pub(crate) fn final_gather<G: PhotonRecord>(
     x: Vec3,
     ns: Vec3,
     ng: Vec3,
+    medium: Option<MediumId>,
     rays: u32,
     s: &mut Sampler,
     purpose: GatherFor,
@@ -239,7 +275,7 @@ pub(crate) fn final_gather<G: PhotonRecord>(
             let (mut li, mut ri) = (Rgb::ZERO, f32::INFINITY);
             if dir.dot(ng) > 0.0 {
                 let o = ctx.scene.offset_origin(x, ng, dir);
-                (li, ri) = gather_radiance(ctx, o, dir, s, secondary, scratch);
+                (li, ri) = gather_radiance(ctx, o, dir, medium, s, secondary, scratch);
             }
             sum += li;
             if ri.is_finite() && ri > 0.0 {

@@ -6,6 +6,7 @@
 
 mod gather;
 mod prepass;
+mod volume;
 
 pub use gather::Scratch;
 
@@ -20,7 +21,7 @@ use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
 use pm_light::DirectLighting;
 use pm_sampling::Sampler;
-use pm_scene::{Hit, Scene};
+use pm_scene::{Hit, MediumId, Scene};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
 /// Specular bounces up to this depth trace both reflection and refraction (weighted
@@ -137,7 +138,12 @@ macro_rules! photon_map_integrator {
                 let $pm = self;
                 let pm = $get;
                 let hit = first.resolve(pm.scene, o, d);
-                trace_from(pm, &($shade as Shade<G>), hit, d, 0, s, scratch, vs)
+                let medium = if pm.scene.has_media() { pm.scene.eye_medium(o) } else { None };
+                trace_from(pm, &($shade as Shade<G>), o, hit, d, 0, medium, s, scratch, vs)
+            }
+            fn volume(&self) -> bool {
+                let $pm = self;
+                $get.scene.has_scattering_media()
             }
             fn counters(&self) -> &Counters {
                 let $pm = self;
@@ -155,13 +161,14 @@ photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
 photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
 photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
 
-/// Soft indirect irradiance at a non-specular point: interpolated from the cache
-/// when a record covers it, else a fresh final gather.
+/// Soft indirect irradiance at a non-specular point (in medium `medium`):
+/// interpolated from the cache when a record covers it, else a fresh final gather.
 pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     p: Vec3,
     ns: Vec3,
     ng: Vec3,
+    medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
 ) -> Rgb {
@@ -176,7 +183,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     }
     let t = scratch.clock();
     ctx.counters.gathers.fetch_add(1, Relaxed);
-    let g = final_gather(ctx, p, ns, ng, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
+    let g = final_gather(ctx, p, ns, ng, medium, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
     gather::add_time(&ctx.counters.ns_gather, t);
     g.e
 }
@@ -226,38 +233,73 @@ struct At<'h> {
     wo: Vec3,
     /// Emitted radiance toward the viewer [W sr^-1 m^-2].
     le: Rgb,
+    /// The medium the point is in (on the viewer's side).
+    medium: Option<MediumId>,
 }
 
-/// Radiance components along a ray in direction `d` whose first hit is `hit`:
-/// recursive specular reflection and refraction, and `shade` at the first
-/// non-specular hit.
+/// Radiance components along a ray from `o` in direction `d` whose first hit is
+/// `hit`, starting in medium `medium`: recursive specular reflection and
+/// refraction, and `shade` at the first non-specular hit. Index-matched boundaries
+/// are passed; in a medium the segment attenuates what lies beyond it and adds
+/// the light scattered toward the viewer along it (the volume layer from the eye,
+/// the specular layer seen through mirrors and glass).
 #[allow(clippy::too_many_arguments)]
 fn trace_from<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     shade: &Shade<G>,
+    o: Vec3,
     hit: Option<pm_scene::Hit>,
     d: Vec3,
     depth: u32,
+    medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
-    let Some(hit) = hit else {
-        // Left the scene: the environment and sun discs, seen directly (a
-        // background pixel's direct layer) or through specular bounces.
-        let l = ctx.scene.escaped(d);
-        return if depth == 0 {
-            Components { direct: l, ..Default::default() }
-        } else {
-            Components { specular: l, ..Default::default() }
-        };
+    let scene = ctx.scene;
+    let mut c = match &hit {
+        None => {
+            // Left the scene: the environment and sun discs, seen directly (a
+            // background pixel's direct layer) or through specular bounces.
+            let l = scene.escaped(d);
+            if depth == 0 {
+                Components { direct: l, ..Default::default() }
+            } else {
+                Components { specular: l, ..Default::default() }
+            }
+        }
+        Some(h) => match scene.has_index_matched().then(|| scene.index_matched(h)).flatten() {
+            Some(tint) => {
+                // Straight through, into the medium beyond.
+                let o2 = scene.offset_origin(h.p, h.ng, d);
+                let next = scene.intersect(o2, d, f32::INFINITY);
+                let m2 = scene.medium_after(h, d, medium);
+                trace_from(ctx, shade, o2, next, d, depth, m2, s, scratch, vs).scaled(tint)
+            }
+            None => trace_hit(ctx, shade, h, d, depth, medium, s, scratch, vs),
+        },
     };
-    let tr = ctx.scene.transmittance(&hit, d);
-    let c = trace_hit(ctx, shade, &hit, d, depth, s, scratch, vs);
-    if tr == Rgb::ONE { c } else { c.scaled(tr) }
+    if !scene.has_media() {
+        let tr = hit.as_ref().map_or(Rgb::ONE, |h| scene.transmittance(h, d));
+        return if tr == Rgb::ONE { c } else { c.scaled(tr) };
+    }
+    if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+        let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+        c = c.scaled(m.transmittance(t_seg));
+        if m.scatters() {
+            let l = volume::eye_inscattered(ctx, o, d, t_seg, medium, m, s, scratch);
+            if depth == 0 {
+                c.volume += l;
+            } else {
+                c.specular += l;
+            }
+        }
+    }
+    c
 }
 
-/// [`trace_from`] from its hit (before the segment's transmittance).
+/// [`trace_from`] from its hit (before the segment's transmittance), reached in
+/// medium `medium`.
 #[allow(clippy::too_many_arguments)]
 fn trace_hit<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
@@ -265,6 +307,7 @@ fn trace_hit<G: PhotonRecord>(
     hit: &pm_scene::Hit,
     d: Vec3,
     depth: u32,
+    medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
     mut vs: Option<&mut VisibleSurface>,
@@ -277,7 +320,7 @@ fn trace_hit<G: PhotonRecord>(
         *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
     }
     if !bsdf.is_specular() {
-        return shade(ctx, &At { hit: &hit, bsdf: &bsdf, wo, le }, s, scratch, vs);
+        return shade(ctx, &At { hit: &hit, bsdf: &bsdf, wo, le, medium }, s, scratch, vs);
     }
     if depth >= cfg.max_depth {
         ctx.counters.terminated_paths.fetch_add(1, Relaxed);
@@ -287,8 +330,9 @@ fn trace_hit<G: PhotonRecord>(
     let mut l = le;
     let follow = |s: &mut Sampler, scratch: &mut Scratch, wi: Vec3, w: Rgb| -> Rgb {
         let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
-        let hit = ctx.scene.intersect(o2, wi, f32::INFINITY);
-        w * trace_from(ctx, shade, hit, wi, depth + 1, s, scratch, None).total()
+        let m2 = if scene.has_media() { scene.medium_after(&hit, wi, medium) } else { None };
+        let next = ctx.scene.intersect(o2, wi, f32::INFINITY);
+        w * trace_from(ctx, shade, o2, next, wi, depth + 1, m2, s, scratch, None).total()
     };
     let u = s.next_2d();
     let uc = s.next_1d();
@@ -315,7 +359,7 @@ fn shade_photons<G: PhotonRecord>(
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
+    let At { hit, bsdf, wo, le, .. } = *at;
     let cfg = &ctx.cfg;
     let e = match &ctx.maps.global {
         Some(tree) => {
@@ -339,7 +383,7 @@ fn shade_radiance<G: PhotonRecord>(
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
+    let At { hit, bsdf, wo, le, .. } = *at;
     let e = lookup_irradiance(ctx, hit.p, facing(hit.ng, wo), scratch);
     Components { direct: le, indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
 }
@@ -352,8 +396,8 @@ fn shade_indirect<G: PhotonRecord>(
     scratch: &mut Scratch,
     _: Option<&mut VisibleSurface>,
 ) -> Components {
-    let At { hit, bsdf, wo, le: _ } = *at;
-    let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), s, scratch);
+    let At { hit, bsdf, wo, medium, .. } = *at;
+    let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), medium, s, scratch);
     Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
 }
 
@@ -366,13 +410,13 @@ fn shade_full<G: PhotonRecord>(
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
-    let At { hit, bsdf, wo, le } = *at;
+    let At { hit, bsdf, wo, le, medium } = *at;
     let cfg = &ctx.cfg;
     let n = facing(hit.ng, wo);
     let ns = facing(hit.ns, wo);
     let albedo = bsdf.diffuse_albedo();
     let t = scratch.clock();
-    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples);
+    let reflected = ctx.light.direct(hit, bsdf, wo, s, cfg.light_samples, medium);
     let direct = le + reflected;
     if let Some(v) = vs {
         v.direct = reflected;
@@ -396,33 +440,43 @@ fn shade_full<G: PhotonRecord>(
     } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
         e
     } else {
-        indirect_irradiance(ctx, hit.p, ns, n, s, scratch)
+        indirect_irradiance(ctx, hit.p, ns, n, medium, s, scratch)
     };
-    Components { direct, caustic, indirect: albedo * e / PI, specular: Rgb::ZERO }
+    Components { direct, caustic, indirect: albedo * e / PI, ..Default::default() }
 }
 
 /// The non-specular hits an eye ray reaches, following specular bounces exactly as
 /// [`trace_from`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
-/// after): where the irradiance-cache prepass puts records. Each is the hit and the
-/// direction toward the viewer.
+/// after): where the irradiance-cache prepass puts records. Each is the hit, the
+/// direction toward the viewer and the medium it is in (the ray starts in
+/// `medium`; index-matched boundaries are passed).
 pub(crate) fn diffuse_points<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     o: Vec3,
     d: Vec3,
     depth: u32,
-    out: &mut Vec<(pm_scene::Hit, Vec3)>,
+    medium: Option<MediumId>,
+    out: &mut Vec<(pm_scene::Hit, Vec3, Option<MediumId>)>,
 ) {
-    let Some(hit) = ctx.scene.intersect(o, d, f32::INFINITY) else { return };
-    let bsdf = ctx.scene.bsdf(&hit);
+    let scene = ctx.scene;
+    let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
+    if scene.has_index_matched() && scene.index_matched(&hit).is_some() {
+        let m2 = scene.medium_after(&hit, d, medium);
+        return diffuse_points(ctx, scene.offset_origin(hit.p, hit.ng, d), d, depth, m2, out);
+    }
+    let bsdf = scene.bsdf(&hit);
     if !bsdf.is_specular() {
-        out.push((hit, -d));
+        out.push((hit, -d, medium));
         return;
     }
     if depth >= ctx.cfg.max_depth {
         return;
     }
     let [Some(refl), refr] = bsdf.specular_branches(-d, hit.ns, glam::Vec2::ZERO) else { return };
-    let mut go = |wi: Vec3| diffuse_points(ctx, ctx.scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, out);
+    let mut go = |wi: Vec3| {
+        let m2 = if scene.has_media() { scene.medium_after(&hit, wi, medium) } else { None };
+        diffuse_points(ctx, scene.offset_origin(hit.p, hit.ng, wi), wi, depth + 1, m2, out)
+    };
     match refr {
         Some(t) if depth < SPLIT_DEPTH => {
             go(refl.wi);

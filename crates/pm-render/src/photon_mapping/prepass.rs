@@ -23,6 +23,7 @@ impl IrradianceCache {
         let (w, h) = (film.width as usize, film.height as usize);
         let aspect = film.width as f32 / film.height as f32;
         let mut step = 32usize;
+        let eye_medium = if pm.scene.has_media() { pm.scene.eye_medium(camera.position) } else { None };
         loop {
             let pts: Vec<usize> = (0..h)
                 .step_by(step)
@@ -35,10 +36,10 @@ impl IrradianceCache {
                     let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
                     let d = camera.ray_direction(x / w as f32, y / h as f32, aspect);
                     let mut points = Vec::new();
-                    diffuse_points(pm, camera.position, d, 0, &mut points);
+                    diffuse_points(pm, camera.position, d, 0, eye_medium, &mut points);
                     let mut scratch = Scratch::default();
                     let cache = &cache;
-                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo))| {
+                    points.into_iter().enumerate().filter_map(move |(b, (hit, wo, medium))| {
                         let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
                         if cache.lookup(hit.p, ns, 1.0).is_some() {
                             return None;
@@ -48,13 +49,22 @@ impl IrradianceCache {
                         // use the photon-map estimate there (same test, same result).
                         if cfg.indirect_threshold > 0.0 {
                             let bsdf = pm.scene.bsdf(&hit);
-                            let direct = pm.light.direct(&hit, &bsdf, wo, &mut s, cfg.light_samples);
+                            let direct = pm.light.direct(&hit, &bsdf, wo, &mut s, cfg.light_samples, medium);
                             if cheap_indirect(pm, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
                                 return None;
                             }
                         }
-                        let g =
-                            final_gather(pm, hit.p, ns, ng, cfg.gather_rays, &mut s, GatherFor::Record, &mut scratch);
+                        let g = final_gather(
+                            pm,
+                            hit.p,
+                            ns,
+                            ng,
+                            medium,
+                            cfg.gather_rays,
+                            &mut s,
+                            GatherFor::Record,
+                            &mut scratch,
+                        );
                         Some((hit.p, ns, g))
                     })
                 })
