@@ -190,6 +190,7 @@ impl RenderParams {
             sppm_alpha: d.sppm_alpha,
             sppm_radius_rel_diag: d.sppm_radius_rel_diag,
             sppm_boundary_probes: d.sppm_boundary_probes,
+            volume_light_samples: d.volume_light_samples,
             ..self.clone()
         })
     }
@@ -198,9 +199,10 @@ impl RenderParams {
 /// The settings that shape an irradiance cache, said once: render parameters with
 /// every value that cannot shape a cache at its default (how the image is sampled
 /// and shown: spp, contrast, mode, exposure; the caustic estimate: caustic_k,
-/// caustic_radius_rel_diag; progressive photon mapping's, which has no cache).
-/// What remains is the image size (the prepass samples
-/// the image), the final gather's settings, the global map's estimate, the cache's
+/// caustic_radius_rel_diag; progressive photon mapping's, which has no cache; the
+/// single-scattering samples of eye rays, volume_light_samples). What remains is
+/// the image size (the prepass samples the image), the final gather's settings,
+/// the global map's estimate, the volume map's (gather rays read it), the cache's
 /// accuracy and spacing, direct light and the specular depth. The runner's cache
 /// step takes exactly these ([`Self::render_params`]), so a change of anything
 /// else re-runs only the render; a cache file records them ([`Self::key`]) and a
@@ -221,7 +223,7 @@ impl CacheSettings {
         format!(
             "width={} height={} seed={} gather_rays={} secondary_rays={} secondary_distance_m={} lookup={} k={} \
              max_radius_m={} icache_accuracy={} icache_spacing_m={},{} indirect_threshold={} light_samples={} \
-             max_depth={}",
+             max_depth={} volume_estimate={} volume_k={} volume_radius_m={} volume_step_m={}",
             film.width,
             film.height,
             film.seed,
@@ -236,7 +238,11 @@ impl CacheSettings {
             self.0.icache_max_spacing_rel_diag * diag,
             self.0.indirect_threshold,
             self.0.light_samples,
-            self.0.max_depth
+            self.0.max_depth,
+            self.0.volume_estimate,
+            self.0.volume_k,
+            self.0.volume_radius_rel_diag * diag,
+            self.0.volume_step_rel_diag * diag
         )
     }
 }
@@ -405,6 +411,7 @@ mod tests {
         let text = &args[at];
         let mut candidates: Vec<String> = Method::value_variants().iter().map(|v| v.to_string()).collect();
         candidates.extend(Lookup::value_variants().iter().map(|v| v.to_string()));
+        candidates.extend(VolumeEstimate::value_variants().iter().map(|v| v.to_string()));
         if let Ok(i) = text.parse::<u64>() {
             candidates.insert(0, (i + 1).to_string());
         } else if let Ok(f) = text.parse::<f64>() {
@@ -443,7 +450,7 @@ mod tests {
             assert_eq!(p.cache_settings().render_params().cache_settings(), p.cache_settings(), "{field}");
             if resolved(&p) != resolved(&base) && !in_settings {
                 assert!(
-                    ["caustic_k", "caustic_radius_rel_diag"].contains(field),
+                    ["caustic_k", "caustic_radius_rel_diag", "volume_light_samples"].contains(field),
                     "{field} changes what the integrator resolves but not the cache settings"
                 );
             }
@@ -451,8 +458,8 @@ mod tests {
         }
         assert_eq!(
             shaping,
-            RenderParams::FIELDS.len() - 11,
-            "spp, contrast, mode, exposure, the caustic two and progressive photon mapping's five"
+            RenderParams::FIELDS.len() - 12,
+            "spp, contrast, mode, exposure, the caustic two, progressive photon mapping's five and single scattering's light samples"
         );
     }
 }

@@ -564,7 +564,8 @@ impl<'a> Sppm<'a> {
             width: rect.x1 - rect.x0,
             height: rect.y1 - rect.y0,
             total: keep(&whole.total),
-            layers: whole.layers.each_ref().map(|l| keep(l)),
+            // An absent (empty) layer stays absent.
+            layers: whole.layers.each_ref().map(|l| if l.is_empty() { Vec::new() } else { keep(l) }),
             gbuffer: None,
         }
     }
