@@ -160,6 +160,79 @@ fn cornell_boxes() -> Doc {
     doc
 }
 
+/// An index-matched box of fog (smooth transmission with ior 1, so rays pass its
+/// walls without a bounce) from `lo` to `hi`: KHR_materials_volume's extinction
+/// -ln(`colour`) / 1 m and the draft KHR_materials_volume_scatter's multiple-
+/// scattering albedo `albedo` and anisotropy `g`.
+fn fog_box(doc: &mut Doc, lo: [f32; 3], hi: [f32; 3], colour: f64, albedo: f64, g: f64) {
+    let fog = doc.material(json!({
+        "name": "fog",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {
+            "KHR_materials_transmission": {"transmissionFactor": 1.0},
+            "KHR_materials_ior": {"ior": 1.0},
+            "KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationDistance": 1.0,
+                "attenuationColor": [colour, colour, colour]},
+            "KHR_materials_volume_scatter": {"scatterAlbedo": [albedo, albedo, albedo], "scatterAnisotropy": g}
+        }
+    }));
+    doc.extensions.extend([
+        "KHR_materials_transmission",
+        "KHR_materials_ior",
+        "KHR_materials_volume",
+        "KHR_materials_volume_scatter",
+    ]);
+    let (c, e) = ([(lo[0] + hi[0]) / 2.0, (lo[2] + hi[2]) / 2.0], [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]]);
+    // A block has no bottom (it stands on a floor); the fog's box is closed.
+    let (hx, hz) = (e[0] / 2.0, e[2] / 2.0);
+    let bottom = quad(
+        [c[0] - hx, 0.0, c[1] - hz],
+        [c[0] + hx, 0.0, c[1] - hz],
+        [c[0] + hx, 0.0, c[1] + hz],
+        [c[0] - hx, 0.0, c[1] + hz],
+    );
+    let mut b = merge(&[block(c[0], c[1], e[0], e[1], e[2], 0.0), bottom]);
+    for q in &mut b.p {
+        q[1] += lo[1];
+    }
+    doc.mesh_node("fog_box", &b, fog);
+}
+
+/// The Cornell box with two blocks, its room filled with a box of fog just inside
+/// the walls (sigma_t = -ln 0.72 = 0.33 / m, multiple-scattering albedo 0.7: a
+/// single-scattering albedo of 0.976, g = 0.3); the light, the camera and the
+/// walls are outside it.
+fn cornell_fog() -> Doc {
+    let mut doc = cornell_boxes();
+    fog_box(&mut doc, [-0.999, 0.001, -0.999], [0.999, 1.997, 0.999], 0.72, 0.7, 0.3);
+    doc
+}
+
+/// A volumetric caustic: a small bright square light 2.9 m above a glass sphere
+/// (radius 0.5 m, ior 1.5) in a room-sized box of fog over a grey floor; the
+/// sphere focuses the light into a cone of brighter fog below it (L S+ V paths,
+/// which only photons carry: the light's single scattering cannot see through the
+/// glass).
+fn volumetric_caustic() -> Doc {
+    let mut doc = Doc::default();
+    let grey = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
+    doc.mesh_node("floor", &quad([-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0], [-3.0, 0.0, -3.0]), grey);
+    let light = doc.material(lambertian(json!({
+        "name": "lamp",
+        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "emissiveFactor": [1.0, 1.0, 1.0],
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 200.0}}
+    })));
+    doc.extensions.push("KHR_materials_emissive_strength");
+    let (s, y) = (0.15, 2.9);
+    doc.mesh_node("lamp", &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]), light);
+    let (_, glass) = chrome_and_glass(&mut doc, 1.0);
+    doc.mesh_node("glass_sphere", &sphere([0.0, 1.6, 0.0], 0.5, 48, 24, false), glass);
+    fog_box(&mut doc, [-2.5, 0.001, -2.5], [2.5, 2.8, 2.5], 0.85, 0.8, 0.0);
+    doc.camera([0.0f32, 1.3, 5.0], None, 0.75, 1.0);
+    doc
+}
+
 /// Closed sphere of radius 1 seen from its centre; albedo 0.8 and emission 1 on the
 /// inside, so the radiance is Le / (1 - rho) = 5 everywhere and the irradiance 5 pi.
 /// Flat-shaded: interpolated normals would bend the Lambertian lobe away from the
@@ -742,6 +815,8 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
     for (name, doc) in [
         ("cornell_spheres", cornell_spheres()),
         ("cornell_boxes", cornell_boxes()),
+        ("cornell_fog", cornell_fog()),
+        ("volumetric_caustic", volumetric_caustic()),
         ("furnace", furnace()),
         ("plane_point", plane_point()),
         ("caustic_ring", caustic_ring()),

@@ -56,6 +56,20 @@ fn kind_name(b: &Bsdf) -> &'static str {
     }
 }
 
+/// The first hit along a ray that is not an index-matched boundary (a fog box's
+/// walls, which light passes straight through).
+fn first_hit(scene: &Scene, o: glam::Vec3, d: glam::Vec3) -> Option<pm_scene::Hit> {
+    if !scene.has_index_matched() {
+        return scene.intersect(o, d, f32::INFINITY);
+    }
+    scene.intersect_through(o, d, None).0
+}
+
+/// True when material `m` is an index-matched boundary (smooth transmission, ior 1).
+fn index_matched(m: &pm_scene::Material) -> bool {
+    matches!(m.bsdf, Bsdf::Glass { eta: 1.0, .. })
+}
+
 /// Analyse a scene (see [`Effects`]).
 pub fn analyze(scene: &Scene) -> Effects {
     let object_of = |tri: u32| scene.objects.iter().position(|o| o.tris.contains(&tri));
@@ -65,7 +79,10 @@ pub fn analyze(scene: &Scene) -> Effects {
 
     // Caustics: aim probe rays from every light at every specular object.
     let specular_objects: Vec<usize> = (0..scene.objects.len())
-        .filter(|&o| scene.materials[scene.objects[o].material as usize].bsdf.is_specular())
+        .filter(|&o| {
+            let m = &scene.materials[scene.objects[o].material as usize];
+            m.bsdf.is_specular() && !index_matched(m)
+        })
         .collect();
     let caustics = if specular_objects.is_empty() {
         Decision::no("no mirror or glass surface".into())
@@ -81,7 +98,7 @@ pub fn analyze(scene: &Scene) -> Effects {
                     let Some(ray) = scene.lights[l].sample_emission_toward(scene, &mut s, &[target]) else {
                         return false;
                     };
-                    scene.intersect(ray.origin, ray.dir, f32::INFINITY).is_some_and(|h| object_of(h.tri) == Some(o))
+                    first_hit(scene, ray.origin, ray.dir).is_some_and(|h| object_of(h.tri) == Some(o))
                 });
                 if hit {
                     reached.push((o, l));
@@ -119,7 +136,7 @@ pub fn analyze(scene: &Scene) -> Effects {
             let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
             let (mut o, mut d) = (ray.origin, ray.dir);
             for _ in 0..8 {
-                let Some(h) = scene.intersect(o, d, f32::INFINITY) else { continue 'probe };
+                let Some(h) = first_hit(scene, o, d) else { continue 'probe };
                 let bsdf = scene.bsdf(&h);
                 if bsdf.is_specular() {
                     let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { continue 'probe };
@@ -130,7 +147,7 @@ pub fn analyze(scene: &Scene) -> Effects {
                 let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
                 let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
                 let o2 = scene.offset_origin(h.p, h.ng, d2);
-                if let Some(h2) = scene.intersect(o2, d2, f32::INFINITY)
+                if let Some(h2) = first_hit(scene, o2, d2)
                     && !is_specular(h2.tri)
                 {
                     pair = Some((h.tri, h2.tri));
@@ -158,7 +175,7 @@ pub fn analyze(scene: &Scene) -> Effects {
                 for i in 0..48 {
                     let aspect = cam.aspect.unwrap_or(1.0);
                     let d = cam.ray_direction((i as f32 + 0.5) / 48.0, (j as f32 + 0.5) / 48.0, aspect);
-                    if let Some(h) = scene.intersect(cam.position, d, f32::INFINITY)
+                    if let Some(h) = first_hit(scene, cam.position, d)
                         && is_specular(h.tri)
                     {
                         let n = name(h.tri);
@@ -214,6 +231,13 @@ pub fn analyze(scene: &Scene) -> Effects {
         .collect::<Vec<_>>()
         .join(", ");
     let volume = volume_reached(scene);
+    // Light scattered in a medium lights the surfaces too: indirect light that
+    // final gathers (reading the volume map along their rays) bring.
+    let indirect = if !indirect.yes && volume.yes && any_diffuse {
+        Decision::yes(format!("light scattered in the medium ({}) reaches the surfaces", volume.reason))
+    } else {
+        indirect
+    };
     Effects { caustics, indirect, specular_seen, glossy, volume, direct }
 }
 
