@@ -197,6 +197,14 @@ pub fn sphere(out: &mut Vec<pm_scene::Triangle>, c: glam::Vec3, r: f32, inward: 
     }
 }
 
+/// A square perspective camera at `position` looking straight down (-y), image up
+/// toward -z, of vertical field of view `yfov` [radians] ([`camera`] cannot look
+/// along its up axis).
+pub fn camera_looking_down(position: glam::Vec3, yfov: f32) -> pm_scene::Camera {
+    use glam::Vec3;
+    pm_scene::Camera { position, forward: Vec3::NEG_Y, up: Vec3::NEG_Z, right: Vec3::X, yfov, aspect: Some(1.0) }
+}
+
 /// A perspective camera at `position` looking at `target` (y up), 60 degrees.
 pub fn camera(position: glam::Vec3, target: glam::Vec3) -> pm_scene::Camera {
     let forward = (target - position).normalize();

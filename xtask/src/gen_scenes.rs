@@ -96,6 +96,19 @@ fn lambertian(mut m: Value) -> Value {
     m
 }
 
+/// A white-emitting Lambertian material (albedo 0.8) of radiance `strength`
+/// [W sr^-1 m^-2 per channel], through KHR_materials_emissive_strength.
+fn emitter(doc: &mut Doc, name: &str, strength: f64) -> usize {
+    let m = doc.material(lambertian(json!({
+        "name": name,
+        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "emissiveFactor": [1.0, 1.0, 1.0],
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}
+    })));
+    doc.extensions.push("KHR_materials_emissive_strength");
+    m
+}
+
 /// The Cornell box shell: floor, ceiling, back, left (red), right (blue), and a square
 /// ceiling light of side 0.5 m. Box interior [-1,1] x [0,2] x [-1,1] metres; the light
 /// has radiance 12 W sr^-1 m^-2 (power pi * 12 * 0.25 = 9.4 W per channel).
@@ -103,13 +116,7 @@ fn cornell_shell(doc: &mut Doc) {
     let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
     let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
     let blue = doc.material(diffuse("blue", [0.12, 0.2, 0.75]));
-    let light = doc.material(lambertian(json!({
-        "name": "ceiling_light",
-        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "emissiveFactor": [1.0, 1.0, 1.0],
-        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 12.0}}
-    })));
-    doc.extensions.push("KHR_materials_emissive_strength");
+    let light = emitter(doc, "ceiling_light", 12.0);
     let (l, h) = (1.0, 2.0);
     let whites = merge(&[
         quad([-l, 0.0, l], [l, 0.0, l], [l, 0.0, -l], [-l, 0.0, -l]), // floor, +y
@@ -217,13 +224,7 @@ fn volumetric_caustic() -> Doc {
     let mut doc = Doc::default();
     let grey = doc.material(diffuse("floor", [0.5, 0.5, 0.5]));
     doc.mesh_node("floor", &quad([-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0], [-3.0, 0.0, -3.0]), grey);
-    let light = doc.material(lambertian(json!({
-        "name": "lamp",
-        "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "emissiveFactor": [1.0, 1.0, 1.0],
-        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 200.0}}
-    })));
-    doc.extensions.push("KHR_materials_emissive_strength");
+    let light = emitter(&mut doc, "lamp", 200.0);
     let (s, y) = (0.15, 2.9);
     doc.mesh_node("lamp", &quad([-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]), light);
     let (_, glass) = chrome_and_glass(&mut doc, 1.0);

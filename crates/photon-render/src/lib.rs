@@ -183,34 +183,21 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let needs_global = !matches!(mode, Method::Path | Method::Sppm) && (indirect || !full);
     let needs_irradiance =
         matches!(mode, Method::Full | Method::Indirect | Method::Radiance) && p.gather_lookup == Lookup::Precomputed;
-    let caustic = match (&cli.caustic, full) {
-        (Some(path), true) => {
-            let expect = ReadExpect {
-                kind: Some(MapKind::Caustic),
-                order: Some(Order::KdTree),
-                scene_hash: Some(scene.content_hash),
-                ..Default::default()
-            };
-            let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
-            pm_stage::verify_kd_tree(path, &map.records)?;
-            Some(map)
-        }
-        _ => None,
+    // The caustic and volume maps: kd-trees of this scene, read as full records.
+    let full_map = |path: &Option<PathBuf>, kind: MapKind| -> Result<Option<pm_format::PhotonMap<FullPhoton>>> {
+        let Some(path) = path.as_ref().filter(|_| full) else { return Ok(None) };
+        let expect = ReadExpect {
+            kind: Some(kind),
+            order: Some(Order::KdTree),
+            scene_hash: Some(scene.content_hash),
+            ..Default::default()
+        };
+        let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
+        pm_stage::verify_kd_tree(path, &map.records)?;
+        Ok(Some(map))
     };
-    let volume = match (&cli.volume, full) {
-        (Some(path), true) => {
-            let expect = ReadExpect {
-                kind: Some(MapKind::Volume),
-                order: Some(Order::KdTree),
-                scene_hash: Some(scene.content_hash),
-                ..Default::default()
-            };
-            let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
-            pm_stage::verify_kd_tree(path, &map.records)?;
-            Some(map)
-        }
-        _ => None,
-    };
+    let caustic = full_map(&cli.caustic, MapKind::Caustic)?;
+    let volume = full_map(&cli.volume, MapKind::Volume)?;
     let mut notes = Vec::new();
     if full && scene.has_scattering_media() && volume.is_none() {
         notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());

@@ -195,7 +195,7 @@ fn gather<R: PhotonRecord>(
 
 /// The photon that defines the radius of the last k-nearest query (the farthest;
 /// the lowest heap index among equals, so the choice is deterministic).
-fn boundary_photon<R: PhotonRecord>(tree: &impl Neighbours<R>, scratch: &KnnScratch) -> Option<u32> {
+pub(crate) fn boundary_photon<R: PhotonRecord>(tree: &impl Neighbours<R>, scratch: &KnnScratch) -> Option<u32> {
     tree.found(scratch).max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))).map(|(i, _)| i)
 }
 

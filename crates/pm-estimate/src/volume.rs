@@ -45,7 +45,7 @@ pub fn inscattered<R: PhotonRecord>(
         return Rgb::ZERO;
     }
     let r2 = res.max_dist2;
-    let boundary = tree.found(scratch).max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))).map(|(i, _)| i);
+    let boundary = crate::boundary_photon(tree, scratch);
     let mut sum = Rgb::ZERO;
     for (i, _) in tree.found(scratch) {
         if Some(i) != boundary {

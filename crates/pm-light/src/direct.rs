@@ -88,10 +88,7 @@ impl<'a> DirectLighting<'a> {
         mis: bool,
         medium: Option<MediumId>,
     ) -> Rgb {
-        match self.unshadowed(hit, bsdf, wo, light_numbers(s), mis) {
-            Some((_, c, o, wi, t_max)) => c * self.scene.transmittance_along(o, wi, t_max, medium),
-            None => Rgb::ZERO,
-        }
+        self.light_sample_at(hit, bsdf, wo, light_numbers(s), mis, medium)
     }
 
     /// [`Self::light_sample`] with its random numbers given: the point on the light

@@ -59,9 +59,6 @@ fn kind_name(b: &Bsdf) -> &'static str {
 /// The first hit along a ray that is not an index-matched boundary (a fog box's
 /// walls, which light passes straight through).
 fn first_hit(scene: &Scene, o: glam::Vec3, d: glam::Vec3) -> Option<pm_scene::Hit> {
-    if !scene.has_index_matched() {
-        return scene.intersect(o, d, f32::INFINITY);
-    }
     scene.intersect_through(o, d, None).0
 }
 

@@ -19,7 +19,7 @@ use pm_color::Rgb;
 use pm_format::{Photon, flags};
 pub use pm_light::{LightSelectError, LightSelector};
 use pm_sampling::{Sampler, mix64};
-use pm_scene::{FreeFlight, Scene, Target};
+use pm_scene::{Flights, FreeFlight, Scene, Target};
 use rayon::prelude::*;
 
 /// Path length limit. Russian roulette ends paths long before this in physical
@@ -210,13 +210,12 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     let mut phi = ray.power / p_sel as f32;
     let (mut o, mut d) = (ray.origin, ray.dir);
     let mut specular_chain = true;
-    // In media: the medium the photon is in, the hero channel its flights are
-    // sampled in and its density ratios (pm_scene::FreeFlight); the power it carries
-    // is phi times `w` = 3 / (sum of the ratios), one without media.
+    // In media: the medium the photon is in and its flights (hero channel,
+    // density ratios); the power it carries is phi times `w`, one without media.
     let media = scene.has_media();
     let mut medium = if media { scene.light_medium(li) } else { None };
-    let hero = if media { ((s.next_1d() * 3.0) as usize).min(2) } else { 0 };
-    let (mut ratio, mut w) = (Rgb::ONE, 1.0f32);
+    let mut flights = Flights::new(if media { s.next_1d() } else { 0.0 });
+    let mut w = 1.0f32;
     // Scattering events so far (surfaces, specular ones included, and points in
     // media; index-matched boundaries are not events).
     let mut events = 0u32;
@@ -227,13 +226,11 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         out.rays += 1;
         let hit = scene.intersect(o, d, f32::INFINITY);
         if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
-            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
             let u = if m.scatters() { s.next_1d() } else { 0.0 };
-            let flight = m.sample_distance(t_seg, hero, u);
-            let (FreeFlight::Through { weight, ratio: r } | FreeFlight::Scatter { weight, ratio: r, .. }) = flight;
+            let flight = flights.fly(m, scene.segment_length(o, d, hit.as_ref()), u);
+            let (FreeFlight::Through { weight, .. } | FreeFlight::Scatter { weight, .. }) = flight;
             phi *= weight;
-            ratio *= r;
-            w = 3.0 / ratio.element_sum();
+            w = flights.weight();
             if let FreeFlight::Scatter { t, .. } = flight {
                 out.reached = true;
                 if cfg.pass == MapPass::Caustic {

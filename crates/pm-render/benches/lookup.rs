@@ -40,6 +40,7 @@ fn main() {
             global: Some(KdTree::with_buckets(&nodes, &buckets)),
             irradiance: Some(KdTree::new(&irr)),
             caustic: None,
+            volume: None,
         };
         let p = RenderParams { gather_lookup: lookup, ..params.clone() };
         PhotonMapping::new(&scene, maps, &p, true).unwrap()

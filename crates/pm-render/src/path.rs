@@ -7,7 +7,7 @@ use glam::Vec3;
 use pm_color::{Layer, Rgb};
 use pm_light::{DirectLighting, power_heuristic};
 use pm_sampling::Sampler;
-use pm_scene::{FreeFlight, Scene};
+use pm_scene::{Flights, FreeFlight, Scene};
 use std::sync::atomic::Ordering::Relaxed;
 
 /// The path tracer: needs the scene and its lights, no photon map.
@@ -102,30 +102,24 @@ fn path_radiance(
     let mut d1_in_medium = false;
     let mut n_diffuse = 0u32;
     let media = scene.has_media();
-    let mut medium = if media { scene.eye_medium(o) } else { None };
-    // In media: the hero channel distances are sampled in, and the path's density
-    // in each channel over the hero's (`FreeFlight`); `w` = 1 / their mean is what
+    let mut medium = scene.eye_medium(o);
+    // In media: the path's flights (hero channel, density ratios); `w` is what
     // every contribution and the roulette weigh by (one without media).
-    let hero = if media { ((s.next_1d() * 3.0) as usize).min(2) } else { 0 };
-    let mut ratio = Rgb::ONE;
+    let mut flights = Flights::new(if media { s.next_1d() } else { 0.0 });
     let mut w = 1.0f32;
     let mut eye_ray = true;
     for depth in 0..MAX_PATH {
         let hit = if depth == 0 { first.resolve(scene, o, d) } else { scene.intersect(o, d, f32::INFINITY) };
         // The segment's medium: scatter inside it, or attenuate what lies beyond.
         if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
-            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+            let t_seg = scene.segment_length(o, d, hit.as_ref());
             let u = if m.scatters() { s.next_1d() } else { 0.0 };
-            match m.sample_distance(t_seg, hero, u) {
-                FreeFlight::Through { weight, ratio: r } => {
+            let flight = flights.fly(m, t_seg, u);
+            w = flights.weight();
+            match flight {
+                FreeFlight::Through { weight, .. } => beta *= weight,
+                FreeFlight::Scatter { t, weight, .. } => {
                     beta *= weight;
-                    ratio *= r;
-                    w = 3.0 / ratio.element_sum();
-                }
-                FreeFlight::Scatter { t, weight, ratio: r } => {
-                    beta *= weight;
-                    ratio *= r;
-                    w = 3.0 / ratio.element_sum();
                     eye_ray = false;
                     let p = o + d * t;
                     let wo = -d;
@@ -135,13 +129,7 @@ fn path_radiance(
                         volume_or(d1_in_medium, specular_before_d1, layer_of_light_at(specular_before_d1, n_diffuse));
                     l.add_to(nee_layer, beta * w * light.medium_sample(p, wo, &m.phase, medium, s, true));
                     let ps = m.phase.sample(wo, s.next_2d());
-                    let sampled = if specular_before_d1 {
-                        Layer::Specular
-                    } else if n_diffuse >= 2 {
-                        Layer::Indirect
-                    } else {
-                        Layer::Direct
-                    };
+                    let sampled = layer_of_sampled(specular_before_d1, n_diffuse, false);
                     emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
                     prev_pdf = ps.pdf;
                     prev_specular = false;
@@ -211,15 +199,7 @@ fn path_radiance(
         if same_side == bs.transmitted {
             return l;
         }
-        let sampled = if specular_before_d1 {
-            Layer::Specular
-        } else if n_diffuse >= 2 {
-            Layer::Indirect
-        } else if specular {
-            Layer::Caustic // D1, then specular bounces only
-        } else {
-            Layer::Direct // sampled from D1 itself
-        };
+        let sampled = layer_of_sampled(specular_before_d1, n_diffuse, specular);
         emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
         beta *= bs.weight;
         prev_pdf = bs.pdf;
@@ -236,6 +216,21 @@ fn path_radiance(
     }
     counters.terminated_paths.fetch_add(1, Relaxed);
     l
+}
+
+/// The layer of emission found along a direction sampled at a vertex (a surface,
+/// `specular` or not, or a point in a medium) after `n_diffuse` non-specular
+/// vertices.
+fn layer_of_sampled(specular_before_d1: bool, n_diffuse: u32, specular: bool) -> Layer {
+    if specular_before_d1 {
+        Layer::Specular
+    } else if n_diffuse >= 2 {
+        Layer::Indirect
+    } else if specular {
+        Layer::Caustic // D1, then specular bounces only
+    } else {
+        Layer::Direct // sampled from D1 itself
+    }
 }
 
 /// `layer`, or the volume layer for a path whose first non-specular vertex is in a

@@ -330,8 +330,7 @@ fn read_material(
             }
             None => (Rgb::ZERO, 0.0),
         };
-        let volume = crate::Medium::from_attenuation(name.clone(), c, d, albedo, g)
-            .map_err(|e| e.replace(&format!("medium '{name}'"), &format!("material '{name}': scatter")))?;
+        let volume = crate::Medium::from_attenuation(name.clone(), c, d, albedo, g)?;
         if factors.thin {
             if !volume.is_clear() {
                 warnings.push(format!(

@@ -72,15 +72,10 @@ impl Medium {
     /// negative or not finite, or g is not in (-1, 1).
     pub fn new(name: impl Into<String>, sigma_a: Rgb, sigma_s: Rgb, g: f32) -> Result<Medium, String> {
         let name = name.into();
-        for (what, c) in [("sigma_a", sigma_a), ("sigma_s", sigma_s)] {
-            if !pm_color::is_valid(c) {
-                return Err(format!("medium '{name}': {what} {c} must be finite and >= 0 [m^-1]"));
-            }
+        match invalid(sigma_a, sigma_s, g) {
+            Some(why) => Err(format!("medium '{name}': {why}")),
+            None => Ok(Medium { name, sigma_a, sigma_s, phase: HenyeyGreenstein { g } }),
         }
-        if !(g > -1.0 && g < 1.0) {
-            return Err(format!("medium '{name}': g {g} must be in (-1, 1)"));
-        }
-        Ok(Medium { name, sigma_a, sigma_s, phase: HenyeyGreenstein { g } })
     }
 
     /// A medium from KHR_materials_volume's attenuation colour c and distance d
@@ -94,7 +89,11 @@ impl Medium {
         }
         let sigma_t = if d.is_finite() { -c.min(Rgb::ONE).max(Rgb::splat(1e-6)).ln() / d } else { Rgb::ZERO };
         let albedo = albedo.clamp(Rgb::ZERO, Rgb::ONE);
-        Medium::new(name, sigma_t * (Rgb::ONE - albedo), sigma_t * albedo, g)
+        let (sigma_a, sigma_s) = (sigma_t * (Rgb::ONE - albedo), sigma_t * albedo);
+        match invalid(sigma_a, sigma_s, g) {
+            Some(why) => Err(format!("material '{name}': scatter {why}")),
+            None => Ok(Medium { name, sigma_a, sigma_s, phase: HenyeyGreenstein { g } }),
+        }
     }
 
     /// Extinction coefficient sigma_t = sigma_a + sigma_s [m^-1 per channel].
@@ -159,6 +158,51 @@ impl Medium {
             FreeFlight::Through { weight: Rgb::ZERO, ratio: Rgb::ONE }
         }
     }
+}
+
+/// A path's free flights through media with spectral MIS: the hero channel its
+/// distances are sampled in (chosen once per path) and its density in each channel
+/// over the hero's, multiplied over its flights; what it carries is weighed by
+/// [`Flights::weight`].
+#[derive(Clone, Copy, Debug)]
+pub struct Flights {
+    hero: usize,
+    ratio: Rgb,
+}
+
+impl Flights {
+    /// A path whose hero channel `u` in [0, 1) picks (channel floor(3u)).
+    pub fn new(u: f32) -> Flights {
+        Flights { hero: ((u * 3.0) as usize).min(2), ratio: Rgb::ONE }
+    }
+
+    /// One flight over a segment of `t_seg` metres of medium `m`
+    /// ([`Medium::sample_distance`] in the hero channel, `u` uniform), its density
+    /// ratios taken in.
+    pub fn fly(&mut self, m: &Medium, t_seg: f32, u: f32) -> FreeFlight {
+        let flight = m.sample_distance(t_seg, self.hero, u);
+        let (FreeFlight::Through { ratio, .. } | FreeFlight::Scatter { ratio, .. }) = flight;
+        self.ratio *= ratio;
+        flight
+    }
+
+    /// The factor the path's weights are multiplied by: 3 over the sum of its
+    /// ratios (one before any flight and in grey media).
+    #[inline]
+    pub fn weight(&self) -> f32 {
+        3.0 / self.ratio.element_sum()
+    }
+}
+
+/// Why coefficients sigma_a, sigma_s [m^-1] and asymmetry g make no medium (a
+/// coefficient negative or not finite, g outside (-1, 1)), if they do not.
+fn invalid(sigma_a: Rgb, sigma_s: Rgb, g: f32) -> Option<String> {
+    for (what, c) in [("sigma_a", sigma_a), ("sigma_s", sigma_s)] {
+        if !pm_color::is_valid(c) {
+            return Some(format!("{what} {c} must be finite and >= 0 [m^-1]"));
+        }
+    }
+    (!(g > -1.0 && g < 1.0)).then(|| format!("g {g} must be in (-1, 1)"))
 }
 
 /// a / b, zero where b is.
@@ -227,13 +271,6 @@ impl Scene {
         self.layout.scattering
     }
 
-    /// True when some material is an index-matched boundary
-    /// ([`Self::index_matched`]): an integrator that finds none skips the test.
-    #[inline]
-    pub fn has_index_matched(&self) -> bool {
-        self.layout.index_matched
-    }
-
     /// The medium filling the scene, if any.
     pub fn scene_medium(&self) -> Option<MediumId> {
         self.layout.scene
@@ -259,6 +296,9 @@ impl Scene {
     /// surface.
     #[inline]
     pub fn index_matched(&self, hit: &Hit) -> Option<Rgb> {
+        if !self.layout.index_matched {
+            return None;
+        }
         match self.uniform_bsdf(hit.tri) {
             Some(pm_bsdf::Bsdf::Glass { eta: 1.0, tint, .. }) => Some(tint),
             _ => None,
@@ -275,33 +315,10 @@ impl Scene {
         if !self.has_media() && !self.layout.index_matched {
             return if self.occluded(o, d, t_max) { Rgb::ZERO } else { Rgb::ONE };
         }
-        let (mut o, mut left, mut cur, mut tr) = (o, t_max, medium, Rgb::ONE);
-        for _ in 0..WALK_HITS {
-            let hit = self.intersect(o, d, left);
-            let Some(hit) = hit else {
-                if let Some(m) = self.medium(cur) {
-                    let seg = if left.is_finite() { left } else { self.escape_distance(o, d) };
-                    tr *= m.transmittance(seg);
-                }
-                return tr;
-            };
-            let Some(tint) = self.index_matched(&hit) else { return Rgb::ZERO };
-            if let Some(m) = self.medium(cur) {
-                tr *= m.transmittance(hit.t);
-            }
-            tr *= tint;
-            if tr.max_element() <= 0.0 {
-                return Rgb::ZERO;
-            }
-            cur = self.medium_after(&hit, d, cur);
-            let next = self.offset_origin(hit.p, hit.ng, d);
-            left -= (next - o).dot(d);
-            o = next;
-            if !(left > 0.0) {
-                return tr;
-            }
+        match self.walk_through(o, d, t_max, medium) {
+            (Some(_), ..) => Rgb::ZERO,
+            (None, tr, _) => tr,
         }
-        Rgb::ZERO
     }
 
     /// The first hit along the ray from `o` in unit direction `d` (starting in
@@ -317,22 +334,49 @@ impl Scene {
             let t = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
             return (hit, Rgb::ONE, t);
         }
-        let (mut o, mut cur, mut tr, mut travelled) = (o, medium, Rgb::ONE, 0.0f32);
+        self.walk_through(o, d, f32::INFINITY, medium)
+    }
+
+    /// The walk both of the above take: through index-matched boundaries (their
+    /// colours and the media between them multiplied in, the medium changing at
+    /// each) to the first other surface within `t_max` (infinite: to the world
+    /// sphere's end), returning it, the transmittance up to it (or to the end), and
+    /// the distance from `o` (infinite without a hit). A walk whose transmittance
+    /// falls to zero stops there without a hit.
+    fn walk_through(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>) -> (Option<Hit>, Rgb, f32) {
+        let (mut o, mut left, mut cur, mut tr, mut travelled) = (o, t_max, medium, Rgb::ONE, 0.0f32);
         for _ in 0..WALK_HITS {
-            let hit = self.intersect(o, d, f32::INFINITY);
-            let seg = hit.as_ref().map_or_else(|| self.escape_distance(o, d), |h| h.t);
+            let Some(hit) = self.intersect(o, d, left) else {
+                if let Some(m) = self.medium(cur) {
+                    let seg = if left.is_finite() { left } else { self.segment_length(o, d, None) };
+                    tr *= m.transmittance(seg);
+                }
+                return (None, tr, f32::INFINITY);
+            };
             if let Some(m) = self.medium(cur) {
-                tr *= m.transmittance(seg);
+                tr *= m.transmittance(hit.t);
             }
-            let Some(hit) = hit else { return (None, tr, f32::INFINITY) };
             let Some(tint) = self.index_matched(&hit) else { return (Some(hit), tr, travelled + hit.t) };
             tr *= tint;
+            if tr.max_element() <= 0.0 {
+                return (None, Rgb::ZERO, f32::INFINITY);
+            }
             cur = self.medium_after(&hit, d, cur);
             let next = self.offset_origin(hit.p, hit.ng, d);
-            travelled += (next - o).dot(d);
-            o = next;
+            let step = (next - o).dot(d);
+            (travelled, left, o) = (travelled + step, left - step, next);
+            if !(left > 0.0) {
+                return (None, tr, f32::INFINITY);
+            }
         }
         (None, Rgb::ZERO, f32::INFINITY)
+    }
+
+    /// The length \[m\] of the segment a ray from `o` along unit `d` runs in its
+    /// medium: to `hit`, or without one to the world sphere's end.
+    #[inline]
+    pub fn segment_length(&self, o: Vec3, d: Vec3, hit: Option<&Hit>) -> f32 {
+        hit.map_or_else(|| self.escape_distance(o, d), |h| h.t)
     }
 
     /// The medium at point `p` \[m\] (walking a ray out of the scene: the innermost
@@ -343,9 +387,10 @@ impl Scene {
 
     /// The medium eye rays from `o` start in: the camera's (found when the scene's
     /// media were laid out) for an origin at the scene camera's position, else
-    /// found by [`Self::medium_at`]. `None` at once in a scene without media.
+    /// found by [`Self::medium_at`]. `None` at once in a scene whose media are all
+    /// clear (nothing to track).
     pub fn eye_medium(&self, o: Vec3) -> Option<MediumId> {
-        if self.media.is_empty() {
+        if !self.has_media() {
             return None;
         }
         match &self.camera {
@@ -487,6 +532,14 @@ impl Scene {
             self.materials.iter().any(|m| matches!(m.bsdf, pm_bsdf::Bsdf::Glass { eta, .. } if eta == 1.0));
     }
 
+    /// A point just in front of triangle `tri`'s centroid (offset along its
+    /// geometric normal) and that normal.
+    fn in_front_of(&self, tri: u32) -> (Vec3, Vec3) {
+        let t = &self.triangles[tri as usize];
+        let (c, ng) = ((t.p[0] + t.p[1] + t.p[2]) / 3.0, t.ng());
+        (self.offset_origin(c, ng, ng), ng)
+    }
+
     /// Find, by walks out of the scene, the medium outside each mesh that bounds
     /// one (from just in front of one of its triangles, the mesh itself left out),
     /// at the camera and at each light: after the media are set, and again whenever
@@ -507,20 +560,14 @@ impl Scene {
             if self.materials[obj.material as usize].interior.is_none() {
                 continue;
             }
-            let tri = &self.triangles[obj.tris.start as usize];
-            let (c, ng) = ((tri.p[0] + tri.p[1] + tri.p[2]) / 3.0, tri.ng());
-            let p = self.offset_origin(c, ng, ng);
+            let (p, ng) = self.in_front_of(obj.tris.start);
             self.layout.outside[o] = self.medium_walk(p, ng, Some(o as u32));
         }
         self.layout.camera = self.camera.as_ref().map(|c| c.position).and_then(|p| self.medium_at(p));
         self.layout.lights = (0..self.lights.len())
             .map(|li| match &self.lights[li].kind {
                 LightKind::Point { position, .. } | LightKind::Spot { position, .. } => self.medium_at(*position),
-                LightKind::Area { tris, .. } if !tris.is_empty() => {
-                    let tri = &self.triangles[tris.start as usize];
-                    let (c, ng) = ((tri.p[0] + tri.p[1] + tri.p[2]) / 3.0, tri.ng());
-                    self.medium_at(self.offset_origin(c, ng, ng))
-                }
+                LightKind::Area { tris, .. } if !tris.is_empty() => self.medium_at(self.in_front_of(tris.start).0),
                 _ => self.layout.scene,
             })
             .collect();

@@ -383,14 +383,7 @@ fn over_floor(mut tris: Vec<pm_scene::Triangle>, m: pm_scene::Material, floor_em
         },
         power: Rgb::ZERO,
     });
-    let camera = pm_scene::Camera {
-        position: Vec3::new(0.5, 3.0, 0.5),
-        forward: Vec3::NEG_Y,
-        up: Vec3::NEG_Z,
-        right: Vec3::X,
-        yfov: 0.1,
-        aspect: Some(1.0),
-    };
+    let camera = pm_tests::camera_looking_down(Vec3::new(0.5, 3.0, 0.5), 0.1);
     Scene::from_parts(tris, vec![m, floor], sun.into_iter().collect(), Some(camera))
 }
 

@@ -40,14 +40,7 @@ fn beer_lambert_through_a_slab_per_channel() {
         }
         let walls = material("slab walls", Bsdf::Glass { eta: 1.0, tint: Rgb::ONE, thin: false }, 0.0);
         let floor = material("floor", Bsdf::Lambert { rho: Rgb::ZERO }, 1.0);
-        let cam = pm_scene::Camera {
-            position: Vec3::new(0.5, 3.0, 0.5),
-            forward: Vec3::NEG_Y,
-            up: Vec3::NEG_Z,
-            right: Vec3::X,
-            yfov: 0.1,
-            aspect: Some(1.0),
-        };
+        let cam = pm_tests::camera_looking_down(Vec3::new(0.5, 3.0, 0.5), 0.1);
         let mut scene = Scene::from_parts(tris, vec![walls, floor], vec![], Some(cam));
         scene.set_medium("slab walls", Medium::new("slab", sigma_a, sigma_s, 0.3).unwrap()).unwrap();
         scene.finish_media().unwrap();
@@ -359,7 +352,7 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
         ("sigma_a = [nan, 0.0, 0.0]", "sigma_a"),
     ] {
         std::fs::write(&p, format!("{base}\n[media.scene]\n{table}\n")).unwrap();
-        let e = pm_pipeline::Pipeline::load(&p).err().expect("refused").to_string();
+        let e = pm_pipeline::Pipeline::load(&p).expect_err("refused").to_string();
         assert!(e.contains("fog.toml") && e.contains("[media.scene]") && e.contains(what) && !e.contains('\n'), "{e}");
     }
 }

@@ -150,7 +150,7 @@ fn gather_radiance<G: PhotonRecord>(
     while bounce < ctx.cfg.max_depth.max(1) && passed < 1024 {
         let hit = scene.intersect(o, d, f32::INFINITY);
         if media && let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
-            let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+            let t_seg = scene.segment_length(o, d, hit.as_ref());
             if m.scatters() {
                 l += beta * super::volume::multiple(ctx, o, d, t_seg, m, true, s, scratch);
             }
@@ -163,9 +163,7 @@ fn gather_radiance<G: PhotonRecord>(
         if bounce == 0 && first_t == f32::INFINITY {
             first_t = hit.t;
         }
-        if scene.has_index_matched()
-            && let Some(tint) = scene.index_matched(&hit)
-        {
+        if let Some(tint) = scene.index_matched(&hit) {
             beta *= tint;
             medium = scene.medium_after(&hit, d, medium);
             o = scene.offset_origin(hit.p, hit.ng, d);

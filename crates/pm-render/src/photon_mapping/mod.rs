@@ -138,7 +138,7 @@ macro_rules! photon_map_integrator {
                 let $pm = self;
                 let pm = $get;
                 let hit = first.resolve(pm.scene, o, d);
-                let medium = if pm.scene.has_media() { pm.scene.eye_medium(o) } else { None };
+                let medium = pm.scene.eye_medium(o);
                 trace_from(pm, &($shade as Shade<G>), o, hit, d, 0, medium, s, scratch, vs)
             }
             fn volume(&self) -> bool {
@@ -268,7 +268,7 @@ fn trace_from<G: PhotonRecord>(
                 Components { specular: l, ..Default::default() }
             }
         }
-        Some(h) => match scene.has_index_matched().then(|| scene.index_matched(h)).flatten() {
+        Some(h) => match scene.index_matched(h) {
             Some(tint) => {
                 // Straight through, into the medium beyond.
                 let o2 = scene.offset_origin(h.p, h.ng, d);
@@ -284,7 +284,7 @@ fn trace_from<G: PhotonRecord>(
         return if tr == Rgb::ONE { c } else { c.scaled(tr) };
     }
     if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
-        let t_seg = hit.as_ref().map_or_else(|| scene.escape_distance(o, d), |h| h.t);
+        let t_seg = scene.segment_length(o, d, hit.as_ref());
         c = c.scaled(m.transmittance(t_seg));
         if m.scatters() {
             let l = volume::eye_inscattered(ctx, o, d, t_seg, medium, m, s, scratch);
@@ -460,7 +460,7 @@ pub(crate) fn diffuse_points<G: PhotonRecord>(
 ) {
     let scene = ctx.scene;
     let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { return };
-    if scene.has_index_matched() && scene.index_matched(&hit).is_some() {
+    if scene.index_matched(&hit).is_some() {
         let m2 = scene.medium_after(&hit, d, medium);
         return diffuse_points(ctx, scene.offset_origin(hit.p, hit.ng, d), d, depth, m2, out);
     }

@@ -23,7 +23,7 @@ impl IrradianceCache {
         let (w, h) = (film.width as usize, film.height as usize);
         let aspect = film.width as f32 / film.height as f32;
         let mut step = 32usize;
-        let eye_medium = if pm.scene.has_media() { pm.scene.eye_medium(camera.position) } else { None };
+        let eye_medium = pm.scene.eye_medium(camera.position);
         loop {
             let pts: Vec<usize> = (0..h)
                 .step_by(step)
