@@ -236,14 +236,15 @@ pub fn run(cli: &Cli) -> Result<()> {
     };
     pm_stage::init_threads(cli.threads)?;
     let scene = pm_stage::load_scene("photon-live", scene_path, &cli.scene_args)?;
-    if p.frame.direct == pm_live::DirectMode::ShadowMap {
-        let without = pm_live::lights_without_shadow_maps(&scene);
-        if !without.is_empty() {
-            eprintln!(
-                "photon-live: note: --direct shadow-map: no shadow map for {} (directional, or an area light that is large, curved, two-sided or textured); every light takes shadow rays",
-                without.join(", ")
-            );
-        }
+    if p.frame.direct == pm_live::DirectMode::ShadowMap
+        && let Some(why) = pm_live::why_no_shadow_maps(&scene)
+    {
+        eprintln!("photon-live: note: --direct shadow-map: {why}; every light takes shadow rays");
+    }
+    if scene.has_scattering_media() {
+        eprintln!(
+            "photon-live: note: media attenuate what the eye and the photons see, but the light they scatter toward the eye is left out (no volume layer)"
+        );
     }
     let at_scene = |e: String| anyhow::anyhow!("{}: {e}", scene_path.display());
     match p.method {

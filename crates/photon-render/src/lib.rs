@@ -199,7 +199,9 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let caustic = full_map(&cli.caustic, MapKind::Caustic)?;
     let volume = full_map(&cli.volume, MapKind::Volume)?;
     let mut notes = Vec::new();
-    if full && scene.has_scattering_media() && volume.is_none() {
+    if mode == Method::Sppm && scene.has_scattering_media() {
+        notes.push("--mode sppm: media attenuate the eye paths but their in-scattered light is left out (no volume layer); light they scatter onto surfaces is counted".to_string());
+    } else if full && scene.has_scattering_media() && volume.is_none() {
         notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());
     }
     let global = match (&cli.global, needs_global) {

@@ -14,7 +14,7 @@ use pm_color::Rgb;
 use pm_raster::{self, Fragment};
 use pm_render::Film;
 use pm_sampling::Sampler;
-use pm_scene::{Camera, LightKind, Scene};
+use pm_scene::{Camera, LightKind, MediumId, Scene};
 use rayon::prelude::*;
 
 /// Scattering events a photon path may take after its first bounce before it is cut
@@ -34,6 +34,8 @@ pub struct BouncePhoton {
     pub density: f32,
     /// True when the first bounce was specular (a caustic path so far).
     pub specular: bool,
+    /// The medium it travels in.
+    pub medium: Option<MediumId>,
 }
 
 /// What building the bounce maps did (Figure 10's attrition, and the power test).
@@ -76,11 +78,31 @@ fn rect_solid_angle(u0: f32, u1: f32, v0: f32, v1: f32) -> f32 {
     f(u1, v1) - f(u0, v1) - f(u1, v0) + f(u0, v0)
 }
 
-/// One texel's photon arriving at the first surface: direction, power and the hit.
+/// One texel's photon arriving at the first surface: direction, power as emitted
+/// [W per channel], the transmittance of the media on the way (per channel), the
+/// hit and the medium it arrives in.
 struct Arrival {
     dir: Vec3,
     power: Rgb,
+    tr: Rgb,
     hit: Option<pm_scene::Hit>,
+    medium: Option<MediumId>,
+}
+
+impl Arrival {
+    /// The photon from `origin` along `dir` with power `power` whose first hit is
+    /// `first`, starting in `medium`: on through index-matched boundaries.
+    fn new(
+        scene: &Scene,
+        origin: Vec3,
+        dir: Vec3,
+        power: Rgb,
+        first: Option<pm_scene::Hit>,
+        medium: Option<MediumId>,
+    ) -> Arrival {
+        let pass = scene.pass_from(origin, dir, first, medium);
+        Arrival { dir, power, tr: pass.tr, hit: pass.hit, medium: pass.medium }
+    }
 }
 
 /// The first hits of light `li`'s `res` x `res`-per-face directions with their power
@@ -90,13 +112,16 @@ struct Arrival {
 /// environment lights (which have no centre of projection): as many stratified
 /// emission samples (Sobol') traced through the BVH, each carrying Φ / n (an
 /// environment's photons start on the bounding sphere's disc, so the bounce map's
-/// power stays exact; those that miss the scene carry theirs away).
+/// power stays exact; those that miss the scene carry theirs away). In media a
+/// photon's power is attenuated on its way (Beer-Lambert, through index-matched
+/// boundaries): the real-time methods do not scatter light in media.
 fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
     let light = &scene.lights[li];
+    let medium = scene.light_medium(li);
     match light.kind {
-        LightKind::Point { position, intensity } => cube_arrivals(scene, position, res, |_| intensity),
+        LightKind::Point { position, intensity } => cube_arrivals(scene, position, medium, res, |_| intensity),
         LightKind::Spot { position, direction, intensity, cos_inner, cos_outer } => {
-            let mut v = cube_arrivals(scene, position, res, |d| {
+            let mut v = cube_arrivals(scene, position, medium, res, |d| {
                 intensity * pm_scene::spot_falloff(d.dot(direction), cos_inner, cos_outer)
             });
             let sum: Rgb = v.iter().map(|a| a.power).sum();
@@ -116,10 +141,9 @@ fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
                     match light.sample_emission(scene, &mut s) {
                         Some(ray) => {
                             let hit = scene.intersect(ray.origin, ray.dir, f32::INFINITY);
-                            let tr = hit.as_ref().map_or(Rgb::ONE, |h| scene.transmittance(h, ray.dir));
-                            Arrival { dir: ray.dir, power: ray.power * tr / n as f32, hit }
+                            Arrival::new(scene, ray.origin, ray.dir, ray.power / n as f32, hit, medium)
                         }
-                        None => Arrival { dir: Vec3::Z, power: Rgb::ZERO, hit: None },
+                        None => Arrival { dir: Vec3::Z, power: Rgb::ZERO, tr: Rgb::ONE, hit: None, medium },
                     }
                 })
                 .collect()
@@ -127,8 +151,15 @@ fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
     }
 }
 
-/// The texels of a cube map around `position`, face by face, row by row.
-fn cube_arrivals(scene: &Scene, position: Vec3, res: u32, intensity: impl Fn(Vec3) -> Rgb + Sync) -> Vec<Arrival> {
+/// The texels of a cube map around `position` (in `medium`), face by face, row by
+/// row.
+fn cube_arrivals(
+    scene: &Scene,
+    position: Vec3,
+    medium: Option<MediumId>,
+    res: u32,
+    intensity: impl Fn(Vec3) -> Rgb + Sync,
+) -> Vec<Arrival> {
     let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
     let mut frags: Vec<Option<Fragment>> = Vec::new();
     let mut out = Vec::with_capacity(6 * (res * res) as usize);
@@ -153,7 +184,7 @@ fn cube_arrivals(scene: &Scene, position: Vec3, res: u32, intensity: impl Fn(Vec
             let v0 = v1 - step;
             let dir = (forward + right * (u0 + 0.5 * step) + up * (v0 + 0.5 * step)).normalize();
             let power = intensity(dir) * omega[j];
-            Arrival { dir, power, hit: f.map(|f| f.hit(scene)) }
+            Arrival::new(scene, position, dir, power, f.map(|f| f.hit(scene)), medium)
         }));
     }
     out
@@ -194,16 +225,17 @@ pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<B
                 Some(BouncePhoton {
                     origin: scene.offset_origin(hit.p, hit.ng, bs.wi),
                     dir: bs.wi,
-                    power: a.power * factor,
+                    power: a.power * a.tr * factor,
                     density: density_factor(&bs),
                     specular: bs.specular,
+                    medium: scene.medium_after(hit, bs.wi, a.medium),
                 })
             })
             .collect();
         for (a, b) in arrivals.iter().zip(&bounced) {
             if a.hit.is_some() {
                 stats.hits += 1;
-                stats.incident += a.power;
+                stats.incident += a.power * a.tr;
             }
             if let Some(b) = b {
                 stats.survived += 1;
@@ -268,12 +300,15 @@ pub fn trace(
             let mut out = Vec::new();
             let mut s = Sampler::hashed(seed, 0x7472_6163_6500 ^ i as u64);
             let (mut o, mut d, mut power, mut density, mut caustic) = (b.origin, b.dir, b.power, b.density, b.specular);
+            let mut medium = b.medium;
             for _ in 0..MAX_EVENTS {
                 if out.len() as u32 >= stored || !pm_color::is_valid(power) || power == Rgb::ZERO {
                     break;
                 }
-                let Some(hit) = scene.intersect(o, d, f32::INFINITY) else { break };
-                power *= scene.transmittance(&hit, d);
+                // Attenuated by the media on the way (not scattered there).
+                let pass = scene.intersect_through(o, d, medium);
+                let Some(hit) = pass.hit else { break };
+                power *= pass.tr;
                 let wo = -d;
                 let bsdf = scene.bsdf(&hit);
                 if !bsdf.is_specular() {
@@ -297,6 +332,7 @@ pub fn trace(
                 power *= factor;
                 density *= density_factor(&bs);
                 caustic &= bs.specular;
+                medium = scene.medium_after(&hit, bs.wi, pass.medium);
                 o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                 d = bs.wi;
             }

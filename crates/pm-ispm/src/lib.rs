@@ -156,6 +156,23 @@ fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Op
     Some(Surface::new(hit.p, pm_render::facing(hit.ns, wo), wo, bsdf))
 }
 
+/// What the medium the camera is in lets through from each pixel's rasterised first
+/// surface to the eye (Beer-Lambert over the fragment's distance, per channel);
+/// none in a clear medium. The splat's light on those surfaces is attenuated by it,
+/// as the shading's is along every eye ray (the splat covers only surfaces seen
+/// directly, with nothing but the eye's medium in between).
+fn eye_transmittance(scene: &Scene, camera: &Camera, fragments: &[Option<Fragment>]) -> Option<Vec<Rgb>> {
+    let m = scene.medium(scene.eye_medium(camera.position)).filter(|m| !m.is_clear())?;
+    Some(fragments.par_iter().with_min_len(1024).map(|f| f.map_or(Rgb::ONE, |f| m.transmittance(f.t))).collect())
+}
+
+/// `values` times `tr`, pixel by pixel, when there is a `tr`.
+fn attenuate(values: &mut [Rgb], tr: Option<&[Rgb]>) {
+    if let Some(tr) = tr {
+        values.par_iter_mut().zip(tr).with_min_len(4096).for_each(|(v, t)| *v *= *t);
+    }
+}
+
 /// The image-space method: its parameters and the memory its frames reuse (the
 /// rasteriser's fragments, the G-buffer, the splats' working arrays and outputs).
 pub struct Ispm {
@@ -229,10 +246,12 @@ impl Ispm {
         let t_direct = t.elapsed().as_secs_f64();
         let t = Instant::now();
         gbuffer_into(scene, &self.fragments, camera, &mut self.gbuffer);
+        let eye_tr = eye_transmittance(scene, camera, &self.fragments);
         let (gbuffer, full, low, low_gbuffer) = (&self.gbuffer, &mut self.full, &mut self.low, &mut self.low_gbuffer);
         let (w, h, sub) = (f.width, f.height, p.subsample);
         let (t_splat, t_upsample) = if sub <= 1 {
             splat::splat_into(&photons, gbuffer, camera, (w, h, 1), SplatOutput::Radiance, full);
+            attenuate(&mut full.indirect, eye_tr.as_deref());
             buffers.add_to_layer(pm_color::Layer::Indirect, &full.indirect);
             (t.elapsed().as_secs_f64(), 0.0)
         } else {
@@ -251,9 +270,13 @@ impl Ispm {
             let t_splat = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let up = splat::Upsample::new(&low.indirect, low_gb, gbuffer, camera.position, (w, h, sub), true);
-            buffers.add_rows_to_layer(pm_color::Layer::Indirect, w as usize, |y, row| up.row(y, row));
+            buffers.add_rows_to_layer(pm_color::Layer::Indirect, w as usize, |y, row| {
+                up.row(y, row);
+                attenuate(row, eye_tr.as_deref().map(|t| &t[y * w as usize..][..row.len()]));
+            });
             (t_splat, t.elapsed().as_secs_f64())
         };
+        attenuate(&mut full.caustic, eye_tr.as_deref());
         buffers.add_to_layer(pm_color::Layer::Caustic, &full.caustic);
         Ok(IspmFrame {
             frame,

@@ -382,7 +382,7 @@ impl DirectLighting<'_> {
                     && bs.wi.dot(hit.ng) * side_o > 0.0
                 {
                     let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
-                    let (found, tr, t) = scene.intersect_through(o, bs.wi, medium);
+                    let pm_scene::Passage { hit: found, tr, t, .. } = scene.intersect_through(o, bs.wi, medium);
                     match found {
                         Some(h) => {
                             let le = scene.emitted(&h, -bs.wi) * tr;

@@ -59,7 +59,7 @@ fn kind_name(b: &Bsdf) -> &'static str {
 /// The first hit along a ray that is not an index-matched boundary (a fog box's
 /// walls, which light passes straight through).
 fn first_hit(scene: &Scene, o: glam::Vec3, d: glam::Vec3) -> Option<pm_scene::Hit> {
-    scene.intersect_through(o, d, None).0
+    scene.intersect_through(o, d, None).hit
 }
 
 /// True when material `m` is an index-matched boundary (smooth transmission, ior 1).

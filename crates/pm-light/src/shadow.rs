@@ -82,15 +82,26 @@ pub struct ShadowMaps {
 
 impl ShadowMaps {
     /// The maps of every light of `scene` at `res` x `res` texels a face, or none
-    /// when some light cannot have one ([`Self::supports`]): shadow rays then serve
-    /// every light.
+    /// when some light cannot have one ([`Self::supports`]) or the scene has media
+    /// or index-matched boundaries ([`Self::scene_supports`]): shadow rays then
+    /// serve every light.
     pub fn new(scene: &Scene, res: u32) -> Option<ShadowMaps> {
         // Asked first, so no map is drawn for a scene that cannot have all of them.
-        if !scene.lights.iter().all(Self::supports) {
+        if !Self::scene_supports(scene) || !scene.lights.iter().all(Self::supports) {
             return None;
         }
         let maps = scene.lights.iter().map(|l| LightMap::new(scene, l, res)).collect::<Option<Vec<_>>>()?;
         Some(ShadowMaps { maps })
+    }
+
+    /// True when `scene`'s lights can have shadow maps at all: not when it has media
+    /// or index-matched boundaries. A depth map says where light stops, not what
+    /// it passes through: a fog box's walls would shadow everything inside them,
+    /// and fog's attenuation between the point and the light needs the segment's
+    /// length in each medium, which a shadow ray's walk finds
+    /// ([`Scene::transmittance_along`]).
+    pub fn scene_supports(scene: &Scene) -> bool {
+        !scene.has_media() && !scene.has_index_matched()
     }
 
     /// True when `light` can have a shadow map: point and spot lights, and area

@@ -80,11 +80,22 @@ impl FrameParams {
     }
 }
 
-/// The lights of `scene` that cannot have a shadow map (directional lights; area
-/// lights that are large, curved, two-sided or textured), by name: with any of them
-/// `--direct shadow-map` draws every light with shadow rays.
-pub fn lights_without_shadow_maps(scene: &Scene) -> Vec<String> {
-    scene.lights.iter().filter(|l| !pm_light::ShadowMaps::supports(l)).map(|l| l.name.clone()).collect()
+/// Why `--direct shadow-map` draws every light of `scene` with shadow rays, if it
+/// does: the lights that cannot have a shadow map (directional lights; area lights
+/// that are large, curved, two-sided or textured), by name, or the scene's media
+/// ([`pm_light::ShadowMaps::scene_supports`]).
+pub fn why_no_shadow_maps(scene: &Scene) -> Option<String> {
+    if !pm_light::ShadowMaps::scene_supports(scene) {
+        return Some("the scene has media or index-matched boundaries, which a depth map cannot see through".into());
+    }
+    let without: Vec<String> =
+        scene.lights.iter().filter(|l| !pm_light::ShadowMaps::supports(l)).map(|l| l.name.clone()).collect();
+    (!without.is_empty()).then(|| {
+        format!(
+            "no shadow map for {} (directional, or an area light that is large, curved, two-sided or textured)",
+            without.join(", ")
+        )
+    })
 }
 
 /// The animated world frames are drawn in: the scene, a simpler scene to trace

@@ -15,7 +15,7 @@ use pm_light::{DirectLighting, LitPoint, ShadowMaps};
 use pm_raster::Fragment;
 use pm_render::{Components, Counters, FirstHit, Integrator, VisibleSurface};
 use pm_sampling::Sampler;
-use pm_scene::{Hit, Scene};
+use pm_scene::{Hit, MediumId, Scene};
 
 /// Specular bounces from the eye up to this depth follow both Fresnel branches
 /// (the batch renderer's eye paths: 3); deeper ones one chosen by Fresnel
@@ -99,22 +99,35 @@ impl<I: IndirectLight> LiveShading<'_, I> {
         Some(maps.direct(scene, LitPoint { p, ng: tr.ng(), ns }, &pm_bsdf::Bsdf::Lambert { rho }, -d, s))
     }
 
-    /// The components seen along direction `d` whose first hit is `first`.
-    fn shade(&self, first: Option<Hit>, d: Vec3, s: &mut Sampler, mut vs: Option<&mut VisibleSurface>) -> Components {
+    /// The components seen from `o` along direction `d` whose first hit is
+    /// `first`. Media attenuate what the eye sees (Beer-Lambert over each segment,
+    /// through index-matched boundaries, [`Scene::pass_from`]); the light they
+    /// scatter toward the eye is left out (the real-time methods keep no volume
+    /// layer: README, "Participating media").
+    fn shade(
+        &self,
+        o: Vec3,
+        first: Option<Hit>,
+        d: Vec3,
+        s: &mut Sampler,
+        mut vs: Option<&mut VisibleSurface>,
+    ) -> Components {
         let scene = self.light.scene;
+        let pass = scene.pass_from(o, d, first, scene.eye_medium(o));
+        let tr = pass.tr;
         // Nothing hit: the environment and sun discs (the background).
-        let Some(hit) = first else { return Components { direct: scene.escaped(d), ..Default::default() } };
+        let Some(hit) = pass.hit else { return Components { direct: tr * scene.escaped(d), ..Default::default() } };
         let wo = -d;
         let le = scene.emitted(&hit, wo);
         let bsdf = scene.bsdf(&hit);
-        let tr = scene.transmittance(&hit, d);
         if let Some(v) = vs.as_deref_mut() {
             *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
         }
         if bsdf.is_specular() {
-            return Components { specular: tr * self.through(&hit, &bsdf, wo, 0, s), ..Default::default() };
+            let l = self.through(&hit, &bsdf, wo, pass.medium, 0, s);
+            return Components { specular: tr * l, ..Default::default() };
         }
-        let direct = self.direct_at(&hit, &bsdf, wo, s);
+        let direct = self.direct_at(&hit, &bsdf, wo, pass.medium, s);
         if let Some(v) = vs {
             v.direct = direct;
         }
@@ -123,42 +136,44 @@ impl<I: IndirectLight> LiveShading<'_, I> {
         Components { direct: le + direct, indirect, ..Default::default() }.scaled(tr)
     }
 
-    /// Direct light reflected toward `wo` at a non-specular `hit`, as the frame's
-    /// direct mode says.
-    fn direct_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, s: &mut Sampler) -> Rgb {
+    /// Direct light reflected toward `wo` at a non-specular `hit` reached in
+    /// `medium`, as the frame's direct mode says (shadow maps exist only in scenes
+    /// without media).
+    fn direct_at(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, medium: Option<MediumId>, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
         match self.direct {
-            DirectMode::Rays => self.light.direct(hit, bsdf, wo, s, self.light_samples, None),
+            DirectMode::Rays => self.light.direct(hit, bsdf, wo, s, self.light_samples, medium),
             DirectMode::ShadowMap => match self.shadow_maps {
                 Some(maps) => maps.direct(scene, LitPoint::of(hit), bsdf, wo, s),
-                None => self.light.direct(hit, bsdf, wo, s, self.light_samples, None),
+                None => self.light.direct(hit, bsdf, wo, s, self.light_samples, medium),
             },
             DirectMode::Photons => Rgb::ZERO,
         }
     }
 
-    /// Radiance leaving the mirror or glass `hit` toward `wo`, `depth` specular
-    /// bounces from the eye: both Fresnel branches followed up to [`SPLIT_DEPTH`],
-    /// one chosen by Fresnel probability past it, and at the first non-specular
-    /// surface its emission, direct and indirect light.
-    fn through(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, depth: u32, s: &mut Sampler) -> Rgb {
+    /// Radiance leaving the mirror or glass `hit` (reached in `medium`) toward
+    /// `wo`, `depth` specular bounces from the eye: both Fresnel branches followed
+    /// up to [`SPLIT_DEPTH`], one chosen by Fresnel probability past it, and at the
+    /// first non-specular surface its emission, direct and indirect light, each
+    /// segment attenuated by the medium it runs in.
+    fn through(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, medium: Option<MediumId>, depth: u32, s: &mut Sampler) -> Rgb {
         if depth >= self.max_depth {
             return Rgb::ZERO;
         }
         let scene = self.light.scene;
         let follow = |s: &mut Sampler, wi: Vec3| -> Rgb {
-            let Some(next) = scene.intersect(scene.offset_origin(hit.p, hit.ng, wi), wi, f32::INFINITY) else {
-                return scene.escaped(wi);
-            };
+            let o = scene.offset_origin(hit.p, hit.ng, wi);
+            let pass = scene.intersect_through(o, wi, scene.medium_after(hit, wi, medium));
+            let Some(next) = pass.hit else { return pass.tr * scene.escaped(wi) };
             let (wo, bsdf) = (-wi, scene.bsdf(&next));
             let l = if bsdf.is_specular() {
-                self.through(&next, &bsdf, wo, depth + 1, s)
+                self.through(&next, &bsdf, wo, pass.medium, depth + 1, s)
             } else {
                 scene.emitted(&next, wo)
-                    + self.direct_at(&next, &bsdf, wo, s)
+                    + self.direct_at(&next, &bsdf, wo, pass.medium, s)
                     + self.indirect.radiance(&next, &bsdf, wo)
             };
-            scene.transmittance(&next, wi) * l
+            pass.tr * l
         };
         let u = s.next_2d();
         if depth < SPLIT_DEPTH {
@@ -200,7 +215,7 @@ impl<I: IndirectLight> Integrator for LiveShading<'_, I> {
         {
             return Components { direct, ..Default::default() };
         }
-        self.shade(first.resolve(self.light.scene, o, d), d, s, vs)
+        self.shade(o, first.resolve(self.light.scene, o, d), d, s, vs)
     }
 
     fn adaptive(&self) -> bool {
@@ -254,7 +269,7 @@ mod tests {
                 let hit = f.hit(&scene);
                 let d = (hit.p - camera.position).normalize();
                 let seeded = || Sampler::hashed(11, j as u64);
-                let full = shading.shade(Some(hit), d, &mut seeded(), None);
+                let full = shading.shade(camera.position, Some(hit), d, &mut seeded(), None);
                 let first = FirstHit::Fragment(&scene, Some(f));
                 let got = shading.li(camera.position, d, first, &mut seeded(), &mut (), None);
                 let bits = |c: &Components| {
@@ -306,7 +321,7 @@ mod tests {
                 let bsdf = scene.bsdf(&hit);
                 if !bsdf.is_specular() {
                     let le = scene.emitted(&hit, -d);
-                    return beta * (le + shading.direct_at(&hit, &bsdf, -d, s) + Rgb::splat(0.1));
+                    return beta * (le + shading.direct_at(&hit, &bsdf, -d, None, s) + Rgb::splat(0.1));
                 }
                 let Some(b) = bsdf.sample(-d, hit.ns, s.next_2d(), s.next_1d()) else { break };
                 beta *= b.weight;
@@ -326,8 +341,8 @@ mod tests {
                 continue;
             }
             let d = (hit.p - camera.position).normalize();
-            let a = shading.shade(Some(hit), d, &mut Sampler::hashed(1, j as u64), None).specular;
-            let b = shading.shade(Some(hit), d, &mut Sampler::hashed(2, j as u64), None).specular;
+            let a = shading.shade(camera.position, Some(hit), d, &mut Sampler::hashed(1, j as u64), None).specular;
+            let b = shading.shade(camera.position, Some(hit), d, &mut Sampler::hashed(2, j as u64), None).specular;
             diff2 += (a - b).length_squared() as f64;
             let n = 1024;
             let mean = (0..n).map(|k| one_branch(hit, d, &mut Sampler::new(j as u64, k))).sum::<Rgb>() / n as f32;

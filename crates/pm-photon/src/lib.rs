@@ -269,9 +269,6 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         }
         let Some(hit) = hit else { return };
         out.reached = true;
-        if !media {
-            phi *= scene.transmittance(&hit, d);
-        }
         if let Some(tint) = scene.index_matched(&hit) {
             // Straight through, into the medium beyond: no event.
             phi *= tint;

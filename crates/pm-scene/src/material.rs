@@ -375,23 +375,6 @@ impl Scene {
         self.emission_at(hit.tri, hit.b)
     }
 
-    /// Beer-Lambert transmittance exp(-sigma_t t) of the segment a ray along unit `d`
-    /// travelled to reach `hit` (per channel, in [0, 1]) for an integrator that does
-    /// not track media: below one when the ray arrives at the back of a surface whose
-    /// material bounds an absorbing medium (KHR_materials_volume), that is when the
-    /// segment ran inside it; one otherwise. Such integrators multiply their path
-    /// throughput (or photon power) by this after each intersection: a surface
-    /// inside the medium that is not its boundary does not see the attenuation, and
-    /// scattering only attenuates. Integrators that simulate media carry the ray's
-    /// medium instead ([`Scene::medium_after`], [`crate::Medium::transmittance`]).
-    #[inline]
-    pub fn transmittance(&self, hit: &Hit, d: Vec3) -> Rgb {
-        match self.material(hit).interior {
-            Some(id) if d.dot(hit.ng) > 0.0 => self.media[id as usize].transmittance(hit.t),
-            _ => Rgb::ONE,
-        }
-    }
-
     /// Emitted radiance [W sr^-1 m^-2 per channel] at barycentrics `b` of triangle
     /// `tri`, on an emitting side: the material's emission times its emissive texture.
     pub fn emission_at(&self, tri: u32, b: [f32; 3]) -> Rgb {

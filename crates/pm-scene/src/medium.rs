@@ -247,6 +247,22 @@ pub(crate) struct MediaLayout {
     pub sphere_radius: f32,
 }
 
+/// Where a ray goes through index-matched boundaries and the media between them
+/// ([`Scene::intersect_through`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Passage {
+    /// Its first hit that is not an index-matched boundary; none when it leaves the
+    /// scene or its transmittance falls to zero.
+    pub hit: Option<Hit>,
+    /// The transmittance of the media and boundaries before that hit (or to the
+    /// world sphere's end), per channel in [0, 1].
+    pub tr: Rgb,
+    /// The hit's distance from the ray's origin \[m\] (infinite without one).
+    pub t: f32,
+    /// The medium the ray is in where it arrives.
+    pub medium: Option<MediumId>,
+}
+
 /// Most surfaces a containment walk crosses before it gives up (and takes the
 /// scene's medium): more than any sane nesting.
 const WALK_HITS: usize = 4096;
@@ -269,6 +285,12 @@ impl Scene {
     #[inline]
     pub fn has_scattering_media(&self) -> bool {
         self.layout.scattering
+    }
+
+    /// True when some surface is an index-matched boundary ([`Self::index_matched`]).
+    #[inline]
+    pub fn has_index_matched(&self) -> bool {
+        self.layout.index_matched
     }
 
     /// The medium filling the scene, if any.
@@ -315,61 +337,70 @@ impl Scene {
         if !self.has_media() && !self.layout.index_matched {
             return if self.occluded(o, d, t_max) { Rgb::ZERO } else { Rgb::ONE };
         }
-        match self.walk_through(o, d, t_max, medium) {
-            (Some(_), ..) => Rgb::ZERO,
-            (None, tr, _) => tr,
+        let first = self.intersect(o, d, t_max);
+        match self.walk_from(o, d, t_max, medium, first) {
+            Passage { hit: Some(_), .. } => Rgb::ZERO,
+            p => p.tr,
         }
     }
 
-    /// The first hit along the ray from `o` in unit direction `d` (starting in
-    /// medium `medium`) that is not an index-matched boundary, the transmittance
-    /// of the media and boundaries before it (per channel), and its distance from
-    /// `o` \[m\] (infinite when the ray leaves the scene; the transmittance is then
-    /// to the scene medium's end). For rays that only look for what they hit (a
-    /// BSDF sample that may find a light); in a scene without media or
-    /// index-matched boundaries, [`Self::intersect`] with a transmittance of one.
-    pub fn intersect_through(&self, o: Vec3, d: Vec3, medium: Option<MediumId>) -> (Option<Hit>, Rgb, f32) {
+    /// The ray from `o` in unit direction `d`, starting in medium `medium`, to its
+    /// first hit that is not an index-matched boundary ([`Passage`]). For rays that
+    /// only look for what they hit (a BSDF sample that may find a light) and for
+    /// integrators that attenuate light in media without scattering it there; in a
+    /// scene without media or index-matched boundaries, [`Self::intersect`] with a
+    /// transmittance of one.
+    pub fn intersect_through(&self, o: Vec3, d: Vec3, medium: Option<MediumId>) -> Passage {
+        self.pass_from(o, d, self.intersect(o, d, f32::INFINITY), medium)
+    }
+
+    /// [`Self::intersect_through`] for a ray whose first hit `first` is already
+    /// known (a rasterised fragment, or a shadow map's first surface).
+    pub fn pass_from(&self, o: Vec3, d: Vec3, first: Option<Hit>, medium: Option<MediumId>) -> Passage {
         if !self.has_media() && !self.layout.index_matched {
-            let hit = self.intersect(o, d, f32::INFINITY);
-            let t = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
-            return (hit, Rgb::ONE, t);
+            let t = first.as_ref().map_or(f32::INFINITY, |h| h.t);
+            return Passage { hit: first, tr: Rgb::ONE, t, medium };
         }
-        self.walk_through(o, d, f32::INFINITY, medium)
+        self.walk_from(o, d, f32::INFINITY, medium, first)
     }
 
-    /// The walk both of the above take: through index-matched boundaries (their
-    /// colours and the media between them multiplied in, the medium changing at
-    /// each) to the first other surface within `t_max` (infinite: to the world
-    /// sphere's end), returning it, the transmittance up to it (or to the end), and
-    /// the distance from `o` (infinite without a hit). A walk whose transmittance
+    /// The walk the above take, from the ray's first hit `hit` within `t_max`:
+    /// through index-matched boundaries (their colours and the media between them
+    /// multiplied in, the medium changing at each) to the first other surface within
+    /// `t_max` (infinite: to the world sphere's end). A walk whose transmittance
     /// falls to zero stops there without a hit.
-    fn walk_through(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>) -> (Option<Hit>, Rgb, f32) {
+    fn walk_from(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>, mut hit: Option<Hit>) -> Passage {
         let (mut o, mut left, mut cur, mut tr, mut travelled) = (o, t_max, medium, Rgb::ONE, 0.0f32);
+        let lost = |medium| Passage { hit: None, tr: Rgb::ZERO, t: f32::INFINITY, medium };
         for _ in 0..WALK_HITS {
-            let Some(hit) = self.intersect(o, d, left) else {
+            let Some(h) = hit else {
                 if let Some(m) = self.medium(cur) {
                     let seg = if left.is_finite() { left } else { self.segment_length(o, d, None) };
                     tr *= m.transmittance(seg);
                 }
-                return (None, tr, f32::INFINITY);
+                return Passage { hit: None, tr, t: f32::INFINITY, medium: cur };
             };
             if let Some(m) = self.medium(cur) {
-                tr *= m.transmittance(hit.t);
+                tr *= m.transmittance(h.t);
             }
-            let Some(tint) = self.index_matched(&hit) else { return (Some(hit), tr, travelled + hit.t) };
+            let Some(tint) = self.index_matched(&h) else {
+                let t = travelled + h.t;
+                return Passage { hit: Some(h), tr, t, medium: cur };
+            };
             tr *= tint;
             if tr.max_element() <= 0.0 {
-                return (None, Rgb::ZERO, f32::INFINITY);
+                return lost(cur);
             }
-            cur = self.medium_after(&hit, d, cur);
-            let next = self.offset_origin(hit.p, hit.ng, d);
+            cur = self.medium_after(&h, d, cur);
+            let next = self.offset_origin(h.p, h.ng, d);
             let step = (next - o).dot(d);
             (travelled, left, o) = (travelled + step, left - step, next);
             if !(left > 0.0) {
-                return (None, tr, f32::INFINITY);
+                return Passage { hit: None, tr, t: f32::INFINITY, medium: cur };
             }
+            hit = self.intersect(o, d, left);
         }
-        (None, Rgb::ZERO, f32::INFINITY)
+        lost(cur)
     }
 
     /// The length \[m\] of the segment a ray from `o` along unit `d` runs in its

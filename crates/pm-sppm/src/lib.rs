@@ -480,23 +480,29 @@ impl<'a> Sppm<'a> {
 
     /// The eye path of one pass through a pixel: emission and direct light along it
     /// by layer, and its visible point (none when it leaves the scene, is absorbed
-    /// or reaches the depth limit).
+    /// or reaches the depth limit). Media attenuate it (through index-matched
+    /// boundaries, [`Scene::intersect_through`]); light they scatter toward the
+    /// eye is left out (no volume layer). The photons fly through the media
+    /// (`pm_photon::trace_path`), so what media scatter onto surfaces is counted.
     fn eye_path(&self, o: Vec3, d: Vec3, s: &mut Sampler) -> (Option<VisiblePoint>, [Rgb; 4]) {
         let scene = self.light.scene;
         let mut ld = [Rgb::ZERO; 4];
         let (mut o, mut d, mut beta, mut specular) = (o, d, Rgb::ONE, false);
+        let mut medium = scene.eye_medium(o);
         let layer = |specular: bool| if specular { Layer::Specular } else { Layer::Direct }.index();
         for _ in 0..=self.max_depth {
-            let Some(hit) = scene.intersect(o, d, f32::INFINITY) else {
+            let pass = scene.intersect_through(o, d, medium);
+            beta *= pass.tr;
+            let Some(hit) = pass.hit else {
                 ld[layer(specular)] += beta * scene.escaped(d);
                 return (None, ld);
             };
-            beta *= scene.transmittance(&hit, d);
+            medium = pass.medium;
             let wo = -d;
             ld[layer(specular)] += beta * scene.emitted(&hit, wo);
             let bsdf = scene.bsdf(&hit);
             if !bsdf.is_specular() {
-                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples, None);
+                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples, medium);
                 let n = pm_scene::facing(hit.ng, wo);
                 return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 }), ld);
             }
@@ -506,6 +512,7 @@ impl<'a> Sppm<'a> {
                 return (None, ld);
             }
             specular = true;
+            medium = scene.medium_after(&hit, bs.wi, medium);
             o = scene.offset_origin(hit.p, hit.ng, bs.wi);
             d = bs.wi;
         }

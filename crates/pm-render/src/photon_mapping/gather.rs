@@ -157,9 +157,6 @@ fn gather_radiance<G: PhotonRecord>(
             beta *= m.transmittance(t_seg);
         }
         let Some(hit) = hit else { return (l, first_t) };
-        if !media {
-            beta *= scene.transmittance(&hit, d);
-        }
         if bounce == 0 && first_t == f32::INFINITY {
             first_t = hit.t;
         }

@@ -280,8 +280,7 @@ fn trace_from<G: PhotonRecord>(
         },
     };
     if !scene.has_media() {
-        let tr = hit.as_ref().map_or(Rgb::ONE, |h| scene.transmittance(h, d));
-        return if tr == Rgb::ONE { c } else { c.scaled(tr) };
+        return c;
     }
     if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
         let t_seg = scene.segment_length(o, d, hit.as_ref());
