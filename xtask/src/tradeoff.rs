@@ -3,10 +3,12 @@
 //! reference's own noise), then sweeps one setting at a time from the defaults
 //! (photon counts, k, precompute fraction, gather rays, irradiance-cache accuracy,
 //! light samples, samples per pixel, lookup, record layout, path tracing at
-//! several sample counts and progressive photon mapping at several pass counts), each with several seeds, timing every stage. Errors
+//! several sample counts and progressive photon mapping at several pass counts;
+//! in scenes with scattering media also volume photons, the volume estimate and
+//! its k), each with several seeds, timing every stage. Errors
 //! leave out the light's pixels and their neighbours and are split into bias and
 //! noise ([`xtask::accuracy`]) for the image and for each layer (direct, caustic,
-//! indirect, specular). Writes results.csv, results.md, plot (error against time,
+//! indirect, specular, and volume in scenes with media). Writes results.csv, results.md, plot (error against time,
 //! lines per setting, the Pareto front), bias_noise (which setting buys which),
 //! layers (per-layer panels) as SVG and PNG, and error_map.png.
 
@@ -96,13 +98,24 @@ impl Setting {
     fn maps_key(&self, seed: u64) -> String {
         let t = &self.trace;
         let i = &self.irradiance;
-        format!("g{}-c{}-{}-k{}-f{}-s{seed}", t.global_photons, t.caustic_photons, t.layout, i.k, i.fraction)
+        format!(
+            "g{}-c{}-v{}-{}-k{}-f{}-s{seed}",
+            t.global_photons, t.caustic_photons, t.volume_photons, t.layout, i.k, i.fraction
+        )
     }
 }
 
-/// What is compared: the image (the total, `None`) first, then each layer.
-const LAYERS: [Option<Layer>; 5] =
-    [None, Some(Layer::Direct), Some(Layer::Caustic), Some(Layer::Indirect), Some(Layer::Specular)];
+/// What is compared: the image (the total, `None`) first, then each layer (the
+/// volume layer only in scenes with scattering media: elsewhere its split is
+/// empty and no column shows it).
+const LAYERS: [Option<Layer>; 6] = [
+    None,
+    Some(Layer::Direct),
+    Some(Layer::Caustic),
+    Some(Layer::Indirect),
+    Some(Layer::Specular),
+    Some(Layer::Volume),
+];
 
 /// One setting's measurements.
 struct Row {
@@ -110,7 +123,7 @@ struct Row {
     /// trace, sort, precompute, render [s], means over the seeds.
     times: [f64; 4],
     /// Per layer of [`LAYERS`].
-    splits: [Split; 5],
+    splits: [Split; 6],
     /// SSIM of the first seed's image.
     ssim: f64,
 }
@@ -123,7 +136,7 @@ impl Row {
 
 /// The defaults (pipeline.toml's values at `size`), then one setting at a time;
 /// `base_diagonal` is the scene's bounding-box diagonal [m].
-fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Setting> {
+fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: bool) -> Vec<Setting> {
     let mut render = base.render.clone();
     render.width = size;
     render.height = size;
@@ -172,6 +185,19 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32) -> Vec<Set
         v.push(with("max spp", format!("max spp {spp}"), &|s| s.render.spp = spp));
     }
     v.push(with("lookup", "exact lookup".into(), &|s| s.render.gather_lookup = Lookup::Exact));
+    // Participating media (issue 38): volume photons, the estimate along eye rays
+    // (the beam estimate by default, or the ray march) and its k.
+    if media {
+        for n in [50_000u64, 800_000] {
+            v.push(with("volume photons", format!("volume {n}"), &|s| s.trace.volume_photons = n));
+        }
+        v.push(with("volume estimate", "ray march".into(), &|s| {
+            s.render.volume_estimate = pm_render::VolumeEstimate::RayMarch
+        }));
+        for k in [20usize, 150] {
+            v.push(with("volume k", format!("volume k {k}"), &|s| s.render.volume_k = k));
+        }
+    }
     v.push(with("records", "full-precision records".into(), &|s| s.trace.layout = RecordLayout::Full));
     for spp in [16u32, 64, 256, 1024] {
         v.push(with("path", format!("path {spp} spp"), &|s| {
@@ -363,9 +389,12 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
 
     // The scene once, for its size and, with --peer, Mitsuba's copy of it: a Python
     // without Mitsuba or a scene it cannot take fails before the reference renders.
-    let (diagonal, mitsuba) = {
+    let (diagonal, media, mitsuba) = {
         let loaded = pm_scene::load(&scene).map_err(|e| anyhow::anyhow!("{e}"));
         let diagonal = loaded.as_ref().map(|s| s.bounds.diagonal()).unwrap_or(1.0);
+        // Media of the file, or of pipeline.toml's [media.*] tables.
+        let media = loaded.as_ref().is_ok_and(|s| s.has_scattering_media())
+            || base.media.values().any(|m| m.sigma_s.iter().any(|&v| v > 0.0));
         let mitsuba = match &args.peer {
             Some(python) => {
                 let m = crate::peer::Mitsuba::start(python, &args.peer_variant, &out.join("mitsuba"))?;
@@ -374,7 +403,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             }
             None => None,
         };
-        (diagonal, mitsuba)
+        (diagonal, media, mitsuba)
     };
     let [half_a, half_b] = reference_halves(&bins, &base, (&scene, &scene_args), &out, size, args.reference_spp)?;
     let n = (size * size) as usize;
@@ -394,7 +423,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     let mut maps: BTreeMap<String, (PathBuf, [f64; 3])> = BTreeMap::new();
     let mut rows: Vec<Row> = Vec::new();
     let mut default_image = None;
-    let mut settings = sweep(&base, size, diagonal);
+    let mut settings = sweep(&base, size, diagonal, media);
     if mitsuba.is_some() {
         settings.extend(peer_rows(&settings[0]));
     }
@@ -442,7 +471,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
                     a.extend([s(&"--seed"), s(&seed)]);
                     let t: photon_trace::Report = stage(&bins, "photon-trace", &a, &mdir.join("trace.json"))?;
                     let mut sort = 0.0;
-                    for m in ["global", "caustic"] {
+                    for m in ["global", "caustic", "volume"] {
                         if Path::new(&o(&format!("{m}.pmap"))).exists() {
                             let a = [o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))];
                             let r: photon_sort::Report = stage(&bins, "photon-sort", &a, &mdir.join("sort.json"))?;
@@ -467,17 +496,20 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             a.extend([s(&"--seed"), s(&seed)]);
             if photon_mapping {
                 a.extend([s(&"--global"), mdir.join("global.irr.pmap").display().to_string()]);
-                if mdir.join("caustic.kd.pmap").exists() {
-                    a.extend([s(&"--caustic"), mdir.join("caustic.kd.pmap").display().to_string()]);
+                for m in ["caustic", "volume"] {
+                    let map = mdir.join(format!("{m}.kd.pmap"));
+                    if map.exists() {
+                        a.extend([format!("--{m}"), map.display().to_string()]);
+                    }
                 }
             }
             let r: photon_render::Report = stage(&bins, "photon-render", &a, &out.join(format!("{id}.stats.json")))?;
             times[3] += r.seconds / args.seeds as f64;
             images.push(pm_image::read_exr(&img)?);
         }
-        let splits: [Split; 5] = std::array::from_fn(|k| {
-            if k > 0 && st.peer_spp.is_some() {
-                return Split::default(); // Mitsuba writes no layers
+        let splits: [Split; 6] = std::array::from_fn(|k| {
+            if k > 0 && st.peer_spp.is_some() || LAYERS[k] == Some(Layer::Volume) && !media {
+                return Split::default(); // Mitsuba writes no layers; no volume without media
             }
             let layers: Vec<Vec<glam::Vec3>> = images.iter().map(|i| layer(i, LAYERS[k])).collect();
             let refs: Vec<&[glam::Vec3]> = layers.iter().map(Vec::as_slice).collect();
@@ -556,7 +588,15 @@ fn read_rows(path: &Path, settings: &[Setting]) -> Result<Vec<Row>> {
         rows.push(Row {
             setting: setting.clone(),
             times: [num("trace_s")?, num("sort_s")?, num("irradiance_s")?, num("render_s")?],
-            splits: [split("")?, split("direct")?, split("caustic")?, split("indirect")?, split("specular")?],
+            splits: [
+                split("")?,
+                split("direct")?,
+                split("caustic")?,
+                split("indirect")?,
+                split("specular")?,
+                // Studies of scenes without media have no volume columns.
+                if header.contains(&"volume_error") { split("volume")? } else { Split::default() },
+            ],
             ssim: num("ssim")?,
         });
     }
@@ -616,7 +656,8 @@ fn results_csv(rows: &[Row], seeds: u64) -> Result<String> {
     let mut csv = String::from(
         "axis,setting,seeds,trace_s,sort_s,irradiance_s,render_s,total_s,error,bias,noise,reference_noise,mean_bias,measured_rmse,ssim",
     );
-    for l in Layer::SURFACE {
+    let layers = shown_layers(rows);
+    for l in &layers {
         write!(csv, ",{l}_error,{l}_bias,{l}_noise,{l}_reference_noise")?;
     }
     csv.push('\n');
@@ -641,12 +682,22 @@ fn results_csv(rows: &[Row], seeds: u64) -> Result<String> {
             t.measured,
             r.ssim
         )?;
-        for l in &r.splits[1..] {
+        for l in &r.splits[1..=layers.len()] {
             write!(csv, ",{:.5},{:.5},{:.5},{:.5}", l.error, l.bias, l.noise, l.reference_noise)?;
         }
         csv.push('\n');
     }
     Ok(csv)
+}
+
+/// The layers the study's outputs show: the surface layers, and the volume layer
+/// when some row measured one (a scene with scattering media).
+fn shown_layers(rows: &[Row]) -> Vec<Layer> {
+    let mut v = Layer::SURFACE.to_vec();
+    if rows.iter().any(|r| r.splits[5].reference_noise > 0.0 || r.splits[5].error > 0.0) {
+        v.push(Layer::Volume);
+    }
+    v
 }
 
 /// results.md: the table of settings (Pareto `front` marked), what each axis buys,
@@ -656,6 +707,7 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
     let reference_noise = rows.first().map_or(0.0, |r| r.splits[0].reference_noise);
     let smallest = rows.iter().map(|r| r.splits[0].error).fold(f64::INFINITY, f64::min);
     let peer = rows.iter().any(|r| r.setting.peer_spp.is_some());
+    let volume = shown_layers(rows).contains(&Layer::Volume);
     let mut md = format!(
         "Trade-off on {size}x{size} against a path-traced reference of {} paths per pixel (two halves with their own seeds; \
          its own noise, from their difference, is {} relative RMS, {:.2} of the smallest error below, {}). Every setting is \
@@ -665,8 +717,8 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
          reference reports. Times are wall seconds per stage (means over the seeds) on this machine (2 cores), one session; \
          the real-time rows (photon-live, one frame of the same camera) count the mean frame time after the vertex \
          method's buffer filled.\n\n\
-         | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular | Pareto |{}\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|{}\n",
+         | axis | setting | trace | sort | precompute | render | total [s] | error | bias | noise | measured | direct | caustic | indirect | specular |{} Pareto |{}\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|{}---|{}\n",
         args.reference_spp,
         pct(reference_noise),
         reference_noise / smallest.max(1e-12),
@@ -676,7 +728,9 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
             "above a third of it: raise --reference-spp"
         },
         args.seeds,
+        if volume { " volume |" } else { "" },
         if peer { " Mitsuba at equal error |" } else { "" },
+        if volume { "---|" } else { "" },
         if peer { "---:|" } else { "" },
     );
     for (i, r) in rows.iter().enumerate() {
@@ -689,7 +743,7 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
         let lead = peer_time_at(rows, t.error).map_or(String::new(), |p| format!(" {:.1}x |", p / r.total()));
         writeln!(
             md,
-            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |{lead}",
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} |{} {} |{lead}",
             r.setting.axis,
             r.setting.label,
             r.times[0],
@@ -705,6 +759,7 @@ fn results_md(rows: &[Row], front: &[usize], size: u32, args: &Args) -> Result<S
             l(2),
             l(3),
             l(4),
+            if volume { format!(" {} |", l(5)) } else { String::new() },
             if front.contains(&i) { "yes" } else { "" }
         )?;
     }
@@ -792,7 +847,7 @@ fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 17] = [
+const AXES: [&str; 20] = [
     "default",
     "global photons",
     "caustic photons",
@@ -804,6 +859,9 @@ const AXES: [&str; 17] = [
     "max spp",
     "lookup",
     "records",
+    "volume photons",
+    "volume estimate",
+    "volume k",
     "path",
     "sppm",
     "sppm no probes",
@@ -973,7 +1031,8 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
 
     // Per layer.
     let mut s = Vec::new();
-    for (k, name) in Layer::SURFACE.iter().enumerate() {
+    let layers = shown_layers(rows);
+    for (k, name) in layers.iter().enumerate() {
         let (px, py) = ((k % 2) as f64 * 480.0, (k / 2) as f64 * 340.0);
         let f = pareto(rows, |r| r.splits[k + 1].error);
         panel(
@@ -989,7 +1048,8 @@ fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
         );
     }
     legend(&mut s, 985.0, 60.0);
-    plot::draw(&s, 1140.0, 680.0, &out.join("layers.svg"), &out.join("layers.png"))
+    let height = 340.0 * layers.len().div_ceil(2) as f64;
+    plot::draw(&s, 1140.0, height, &out.join("layers.svg"), &out.join("layers.png"))
 }
 
 /// The default setting's per-pixel relative error in false colour (black, blue,

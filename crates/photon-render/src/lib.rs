@@ -330,6 +330,7 @@ impl Job<'_> {
                     &v.records,
                     p.volume_k,
                     p.volume_radius_rel_diag * self.scene.bounds.diagonal(),
+                    self.indirect && p.gather_lookup == Lookup::Precomputed,
                 )
             }),
         };

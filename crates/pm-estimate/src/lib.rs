@@ -17,7 +17,7 @@ mod precompute;
 mod volume;
 
 pub use precompute::{PrecomputeStats, precompute, selected};
-pub use volume::{beam, beam_radii, beam_spheres, counted, inscattered, ray_march};
+pub use volume::{Inscattering, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march};
 
 use glam::Vec3;
 use pm_color::Rgb;

@@ -330,17 +330,25 @@ pub struct VolumeMap<'a> {
     pub multiple: pm_kdtree::SphereTree,
     /// Every photon, as beam spheres.
     pub all: pm_kdtree::SphereTree,
+    /// The in-scattered radiance per unit length at each photon (heap order)
+    /// [W sr^-1 m^-3 per channel] that final-gather rays look up
+    /// ([`pm_estimate::precomputed_inscattering`]; empty unless asked for).
+    pub inscattering: pm_estimate::Inscattering,
 }
 
 impl<'a> VolumeMap<'a> {
     /// The volume map of kd-tree `nodes` with beam radii from the `k` nearest
-    /// photons within `max_radius` \[m\].
-    pub fn new(nodes: &'a [FullPhoton], k: usize, max_radius: f32) -> VolumeMap<'a> {
+    /// photons within `max_radius` \[m\], and with each photon's in-scattered
+    /// radiance precomputed from as many when `precompute` (final gathers look it
+    /// up: [`Lookup::Precomputed`]).
+    pub fn new(nodes: &'a [FullPhoton], k: usize, max_radius: f32, precompute: bool) -> VolumeMap<'a> {
         let tree = KdTree::new(nodes);
         let max_d2 = max_radius * max_radius;
         let multiple = pm_estimate::beam_spheres(&tree, k, max_d2, false);
         let all = pm_estimate::beam_spheres(&tree, k, max_d2, true);
-        VolumeMap { tree, multiple, all }
+        let inscattering =
+            if precompute { pm_estimate::Inscattering::new(&tree, k, max_d2) } else { Default::default() };
+        VolumeMap { tree, multiple, all, inscattering }
     }
 }
 

@@ -242,7 +242,12 @@ fn full_with_volume(
         global: Some(pm_kdtree::KdTree::new(&maps.0)),
         irradiance: Some(pm_kdtree::KdTree::new(&irr)),
         caustic: (!maps.1.is_empty()).then(|| pm_kdtree::KdTree::new(&maps.1)),
-        volume: Some(pm_render::VolumeMap::new(nodes, cfg.volume_k, cfg.volume_radius_rel_diag * diag)),
+        volume: Some(pm_render::VolumeMap::new(
+            nodes,
+            cfg.volume_k,
+            cfg.volume_radius_rel_diag * diag,
+            cfg.gather_lookup == pm_render::Lookup::Precomputed,
+        )),
     };
     let camera = scene.camera.as_ref().unwrap();
     let film = cfg.film(1);

@@ -147,25 +147,35 @@ fn gather_radiance<G: PhotonRecord>(
     // Follow specular surfaces as far as the eye paths may (through two nested glass
     // spheres a gather ray meets four interfaces before a diffuse surface).
     let (mut bounce, mut passed) = (0, 0u32);
+    // How far the ray has run through index-matched boundaries before its first
+    // bounce \[m\]: the distance that decides a secondary gather and the cache
+    // record's radius is the origin's to the first surface that is not one (a fog
+    // box's floor face 1 mm above the floor made every gather ray that passed it a
+    // short one: 776,000 secondary gathers on a 16 x 16 cornell_fog).
+    let mut run = 0.0f32;
     while bounce < ctx.cfg.max_depth.max(1) && passed < 1024 {
         let hit = scene.intersect(o, d, f32::INFINITY);
         if media && let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
             let t_seg = scene.segment_length(o, d, hit.as_ref());
             if m.scatters() {
-                l += beta * super::volume::multiple(ctx, o, d, t_seg, m, true, s, scratch);
+                l += beta * super::volume::gathered(ctx, o, d, t_seg, m, s, scratch);
             }
             beta *= m.transmittance(t_seg);
         }
         let Some(hit) = hit else { return (l, first_t) };
-        if bounce == 0 && first_t == f32::INFINITY {
-            first_t = hit.t;
-        }
         if let Some(tint) = scene.index_matched(&hit) {
             beta *= tint;
             medium = scene.medium_after(&hit, d, medium);
-            o = scene.offset_origin(hit.p, hit.ng, d);
+            let next = scene.offset_origin(hit.p, hit.ng, d);
+            if bounce == 0 {
+                run += (next - o).dot(d);
+            }
+            o = next;
             passed += 1;
             continue;
+        }
+        if bounce == 0 && first_t == f32::INFINITY {
+            first_t = run + hit.t;
         }
         let bsdf = scene.bsdf(&hit);
         if bsdf.is_specular() {
@@ -182,7 +192,7 @@ fn gather_radiance<G: PhotonRecord>(
             continue;
         }
         let n = facing(hit.ng, -d);
-        let e = if secondary && bounce == 0 && hit.t < ctx.cfg.secondary_distance && ctx.cfg.secondary_rays > 0 {
+        let e = if secondary && bounce == 0 && first_t < ctx.cfg.secondary_distance && ctx.cfg.secondary_rays > 0 {
             ctx.counters.secondary_gathers.fetch_add(1, Relaxed);
             secondary_irradiance(ctx, &hit, n, medium, s, scratch)
         } else {

@@ -31,6 +31,33 @@ pub(crate) fn eye_inscattered<G: PhotonRecord>(
     single + multiple(ctx, o, d, t, m, false, s, scratch)
 }
 
+/// The light [W sr^-1 m^-2 per channel] scattered toward `o` along a final-gather
+/// ray's segment from `o` in unit direction `d` of `t` metres in medium `m`, from
+/// every volume photon: with precomputed lookups ([`crate::Lookup::Precomputed`]),
+/// a march reading the nearest photon's precomputed in-scattering (Christensen
+/// 1999's idea in a volume: on the volumetric caustic's gathers the beam
+/// estimate crossed thousands of photon spheres per ray); with exact ones, the
+/// eye rays' estimate ([`multiple`]).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn gathered<G: PhotonRecord>(
+    ctx: &PhotonMapping<G>,
+    o: Vec3,
+    d: Vec3,
+    t: f32,
+    m: &Medium,
+    s: &mut Sampler,
+    scratch: &mut Scratch,
+) -> Rgb {
+    let Some(vm) = &ctx.maps.volume else { return Rgb::ZERO };
+    let cfg = &ctx.cfg;
+    if cfg.lookup != crate::Lookup::Precomputed || vm.inscattering.values.is_empty() {
+        return multiple(ctx, o, d, t, m, true, s, scratch);
+    }
+    let max_d2 = cfg.max_radius_volume * cfg.max_radius_volume;
+    let u = s.next_1d();
+    pm_estimate::precomputed_march(&vm.tree, &vm.inscattering, o, d, t, m.sigma_t(), u, max_d2, &mut scratch.rejected)
+}
+
 /// The volume map's estimate [W sr^-1 m^-2 per channel] of the light scattered
 /// toward `o` along the segment (medium `m`): the beam estimate or a ray march,
 /// counting every photon (`all`, final-gather rays) or all but the ones scattered
