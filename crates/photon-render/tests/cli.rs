@@ -84,6 +84,20 @@ fn refuses_bad_inputs_without_writing_output() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1));
     assert!(err.contains("nocam.gltf: the scene has no perspective camera"), "{err}");
+    // A medium for a material the scene lacks (one line naming the scene and the
+    // material), and ones out of range (naming the option and the coefficient).
+    let boxes = scene("cornell_boxes.gltf");
+    for (medium, want) in [
+        ("smoke:sigma_a=1,1,1:sigma_s=0,0,0:g=0", ["cornell_boxes.gltf", "no material 'smoke'"]),
+        ("scene:sigma_a=0.1,0.1,0.1:sigma_s=0.2,0.2,0.2:g=1.5", ["--medium", "g 1.5 must be in (-1, 1)"]),
+        ("scene:sigma_a=-1,0.1,0.1:sigma_s=0.2,0.2,0.2:g=0", ["--medium", "sigma_a"]),
+    ] {
+        let r = o(&["--scene", boxes.to_str().unwrap(), "--mode", "path", "--medium", medium]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        let last = err.trim_end().lines().last().unwrap_or_default();
+        assert_eq!(r.status.code(), Some(1), "{medium}: {err}");
+        assert!(want.iter().all(|w| last.contains(w)), "{medium}: {err}");
+    }
     assert!(!out.exists() && !Path::new(&out).with_extension("png").exists());
 }
 

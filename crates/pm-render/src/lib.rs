@@ -99,7 +99,9 @@ pm_params::params! {
         mode: Method = Method::Full => Any;
         /// Final-gather rays per gather (stratified, cosine-weighted; the paper: several hundred).
         gather_rays: u32 = 400 => between(1, 1 << 20);
-        /// How gather rays read the global map.
+        /// How gather rays read the global map (and, in media, the volume map:
+        /// precomputed in-scattering at the nearest photon, or the eye rays'
+        /// estimate).
         gather_lookup: Lookup = Lookup::Precomputed => Any;
         /// Rays of a secondary final gather (the paper: 12; 0 disables).
         secondary_rays: u32 = 12 => between(0, 1 << 16);
