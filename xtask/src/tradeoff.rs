@@ -197,6 +197,13 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: boo
         for k in [20usize, 150] {
             v.push(with("volume k", format!("volume k {k}"), &|s| s.render.volume_k = k));
         }
+        // Single scattering's light samples per eye ray in a medium: its noise is
+        // most of a thin fog's error.
+        for n in [1u32, 16] {
+            v.push(with("volume light samples", format!("volume light samples {n}"), &|s| {
+                s.render.volume_light_samples = n
+            }));
+        }
     }
     v.push(with("records", "full-precision records".into(), &|s| s.trace.layout = RecordLayout::Full));
     for spp in [16u32, 64, 256, 1024] {
@@ -847,7 +854,7 @@ fn quality_front(rows: &[Row], size: u32, args: &Args) -> pm_pipeline::quality::
 }
 
 /// The sweep's axes in legend order, and each one's colour.
-const AXES: [&str; 20] = [
+const AXES: [&str; 21] = [
     "default",
     "global photons",
     "caustic photons",
@@ -862,6 +869,7 @@ const AXES: [&str; 20] = [
     "volume photons",
     "volume estimate",
     "volume k",
+    "volume light samples",
     "path",
     "sppm",
     "sppm no probes",

@@ -52,6 +52,7 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
         (Some(250), Some(250), Some(500))
     );
     assert_eq!(s["kd_tree"]["valid"], true);
+    assert_eq!(s["in_medium"], 0);
     assert_eq!(s["irradiance"]["photons"], 100);
     assert_eq!(s["total_power_w"][0].as_f64(), Some(500.0));
     assert_eq!(s["origin_m"][0].as_f64(), Some(1e6));

@@ -405,6 +405,17 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
         run_with(&args, &root, &bins).unwrap().into_iter().filter(|o| o.ran).map(|o| o.step).collect();
     assert!(ran.contains(&"photon-sort volume".to_string()), "{ran:?}");
     assert!(out.join("volume.kd.pmap").exists());
+    // photon-inspect tells a volume map's photons: all in a medium, the first
+    // events of paths from the light (single scattering) among them.
+    let o = std::process::Command::new(pm_tests::bin_dir().join("photon-inspect"))
+        .args([out.join("volume.kd.pmap").to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (n, direct) = (s["photons"].as_u64().unwrap(), s["direct"].as_u64().unwrap());
+    assert_eq!((s["kind"].as_str(), s["in_medium"].as_u64()), (Some("Volume"), Some(n)), "{s}");
+    assert!(direct > 0 && direct < n && s["kd_tree"]["valid"] == true, "{s}");
     let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
     let volume = img.layers.iter().find(|(n, _)| n == "volume").expect("a volume layer");
     assert!(volume.1.iter().map(|p| p.element_sum()).sum::<f32>() > 0.0);
