@@ -543,8 +543,11 @@ fn real_time_methods_and_sppm_attenuate_as_the_path_tracer_does() {
 /// the floor, was a short one (on a 16 x 16 image 776,000 secondary gathers against
 /// about 5,000, and 16x the render time). Measured (24 x 24, 541 final gathers
 /// each): indirect -0.4%; secondary gathers 1,341 against 465 (0.6% of the gather
-/// rays against 0.2%: some short rays remain near the box's walls, 1 mm from the
-/// room's, not yet explained), asserted under 4x; with the bug, about 150x.
+/// rays against 0.2%), asserted under 4x; with the bug, about 150x. The rest is
+/// where the gathers fall: the scene with walls has a few records on the room's
+/// ceiling edges (within 3 um of both surfaces, where eye rays along the
+/// symmetric camera's edge pixels land after passing a wall), each of whose
+/// hundreds of rays is short; none of its short rays crossing a wall is wrong.
 #[test]
 fn final_gathers_pass_index_matched_walls_at_full_length() {
     let boxes = pm_tests::load_scene("cornell_boxes.gltf");
