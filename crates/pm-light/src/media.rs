@@ -16,11 +16,13 @@ impl DirectLighting<'_> {
     /// came straight from a light: the integral of T(o, x) sigma_s p(-d, wi) L_i(x,
     /// wi) T(x, light) over the segment's points x and directions wi (Jensen and
     /// Christensen 1998's single-scattering term), by `n` samples. Each picks a
-    /// light by power, a distance equiangular about the light's position (its
-    /// bounding box's centre for an area light), which cancels the 1 / r^2 that
-    /// makes uniform or exponential distances noisy near the light, or exponential
-    /// in the mean extinction for lights at infinity, then a light sample from
-    /// there with its shadow ray. Zero in a medium that does not scatter.
+    /// light by power, then a distance equiangular about the light's position,
+    /// which cancels the 1 / r^2 that makes uniform or exponential distances noisy
+    /// near the light, and a light sample from there with its shadow ray. An area
+    /// light's point is picked first and the distance is equiangular about it
+    /// (Kulla and Fajardo 2012 section 4.2; equiangular about the light's centre
+    /// left a large ceiling light's fog noisy). Lights at infinity take distances
+    /// exponential in the mean extinction. Zero in a medium that does not scatter.
     pub fn single_scattering(
         &self,
         o: Vec3,
@@ -40,9 +42,22 @@ impl DirectLighting<'_> {
         for _ in 0..n {
             let (li, p_sel) = self.lights.pick(s.next_1d());
             let (ut, u_tri, u) = (s.next_1d(), s.next_1d(), s.next_2d());
-            let Some((t, pdf_t)) = self.scatter_distance(li, o, d, t_max, m.sigma_t(), ut) else { continue };
+            let light = &scene.lights[li];
+            let area = match light.kind {
+                LightKind::Area { .. } => match light.pick_point(scene, u_tri, u) {
+                    Some(q) => Some(q),
+                    None => continue,
+                },
+                _ => None,
+            };
+            let centre = area.as_ref().map(|q| q.p);
+            let Some((t, pdf_t)) = self.scatter_distance(li, centre, o, d, t_max, m.sigma_t(), ut) else { continue };
             let x = o + d * t;
-            let Some(ls) = scene.lights[li].sample_li(scene, x, Vec3::ZERO, u_tri, u) else { continue };
+            let ls = match &area {
+                Some(q) => light.sample_from(q, x),
+                None => light.sample_li(scene, x, Vec3::ZERO, u_tri, u),
+            };
+            let Some(ls) = ls else { continue };
             let f = m.phase.p(-d, ls.wi);
             let p_l = ls.pdf * p_sel as f32 * pdf_t;
             if !(f > 0.0 && p_l > 0.0) {
@@ -56,16 +71,25 @@ impl DirectLighting<'_> {
     }
 
     /// Where along (0, t_max) to scatter for light `li`, and the density [m^-1]:
-    /// equiangular about the light's position, or exponential in the mean of
-    /// `sigma_t` (truncated to the segment) for lights at infinity and points on the
-    /// ray's line.
-    fn scatter_distance(&self, li: usize, o: Vec3, d: Vec3, t_max: f32, sigma_t: Rgb, u: f32) -> Option<(f32, f32)> {
+    /// equiangular about the light's position (about `picked`, the point already
+    /// picked on an area light), or exponential in the mean of `sigma_t`
+    /// (truncated to the segment) for lights at infinity and points on the ray's
+    /// line.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_distance(
+        &self,
+        li: usize,
+        picked: Option<Vec3>,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        sigma_t: Rgb,
+        u: f32,
+    ) -> Option<(f32, f32)> {
         let scene = self.scene;
         let centre = match &scene.lights[li].kind {
             LightKind::Point { position, .. } | LightKind::Spot { position, .. } => Some(*position),
-            LightKind::Area { tris, .. } => {
-                Some(pm_scene::bounds_of(&scene.triangles[tris.start as usize..tris.end as usize]).center())
-            }
+            LightKind::Area { .. } => picked,
             _ => None,
         };
         if let Some(c) = centre {

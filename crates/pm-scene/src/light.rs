@@ -537,7 +537,56 @@ struct AreaPick<'s> {
     area: f32,
 }
 
+/// A point picked on an area light before the point it lights is known
+/// ([`Light::pick_point`]).
+#[derive(Clone, Copy, Debug)]
+pub struct AreaPoint {
+    /// The point [m].
+    pub p: Vec3,
+    /// Its triangle's unit geometric normal.
+    ng: Vec3,
+    /// Emitted radiance there [W sr^-1 m^-2 per channel].
+    le: Rgb,
+    /// The area the pick stands for, 1 / (its area density) [m^2].
+    area: f32,
+}
+
+impl From<AreaPick<'_>> for AreaPoint {
+    fn from(a: AreaPick<'_>) -> AreaPoint {
+        AreaPoint { p: a.p, ng: a.tri.ng(), le: a.le, area: a.area }
+    }
+}
+
 impl Light {
+    /// A point on an area light, by area (by emitted power for a textured one),
+    /// picked before the point it is to light is known: sampling in a medium
+    /// picks the light's point first and then distances along the ray
+    /// equiangular about it (Kulla and Fajardo 2012 section 4.2). `None` for other
+    /// lights and where the point emits nothing.
+    pub fn pick_point(&self, scene: &Scene, u_sel: f32, u: glam::Vec2) -> Option<AreaPoint> {
+        self.pick_area_point(scene, u_sel, u).map(AreaPoint::from)
+    }
+
+    /// The light sample toward `p` from the area light's point `q`: its direction,
+    /// distance, radiance and solid-angle density (the area density converted,
+    /// d^2 / (cos_l A)); `None` when `p` is behind a one-sided light or on `q`.
+    pub fn sample_from(&self, q: &AreaPoint, p: Vec3) -> Option<LightSample> {
+        let LightKind::Area { two_sided, .. } = &self.kind else { return None };
+        let d = q.p - p;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let cos_l = -wi.dot(q.ng);
+        let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
+        if cos_l <= 0.0 {
+            return None;
+        }
+        Some(LightSample { wi, dist, li: q.le, pdf: dist2 / (cos_l * q.area), delta: false })
+    }
+
     /// Pick a point on an area light: a triangle from the light's cdf (by area, or by
     /// emitted power for a textured emitter), then a uniform point on it. `None` for
     /// other lights and where the point emits nothing.
@@ -727,20 +776,7 @@ impl Light {
                 let tri = &scene.triangles[(tris.start + i as u32) as usize];
                 let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) else {
                     // Far from the triangle: a point on it, uniform by area.
-                    let AreaPick { tri, p: q, le, area } = self.area_point(scene, i, u)?;
-                    let d = q - p;
-                    let dist2 = d.length_squared();
-                    if !(dist2 > 0.0) {
-                        return None;
-                    }
-                    let dist = dist2.sqrt();
-                    let wi = d / dist;
-                    let cos_l = -wi.dot(tri.ng());
-                    let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                    if cos_l <= 0.0 {
-                        return None;
-                    }
-                    return Some(LightSample { wi, dist, li: le, pdf: dist2 / (cos_l * area), delta: false });
+                    return self.sample_from(&self.area_point(scene, i, u)?.into(), p);
                 };
                 let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
                 let ng = tri.ng();
