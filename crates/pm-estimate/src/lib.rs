@@ -17,7 +17,9 @@ mod precompute;
 mod volume;
 
 pub use precompute::{PrecomputeStats, precompute, selected};
-pub use volume::{Inscattering, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march};
+pub use volume::{
+    Inscattering, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march, spheres,
+};
 
 use glam::Vec3;
 use pm_color::Rgb;
@@ -182,15 +184,27 @@ fn gather<R: PhotonRecord>(
         return (Rgb::ZERO, res.max_dist2, res.count);
     }
     let r2 = res.max_dist2;
+    let sum = sum_but_boundary(tree, scratch, |r, d2| weight(r.wi()) * r.power() * p.filter.weight(d2, r2));
+    (sum / (PI * r2), r2, res.count)
+}
+
+/// The sum of `term(record, d2)` over the photons the last k-nearest query left in
+/// `scratch` (d2 each one's squared distance [m^2]), leaving out the one that marks
+/// the radius ([`boundary_photon`]): the estimates' density divides by that
+/// radius, so the photon on it is not inside.
+pub(crate) fn sum_but_boundary<R: PhotonRecord>(
+    tree: &impl Neighbours<R>,
+    scratch: &KnnScratch,
+    term: impl Fn(&R, f32) -> Rgb,
+) -> Rgb {
     let boundary = boundary_photon(tree, scratch);
     let mut sum = Rgb::ZERO;
     for (i, d2) in tree.found(scratch) {
         if Some(i) != boundary {
-            let r = tree.record(i);
-            sum += weight(r.wi()) * r.power() * p.filter.weight(d2, r2);
+            sum += term(tree.record(i), d2);
         }
     }
-    (sum / (PI * r2), r2, res.count)
+    sum
 }
 
 /// The photon that defines the radius of the last k-nearest query (the farthest;

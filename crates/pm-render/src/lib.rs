@@ -349,9 +349,13 @@ impl<'a> VolumeMap<'a> {
         let tree = KdTree::new(nodes);
         let max_d2 = max_radius * max_radius;
         let multiple = pm_estimate::beam_spheres(&tree, k, max_d2, false);
-        let all = pm_estimate::beam_spheres(&tree, k, max_d2, true);
-        let inscattering =
-            if precompute { pm_estimate::Inscattering::new(&tree, k, max_d2) } else { Default::default() };
+        let (all, inscattering) = if precompute {
+            // The precomputation's queries give the all-photon radii too.
+            let (inscattering, radii) = pm_estimate::Inscattering::with_beam_radii(&tree, k, max_d2);
+            (pm_estimate::spheres(&tree, &radii), inscattering)
+        } else {
+            (pm_estimate::beam_spheres(&tree, k, max_d2, true), Default::default())
+        };
         VolumeMap { tree, multiple, all, inscattering }
     }
 }
