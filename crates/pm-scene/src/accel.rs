@@ -19,15 +19,14 @@ impl BvhTris {
         self.tri4.capacity() * std::mem::size_of::<geometry::Tri4>()
     }
 
-    /// The groups of four that slots `first..first + count` span, with the mask of
-    /// the range's lanes in each, and the first slot of each.
-    #[inline]
-    fn groups(&self, first: u32, count: u32) -> impl Iterator<Item = (&geometry::Tri4, u32, u32)> {
-        let end = first + count;
-        (first / 4..end.div_ceil(4)).map(move |g| {
-            let (lo, hi) = (first.max(4 * g) - 4 * g, end.min(4 * g + 4) - 4 * g);
-            (&self.tri4[g as usize], ((1u32 << hi) - 1) & !((1u32 << lo) - 1), 4 * g)
-        })
+    /// The group of four that holds a leaf's slots `first..first + count`, the mask
+    /// of their lanes in it, and its first slot. A leaf never straddles two groups
+    /// (`Bvh4::node` pads the slots so), so it takes one four-wide test.
+    #[inline(always)]
+    fn group(&self, first: u32, count: u32) -> (&geometry::Tri4, u32, u32) {
+        let (g, lo) = (first / 4, first % 4);
+        debug_assert!(lo + count <= 4, "a leaf straddles two groups of four");
+        (&self.tri4[g as usize], ((1u32 << (lo + count)) - 1) & !((1u32 << lo) - 1), 4 * g)
     }
 }
 
@@ -78,15 +77,14 @@ impl Scene {
         let (slot, t) = self.bvh.closest(o, d, t_max, |first, count, t_max| {
             let mut best = None;
             let mut t_best = t_max;
-            for (group, mask, slot0) in tris.groups(first, count) {
-                tri_ray.hit4(group, mask, t_best, |lane, t, b| {
-                    let s = slot0 + lane as u32;
-                    if !self.any_alpha || self.present(id[s as usize], b) {
-                        (t_best, best_b, best) = (t, b, Some((s, t)));
-                    }
-                    t_best
-                });
-            }
+            let (group, mask, slot0) = tris.group(first, count);
+            tri_ray.hit4(group, mask, t_best, |lane, t, b| {
+                let s = slot0 + lane as u32;
+                if !self.any_alpha || self.present(id[s as usize], b) {
+                    (t_best, best_b, best) = (t, b, Some((s, t)));
+                }
+                t_best
+            });
             best
         })?;
         Some(self.make_hit(id[slot as usize], t, best_b))
@@ -98,16 +96,12 @@ impl Scene {
         let (tris, id) = (&self.bvh_tris, self.bvh.slots());
         self.bvh.any(o, d, t_max, |first, count, t_max| {
             let mut blocked = false;
-            for (group, mask, slot0) in tris.groups(first, count) {
-                tri_ray.hit4(group, mask, t_max, |lane, _, b| {
-                    blocked |= !self.any_alpha || self.present(id[slot0 as usize + lane], b);
-                    if blocked { 0.0 } else { t_max }
-                });
-                if blocked {
-                    return true;
-                }
-            }
-            false
+            let (group, mask, slot0) = tris.group(first, count);
+            tri_ray.hit4(group, mask, t_max, |lane, _, b| {
+                blocked |= !self.any_alpha || self.present(id[slot0 as usize + lane], b);
+                if blocked { 0.0 } else { t_max }
+            });
+            blocked
         })
     }
 

@@ -142,81 +142,86 @@ impl TriangleRay {
         let (x0, y0, z0) = vert(0);
         let (x1, y1, z1) = vert(1);
         let (x2, y2, z2) = vert(2);
-        let e0 = x1 * y2 - y1 * x2;
-        let e1 = x2 * y0 - y2 * x0;
-        let e2 = x0 * y1 - y0 * x1;
+        let mut e0 = x1 * y2 - y1 * x2;
+        let mut e1 = x2 * y0 - y2 * x0;
+        let mut e2 = x0 * y1 - y0 * x1;
         let zero = Vec4::ZERO;
-        let neg = e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero);
-        let pos = e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero);
-        let on_edge = e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero);
+        let both_signs = |e0: Vec4, e1: Vec4, e2: Vec4| {
+            let neg = e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero);
+            let pos = e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero);
+            (neg & pos).bitmask()
+        };
+        let on_edge = (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).bitmask() & mask;
         // A lane with edge functions of both signs misses (unless one is zero,
-        // which the double-precision fallback decides).
-        let mut alive = on_edge.bitmask() | !(neg & pos).bitmask();
-        let (x, y, z) = ([x0, x1, x2], [y0, y1, y2], [z0, z1, z2]);
-        let e = [e0, e1, e2];
-        alive &= mask & 0b1111;
-        while alive != 0 {
-            let i = alive.trailing_zeros() as usize;
-            alive &= alive - 1;
-            let p = |v: usize| Vec3::new(x[v][i], y[v][i], z[v][i]);
-            if let Some((t, b)) = self.finish(p(0), p(1), p(2), [e[0][i], e[1][i], e[2][i]], t_max) {
-                t_max = on_hit(i, t, b);
+        // which the double-precision fallback below decides).
+        let mut alive = (on_edge | !both_signs(e0, e1, e2)) & mask & 0b1111;
+        if alive == 0 {
+            return;
+        }
+        if on_edge & alive != 0 {
+            // Recompute the edge functions of lanes on an edge in double precision
+            // (pbrt-v4 does the same), then decide their sign test again.
+            let (mut a0, mut a1, mut a2) = (e0.to_array(), e1.to_array(), e2.to_array());
+            let (x, y) = ([x0, x1, x2].map(|v| v.to_array()), [y0, y1, y2].map(|v| v.to_array()));
+            let mut m = on_edge & alive;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let c = |v: usize, w: usize| (x[v][i] as f64 * y[w][i] as f64 - y[v][i] as f64 * x[w][i] as f64) as f32;
+                (a0[i], a1[i], a2[i]) = (c(1, 2), c(2, 0), c(0, 1));
             }
+            (e0, e1, e2) = (Vec4::from_array(a0), Vec4::from_array(a1), Vec4::from_array(a2));
+            alive &= !both_signs(e0, e1, e2);
         }
-    }
-
-    /// The rest of the test for one triangle: vertices `p0..p2` translated,
-    /// permuted and sheared (z not yet scaled), edge functions `e`.
-    #[inline(always)]
-    fn finish(&self, p0: Vec3, p1: Vec3, p2: Vec3, e: [f32; 3], t_max: f32) -> Option<(f32, [f32; 3])> {
-        let sz = self.s.z;
-        let [mut e0, mut e1, mut e2] = e;
-        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-            // Fall back to double precision on edges (pbrt-v4 does the same).
-            e0 = (p1.x as f64 * p2.y as f64 - p1.y as f64 * p2.x as f64) as f32;
-            e1 = (p2.x as f64 * p0.y as f64 - p2.y as f64 * p0.x as f64) as f32;
-            e2 = (p0.x as f64 * p1.y as f64 - p0.y as f64 * p1.x as f64) as f32;
-        }
-        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
-            return None;
-        }
+        // The rest of the test on the four lanes together, against the t_max given;
+        // a lane that passes is checked again against the t_max its predecessors
+        // left (the only conditions that depend on it) before it is reported.
         let det = e0 + e1 + e2;
-        if det == 0.0 {
-            return None;
-        }
-        let (z0, z1, z2) = (p0.z * sz, p1.z * sz, p2.z * sz);
+        let sz = Vec4::splat(self.s.z);
+        let (z0, z1, z2) = (z0 * sz, z1 * sz, z2 * sz);
         let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
-        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-            return None;
+        let t_max_det = Vec4::splat(t_max) * det;
+        let in_range_neg = det.cmplt(zero) & t_scaled.cmplt(zero) & t_scaled.cmpge(t_max_det);
+        let in_range_pos = det.cmpgt(zero) & t_scaled.cmpgt(zero) & t_scaled.cmple(t_max_det);
+        alive &= (in_range_neg | in_range_pos).bitmask();
+        if alive == 0 {
+            return;
         }
-        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
-            return None;
-        }
-        let inv = 1.0 / det;
+        let inv = Vec4::ONE / det;
         let t = t_scaled * inv;
-        if !(t > 0.0 && t < t_max && t.is_finite()) {
-            return None;
-        }
+        alive &= (t.cmpgt(zero) & t.cmplt(Vec4::splat(t_max)) & t.abs().cmplt(Vec4::INFINITY)).bitmask();
         // Conservative lower bound on t (pbrt-v4 section 6.8.7): a t within the
         // floating-point error of the computation is not a hit, so a ray starting on a
         // surface (a camera lying on the floor) does not hit that surface at t ~ 0.
         let gamma = |n: f32| {
             let e = n * f32::EPSILON * 0.5;
-            e / (1.0 - e)
+            Vec4::splat(e / (1.0 - e))
         };
         let max_zt = z0.abs().max(z1.abs()).max(z2.abs());
-        let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
-        let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+        let max_xt = x0.abs().max(x1.abs()).max(x2.abs());
+        let max_yt = y0.abs().max(y1.abs()).max(y2.abs());
         let delta_z = gamma(3.0) * max_zt;
         let delta_x = gamma(5.0) * (max_xt + max_zt);
         let delta_y = gamma(5.0) * (max_yt + max_zt);
-        let delta_e = 2.0 * (gamma(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+        let delta_e = Vec4::splat(2.0) * (gamma(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
         let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-        let delta_t = 3.0 * (gamma(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv.abs();
-        if t <= delta_t {
-            return None;
+        let delta_t = Vec4::splat(3.0) * (gamma(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv.abs();
+        alive &= t.cmpgt(delta_t).bitmask();
+        let t_given = t_max;
+        let (t, det, t_scaled, inv) = (t.to_array(), det.to_array(), t_scaled.to_array(), inv.to_array());
+        let (e0, e1, e2) = (e0.to_array(), e1.to_array(), e2.to_array());
+        while alive != 0 {
+            let i = alive.trailing_zeros() as usize;
+            alive &= alive - 1;
+            if t_max != t_given {
+                let tmd = t_max * det[i];
+                let in_range = if det[i] < 0.0 { t_scaled[i] >= tmd } else { t_scaled[i] <= tmd };
+                if !(in_range && t[i] < t_max) {
+                    continue;
+                }
+            }
+            t_max = on_hit(i, t[i], [e0[i] * inv[i], e1[i] * inv[i], e2[i] * inv[i]]);
         }
-        Some((t, [e0 * inv, e1 * inv, e2 * inv]))
     }
 }
 
