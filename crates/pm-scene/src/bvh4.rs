@@ -309,11 +309,7 @@ impl Bvh4 {
             lanes.insert(i, l);
         }
         let index = self.nodes.len();
-        self.nodes.push(Node4 {
-            b: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
-            child: [0; 4],
-            count: [0; 4],
-        });
+        self.nodes.push(Node4 { b: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], child: [0; 4], count: [0; 4] });
         for (lane, l) in lanes.iter().enumerate() {
             let (child, count) = if l.len <= LEAF {
                 // A leaf (at most four triangles) never straddles two groups of four,

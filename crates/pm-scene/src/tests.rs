@@ -434,3 +434,58 @@ fn lopsided_and_coincident_triangles_are_hit_as_by_every_triangle() {
     }
     assert!(scene.bvh.depth() <= bvh4::MAX_SAH_LEVEL + 12, "depth {}", scene.bvh.depth());
 }
+
+/// The four-lane triangle test reports what testing the lanes one after another
+/// would, each against the t_max the lanes before it left: the same lanes, in
+/// order, with the same distances and barycentrics bit for bit. The lanes' second
+/// half runs as SIMD against the t_max given and is checked again per lane; a
+/// missing re-check would report a farther lane after a nearer one.
+#[test]
+fn four_lane_triangle_test_matches_lanes_one_by_one() {
+    use crate::geometry::{Tri4, TriangleRay};
+    let mut s = pm_sampling::Sampler::hashed(11, 0);
+    let mut u = || 2.0 * s.next_1d() - 1.0;
+    let (mut reported, mut cases_with_two) = (0, 0);
+    for case in 0..20_000 {
+        let o = Vec3::new(u(), u(), u());
+        let d = Vec3::new(u(), u(), u()).normalize_or(Vec3::Z);
+        // Triangles about points along the ray, so that most lanes are hit; every
+        // eighth case shares an edge between lanes 0 and 1, through which rays pass.
+        let tris: Vec<[Vec3; 3]> = (0..4)
+            .map(|_| {
+                let c = o + d * (1.0 + u());
+                [
+                    c + Vec3::new(u(), u(), u()) * 0.5,
+                    c + Vec3::new(u(), u(), u()) * 0.5,
+                    c + Vec3::new(u(), u(), u()) * 0.5,
+                ]
+            })
+            .collect();
+        let mut tris = tris;
+        if case % 8 == 0 {
+            tris[1] = [tris[0][1], tris[0][0], tris[0][2] + Vec3::new(u(), u(), u()) * 0.5];
+        }
+        let t_max = if case % 3 == 0 { f32::INFINITY } else { 1.0 + u() };
+        let ray = TriangleRay::new(o, d);
+        for any_hit in [false, true] {
+            let mut expected = Vec::new();
+            let mut cur = t_max;
+            for (lane, p) in tris.iter().enumerate() {
+                if let Some((t, b)) = ray.hit(p, cur) {
+                    expected.push((lane, t.to_bits(), b.map(f32::to_bits)));
+                    cur = if any_hit { 0.0 } else { t };
+                }
+            }
+            let mut got = Vec::new();
+            ray.hit4(&Tri4::new(&tris), 0b1111, t_max, |lane, t, b| {
+                got.push((lane, t.to_bits(), b.map(f32::to_bits)));
+                if any_hit { 0.0 } else { t }
+            });
+            assert_eq!(got, expected, "case {case}, any hit {any_hit}: o {o}, d {d}, t_max {t_max}, {tris:?}");
+            reported += got.len();
+            cases_with_two += (got.len() >= 2) as usize;
+        }
+    }
+    // The cases reach the re-check: many report more than one lane.
+    assert!(reported > 10_000 && cases_with_two > 1_000, "{reported} hits, {cases_with_two} cases with two or more");
+}
