@@ -106,9 +106,9 @@ impl TriangleRay {
 
     /// [`Self::hit`] for the lanes of four triangles in `mask` (bit i: lane i): `on_hit(lane, t, b)`
     /// for each hit, in lane order, returning the t_max for the lanes after it (the
-    /// closest-hit search passes t, an any-hit search 0 to stop). The arithmetic up
-    /// to the edge functions, which decides most misses, runs on all four lanes
-    /// together.
+    /// closest-hit search passes t, an any-hit search 0 to stop). The arithmetic runs
+    /// on all four lanes together, but for the double-precision edge fallback and the
+    /// per-lane re-check against the t_max the earlier lanes left.
     #[inline]
     pub fn hit4(&self, tri: &Tri4, mask: u32, t_max: f32, on_hit: impl FnMut(usize, f32, [f32; 3]) -> f32) {
         // One copy of the test per permutation, so the axis swizzle is fixed at
