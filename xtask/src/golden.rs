@@ -1,6 +1,8 @@
 //! `cargo xtask golden`: the outputs a restructuring must leave byte-identical,
 //! recorded once and compared at every later commit (issue 35). It runs the
-//! default pipeline, the same with `--tiles 4 --trace-slices 3`, `photon-live`
+//! default pipeline, the same with `--tiles 4 --trace-slices 3`, the path tracer,
+//! progressive photon mapping (one run, and two averaged) and the fog Cornell box
+//! at 128 x 128, `photon-live`
 //! with both methods for 30 frames on the thesis's room and on cornell_spheres,
 //! and `cargo xtask figure1`, each into its own folder, and hashes (blake3) every
 //! file they write except those that carry wall times or absolute paths (JSON,
@@ -42,20 +44,20 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     }
     let bins = Bins::build(root)?;
     let pipeline = root.join("pipeline.toml");
-    let batch = |name: &str, tiles: u32, trace_slices: u32| -> Result<()> {
+    let batch = |name: &str, more: RunArgs| -> Result<()> {
         println!("golden: {name}");
-        let a = RunArgs {
-            pipeline: Some(pipeline.clone()),
-            out: Some(out.join(name)),
-            force: true,
-            tiles,
-            trace_slices,
-            ..Default::default()
-        };
+        let a = RunArgs { pipeline: Some(pipeline.clone()), out: Some(out.join(name)), force: true, ..more };
         run::run_with(&a, root, &bins).map(|_| ())
     };
-    batch("run-default", 1, 1)?;
-    batch("run-tiles4-slices3", 4, 3)?;
+    batch("run-default", RunArgs::default())?;
+    batch("run-tiles4-slices3", RunArgs { tiles: 4, trace_slices: 3, ..Default::default() })?;
+    // The methods that trace their own paths, and a scene with a medium (the
+    // volume map, its precomputed in-scattering and the volume layer), smaller.
+    let small = |method| RunArgs { width: Some(128), height: Some(128), method, ..Default::default() };
+    batch("run-path", small(Some(pm_render::Method::Path)))?;
+    batch("run-sppm", small(Some(pm_render::Method::Sppm)))?;
+    batch("run-sppm-runs2", RunArgs { runs: 2, ..small(Some(pm_render::Method::Sppm)) })?;
+    batch("run-fog", RunArgs { scene: Some(root.join("scenes/cornell_fog.gltf")), ..small(None) })?;
     for method in [photon_live::Method::Vertex, photon_live::Method::Ispm] {
         for (label, scene) in [("room", None), ("spheres", Some(root.join("scenes/cornell_spheres.gltf")))] {
             let name = format!("live-{method}-{label}");
