@@ -2,8 +2,9 @@
 //! live in `tests/tests/suite/`; this library holds the helpers they share.
 
 use pm_format::{CompactIrrPhoton, FullPhoton, PhotonRecord};
+use pm_methods::{Input, Method, Settings};
 use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
-use pm_render::{Method, RenderParams};
+use pm_render::RenderParams;
 use pm_scene::Scene;
 use std::path::PathBuf;
 
@@ -107,10 +108,10 @@ pub fn photon_maps_seeded(
     (g, pm_kdtree::balance(&c))
 }
 
-/// The renderer's defaults (`RenderParams::default()`, as `photon-render` has them)
+/// The renderer's defaults (`Settings::default()`, as `photon-render` has them)
 /// with another method and size.
-pub fn render_params(mode: Method, width: u32, height: u32) -> RenderParams {
-    RenderParams { mode, width, height, ..Default::default() }
+pub fn render_params(mode: Method, width: u32, height: u32) -> Settings {
+    Settings { mode, render: RenderParams { width, height, ..Default::default() }, ..Default::default() }
 }
 
 /// The photon-map integrator over the maps of [`photon_maps`], with its
@@ -119,9 +120,10 @@ pub fn render_params(mode: Method, width: u32, height: u32) -> RenderParams {
 pub fn with_photon_mapping<R>(
     scene: &Scene,
     maps: &(Vec<CompactIrrPhoton>, Vec<FullPhoton>),
-    p: &RenderParams,
+    settings: &Settings,
     f: impl FnOnce(pm_render::PhotonMapping<CompactIrrPhoton>) -> R,
 ) -> R {
+    let p = &settings.render;
     let irr = pm_render::irradiance_subset(&maps.0);
     let m = pm_render::Maps {
         global: Some(pm_kdtree::KdTree::new(&maps.0)),
@@ -131,25 +133,42 @@ pub fn with_photon_mapping<R>(
     };
     let camera = scene.camera.as_ref().expect("test scenes have a camera");
     let mut pm = pm_render::PhotonMapping::new(scene, m, p, true).unwrap();
-    if pm.wants_cache() && pm_render::method_uses_cache(p.mode) {
+    if pm.wants_cache() && settings.mode.needs().cache {
         let cache = pm_render::IrradianceCache::prepass(&pm, camera, &p.film(1));
         pm = pm.with_cache(cache);
     }
     f(pm)
 }
 
-/// Render the whole image with the maps of [`photon_maps`] (seed 1), running the
-/// irradiance-cache prepass first when the settings call for it, as `photon-render` does.
+/// Render the whole image by `p.mode` (seed 1): from the maps of [`photon_maps`],
+/// running the irradiance-cache prepass first when the settings call for it, as
+/// `photon-render` does, or from the scene alone for a method that traces its own
+/// paths.
 pub fn render(
     scene: &Scene,
     maps: &(Vec<CompactIrrPhoton>, Vec<FullPhoton>),
-    p: &RenderParams,
+    p: &Settings,
+) -> (pm_render::Image, pm_render::RenderStats) {
+    render_seeded(scene, maps, p, 1)
+}
+
+/// [`render`] with the film's seed `seed` (the cache, when made, with seed 1).
+pub fn render_seeded(
+    scene: &Scene,
+    maps: &(Vec<CompactIrrPhoton>, Vec<FullPhoton>),
+    p: &Settings,
+    seed: u64,
 ) -> (pm_render::Image, pm_render::RenderStats) {
     let camera = scene.camera.as_ref().expect("test scenes have a camera");
-    let film = p.film(1);
-    with_photon_mapping(scene, maps, p, |pm| {
-        pm_render::render_method(p.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
-    })
+    let film = p.render.film(seed);
+    let view = pm_render::View { camera, film: &film, rect: film.rect() };
+    let r = if p.mode.needs().photon_maps {
+        with_photon_mapping(scene, maps, p, |pm| pm_methods::render(p, Input::PhotonMaps(pm), view, None, &|_, _| {}))
+    } else {
+        pm_methods::render(p, Input::<CompactIrrPhoton>::Scene(scene), view, None, &|_, _| {})
+    }
+    .unwrap();
+    (r.image, r.stats)
 }
 
 /// An inward-facing closed box [lo, hi] as quads (two triangles each) of material `m`.

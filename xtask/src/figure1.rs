@@ -7,7 +7,8 @@
 
 use anyhow::{Context, Result};
 use pm_estimate::IrradianceParams;
-use pm_render::{Lookup, Method, RenderParams};
+use pm_methods::Method;
+use pm_render::{Lookup, RenderParams};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use xtask::stages::{self, Bins};
@@ -83,8 +84,8 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             s(&"--png"),
             o(png),
         ]);
-        let p = RenderParams { mode, gather_lookup: lookup, width: size, height: size, ..base.render.clone() };
-        a.extend(p.to_args());
+        let render = RenderParams { gather_lookup: lookup, width: size, height: size, ..base.render.clone() };
+        a.extend(pm_methods::Settings { mode, render, ..base.settings() }.to_args());
         stage(&bins, "photon-render", &a)
     };
     render(Method::Photons, "b_irradiance_at_samples.png", Lookup::Precomputed)?;

@@ -54,11 +54,11 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     // The methods that trace their own paths, and a scene with a medium (the
     // volume map, its precomputed in-scattering and the volume layer), smaller.
     let small = |method| RunArgs { width: Some(128), height: Some(128), method, ..Default::default() };
-    batch("run-path", small(Some(pm_render::Method::Path)))?;
-    batch("run-sppm", small(Some(pm_render::Method::Sppm)))?;
-    batch("run-sppm-runs2", RunArgs { runs: 2, ..small(Some(pm_render::Method::Sppm)) })?;
+    batch("run-path", small(Some(pm_methods::Method::Path)))?;
+    batch("run-sppm", small(Some(pm_methods::Method::Sppm)))?;
+    batch("run-sppm-runs2", RunArgs { runs: 2, ..small(Some(pm_methods::Method::Sppm)) })?;
     batch("run-fog", RunArgs { scene: Some(root.join("scenes/cornell_fog.gltf")), ..small(None) })?;
-    for method in [photon_live::Method::Vertex, photon_live::Method::Ispm] {
+    for method in [pm_methods::live::LiveMethod::Vertex, pm_methods::live::LiveMethod::Ispm] {
         for (label, scene) in [("room", None), ("spheres", Some(root.join("scenes/cornell_spheres.gltf")))] {
             let name = format!("live-{method}-{label}");
             println!("golden: {name}");

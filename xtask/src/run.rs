@@ -5,7 +5,6 @@
 
 use crate::stages::{self, Bins};
 use anyhow::{Context, Result, bail};
-use pm_params::Naming;
 use pm_pipeline::steps::{Kind, Step, step_key, steps};
 use pm_pipeline::{EffectsCfg, Pipeline, Setup};
 use serde_json::json;
@@ -51,7 +50,7 @@ pub struct RunArgs {
     /// Render mode instead of the pipeline file's ([render] mode: full, path,
     /// sppm, ...).
     #[arg(long)]
-    pub method: Option<pm_render::Method>,
+    pub method: Option<pm_methods::Method>,
     /// Progressive photon mapping (mode sppm): this many independent runs (seeds
     /// seed to seed + K - 1, each its own process) averaged into the image, as the
     /// job plan does; the mean of consistent estimates is consistent. 1: one run.
@@ -104,8 +103,8 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let mut cfg = Pipeline::load(&pipeline)?;
     cfg.render.width = args.width.unwrap_or(cfg.render.width);
     cfg.render.height = args.height.unwrap_or(cfg.render.height);
-    cfg.render.mode = args.method.unwrap_or(cfg.render.mode);
-    cfg.render.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    cfg.mode = args.method.unwrap_or(cfg.mode);
+    cfg.settings().check(true).map_err(|e| anyhow::anyhow!(e))?;
     let scene = args.scene.clone().unwrap_or_else(|| cfg.scene_path(&pipeline));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out").join(&name));
@@ -314,7 +313,7 @@ pub struct LiveArgs {
     pub out: Option<PathBuf>,
     /// The real-time method instead of the pipeline file's `live.method`.
     #[arg(long)]
-    pub method: Option<photon_live::Method>,
+    pub method: Option<pm_methods::live::LiveMethod>,
     /// Frames to render.
     #[arg(long, default_value_t = 120)]
     pub frames: u32,

@@ -16,9 +16,11 @@ use anyhow::{Context, Result, bail};
 use pm_color::Layer;
 use pm_estimate::IrradianceParams;
 use pm_image::accuracy::{self, Split};
+use pm_methods::live::{LiveMethod, LiveParams};
+use pm_methods::{Method, Settings};
 use pm_photon::{RecordLayout, TraceParams};
 use pm_pipeline::Quality;
-use pm_render::{Lookup, Method, RenderParams};
+use pm_render::{Lookup, RenderParams};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -85,10 +87,11 @@ struct Setting {
     label: String,
     trace: TraceParams,
     irradiance: IrradianceParams,
-    render: RenderParams,
+    /// The method and its settings.
+    render: Settings,
     /// A real-time row instead: photon-live's settings (its frame of the scene's
     /// camera after the buffer filled, timed as its mean frame time).
-    live: Option<photon_live::LiveParams>,
+    live: Option<LiveParams>,
     /// A peer row instead: Mitsuba's path tracer at this many paths a pixel.
     peer_spp: Option<u32>,
 }
@@ -137,9 +140,9 @@ impl Row {
 /// The defaults (pipeline.toml's values at `size`), then one setting at a time;
 /// `base_diagonal` is the scene's bounding-box diagonal [m].
 fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: bool) -> Vec<Setting> {
-    let mut render = base.render.clone();
-    render.width = size;
-    render.height = size;
+    let mut render = base.settings();
+    render.render.width = size;
+    render.render.height = size;
     let d = Setting {
         axis: "default",
         label: "defaults".into(),
@@ -166,25 +169,25 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: boo
     for k in [25usize, 100, 200, 400] {
         v.push(with("k", format!("k {k}"), &|s| {
             s.irradiance.k = k;
-            s.render.k = k;
+            s.render.render.k = k;
         }));
     }
     for f in [1.0f64, 0.0625] {
         v.push(with("precompute fraction", format!("fraction {f}"), &|s| s.irradiance.fraction = f));
     }
     for r in [64u32, 128, 256, 1024] {
-        v.push(with("gather rays", format!("gather rays {r}"), &|s| s.render.gather_rays = r));
+        v.push(with("gather rays", format!("gather rays {r}"), &|s| s.render.render.gather_rays = r));
     }
     for a in [0.15f32, 0.6] {
-        v.push(with("cache accuracy", format!("cache a {a}"), &|s| s.render.icache_accuracy = a));
+        v.push(with("cache accuracy", format!("cache a {a}"), &|s| s.render.render.icache_accuracy = a));
     }
     for n in [1u32, 16] {
-        v.push(with("light samples", format!("light samples {n}"), &|s| s.render.light_samples = n));
+        v.push(with("light samples", format!("light samples {n}"), &|s| s.render.render.light_samples = n));
     }
     for spp in [4u32, 64] {
-        v.push(with("max spp", format!("max spp {spp}"), &|s| s.render.spp = spp));
+        v.push(with("max spp", format!("max spp {spp}"), &|s| s.render.render.spp = spp));
     }
-    v.push(with("lookup", "exact lookup".into(), &|s| s.render.gather_lookup = Lookup::Exact));
+    v.push(with("lookup", "exact lookup".into(), &|s| s.render.render.gather_lookup = Lookup::Exact));
     // Participating media (issue 38): volume photons, the estimate along eye rays
     // (the beam estimate by default, or the ray march) and its k.
     if media {
@@ -192,16 +195,16 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: boo
             v.push(with("volume photons", format!("volume {n}"), &|s| s.trace.volume_photons = n));
         }
         v.push(with("volume estimate", "ray march".into(), &|s| {
-            s.render.volume_estimate = pm_render::VolumeEstimate::RayMarch
+            s.render.render.volume_estimate = pm_render::VolumeEstimate::RayMarch
         }));
         for k in [20usize, 150] {
-            v.push(with("volume k", format!("volume k {k}"), &|s| s.render.volume_k = k));
+            v.push(with("volume k", format!("volume k {k}"), &|s| s.render.render.volume_k = k));
         }
         // Single scattering's light samples per eye ray in a medium: its noise is
         // most of a thin fog's error.
         for n in [1u32, 16] {
             v.push(with("volume light samples", format!("volume light samples {n}"), &|s| {
-                s.render.volume_light_samples = n
+                s.render.render.volume_light_samples = n
             }));
         }
     }
@@ -209,7 +212,7 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: boo
     for spp in [16u32, 64, 256, 1024] {
         v.push(with("path", format!("path {spp} spp"), &|s| {
             s.render.mode = Method::Path;
-            s.render.spp = spp
+            s.render.render.spp = spp
         }));
     }
     // Progressive photon mapping (issue 39): passes of the default photons a pass
@@ -219,28 +222,28 @@ fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media: boo
     for passes in [16u32, 64, 256, 1024] {
         v.push(with("sppm", format!("sppm {passes} passes"), &|s| {
             s.render.mode = Method::Sppm;
-            s.render.passes = passes
+            s.render.sppm.passes = passes
         }));
     }
     for passes in [16u32, 64, 256, 1024] {
         v.push(with("sppm no probes", format!("sppm {passes} passes no probes"), &|s| {
             s.render.mode = Method::Sppm;
-            (s.render.passes, s.render.sppm_boundary_probes) = (passes, 0)
+            (s.render.sppm.passes, s.render.sppm.sppm_boundary_probes) = (passes, 0)
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
     // (paths in the buffer) and image-space photon mapping (subsampling).
     // One real-time row: the method's defaults at the study's size, then `edit`.
-    let live = |method: photon_live::Method, label: String, edit: &dyn Fn(&mut photon_live::LiveParams)| {
-        let axis = if method == photon_live::Method::Vertex { "live vertex" } else { "live ispm" };
+    let live = |method: LiveMethod, label: String, edit: &dyn Fn(&mut LiveParams)| {
+        let axis = if method == LiveMethod::Vertex { "live vertex" } else { "live ispm" };
         with(axis, label, &|s| {
             let frame = pm_live::FrameParams { width: size, height: size, ..base.live.frame.clone() };
-            let mut p = photon_live::LiveParams { method, frame, ..base.live.clone() };
+            let mut p = LiveParams { method, frame, ..base.live.clone() };
             edit(&mut p);
             s.live = Some(p)
         })
     };
-    use photon_live::Method::{Ispm, Vertex};
+    use LiveMethod::{Ispm, Vertex};
     for total in [5_000u32, 20_000, 80_000] {
         v.push(live(Vertex, format!("vertex total {total}"), &|p| {
             (p.vertex.total, p.vertex.per_frame) = (total, total / 10)
@@ -300,7 +303,7 @@ fn peer_time_at(rows: &[Row], error: f64) -> Option<f64> {
 fn live_frame(
     bins: &Bins,
     scene_args: &[String],
-    p: &photon_live::LiveParams,
+    p: &LiveParams,
     seed: u64,
     dir: &Path,
 ) -> Result<(pm_image::Layers, f64)> {
@@ -312,7 +315,8 @@ fn live_frame(
     stages::run(bins, "photon-live", &a, "photon-live", true)?;
     let csv =
         std::fs::read_to_string(dir.join("frames.csv")).with_context(|| format!("{}: no frames.csv", dir.display()))?;
-    let walls = photon_live::frame_seconds(p.method, &csv).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+    let walls =
+        pm_methods::live::frame_seconds(p.method, &csv).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
     let times = &walls[walls.len().min((frames - 2) as usize)..];
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
     let exr = dir.join(format!("frames/{:04}.exr", frames - 1));
@@ -350,13 +354,8 @@ fn reference_halves(
     if std::fs::read_to_string(&key_file).ok().as_deref() != Some(key.as_str()) || !halves.iter().all(|p| p.exists()) {
         for (h, exr) in halves.iter().enumerate() {
             println!("rendering reference half {} of 2 ({size}x{size}, path tracing, {} spp) ...", h + 1, spp / 2);
-            let p = RenderParams {
-                mode: Method::Path,
-                spp: (spp / 2).max(1),
-                width: size,
-                height: size,
-                ..base.render.clone()
-            };
+            let render = RenderParams { spp: (spp / 2).max(1), width: size, height: size, ..base.render.clone() };
+            let p = Settings { mode: Method::Path, render, ..base.settings() };
             let mut a = scene_args.to_vec();
             a.extend(["--seed".into(), (1001 + h).to_string()]);
             a.extend(["--out".into(), exr.display().to_string()]);
@@ -467,7 +466,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             let key = st.maps_key(seed);
             let mdir = out.join("maps").join(&key);
             // The path tracer and progressive photon mapping trace their own paths.
-            let photon_mapping = !matches!(st.render.mode, Method::Path | Method::Sppm);
+            let photon_mapping = st.render.mode.needs().photon_maps;
             if photon_mapping {
                 if !maps.contains_key(&key) {
                     std::fs::create_dir_all(&mdir)?;
@@ -615,10 +614,14 @@ fn read_rows(path: &Path, settings: &[Setting]) -> Result<Vec<Row>> {
 /// from their command lines (whose option names are the keys).
 fn overrides(d: &Setting, s: &Setting) -> Vec<(String, String, pm_pipeline::quality::Value)> {
     let mut v = Vec::new();
+    if d.render.mode != s.render.mode {
+        let mode = s.render.mode.to_string();
+        v.push(("render".to_string(), "mode".to_string(), pm_pipeline::quality::Value::parse(&mode, &mode)));
+    }
     for (section, a, b) in [
         ("trace", d.trace.to_args(), s.trace.to_args()),
         ("irradiance", d.irradiance.to_args(), s.irradiance.to_args()),
-        ("render", d.render.to_args(), s.render.to_args()),
+        ("render", d.render.to_args(), s.render.render.to_args()),
     ] {
         for (da, sa) in a.chunks(2).zip(b.chunks(2)) {
             if da[1] != sa[1] {

@@ -8,107 +8,12 @@
 
 use anyhow::{Context, Result, ensure};
 use clap::Parser;
-use pm_ispm::{Ispm, IspmParams};
-use pm_live::{FrameParams, FrameRow, Live, World};
-use pm_params::Naming;
+use pm_ispm::Ispm;
+use pm_live::{Live, World};
+pub use pm_methods::live::{LiveMethod, LiveParams};
 use pm_stage::Progress;
-use pm_vertex::{Vertex, VertexParams};
+use pm_vertex::Vertex;
 use std::path::PathBuf;
-
-pm_params::value_enum! {
-    /// Which real-time method draws the frames.
-    pub enum Method {
-        /// Jozwowski 2002: a ring buffer of photon paths, estimates at mesh vertices.
-        Vertex,
-        /// McGuire and Luebke 2009: bounce maps and photon volumes splatted over the
-        /// eye's G-buffer.
-        Ispm,
-    }
-}
-
-/// The real-time settings: the method, what every method's frames share, and each
-/// method's own parameters. One flat set of options (`--per-frame`,
-/// `--bounce-res`, ...) and one flat `[live]` section of pipeline.toml; a key no
-/// part knows is refused.
-#[derive(Clone, Debug, PartialEq, clap::Args, serde::Serialize)]
-pub struct LiveParams {
-    /// The method: vertex estimates (Jozwowski 2002) or image-space photon
-    /// mapping (McGuire and Luebke 2009).
-    #[arg(long, default_value_t = Method::Vertex)]
-    pub method: Method,
-    /// Frame size, clock, exposure and direct light (both methods).
-    #[command(flatten, next_help_heading = "Frames (both methods)")]
-    #[serde(flatten)]
-    pub frame: FrameParams,
-    /// The vertex method's parameters.
-    #[command(flatten, next_help_heading = "Vertex method (--method vertex)")]
-    #[serde(flatten)]
-    pub vertex: VertexParams,
-    /// The image-space method's parameters.
-    #[command(flatten, next_help_heading = "Image-space method (--method ispm)")]
-    #[serde(flatten)]
-    pub ispm: IspmParams,
-}
-
-impl Default for LiveParams {
-    fn default() -> Self {
-        LiveParams {
-            method: Method::Vertex,
-            frame: FrameParams::default(),
-            vertex: VertexParams::default(),
-            ispm: IspmParams::default(),
-        }
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for LiveParams {
-    /// The flat section split among its parts by their field names; a key none of
-    /// them has is refused, like a `deny_unknown_fields` struct's.
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        use serde::de::Error;
-        let mut table = toml::Table::deserialize(d)?;
-        let method = match table.remove("method") {
-            Some(v) => Method::deserialize(v).map_err(Error::custom)?,
-            None => Method::Vertex,
-        };
-        let mut part = |fields: &[&str]| -> toml::Value {
-            toml::Value::Table(fields.iter().filter_map(|f| table.remove_entry(*f)).collect())
-        };
-        let frame = FrameParams::deserialize(part(FrameParams::FIELDS)).map_err(Error::custom)?;
-        let vertex = VertexParams::deserialize(part(VertexParams::FIELDS)).map_err(Error::custom)?;
-        let ispm = IspmParams::deserialize(part(IspmParams::FIELDS)).map_err(Error::custom)?;
-        if let Some(key) = table.keys().next() {
-            let known = LiveParams::fields().map(|f| format!("`{f}`")).collect::<Vec<_>>().join(", ");
-            return Err(Error::custom(format!("unknown field `{key}`, expected one of {known}")));
-        }
-        Ok(LiveParams { method, frame, vertex, ispm })
-    }
-}
-
-impl LiveParams {
-    /// Every key of the section.
-    fn fields() -> impl Iterator<Item = &'static str> {
-        std::iter::once("method")
-            .chain(FrameParams::FIELDS.iter().chain(VertexParams::FIELDS).chain(IspmParams::FIELDS).copied())
-    }
-
-    /// Refuse a value outside its range or two that contradict each other, naming
-    /// the option or key.
-    pub fn check(&self, naming: Naming) -> std::result::Result<(), String> {
-        self.frame.validate(naming)?;
-        self.vertex.check(naming)?;
-        self.ispm.validate(naming)
-    }
-
-    /// The command-line arguments that give every field its value.
-    pub fn to_args(&self) -> Vec<String> {
-        let mut v = vec!["--method".to_string(), self.method.to_string()];
-        v.extend(self.frame.to_args());
-        v.extend(self.vertex.to_args());
-        v.extend(self.ispm.to_args());
-        v
-    }
-}
 
 /// Command line of `photon-live`.
 #[derive(Parser, Debug)]
@@ -176,7 +81,7 @@ pub struct Cli {
     /// cargo feature and a display; without a display the frames are only written.
     #[arg(long)]
     pub window: bool,
-    /// The real-time settings (pipeline.toml's \[live\] section).
+    /// The real-time settings (pipeline.toml's \[live\], \[live.vertex\] and \[live.ispm\] sections).
     #[command(flatten)]
     pub params: LiveParams,
     /// How the scene files are read.
@@ -220,10 +125,10 @@ pub fn run(cli: &Cli) -> Result<()> {
         anyhow::bail!("--scene and --out are required");
     };
     let p = &cli.params;
-    p.check(Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    p.check(true).map_err(|e| anyhow::anyhow!(e))?;
     ensure!(cli.frames >= 1, "--frames must be at least 1");
     ensure!(!(cli.window && cli.frame_task.is_some()), "--window shows one whole run; it cannot be a --frame-task");
-    if p.method == Method::Ispm {
+    if p.method == LiveMethod::Ispm {
         ensure!(
             cli.dump_frame.is_none(),
             "--dump-frame writes the vertex method's ring buffer; --method ispm has none"
@@ -248,7 +153,7 @@ pub fn run(cli: &Cli) -> Result<()> {
     }
     let at_scene = |e: String| anyhow::anyhow!("{}: {e}", scene_path.display());
     match p.method {
-        Method::Vertex => {
+        LiveMethod::Vertex => {
             let photon_scene = match &cli.photon_scene {
                 Some(path) => Some(pm_stage::load_scene("photon-live", path, &cli.scene_args)?),
                 None => None,
@@ -262,7 +167,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             let dump = |live: &Live<Vertex>, path: &std::path::Path| dump(live, hash, diagonal, origin, path);
             run_frames(cli, out, live, frames, dump)
         }
-        Method::Ispm => {
+        LiveMethod::Ispm => {
             let world = World::new(scene, None).map_err(at_scene)?;
             let method = Ispm::new(&world, p.frame.clone(), p.ispm.clone(), cli.seed).map_err(at_scene)?;
             run_frames(cli, out, Live::new(world, method), frames, |_, _| Ok(()))
@@ -273,7 +178,7 @@ pub fn run(cli: &Cli) -> Result<()> {
 /// Draw `frames` (simulating the ones before them) and write them, the preview and
 /// frames.csv (or this task's part of it) into `out`; `dump` writes the method's
 /// photons after the frame `--dump-frame` names.
-fn run_frames<M: pm_live::Method>(
+fn run_frames<M: pm_live::FrameMethod>(
     cli: &Cli,
     out: &std::path::Path,
     mut live: Live<M>,
@@ -339,17 +244,6 @@ fn run_frames<M: pm_live::Method>(
         if mean > 0.0 { 1.0 / mean } else { 0.0 }
     );
     Ok(())
-}
-
-/// Each frame's wall time \[s\] from the frames.csv a run by `method` wrote.
-pub fn frame_seconds(method: Method, csv: &str) -> std::result::Result<Vec<f64>, String> {
-    fn walls<R: FrameRow>(csv: &str) -> std::result::Result<Vec<f64>, String> {
-        Ok(pm_live::rows_from_csv::<R>(csv)?.iter().map(R::wall_seconds).collect())
-    }
-    match method {
-        Method::Vertex => walls::<pm_vertex::VertexFrame>(csv),
-        Method::Ispm => walls::<pm_ispm::IspmFrame>(csv),
-    }
 }
 
 /// `photon-live assemble`: live.apng from frames/NNNN.png and frames.csv from the
@@ -515,20 +409,19 @@ mod window {
 mod tests {
     use super::*;
 
-    /// The flat `[live]` section fills each part from its own keys, refuses a key
-    /// no part has (naming it), and the arguments the runner passes give the same
+    /// The `[live]` section and its method tables fill each part, and the
+    /// arguments the runner passes (one flat set of options) give the same
     /// settings back on the command line.
     #[test]
-    fn one_flat_section_and_one_set_of_options_fill_every_part() {
-        let text = "method = \"ispm\"\nwidth = 64\nper_frame = 100\ntotal = 400\nsubsample = 2\nfps = 24";
+    fn the_live_sections_and_one_set_of_options_fill_every_part() {
+        let text =
+            "method = \"ispm\"\nwidth = 64\nfps = 24\n[vertex]\nper_frame = 100\ntotal = 400\n[ispm]\nsubsample = 2";
         let p: LiveParams = toml::from_str(text).unwrap();
-        assert_eq!(p.method, Method::Ispm);
+        assert_eq!(p.method, LiveMethod::Ispm);
         assert_eq!((p.frame.width, p.frame.fps), (64, 24.0));
         assert_eq!((p.vertex.per_frame, p.vertex.total), (100, 400));
         assert_eq!(p.ispm.subsample, 2);
         assert_eq!(toml::from_str::<LiveParams>("").unwrap(), LiveParams::default());
-        let e = toml::from_str::<LiveParams>("bounce_res = 8\nbogus_key = 1").unwrap_err().to_string();
-        assert!(e.contains("unknown field `bogus_key`") && e.contains("`bounce_res`"), "{e}");
         let e = toml::from_str::<LiveParams>("method = \"photons\"").unwrap_err().to_string();
         assert!(e.contains("photons"), "{e}");
         let args = ["photon-live", "--scene", "s.gltf", "--out", "o"].map(String::from);

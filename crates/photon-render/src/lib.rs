@@ -6,8 +6,9 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::Parser;
 use pm_format::{FullPhoton, MapKind, Order, PhotonRecord, ReadExpect, with_map};
 use pm_kdtree::{Buckets, KdTree};
+use pm_methods::{Input, Method, Passes, Progressive, Settings};
 use pm_render::{
-    Image, Integrator, IrradianceCache, Lookup, Maps, Method, PhotonMapping, Rect, RenderParams, RenderStats,
+    Image, Integrator, IrradianceCache, Lookup, Maps, PhotonMapping, Rect, RenderParams, RenderStats, View,
 };
 use pm_stage::Progress;
 use std::path::PathBuf;
@@ -68,9 +69,10 @@ pub struct Cli {
     /// scenes where no diffusely reflected light reaches another diffuse surface.
     #[arg(long)]
     pub no_indirect: bool,
-    /// The render settings (pipeline.toml's \[render\] section).
+    /// The method and every method's settings (pipeline.toml's \[render\] and
+    /// \[sppm\] sections).
     #[command(flatten)]
-    pub params: RenderParams,
+    pub settings: Settings,
     /// How the scene file is read.
     #[command(flatten)]
     pub scene_args: pm_stage::SceneArgs,
@@ -155,11 +157,16 @@ fn parse_region(s: &str) -> Result<[u32; 4], String> {
 
 /// Run the stage; returns the statistics.
 pub fn run(cli: &Cli) -> Result<Report> {
-    let p = &cli.params;
-    p.check(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    let p = &cli.settings.render;
+    cli.settings.check(true).map_err(|e| anyhow::anyhow!(e))?;
     let progressive = cli.checkpoint.is_some() || cli.time_budget.is_some() || cli.state.is_some() || cli.run.is_some();
-    if progressive && p.mode != Method::Sppm {
-        bail!("--checkpoint, --time-budget, --state and --run are progressive photon mapping's (--mode sppm)");
+    if progressive && !cli.settings.mode.needs().progressive {
+        let methods = <Method as clap::ValueEnum>::value_variants().iter();
+        let which: Vec<String> = methods.filter(|m| m.needs().progressive).map(|m| m.to_string()).collect();
+        bail!(
+            "--checkpoint, --time-budget, --state and --run are for progressive methods (--mode {})",
+            which.join(", ")
+        );
     }
     if let Some(b) = cli.time_budget {
         ensure!(b.is_finite() && b > 0.0, "--time-budget {b}: give a positive number of seconds");
@@ -177,12 +184,12 @@ pub fn run(cli: &Cli) -> Result<Report> {
         None => film.rect(),
     };
     // The cache prepass is the indirect view's work without the image.
-    let mode = if cli.icache_out.is_some() { Method::Indirect } else { p.mode };
+    let mode = if cli.icache_out.is_some() { Method::Indirect } else { cli.settings.mode };
+    let needs = mode.needs();
     let indirect = !cli.no_indirect;
-    let full = mode == Method::Full;
-    let needs_global = !matches!(mode, Method::Path | Method::Sppm) && (indirect || !full);
-    let needs_irradiance =
-        matches!(mode, Method::Full | Method::Indirect | Method::Radiance) && p.gather_lookup == Lookup::Precomputed;
+    let full = needs.caustic_and_volume;
+    let needs_global = needs.photon_maps && (indirect || !full);
+    let needs_irradiance = needs.irradiance && p.gather_lookup == Lookup::Precomputed;
     // The caustic and volume maps: kd-trees of this scene, read as full records.
     let full_map = |path: &Option<PathBuf>, kind: MapKind| -> Result<Option<pm_format::PhotonMap<FullPhoton>>> {
         let Some(path) = path.as_ref().filter(|_| full) else { return Ok(None) };
@@ -199,8 +206,8 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let caustic = full_map(&cli.caustic, MapKind::Caustic)?;
     let volume = full_map(&cli.volume, MapKind::Volume)?;
     let mut notes = Vec::new();
-    if mode == Method::Sppm && scene.has_scattering_media() {
-        notes.push("--mode sppm: media attenuate the eye paths but their in-scattered light is left out (no volume layer); light they scatter onto surfaces is counted".to_string());
+    if let Some(note) = mode.leaves_out(&scene) {
+        notes.push(note);
     } else if full && scene.has_scattering_media() && volume.is_none() {
         notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());
     }
@@ -308,6 +315,12 @@ impl Job<'_> {
         global: Option<&pm_format::PhotonMap<G>>,
         caustic: Option<&pm_format::PhotonMap<FullPhoton>>,
     ) -> Result<(Option<Image>, RenderStats, CacheReport)> {
+        if !self.mode.needs().photon_maps {
+            ensure!(self.cli.icache.is_none(), "--icache: --mode {} uses no irradiance cache", self.mode);
+            let r = self.render(Input::<G>::Scene(self.scene))?;
+            return Ok((Some(r.image), r.stats, CacheReport::default()));
+        }
+        let p = &self.cli.settings.render;
         let records = global.map(|m| &m.records[..]);
         let irr_nodes = records.map(pm_render::irradiance_subset).unwrap_or_default();
         // The maps searched for k nearest photons get leaf buckets: the caustic map,
@@ -315,17 +328,14 @@ impl Job<'_> {
         // precomputed lookups it does not, and its 400,000 photons' buckets would be
         // built for nothing); the irradiance subset answers nearest-photon lookups
         // only, which buckets slow.
-        let global_buckets = records
-            .filter(|_| pm_render::method_searches_global(self.mode, self.cli.params.gather_lookup))
-            .map(Buckets::new)
-            .unwrap_or_default();
+        let global_buckets =
+            records.filter(|_| self.mode.searches_global(p.gather_lookup)).map(Buckets::new).unwrap_or_default();
         let caustic_buckets = caustic.map(|c| Buckets::new(&c.records)).unwrap_or_default();
         let maps = Maps {
             global: records.map(|r| KdTree::with_buckets(r, &global_buckets)),
             irradiance: (!irr_nodes.is_empty()).then(|| KdTree::new(&irr_nodes[..])),
             caustic: caustic.map(|c| KdTree::with_buckets(&c.records[..], &caustic_buckets)),
             volume: self.volume.map(|v| {
-                let p = &self.cli.params;
                 pm_render::VolumeMap::new(
                     &v.records,
                     p.volume_k,
@@ -335,16 +345,16 @@ impl Job<'_> {
             }),
         };
         let map_hash = global.map_or([0; 32], |m| m.header.payload_hash);
-        let mut pm = PhotonMapping::new(self.scene, maps, &self.cli.params, self.indirect)
+        let mut pm = PhotonMapping::new(self.scene, maps, p, self.indirect)
             .map_err(|e| anyhow::anyhow!("{}: {e}", self.cli.scene.display()))?;
         let mut cache = CacheReport::default();
-        let uses_cache = pm.wants_cache() && pm_render::method_uses_cache(self.mode);
+        let uses_cache = pm.wants_cache() && self.mode.needs().cache;
         if let Some(path) = &self.cli.icache {
             ensure!(
                 uses_cache,
                 "--icache: this render uses no irradiance cache (mode {}, --icache-accuracy {})",
                 self.mode,
-                self.cli.params.icache_accuracy
+                p.icache_accuracy
             );
             let file = pm_format::read_cache(path)?;
             ensure!(file.scene_hash == self.scene.content_hash, "{}: made from another scene", path.display());
@@ -376,27 +386,30 @@ impl Job<'_> {
             }
             pm = pm.with_cache(c);
         }
-        let (img, stats) = if self.mode == Method::Sppm {
-            let (img, stats, passes) = self.sppm().map_err(|e| anyhow::anyhow!(e))?;
-            self.unfinished.set(passes < self.cli.params.passes && self.cli.state.is_some());
-            Ok((img, stats))
-        } else {
-            let progress = Progress::new("render", self.rect.area() as u64);
-            let r = pm_render::render_method(self.mode, pm, self.camera, &self.film, self.rect, false, &|d, _| {
-                progress.set(d)
-            });
-            progress.finish();
-            r
-        }
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-        Ok((Some(img), stats, cache))
+        let r = self.render(Input::PhotonMaps(pm))?;
+        Ok((Some(r.image), r.stats, cache))
     }
 
-    /// Progressive photon mapping: its own photons, pass by pass, from the state
-    /// file's passes when there is one, with checkpoints and the time budget.
-    /// Returns the image, its statistics and the passes it holds.
-    fn sppm(&self) -> Result<(Image, RenderStats, u32), String> {
-        let (p, cli) = (&self.cli.params, self.cli);
+    /// The image by the method chosen, with a progress bar over its pixels (or
+    /// its passes, checkpoints and time budget: [`Self::progressive`]).
+    fn render<G: PhotonRecord>(&self, input: Input<'_, G>) -> Result<pm_methods::Rendered> {
+        let view = View { camera: self.camera, film: &self.film, rect: self.rect };
+        let r = if self.mode.needs().progressive {
+            self.progressive(input, view)
+        } else {
+            let progress = Progress::new("render", self.rect.area() as u64);
+            let r = pm_methods::render(&self.cli.settings, input, view, None, &|d, _| progress.set(d));
+            progress.finish();
+            r
+        };
+        r.map_err(|e| anyhow::anyhow!("{e}"))
+    }
+
+    /// A progressive method, pass by pass, from the state file's passes when there
+    /// is one, with checkpoints and the time budget.
+    fn progressive<G: PhotonRecord>(&self, input: Input<'_, G>, view: View) -> Result<pm_methods::Rendered, String> {
+        let cli = self.cli;
+        let total = cli.settings.passes().unwrap_or(0);
         let start = match &cli.state {
             Some(path) if path.exists() => {
                 Some((path.as_path(), pm_format::read_state(path).map_err(|e| e.to_string())?))
@@ -406,29 +419,29 @@ impl Job<'_> {
         if let Some(dir) = cli.state.as_deref().and_then(|p| p.parent()).filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
         }
-        let progress = Progress::new("sppm passes", p.passes as u64);
+        let progress = Progress::new(&format!("{} passes", self.mode), total as u64);
         let region =
             (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
         let t0 = std::time::Instant::now();
-        let resume = start.as_ref().map(|(path, file)| (*path, file));
-        let r = pm_sppm::render_with(self.scene, p, self.camera, &self.film, self.rect, resume, &mut |s| {
+        let per_pass = cli.settings.photons_per_pass().unwrap_or(0);
+        let mut after_pass = |s: &dyn Progressive| -> Result<bool, String> {
             let done = s.passes();
-            let photons = done as u64 * p.photons_per_pass;
+            let photons = done as u64 * per_pass;
             let go_on = cli.time_budget.is_none_or(|b| t0.elapsed().as_secs_f64() < b);
             let checkpoint = cli.checkpoint.is_some_and(|k| k > 0 && done.is_multiple_of(k));
             // The noise estimate reads the whole image: only where it is shown.
             let noise = (progress.shown() || checkpoint)
-                .then(|| noise(s))
+                .then(|| s.noise())
                 .flatten()
                 .map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
             progress.set(done as u64);
             progress.message(&format!("{photons} photon paths{noise}"));
-            if (checkpoint || !go_on || done == p.passes)
+            if (checkpoint || !go_on || done == total)
                 && let Some(path) = &cli.state
             {
-                pm_format::write_state(path, &s.to_file()).map_err(|e| e.to_string())?;
+                pm_format::write_state(path, &s.state()).map_err(|e| e.to_string())?;
             }
-            if let (true, Some(out)) = (checkpoint && done < p.passes, &cli.out) {
+            if let (true, Some(out)) = (checkpoint && done < total, &cli.out) {
                 write_exr(cli, out, region, &layers_of(s.region_image(self.rect))).map_err(|e| format!("{e:#}"))?;
                 eprintln!(
                     "photon-render: checkpoint: {done} passes written to {} ({photons} photon paths{noise})",
@@ -436,25 +449,18 @@ impl Job<'_> {
                 );
             }
             Ok(go_on)
-        });
+        };
+        let resume = start.as_ref().map(|(path, file)| (*path, file));
+        let passes = Passes { start: resume, after_pass: &mut after_pass };
+        let r = pm_methods::render(&cli.settings, input, view, Some(passes), &|_, _| {});
         progress.finish();
         if let (Some((path, file)), Ok(_)) = (&start, &r) {
             eprintln!("photon-render: continued from the {} passes in {}", file.passes, path.display());
         }
-        r
+        let r = r?;
+        self.unfinished.set(r.passes.is_some_and(|done| done < total) && cli.state.is_some());
+        Ok(r)
     }
-}
-
-/// Progressive photon mapping's estimated noise after the passes done (relative
-/// RMS, bias not included): each pixel's variance from its passes' spread, over
-/// the pixels the accuracy study compares (all but the light seen directly and
-/// its neighbours, whose anti-aliased edge would decide the figure). None before
-/// two passes.
-fn noise(s: &pm_sppm::Sppm) -> Option<f64> {
-    let var = s.variances()?;
-    let image = s.image();
-    let keep = pm_image::accuracy::keep_mask(&image.total, image.width as usize, image.height as usize, None);
-    Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
 }
 
 /// What a render did: written as `--stats-json` and read back by the runner, the
@@ -467,6 +473,9 @@ pub struct Report {
     pub indirect: bool,
     /// The render parameters.
     pub params: RenderParams,
+    /// Progressive photon mapping's parameters (mode sppm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sppm: Option<pm_methods::SppmParams>,
     /// The region rendered (X0, Y0, X1, Y1), or none for the whole image.
     pub region: Option<[u32; 4]>,
     /// Wall time: the cache prepass plus the image loop \[s\].
@@ -531,7 +540,7 @@ fn write_exr(cli: &Cli, out: &std::path::Path, region: Option<[u32; 4]>, layers:
     }
     match region {
         Some([x0, y0, _, _]) => {
-            let p = &cli.params;
+            let p = &cli.settings.render;
             let at = pm_image::Placement { x: x0, y: y0, full_width: p.width, full_height: p.height };
             pm_image::write_exr_region(out, layers, at)
         }
@@ -556,15 +565,16 @@ fn report(
     cache: &CacheReport,
     notes: &[String],
 ) -> Report {
-    let p = &cli.params;
+    let p = &cli.settings.render;
     let pixels = match region {
         Some([x0, y0, x1, y1]) => (x1 - x0) as f64 * (y1 - y0) as f64,
         None => p.width as f64 * p.height as f64,
     };
     Report {
-        mode: if cli.icache_out.is_some() { "icache".to_string() } else { p.mode.to_string() },
+        mode: if cli.icache_out.is_some() { "icache".to_string() } else { cli.settings.mode.to_string() },
         indirect: !cli.no_indirect,
         params: p.clone(),
+        sppm: (cli.settings.mode == Method::Sppm).then_some(cli.settings.sppm),
         region,
         seconds: s.seconds + cache.prepass_seconds,
         prepass_seconds: cache.prepass_seconds,

@@ -4,7 +4,7 @@
 //! by splatting photon volumes over it ([`splat`], section 5), optionally at a
 //! lower resolution with joint bilateral upsampling (section 5.2).
 //!
-//! A [`pm_live::Method`]: `pm-live` runs the frames and shades the pixels; what
+//! A [`pm_live::FrameMethod`]: `pm-live` runs the frames and shades the pixels; what
 //! mirrors and glass show gathers the same photons ([`SplatLight`]). A frame
 //! carries nothing to the next. Units: power W per RGB channel, radiance
 //! W sr^-1 m^-2, lengths m.
@@ -295,7 +295,7 @@ impl Ispm {
     }
 }
 
-impl pm_live::Method for Ispm {
+impl pm_live::FrameMethod for Ispm {
     type Row = IspmFrame;
 
     fn warm_up(&self) -> u64 {

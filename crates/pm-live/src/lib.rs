@@ -3,7 +3,7 @@
 //! shadow rays or shadow maps, mirrors and glass by ray tracing, indirect light
 //! from the method), and the per-frame statistics file.
 //!
-//! A real-time method is a [`Method`]: "draw frame f of this world into these
+//! A real-time method is a [`FrameMethod`]: "draw frame f of this world into these
 //! buffers". Two exist, each in its own crate, neither knowing the other:
 //! `pm-vertex` (Jozwowski 2002: a ring buffer of photon paths, irradiance at mesh
 //! vertices) and `pm-ispm` (McGuire and Luebke 2009: bounce maps, photon volumes
@@ -179,7 +179,7 @@ pub trait FrameRow: serde::Serialize + serde::de::DeserializeOwned + Default + C
 }
 
 /// A real-time method: draws frame f of a [`World`] into a frame's buffers.
-pub trait Method {
+pub trait FrameMethod {
     /// What one frame did.
     type Row: FrameRow;
 
@@ -208,7 +208,7 @@ pub struct Live<M> {
     buffers: FrameBuffers,
 }
 
-impl<M: Method> Live<M> {
+impl<M: FrameMethod> Live<M> {
     /// Frames of `world` drawn by `method`, from frame 0.
     pub fn new(world: World, method: M) -> Live<M> {
         Live { world, method, frame: 0, buffers: FrameBuffers::default() }
@@ -263,7 +263,7 @@ impl<M: Method> Live<M> {
         self.advance(true)
     }
 
-    /// Advance over the next frame without drawing it (see [`Method::frame`]).
+    /// Advance over the next frame without drawing it (see [`FrameMethod::frame`]).
     pub fn skip(&mut self) -> Result<M::Row, String> {
         self.advance(false)
     }

@@ -23,11 +23,16 @@ pub enum Naming<'a> {
 }
 
 impl Naming<'_> {
-    /// The name of `field` (a Rust field name).
+    /// The name of `field` (a Rust field name, also its key in the file).
     pub fn name(&self, field: &str) -> String {
+        self.name_keyed(field, field)
+    }
+
+    /// The name of `field`, whose key in the file is `key`.
+    pub fn name_keyed(&self, field: &str, key: &str) -> String {
         match self {
             Naming::Cli => format!("--{}", field.replace('_', "-")),
-            Naming::File(section) => format!("{section}.{field}"),
+            Naming::File(section) => format!("{section}.{key}"),
         }
     }
 }
@@ -138,14 +143,20 @@ impl fmt::Display for Any {
 /// with `deny_unknown_fields` and defaults), `Default`, `FIELDS`, `validate(Naming)`
 /// and `to_args()`. Types must implement `Display` and `FromStr` the way clap and
 /// `to_args` agree on (numbers, `bool` as `true`/`false`, [`value_enum!`]s).
+///
+/// `name as "key": Type = ...` gives the field another key in its file section
+/// than its option's name: a method's own section can say `alpha` where the
+/// command line, shared by every method, says `--sppm-alpha`.
 #[macro_export]
 macro_rules! params {
+    (@key $field:ident) => { stringify!($field) };
+    (@key $field:ident $key:literal) => { $key };
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
             $(
                 $(#[doc = $doc:literal])*
-                $field:ident : $ty:ty = $default:expr => $check:expr;
+                $field:ident $(as $key:literal)? : $ty:ty = $default:expr => $check:expr;
             )*
         }
     ) => {
@@ -156,6 +167,7 @@ macro_rules! params {
             $(
                 $(#[doc = $doc])*
                 #[arg(long, default_value_t = $default, action = clap::ArgAction::Set, allow_hyphen_values = true)]
+                $(#[serde(rename = $key)])?
                 pub $field: $ty,
             )*
         }
@@ -167,8 +179,8 @@ macro_rules! params {
         }
 
         impl $name {
-            /// The fields' names, which are also the keys of its file section.
-            pub const FIELDS: &'static [&'static str] = &[$(stringify!($field)),*];
+            /// The keys of its file section (the fields' names unless given).
+            pub const FIELDS: &'static [&'static str] = &[$($crate::params!(@key $field $($key)?)),*];
 
             /// Refuse a value outside its range, naming the option or key.
             pub fn validate(&self, naming: $crate::Naming) -> Result<(), String> {
@@ -177,7 +189,7 @@ macro_rules! params {
                     if !$crate::Accepts::accepts(&check, &self.$field) {
                         return Err(format!(
                             "{} = {} is out of range ({})",
-                            naming.name(stringify!($field)),
+                            naming.name_keyed(stringify!($field), $crate::params!(@key $field $($key)?)),
                             self.$field,
                             check
                         ));
@@ -259,6 +271,8 @@ mod tests {
             on: bool = true => Any;
             /// A choice.
             pick: Pick = Pick::SecondOne => Any;
+            /// A field with its own key in the file.
+            p_rate as "rate": f32 = 0.5 => between(0.0, 1.0);
         }
     }
 
@@ -281,7 +295,14 @@ mod tests {
         let file: P = toml::from_str(&text).unwrap();
         assert_eq!(file, p);
         assert!(toml::from_str::<P>("bogus = 1").is_err());
-        assert_eq!(P::FIELDS, ["k", "radius_m", "fraction", "on", "pick"]);
+        assert_eq!(P::FIELDS, ["k", "radius_m", "fraction", "on", "pick", "rate"]);
+        // A keyed field: --p-rate on the command line, rate in the file.
+        let keyed = Cli::try_parse_from(["x", "--p-rate", "0.25"]).unwrap().p;
+        assert_eq!(keyed, toml::from_str::<P>("rate = 0.25").unwrap());
+        assert!(toml::from_str::<P>("p_rate = 0.25").is_err());
+        let bad: P = toml::from_str("rate = 2").unwrap();
+        assert_eq!(bad.validate(Naming::File("s")).unwrap_err(), "s.rate = 2 is out of range (in [0, 1])");
+        assert!(bad.validate(Naming::Cli).unwrap_err().starts_with("--p-rate = 2"));
     }
 
     #[test]

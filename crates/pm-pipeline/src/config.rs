@@ -2,6 +2,8 @@
 
 use anyhow::{Context, Result, bail};
 use pm_estimate::IrradianceParams;
+use pm_methods::live::LiveParams;
+use pm_methods::{Method, Settings, SppmParams};
 use pm_params::Naming;
 use pm_photon::TraceParams;
 use pm_render::RenderParams;
@@ -86,16 +88,24 @@ pub struct Pipeline {
     /// Stage 3.
     #[serde(default)]
     pub irradiance: IrradianceParams,
-    /// Stage 4 (and the irradiance-cache step).
+    /// What makes the image (`[render] mode` in the file).
+    #[serde(skip)]
+    pub mode: Method,
+    /// Stage 4 (and the irradiance-cache step): the image, and the photon-map
+    /// integrators' settings.
     #[serde(default)]
     pub render: RenderParams,
+    /// Progressive photon mapping's own settings (mode sppm).
+    #[serde(default)]
+    pub sppm: SppmParams,
     /// The scene `cargo xtask live` renders, relative to the pipeline file
     /// (default: `scene`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live_scene: Option<PathBuf>,
-    /// The real-time mode (`photon-live`, `cargo xtask live`).
+    /// The real-time mode (`photon-live`, `cargo xtask live`): `[live]`,
+    /// `[live.vertex]`, `[live.ispm]`.
     #[serde(default)]
-    pub live: photon_live::LiveParams,
+    pub live: LiveParams,
     /// The trace, irradiance and render settings picked from the measured
     /// accuracy/time front ([`crate::quality`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -198,6 +208,61 @@ fn set_key<T: serde::Serialize + serde::de::DeserializeOwned>(
     Ok(())
 }
 
+/// Keys that moved to their method's own section: (section, old key, new
+/// section, new key).
+const MOVED: [(&str, &str, &str, &str); 5] = [
+    ("render", "passes", "sppm", "passes"),
+    ("render", "photons_per_pass", "sppm", "photons_per_pass"),
+    ("render", "sppm_alpha", "sppm", "alpha"),
+    ("render", "sppm_radius_rel_diag", "sppm", "radius_rel_diag"),
+    ("render", "sppm_boundary_probes", "sppm", "boundary_probes"),
+];
+
+/// A pipeline file's document with each value's place in the text (so that a
+/// typed error shows the line at fault).
+type Doc<'i> = toml::de::DeTable<'i>;
+
+/// The table at `key` of `doc`, if it is one.
+fn table_mut<'a, 'i>(doc: &'a mut Doc<'i>, key: &str) -> Option<&'a mut Doc<'i>> {
+    match doc.get_mut(key).map(toml::Spanned::get_mut) {
+        Some(toml::de::DeValue::Table(t)) => Some(t),
+        _ => None,
+    }
+}
+
+/// Move the keys of an older pipeline file to their new places: progressive
+/// photon mapping's from `[render]` to `[sppm]`, the real-time methods' from
+/// the flat `[live]` to `[live.vertex]` and `[live.ispm]`. Returns what moved as
+/// (old, new) names; a key at both places is an error naming both.
+fn move_old_keys(doc: &mut Doc<'_>) -> Result<Vec<(String, String)>> {
+    let live_moves = LiveParams::moved_keys().map(|(key, part)| ("live", key, part, key));
+    let moves: Vec<(&str, &str, &str, &str)> = MOVED.into_iter().chain(live_moves).collect();
+    let mut moved = Vec::new();
+    for (from, key, to, new_key) in moves {
+        let Some((old_key, value)) = table_mut(doc, from).and_then(|t| t.remove_entry(key)) else {
+            continue;
+        };
+        // `live.vertex` is a table inside `[live]`; `sppm` a section of its own.
+        let (parent, new_section) = match from {
+            "live" => (table_mut(doc, "live").expect("it held the key"), format!("live.{to}")),
+            _ => (&mut *doc, to.to_string()),
+        };
+        let (old, new) = (format!("{from}.{key}"), format!("{new_section}.{new_key}"));
+        let span = value.span();
+        let empty = || toml::Spanned::new(span.clone(), toml::de::DeValue::Table(Default::default()));
+        let target = match parent.entry(toml::Spanned::new(span.clone(), to.into())).or_insert_with(empty).get_mut() {
+            toml::de::DeValue::Table(t) => t,
+            _ => bail!("{new_section} is not a table"),
+        };
+        if target.contains_key(new_key) {
+            bail!("{old} and {new} are the same setting: give only {new}");
+        }
+        target.insert(toml::Spanned::new(old_key.span(), new_key.into()), value);
+        moved.push((old, new));
+    }
+    Ok(moved)
+}
+
 impl Pipeline {
     /// Read, parse and range-check a pipeline file; a quality or time budget
     /// replaces the swept settings by the chosen front point's before anything is
@@ -205,8 +270,13 @@ impl Pipeline {
     pub fn load(path: &Path) -> Result<Pipeline> {
         let file = path.display();
         let text = std::fs::read_to_string(path).with_context(|| format!("{file}: cannot read"))?;
-        let mut p: Pipeline = toml::from_str(&text)
-            .map_err(|e: toml::de::Error| anyhow::anyhow!("{file}: {}", e.to_string().replace('\n', " ")))?;
+        let (mut p, moved) = Pipeline::parse(&text).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+        if !moved.is_empty() {
+            eprintln!(
+                "{file}: note: keys read at their new places (move them there): {}",
+                moved.iter().map(|(old, new)| format!("{old} -> {new}")).collect::<Vec<_>>().join(", ")
+            );
+        }
         if let Some(choice) = crate::quality::choose(&p, path)? {
             for (section, key, value) in choice.overrides {
                 p.set(&section, &key, value.toml())
@@ -239,8 +309,8 @@ impl Pipeline {
         let fail = |e: String| anyhow::anyhow!("{file}: {e}");
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
-        p.render.check(Naming::File("render")).map_err(fail)?;
-        p.live.check(Naming::File("live")).map_err(fail)?;
+        p.settings().check(false).map_err(fail)?;
+        p.live.check(false).map_err(fail)?;
         for (name, m) in &p.media {
             m.arg(name).medium().map_err(|e| anyhow::anyhow!("{file}: [media.{name}]: {e}"))?;
         }
@@ -252,15 +322,55 @@ impl Pipeline {
         Ok(p)
     }
 
-    /// Set `section.key` (a stage section: trace, irradiance, render or live).
+    /// Set `section.key` (a stage section: trace, irradiance, render, sppm or
+    /// live; `live.vertex` and `live.ispm` are live's tables).
     pub fn set(&mut self, section: &str, key: &str, value: toml::Value) -> Result<()> {
         match section {
             "trace" => set_key(&mut self.trace, key, value),
             "irradiance" => set_key(&mut self.irradiance, key, value),
+            "render" if key == "mode" => {
+                self.mode = value.try_into().map_err(|e: toml::de::Error| anyhow::anyhow!("{}", e.message()))?;
+                Ok(())
+            }
             "render" => set_key(&mut self.render, key, value),
+            "sppm" => set_key(&mut self.sppm, key, value),
             "live" => set_key(&mut self.live, key, value),
+            "live.vertex" => set_key(&mut self.live.vertex, key, value),
+            "live.ispm" => set_key(&mut self.live.ispm, key, value),
             _ => bail!("[{section}] is not a stage section"),
         }
+    }
+
+    /// Parse a pipeline file's text (no checks of ranges or files: see
+    /// [`Self::load`]). Keys an older file has at their old places are read at
+    /// their new ones and returned as (old, new) names; a key given at both is
+    /// refused. A wrong value's error shows its line.
+    pub fn parse(text: &str) -> Result<(Pipeline, Vec<(String, String)>)> {
+        let one_line = |e: toml::de::Error| anyhow::anyhow!("{}", e.to_string().trim().replace('\n', " "));
+        let mut doc = toml::de::DeTable::parse(text).map_err(one_line)?;
+        let moved = move_old_keys(doc.get_mut())?;
+        let mode = match table_mut(doc.get_mut(), "render").and_then(|r| r.remove("mode")) {
+            None => Method::default(),
+            Some(v) => {
+                let word = v.get_ref().as_str().unwrap_or_default();
+                <Method as clap::ValueEnum>::from_str(word, false).map_err(|_| {
+                    let all: Vec<String> =
+                        <Method as clap::ValueEnum>::value_variants().iter().map(|m| format!("\"{m}\"")).collect();
+                    anyhow::anyhow!("render.mode = {}: expected one of {}", &text[v.span()], all.join(", "))
+                })?
+            }
+        };
+        let mut p = Pipeline::deserialize(toml::de::Deserializer::from(doc)).map_err(|mut e| {
+            e.set_input(Some(text));
+            one_line(e)
+        })?;
+        p.mode = mode;
+        Ok((p, moved))
+    }
+
+    /// Every method's settings (`[render]` with its mode, `[sppm]`).
+    pub fn settings(&self) -> Settings {
+        Settings { mode: self.mode, render: self.render.clone(), sppm: self.sppm }
     }
 
     /// The scene of the batch pipeline: `scene` relative to the pipeline file
@@ -277,7 +387,11 @@ impl Pipeline {
 
     /// The settings as a pipeline file (what [`Self::load`] reads back equal).
     pub fn to_toml(&self) -> String {
-        toml::to_string(self).expect("a pipeline serialises")
+        let mut table = toml::Table::try_from(self).expect("a pipeline serialises");
+        if let Some(render) = table.get_mut("render").and_then(toml::Value::as_table_mut) {
+            render.insert("mode".into(), toml::Value::String(self.mode.to_string()));
+        }
+        toml::to_string(&table).expect("a table serialises")
     }
 
     /// photon-live's arguments for `frames` frames of `scene` into `out` with the
@@ -379,11 +493,11 @@ mod tests {
     /// of the wrong type or a key the section lacks is refused, naming it.
     #[test]
     fn setting_a_key_goes_through_the_sections_parsing() {
-        let mut p: Pipeline = toml::from_str("scene = \"s.gltf\"\neffects = \"auto\"").unwrap();
+        let (mut p, _) = Pipeline::parse("scene = \"s.gltf\"\neffects = \"auto\"").unwrap();
         p.set("render", "gather_rays", toml::Value::Integer(64)).unwrap();
         p.set("trace", "global_photons", toml::Value::Integer(1_600_000)).unwrap();
         p.set("irradiance", "fraction", toml::Value::Float(1.0)).unwrap();
-        p.set("live", "subsample", toml::Value::Integer(2)).unwrap();
+        p.set("live.ispm", "subsample", toml::Value::Integer(2)).unwrap();
         assert_eq!((p.render.gather_rays, p.trace.global_photons, p.irradiance.fraction), (64, 1_600_000, 1.0));
         assert_eq!(p.live.ispm.subsample, 2);
         // Other values survive the round trip through the file form unchanged.
@@ -393,6 +507,41 @@ mod tests {
         let e = p.set("render", "gather_rays", toml::Value::String("many".into())).unwrap_err().to_string();
         assert!(e.contains("many") || e.contains("integer"), "{e}");
         assert!(p.set("scene", "x", toml::Value::Integer(1)).is_err());
+    }
+
+    /// An older file's keys are read at their new places (progressive photon
+    /// mapping's from `[render]` to `[sppm]`, the real-time methods' from the flat
+    /// `[live]` to its method tables) and named; a key at both places is refused;
+    /// `[render] mode` is the method.
+    #[test]
+    fn old_keys_are_read_at_their_new_places() {
+        let head = "scene = \"s.gltf\"\neffects = \"auto\"\n";
+        let old = format!(
+            "{head}[render]\nmode = \"sppm\"\npasses = 8\nsppm_alpha = 0.5\n[live]\nmethod = \"ispm\"\nwidth = 64\nper_frame = 10\nsubsample = 2"
+        );
+        let new = format!(
+            "{head}[render]\nmode = \"sppm\"\n[sppm]\npasses = 8\nalpha = 0.5\n[live]\nmethod = \"ispm\"\nwidth = 64\n[live.vertex]\nper_frame = 10\n[live.ispm]\nsubsample = 2"
+        );
+        let (a, moved) = Pipeline::parse(&old).unwrap();
+        let (b, none) = Pipeline::parse(&new).unwrap();
+        assert_eq!(a.to_toml(), b.to_toml());
+        assert!(none.is_empty(), "{none:?}");
+        let names: Vec<String> = moved.iter().map(|(o, n)| format!("{o} -> {n}")).collect();
+        assert_eq!(
+            names,
+            [
+                "render.passes -> sppm.passes",
+                "render.sppm_alpha -> sppm.alpha",
+                "live.per_frame -> live.vertex.per_frame",
+                "live.subsample -> live.ispm.subsample"
+            ]
+        );
+        assert_eq!((b.mode, b.sppm.passes, b.sppm.sppm_alpha, b.live.vertex.per_frame), (Method::Sppm, 8, 0.5, 10));
+        let both = format!("{head}[render]\npasses = 8\n[sppm]\npasses = 9");
+        let e = Pipeline::parse(&both).unwrap_err().to_string();
+        assert!(e.contains("render.passes and sppm.passes"), "{e}");
+        let e = Pipeline::parse(&format!("{head}[render]\nmode = \"magic\"")).unwrap_err().to_string();
+        assert!(e.contains("render.mode") && e.contains("magic"), "{e}");
     }
 
     /// The repository's pipeline.toml written back and read again gives the same
@@ -406,6 +555,6 @@ mod tests {
         std::fs::write(&copy, p.to_toml()).unwrap();
         let q = Pipeline::load(&copy).unwrap();
         assert_eq!(q.to_toml(), p.to_toml());
-        assert_eq!((q.render, q.live, q.trace, q.irradiance), (p.render, p.live, p.trace, p.irradiance));
+        assert_eq!((q.settings(), q.live, q.trace, q.irradiance), (p.settings(), p.live, p.trace, p.irradiance));
     }
 }

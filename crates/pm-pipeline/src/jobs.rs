@@ -124,7 +124,7 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
     if slices == 0 {
         bail!("--trace-slices 0: needs at least 1");
     }
-    let sppm = cfg.render.mode == pm_render::Method::Sppm;
+    let sppm = cfg.mode.needs().progressive;
     if runs == 0 || (runs > 1 || run_budget_s.is_some()) && !sppm {
         bail!(
             "--runs {runs}: independent runs are progressive photon mapping's (render mode sppm), and need at least 1"

@@ -6,9 +6,10 @@
 //! Slurm scripts and an Open Job Description template).
 //!
 //! It runs nothing: `cargo xtask run` executes the steps and `cargo xtask plan`
-//! writes the job files. It sits above the stage crates, whose parameter types
-//! (`TraceParams`, `IrradianceParams`, `RenderParams`, `photon_live::LiveParams`)
-//! are pipeline.toml's sections.
+//! writes the job files. It sits beside the stage shell and below the stage
+//! binaries: pipeline.toml's sections are the library crates' parameter types
+//! (`TraceParams`, `IrradianceParams`, `RenderParams`, `SppmParams`, `LiveParams`),
+//! the same the stages take as options.
 
 mod config;
 pub mod jobs;

@@ -99,12 +99,12 @@ pub fn steps(
     let mut scene_files = scene_inputs(scene)?;
     scene_files.extend(cfg.environment_file().map(Path::to_owned));
     let seed = ["--seed".to_string(), cfg.seed.to_string()];
-    if matches!(cfg.render.mode, pm_render::Method::Path | pm_render::Method::Sppm) {
+    if !cfg.mode.needs().photon_maps {
         // Methods that trace their own paths (and photons): no maps, one step.
         let mut args = vec!["--scene".into(), s(scene)];
         args.extend(cfg.scene_args());
         args.extend(seed);
-        args.extend(cfg.render.to_args());
+        args.extend(cfg.settings().to_args());
         return Ok(vec![Step {
             name: "photon-render".into(),
             kind: Kind::Render,
@@ -193,7 +193,7 @@ pub fn steps(
     }
     base.extend(seed);
     let map_inputs = [scene_files, vec![o("global.irr.pmap")]].concat();
-    let uses_cache = indirect && r.icache_accuracy > 0.0 && pm_render::method_uses_cache(r.mode);
+    let uses_cache = indirect && r.icache_accuracy > 0.0 && cfg.mode.needs().cache;
     let mut render_args = base.clone();
     let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap"), o("volume.kd.pmap")]].concat();
     if uses_cache {
@@ -215,7 +215,7 @@ pub fn steps(
         render_args.extend(["--icache".into(), s(&o("icache.bin"))]);
         render_inputs.push(o("icache.bin"));
     }
-    render_args.extend(r.to_args());
+    render_args.extend(cfg.settings().to_args());
     steps.push(Step {
         name: "photon-render".into(),
         kind: Kind::Render,

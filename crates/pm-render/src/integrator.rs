@@ -207,6 +207,18 @@ pub struct Counters {
     pub(crate) ns_icache: AtomicU64,
 }
 
+/// What a render looks at: the camera, the film, and the rectangle of the film to
+/// render (the whole film, or a tile or `--region` of it).
+#[derive(Clone, Copy, Debug)]
+pub struct View<'a> {
+    /// The camera.
+    pub camera: &'a pm_scene::Camera,
+    /// The image's size, sampling and seed.
+    pub film: &'a Film,
+    /// The pixels to render.
+    pub rect: Rect,
+}
+
 /// The image being rendered: its size, sampling and seed. A region of it is
 /// rendered with the same per-pixel sample streams as the whole.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -29,7 +29,7 @@ mod photon_mapping;
 mod render;
 
 pub use icache::IrradianceCache;
-pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, VisibleSurface, pixel_salt};
+pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt};
 pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
@@ -37,26 +37,6 @@ pub use render::{FrameBuffers, Image, Visibility, render_into, render_region, re
 
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
-
-pm_params::value_enum! {
-    /// What the renderer computes: the integrator.
-    pub enum Method {
-        /// Direct + specular + caustics + final-gathered indirect (the complete image).
-        Full,
-        /// Radiance from the global map directly at the eye hit (Figure 1b).
-        Photons,
-        /// Precomputed irradiance x reflectance / pi (Figure 1e; 1c/1d show the irradiance).
-        Radiance,
-        /// The soft indirect term from final gathering alone (Figure 1f).
-        Indirect,
-        /// Unbiased path tracing: the reference (needs no photon maps).
-        Path,
-        /// Stochastic progressive photon mapping: passes of eye paths and photons
-        /// with shrinking radii, the batch pipeline's consistent limit (needs no
-        /// photon maps; Hachisuka and Jensen 2009; the pm-sppm crate).
-        Sppm,
-    }
-}
 
 pm_params::value_enum! {
     /// How final-gather rays get the radiance at their hit points.
@@ -82,10 +62,13 @@ pm_params::value_enum! {
 use pm_params::{Any, above, at_least, between};
 
 pm_params::params! {
-    /// Stage 4's parameters, defined once: `photon-render`'s options, the `[render]`
-    /// section of pipeline.toml, and what the runner, the trade-off study and the
-    /// tests set. Lengths are fractions of the scene's bounding-box diagonal (the
-    /// one reference every stage uses; the photon-map header records it).
+    /// The settings of this crate's integrators, defined once: `photon-render`'s
+    /// options, the `[render]` section of pipeline.toml (beside the `mode` key,
+    /// which is pm-methods'), and what the runner, the trade-off study and the
+    /// tests set. The image, light samples and specular depth are read by every
+    /// method; the rest by the photon-map integrators. Lengths are fractions of the
+    /// scene's bounding-box diagonal (the one reference every stage uses; the
+    /// photon-map header records it).
     pub struct RenderParams {
         /// Image width [pixels].
         width: u32 = 512 => between(1, 16384);
@@ -95,8 +78,6 @@ pm_params::params! {
         spp: u32 = 16 => between(1, 1 << 20);
         /// Luminance contrast |a - b| / (a + b) between neighbouring pixels that triggers supersampling.
         contrast: f32 = 0.1 => at_least(0.0);
-        /// What to render (the integrator).
-        mode: Method = Method::Full => Any;
         /// Final-gather rays per gather (stratified, cosine-weighted; the paper: several hundred).
         gather_rays: u32 = 400 => between(1, 1 << 20);
         /// How gather rays read the global map (and, in media, the volume map:
@@ -131,18 +112,6 @@ pm_params::params! {
         max_depth: u32 = 12 => between(0, 1000);
         /// PNG exposure in stops (the PNG shows radiance x 2^exposure).
         exposure: f32 = 0.0 => between(-64.0, 64.0);
-        /// Progressive photon mapping (sppm mode): passes, each one eye sample a pixel and a photon pass.
-        passes: u32 = 64 => between(1, 1 << 24);
-        /// Progressive photon mapping: photon paths traced per pass.
-        photons_per_pass: u64 = 100_000 => between(1, 1 << 30);
-        /// Progressive photon mapping: Hachisuka's alpha, the share of a pass's photons a pixel keeps as its radius shrinks.
-        sppm_alpha: f32 = 0.6666667 => between(0.01, 0.99);
-        /// Progressive photon mapping: starting gather radius, as a fraction of the scene diagonal.
-        sppm_radius_rel_diag: f32 = 0.01 => above(0.0);
-        /// Progressive photon mapping: probe rays a pixel a pass that measure how much of
-        /// the gather disc lies on the visible surface (walls and edges cut it), so the
-        /// density divides by that area instead of pi r^2 (0: pi r^2, Hachisuka's estimate).
-        sppm_boundary_probes: u32 = 4 => between(0, 64);
         /// Participating media: how the volume map gives multiple scattering along rays.
         volume_estimate: VolumeEstimate = VolumeEstimate::Beam => Any;
         /// Participating media: photons per volume estimate (and per beam radius).
@@ -185,15 +154,9 @@ impl RenderParams {
         CacheSettings(RenderParams {
             spp: d.spp,
             contrast: d.contrast,
-            mode: d.mode,
             exposure: d.exposure,
             caustic_k: d.caustic_k,
             caustic_radius_rel_diag: d.caustic_radius_rel_diag,
-            passes: d.passes,
-            photons_per_pass: d.photons_per_pass,
-            sppm_alpha: d.sppm_alpha,
-            sppm_radius_rel_diag: d.sppm_radius_rel_diag,
-            sppm_boundary_probes: d.sppm_boundary_probes,
             volume_light_samples: d.volume_light_samples,
             ..self.clone()
         })
@@ -202,9 +165,9 @@ impl RenderParams {
 
 /// The settings that shape an irradiance cache, said once: render parameters with
 /// every value that cannot shape a cache at its default (how the image is sampled
-/// and shown: spp, contrast, mode, exposure; the caustic estimate: caustic_k,
-/// caustic_radius_rel_diag; progressive photon mapping's, which has no cache; the
-/// single-scattering samples of eye rays, volume_light_samples). What remains is
+/// and shown: spp, contrast, exposure; the caustic estimate: caustic_k,
+/// caustic_radius_rel_diag; the single-scattering samples of eye rays,
+/// volume_light_samples). What remains is
 /// the image size (the prepass samples the image), the final gather's settings,
 /// the global map's estimate, the volume map's (gather rays read it), the cache's
 /// accuracy and spacing, direct light and the specular depth. The runner's cache
@@ -369,46 +332,6 @@ pub fn irradiance_subset<G: PhotonRecord>(global: &[G]) -> Vec<G> {
 
 pub use pm_scene::facing;
 
-/// Render `rect` of `film` with the integrator `method` names, over the photon maps
-/// (and cache) of `pm`; [`Method::Path`] uses only its scene. The one place a method
-/// becomes an integrator.
-pub fn render_method<G: PhotonRecord>(
-    method: Method,
-    pm: PhotonMapping<G>,
-    camera: &pm_scene::Camera,
-    film: &Film,
-    rect: Rect,
-    gbuffer: bool,
-    progress: &(dyn Fn(u64, u64) + Sync),
-) -> Result<(Image, RenderStats), String> {
-    match method {
-        Method::Full => render_region(camera, film, rect, &pm, gbuffer, progress),
-        Method::Photons => render_region(camera, film, rect, &PhotonsView(pm), gbuffer, progress),
-        Method::Radiance => render_region(camera, film, rect, &RadianceView(pm), gbuffer, progress),
-        Method::Indirect => render_region(camera, film, rect, &IndirectView(pm), gbuffer, progress),
-        Method::Path => {
-            let pt = PathTracer::new(pm.scene).map_err(|e| e.to_string())?;
-            render_region(camera, film, rect, &pt, gbuffer, progress)
-        }
-        // Progressive photon mapping traces its own photons: `pm_sppm::render`.
-        Method::Sppm => Err("progressive photon mapping renders through pm_sppm::render".into()),
-    }
-}
-
-/// True when `method` reads soft indirect light from an irradiance cache (when the
-/// settings enable one).
-pub fn method_uses_cache(method: Method) -> bool {
-    matches!(method, Method::Full | Method::Indirect)
-}
-
-/// True when `method` with final-gather lookups `lookup` makes k-nearest estimates
-/// from the global map (Figure 1b's radiance at the eye hit, or exact lookups at
-/// gather-ray hits); otherwise the global map is only searched through its
-/// precomputed-irradiance subset, for the nearest photon.
-pub fn method_searches_global(method: Method, lookup: Lookup) -> bool {
-    method == Method::Photons || (lookup == Lookup::Exact && !matches!(method, Method::Path | Method::Sppm))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -425,8 +348,7 @@ mod tests {
         let args = params.to_args();
         let at = args.iter().position(|a| *a == format!("--{}", field.replace('_', "-"))).unwrap() + 1;
         let text = &args[at];
-        let mut candidates: Vec<String> = Method::value_variants().iter().map(|v| v.to_string()).collect();
-        candidates.extend(Lookup::value_variants().iter().map(|v| v.to_string()));
+        let mut candidates: Vec<String> = Lookup::value_variants().iter().map(|v| v.to_string()).collect();
         candidates.extend(VolumeEstimate::value_variants().iter().map(|v| v.to_string()));
         if let Ok(i) = text.parse::<u64>() {
             candidates.insert(0, (i + 1).to_string());
@@ -474,8 +396,8 @@ mod tests {
         }
         assert_eq!(
             shaping,
-            RenderParams::FIELDS.len() - 12,
-            "spp, contrast, mode, exposure, the caustic two, progressive photon mapping's five and single scattering's light samples"
+            RenderParams::FIELDS.len() - 6,
+            "spp, contrast, exposure, the caustic two and single scattering's light samples"
         );
     }
 }

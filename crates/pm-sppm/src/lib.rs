@@ -29,62 +29,51 @@ use pm_color::{Layer, Rgb};
 use pm_kdtree::RadiusGrid;
 use pm_light::DirectLighting;
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
-use pm_render::{Image, pixel_salt};
+use pm_render::{Image, View, pixel_salt};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
 
-/// Progressive photon mapping's parameters (`pm_render::RenderParams`' `passes`,
-/// `photons_per_pass`, `sppm_alpha`, `sppm_radius_rel_diag`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SppmParams {
-    /// Passes (each: one eye sample a pixel and a photon pass).
-    pub passes: u32,
-    /// Photon paths traced per pass.
-    pub photons_per_pass: u64,
-    /// Hachisuka's alpha: the fraction of a pass's photons a pixel keeps as it
-    /// shrinks its radius (0 < alpha < 1; smaller shrinks faster, noisier).
-    pub alpha: f32,
-    /// Starting gather radius, as a fraction of the scene diagonal.
-    pub initial_radius_rel_diag: f32,
-    /// Probe rays a pixel a pass that measure the share of the gather disc on the
-    /// visible surface ([`surface_share`]; 0: the whole disc, pi r^2).
-    pub boundary_probes: u32,
-}
+use pm_params::{above, between};
 
-impl Default for SppmParams {
-    fn default() -> Self {
-        SppmParams::of(&pm_render::RenderParams::default())
+pm_params::params! {
+    /// Progressive photon mapping's own settings, defined once: `photon-render
+    /// --mode sppm`'s options and pipeline.toml's `[sppm]` section (keys without
+    /// the `sppm_` of the options: `alpha`, `radius_rel_diag`, `boundary_probes`).
+    /// The image size, light samples and specular depth are `[render]`'s, which
+    /// every method shares.
+    #[derive(Copy)]
+    pub struct SppmParams {
+        /// Passes, each one eye sample a pixel and a photon pass.
+        passes: u32 = 64 => between(1, 1 << 24);
+        /// Photon paths traced per pass.
+        photons_per_pass: u64 = 100_000 => between(1, 1 << 30);
+        /// Hachisuka's alpha: the share of a pass's photons a pixel keeps as its
+        /// radius shrinks (smaller shrinks faster, noisier).
+        sppm_alpha as "alpha": f32 = 0.6666667 => between(0.01, 0.99);
+        /// Starting gather radius, as a fraction of the scene diagonal.
+        sppm_radius_rel_diag as "radius_rel_diag": f32 = 0.01 => above(0.0);
+        /// Probe rays a pixel a pass that measure how much of the gather disc lies
+        /// on the visible surface (walls and edges cut it), so the density divides
+        /// by that area instead of pi r^2 (0: pi r^2, Hachisuka's estimate;
+        /// [`surface_share`]).
+        sppm_boundary_probes as "boundary_probes": u32 = 4 => between(0, 64);
     }
 }
 
-impl SppmParams {
-    /// The progressive settings of render parameters `p`.
-    pub fn of(p: &pm_render::RenderParams) -> SppmParams {
-        SppmParams {
-            passes: p.passes,
-            photons_per_pass: p.photons_per_pass,
-            alpha: p.sppm_alpha,
-            initial_radius_rel_diag: p.sppm_radius_rel_diag,
-            boundary_probes: p.sppm_boundary_probes,
-        }
-    }
-}
-
-/// Render `rect` of `film` by `params.passes` passes of progressive photon
-/// mapping (the whole film is traced, its `rect` kept: a pixel's value depends
+/// Render `view.rect` of `view.film` by `params.passes` passes of progressive
+/// photon mapping (the whole film is traced, its `rect` kept: a pixel's value depends
 /// only on its own eye paths and each pass's photons, so a region equals the same
 /// pixels of the whole image), reporting passes done as progress.
 pub fn render(
     scene: &Scene,
-    params: &pm_render::RenderParams,
-    camera: &Camera,
-    film: &pm_render::Film,
-    rect: pm_raster::Rect,
+    shared: &pm_render::RenderParams,
+    params: &SppmParams,
+    view: View,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
     let passes = params.passes as u64;
-    let (image, stats, _) = render_with(scene, params, camera, film, rect, None, &mut |s| {
+    let (image, stats, _) = render_with(scene, shared, params, view, None, &mut |s| {
         progress(s.passes() as u64, passes);
         Ok(true)
     })?;
@@ -100,27 +89,26 @@ pub fn render(
 /// passes it holds.
 pub fn render_with(
     scene: &Scene,
-    params: &pm_render::RenderParams,
-    camera: &Camera,
-    film: &pm_render::Film,
-    rect: pm_raster::Rect,
+    shared: &pm_render::RenderParams,
+    params: &SppmParams,
+    view: View,
     start: Option<(&std::path::Path, &pm_format::StateFile)>,
     after_pass: &mut dyn FnMut(&Sppm) -> Result<bool, String>,
 ) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
-    let p = SppmParams::of(params);
-    let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, params.light_samples, params.max_depth)
+    let (p, film) = (*params, view.film);
+    let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, shared.light_samples, shared.max_depth)
         .map_err(|e| e.to_string())?;
     if let Some((path, file)) = start {
         s.resume(file).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     while s.passes() < p.passes {
-        s.pass(camera);
+        s.pass(view.camera);
         if !after_pass(&s)? {
             break;
         }
     }
-    let image = s.region_image(rect);
+    let image = s.region_image(view.rect);
     let stats = pm_render::RenderStats {
         seconds: t0.elapsed().as_secs_f64(),
         samples: s.passes() as u64 * image.total.len() as u64,
@@ -286,7 +274,7 @@ impl<'a> Sppm<'a> {
         light_samples: u32,
         max_depth: u32,
     ) -> Result<Self, pm_light::LightSelectError> {
-        let r0 = params.initial_radius_rel_diag * scene.bounds.diagonal();
+        let r0 = params.sppm_radius_rel_diag * scene.bounds.diagonal();
         let empty = PixelState::new(r0);
         Ok(Sppm {
             light: DirectLighting::new(scene)?,
@@ -338,9 +326,9 @@ impl<'a> Sppm<'a> {
             self.width,
             self.height,
             p.photons_per_pass,
-            p.alpha,
-            p.initial_radius_rel_diag,
-            p.boundary_probes,
+            p.sppm_alpha,
+            p.sppm_radius_rel_diag,
+            p.sppm_boundary_probes,
             self.seed,
             self.light_samples,
             self.max_depth
@@ -426,8 +414,13 @@ impl<'a> Sppm<'a> {
                 let d = rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
                 let (mut vp, ld) = self.eye_path(camera.position, d, &mut s);
                 if let Some(vp) = &mut vp {
-                    vp.share =
-                        surface_share(self.light.scene, vp, self.pixels[i].radius, self.params.boundary_probes, &mut s);
+                    vp.share = surface_share(
+                        self.light.scene,
+                        vp,
+                        self.pixels[i].radius,
+                        self.params.sppm_boundary_probes,
+                        &mut s,
+                    );
                 }
                 (vp, ld)
             })
@@ -437,7 +430,7 @@ impl<'a> Sppm<'a> {
         let max_r = self.pixels.iter().map(|p| p.radius).fold(0.0f32, f32::max);
         let positions: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
         let grid = RadiusGrid::new(&positions, max_r);
-        let alpha = self.params.alpha;
+        let alpha = self.params.sppm_alpha;
         let np = self.params.photons_per_pass as f32;
         let found: Vec<u64> = self
             .pixels
@@ -457,7 +450,7 @@ impl<'a> Sppm<'a> {
                 // The density divides by the disc's area on the surface: pi r^2 times
                 // its share there, folded into the flux so that the alpha rule's
                 // bookkeeping stays Hachisuka's.
-                let share = px.update_share(vp.share, self.params.boundary_probes);
+                let share = px.update_share(vp.share, self.params.sppm_boundary_probes);
                 let phi = phi.map(|f| vp.beta * f / share);
                 let photon =
                     (phi[0] + phi[1]).element_sum() / 3.0 / (np * std::f32::consts::PI * px.radius * px.radius);

@@ -7,7 +7,7 @@
 //! reflectance, with direct light by shadow rays or shadow maps per pixel (sharp
 //! shadows) or from the photons alone (as in the thesis).
 //!
-//! A [`pm_live::Method`]: `pm-live` runs the frames and shades the pixels. It
+//! A [`pm_live::FrameMethod`]: `pm-live` runs the frames and shades the pixels. It
 //! reuses the batch pipeline's pieces rather than forking them: the tracer's own
 //! per-path streams (`pm_photon::trace_path`), the kd-tree, the k-nearest irradiance
 //! estimate. Radiance is W sr^-1 m^-2 per RGB channel; photon power W; irradiance
@@ -400,7 +400,7 @@ impl Vertex {
     }
 }
 
-impl pm_live::Method for Vertex {
+impl pm_live::FrameMethod for Vertex {
     type Row = VertexFrame;
 
     fn warm_up(&self) -> u64 {

@@ -8,7 +8,7 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::{Layer, Rgb};
-use pm_render::Method;
+use pm_methods::Method;
 use pm_scene::{Environment, Scene, Triangle};
 use pm_tests::{camera, material, photon_maps, render, render_params, sphere};
 use std::f64::consts::PI;
@@ -55,10 +55,10 @@ fn mean_at(px: &[Rgb], at: &[usize]) -> glam::DVec3 {
 fn path_and_full(scene: &Scene, w: u32, h: u32, spp: u32) -> [(&'static str, pm_render::Image); 2] {
     let maps = photon_maps(scene, 20_000, 2_000, 0.25);
     let mut cfg = render_params(Method::Path, w, h);
-    cfg.spp = spp;
+    cfg.render.spp = spp;
     let (path, ps) = render(scene, &maps, &cfg);
     cfg.mode = Method::Full;
-    cfg.spp = 1;
+    cfg.render.spp = 1;
     let (full, fs) = render(scene, &maps, &cfg);
     assert_eq!(ps.nonfinite_pixels + fs.nonfinite_pixels, 0);
     [("path", path), ("full", full)]
@@ -314,10 +314,10 @@ fn hdri_scene_components_agree_with_the_path_tracers() {
     assert_eq!(pm_light::analyze(&scene).direct, "1 environment light");
     let maps = photon_maps(&scene, 400_000, 35_000, 0.25);
     let mut cfg = render_params(Method::Full, 40, 40);
-    cfg.spp = 16;
+    cfg.render.spp = 16;
     let (full, _) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Path;
-    cfg.spp = 8192;
+    cfg.render.spp = 8192;
     let (path, _) = render(&scene, &maps, &cfg);
     let mean = path.total().iter().map(|p| p.max_element()).sum::<f32>() / path.total().len() as f32;
     let bright: Vec<bool> =
@@ -383,7 +383,7 @@ fn a_portal_aims_the_environment_without_changing_its_light() {
     assert!(nb as f64 / b.stats.emitted as f64 > 4.0 * na as f64 / a.stats.emitted as f64);
     let maps = (Vec::new(), Vec::new());
     let mut cfg = render_params(Method::Path, 24, 24);
-    cfg.spp = 256;
+    cfg.render.spp = 256;
     let mean = |scene: &Scene| {
         let (img, _) = render(scene, &maps, &cfg);
         img.total().iter().map(|p| p.as_dvec3()).sum::<glam::DVec3>() / img.total().len() as f64

@@ -2,7 +2,7 @@
 //! number against the analytic answer or the unscaled scene.
 
 use glam::Vec3;
-use pm_render::Method;
+use pm_methods::Method;
 use pm_tests::{photon_maps, render, render_params, scene_path};
 use std::path::{Path, PathBuf};
 
@@ -46,8 +46,8 @@ fn scaled_and_translated_scenes_render_alike() {
         let scene = pm_scene::load(path).unwrap();
         let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
         let mut cfg = render_params(Method::Full, 32, 32);
-        cfg.spp = 1;
-        cfg.gather_rays = 128;
+        cfg.render.spp = 1;
+        cfg.render.gather_rays = 128;
         let (img, stats) = render(&scene, &maps, &cfg);
         assert_eq!(stats.nonfinite_pixels, 0);
         img.total().to_vec()
@@ -87,10 +87,10 @@ fn furnace_with_albedo_0_99_stays_finite_and_near_one_hundred() {
     let scene = pm_scene::load(&p).unwrap();
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
     let mut cfg = render_params(Method::Full, 16, 16);
-    cfg.light_samples = 16;
+    cfg.render.light_samples = 16;
     let (full, _) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Path;
-    cfg.spp = 1024;
+    cfg.render.spp = 1024;
     let (path, ps) = render(&scene, &maps, &cfg);
     for (name, img, tol) in [("full", &full, 0.05), ("path", &path, 0.03)] {
         let px = img.total();
@@ -491,12 +491,8 @@ fn far_box(dir: &Path, t: f32) -> pm_scene::Scene {
 fn batch_layers(scene: &pm_scene::Scene, method: Method, seed: u64) -> Layers {
     let maps = pm_tests::photon_maps_seeded(scene, 50_000, 0, 0.25, seed);
     let mut cfg = render_params(method, 64, 64);
-    (cfg.spp, cfg.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
-    let camera = scene.camera.as_ref().unwrap();
-    let film = cfg.film(seed);
-    let (img, _) = pm_tests::with_photon_mapping(scene, &maps, &cfg, |pm| {
-        pm_render::render_method(cfg.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap()
-    });
+    (cfg.render.spp, cfg.render.gather_rays) = (if method == Method::Path { 16 } else { 1 }, 64);
+    let img = pm_tests::render_seeded(scene, &maps, &cfg, seed).0;
     (pm_color::Layer::SURFACE.map(|l| img.layer(l).to_vec()), planes_seen(scene))
 }
 

@@ -4,7 +4,7 @@
 //! without NaN or Inf, and still agree with the path tracer.
 
 use glam::Vec3;
-use pm_render::Method;
+use pm_methods::Method;
 use pm_tests::{photon_maps, render, render_params, scene_path};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -116,7 +116,7 @@ fn degenerate_geometry_renders_finite_and_agrees_with_the_path_tracer() {
         let mut cfg = render_params(Method::Full, 32, 32);
         let (full, fs) = render(&scene, &maps, &cfg);
         cfg.mode = Method::Path;
-        cfg.spp = 512;
+        cfg.render.spp = 512;
         let (pt, ps) = render(&scene, &maps, &cfg);
         assert_eq!((fs.nonfinite_pixels, ps.nonfinite_pixels), (0, 0));
         // Leave out pixels that see the area light or touch one that does: their error

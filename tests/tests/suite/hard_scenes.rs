@@ -4,7 +4,7 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_render::Method;
+use pm_methods::Method;
 use pm_scene::Scene;
 use pm_tests::{camera, closed_box, material, photon_maps, render, render_params, sphere};
 
@@ -69,11 +69,11 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
         Scene::from_parts(tris, mats, vec![], Some(camera(Vec3::new(0.1, 0.05, 0.2), Vec3::new(1.0, 0.3, -2.0))));
     let maps = photon_maps(&scene, 100_000, 10_000, 0.25);
     let mut cfg = render_params(Method::Path, 16, 16);
-    cfg.spp = 512;
+    cfg.render.spp = 512;
     let (path, ps) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Full;
-    cfg.spp = 4;
-    cfg.light_samples = 8;
+    cfg.render.spp = 4;
+    cfg.render.light_samples = 8;
     // At the default depth limit (12) about 3,900 paths are cut between the nested
     // spheres (counted in the stats), costing 1.3% here; final-gather rays used to
     // stop after 4 specular bounces and lost 12%.
@@ -121,7 +121,7 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
     let (w, h) = (64u32, 64u32);
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
     let mut cfg = render_params(Method::Full, w, h);
-    (cfg.spp, cfg.gather_rays) = (4, 128);
+    (cfg.render.spp, cfg.render.gather_rays) = (4, 128);
     let reference = render(&scene, &maps, &cfg).0.total().to_vec();
     let vertex = |subdivide, coverage| {
         let frame = pm_live::FrameParams { width: w, height: h, light_samples: 4, ..Default::default() };

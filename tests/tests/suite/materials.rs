@@ -401,11 +401,11 @@ fn emitted_photons(s: &Scene) -> Vec<pm_format::Photon> {
 /// The mean radiance [W sr^-1 m^-2 per channel] of an 8 x 8 image of `s` from the
 /// path tracer (`path_spp` samples per pixel) and the photon-map renderer
 /// (`full_spp`, over 20,000 global photons).
-fn mean_seen(s: &Scene, path_spp: u32, full_spp: u32) -> [(pm_render::Method, Rgb); 2] {
+fn mean_seen(s: &Scene, path_spp: u32, full_spp: u32) -> [(pm_methods::Method, Rgb); 2] {
     let maps = pm_tests::photon_maps(s, 20_000, 0, 0.25);
-    [(pm_render::Method::Path, path_spp), (pm_render::Method::Full, full_spp)].map(|(method, spp)| {
+    [(pm_methods::Method::Path, path_spp), (pm_methods::Method::Full, full_spp)].map(|(method, spp)| {
         let mut cfg = pm_tests::render_params(method, 8, 8);
-        cfg.spp = spp;
+        cfg.render.spp = spp;
         let (img, _) = pm_tests::render(s, &maps, &cfg);
         let px = img.total();
         (method, px.iter().copied().sum::<Rgb>() / px.len() as f32)
@@ -572,11 +572,11 @@ fn normal_mapped_furnace_creates_no_energy() {
         / 400.0;
     assert!(tilt > 15f32.to_radians(), "mean tilt {} degrees", tilt.to_degrees());
     let maps = pm_tests::photon_maps(&s, 100_000, 0, 0.25);
-    let mut cfg = render_params(pm_render::Method::Path, 16, 16);
-    cfg.spp = 256;
+    let mut cfg = render_params(pm_methods::Method::Path, 16, 16);
+    cfg.render.spp = 256;
     let (path, _) = render(&s, &maps, &cfg);
-    cfg.mode = pm_render::Method::Full;
-    cfg.spp = 4;
+    cfg.mode = pm_methods::Method::Full;
+    cfg.render.spp = 4;
     let (full, _) = render(&s, &maps, &cfg);
     let mut means = vec![];
     for (name, img) in [("path", &path), ("full", &full)] {
@@ -656,10 +656,10 @@ fn every_material_feature_agrees_with_the_path_tracer() {
     assert!(m("glowing_panel").emissive_texture.is_some());
     assert!(scene.has_alpha() && scene.has_stochastic_surfaces());
     let maps = pm_tests::photon_maps(&scene, 200_000, 35_000, 0.25);
-    let mut cfg = pm_tests::render_params(pm_render::Method::Full, 40, 40);
+    let mut cfg = pm_tests::render_params(pm_methods::Method::Full, 40, 40);
     let (full, _) = pm_tests::render(&scene, &maps, &cfg);
-    cfg.mode = pm_render::Method::Path;
-    cfg.spp = 1024;
+    cfg.mode = pm_methods::Method::Path;
+    cfg.render.spp = 1024;
     let (path, _) = pm_tests::render(&scene, &maps, &cfg);
     pm_tests::assert_components_agree("materials", &full, &path);
 }

@@ -5,15 +5,16 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
-use pm_render::{Method, PathTracer};
+use pm_methods::Method;
+use pm_render::PathTracer;
 use pm_scene::{Medium, Scene};
 use pm_tests::{against_constant, camera, closed_box, material, render_params, sphere};
 
 /// The path tracer's image of `scene` from its camera, `spp` samples a pixel.
 fn path_image(scene: &Scene, size: u32, spp: u32) -> pm_render::Image {
     let mut cfg = render_params(Method::Path, size, size);
-    cfg.spp = spp;
-    let film = cfg.film(1);
+    cfg.render.spp = spp;
+    let film = cfg.render.film(1);
     let pt = PathTracer::new(scene).unwrap();
     let cam = scene.camera.as_ref().unwrap();
     pm_render::render_region(cam, &film, film.rect(), &pt, false, &|_, _| {}).unwrap().0
@@ -302,22 +303,22 @@ fn photon_maps_agree_with_the_path_tracer(
 ) {
     let size = 32;
     let mut cfg = render_params(Method::Path, size, size);
-    cfg.spp = spp;
+    cfg.render.spp = spp;
     let pt = PathTracer::new(scene).unwrap();
     let path_image = |cfg: &pm_render::RenderParams, seed: u64| {
         let film = cfg.film(seed);
         pm_render::render_region(scene.camera.as_ref().unwrap(), &film, film.rect(), &pt, false, &|_, _| {}).unwrap().0
     };
-    let path = path_image(&cfg, 1);
+    let path = path_image(&cfg.render, 1);
     assert!(path.has_volume());
-    let chooser = bright.map(|_| path_image(&pm_render::RenderParams { spp: spp / 4, ..cfg.clone() }, 2));
+    let chooser = bright.map(|_| path_image(&pm_render::RenderParams { spp: spp / 4, ..cfg.render.clone() }, 2));
     let nodes = volume_nodes(scene, 200_000, 3);
     cfg.mode = Method::Full;
-    cfg.spp = 4;
+    cfg.render.spp = 4;
     // Fewer gather rays and longer march steps than the defaults: CI time (the
     // means do not move).
-    cfg.gather_rays = 100;
-    cfg.volume_step_rel_diag = 0.02;
+    cfg.render.gather_rays = 100;
+    cfg.render.volume_step_rel_diag = 0.02;
     // The light seen directly and its neighbours are left out (its anti-aliased
     // edge differs between adaptive and jittered sampling).
     let keep = pm_image::accuracy::keep_mask(path.total(), size as usize, size as usize, None);
@@ -333,8 +334,8 @@ fn photon_maps_agree_with_the_path_tracer(
         c.total_or_layer(volume).iter().zip(&keep).map(|(p, k)| *k && p.element_sum() as f64 / 3.0 > 2.0 * m).collect()
     });
     for estimate in [pm_render::VolumeEstimate::Beam, pm_render::VolumeEstimate::RayMarch] {
-        cfg.volume_estimate = estimate;
-        let full = full_with_volume(scene, maps, &nodes, &cfg);
+        cfg.render.volume_estimate = estimate;
+        let full = full_with_volume(scene, maps, &nodes, &cfg.render);
         assert!(full.has_volume() && full.total().iter().all(|p| p.is_finite()));
         for &(layer, tol) in layers {
             let (f, p) = (mean(&full, layer), mean(&path, layer));
@@ -556,7 +557,7 @@ fn final_gathers_pass_index_matched_walls_at_full_length() {
     walls.finish_media().unwrap();
     assert!(walls.has_index_matched());
     let mut cfg = render_params(Method::Indirect, 24, 24);
-    cfg.spp = 1;
+    cfg.render.spp = 1;
     let run = |scene: &Scene| {
         let maps = pm_tests::photon_maps(scene, 100_000, 0, 0.25);
         let (img, stats) = pm_tests::render(scene, &maps, &cfg);

@@ -214,13 +214,13 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
 fn sppm_runs_average_and_continue_after_a_time_budget() {
     let dir = tempfile::tempdir().unwrap();
     let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 1, "sppm");
-    pm_tests::edit_pipeline(&p, |c| (c.render.passes, c.render.photons_per_pass) = (4, 2_000));
+    pm_tests::edit_pipeline(&p, |c| (c.sppm.passes, c.sppm.photons_per_pass) = (4, 2_000));
     let base = pm_pipeline::Pipeline::load(&p).unwrap().seed;
     let run = |out: &str, runs: u32, budget: Option<f64>, pipeline: &Path| {
         let a = RunArgs {
             pipeline: Some(pipeline.to_owned()),
             out: Some(dir.path().join(out)),
-            method: Some(pm_render::Method::Sppm),
+            method: Some(pm_methods::Method::Sppm),
             runs,
             run_time_budget: budget,
             workers: 2,
@@ -252,7 +252,7 @@ fn sppm_runs_average_and_continue_after_a_time_budget() {
     let a = RunArgs {
         pipeline: Some(p.clone()),
         out: Some(dir.path().join("planned")),
-        method: Some(pm_render::Method::Sppm),
+        method: Some(pm_methods::Method::Sppm),
         runs: 2,
         run_time_budget: Some(1e-6),
         ..Default::default()
@@ -283,6 +283,6 @@ fn sppm_runs_average_and_continue_after_a_time_budget() {
     let e = plan_for(&RunArgs { tiles: 2, ..a.clone() }, &root(), &bins()).unwrap_err().to_string();
     assert!(e.contains("--runs instead"), "{e}");
     let e =
-        plan_for(&RunArgs { method: Some(pm_render::Method::Path), ..a }, &root(), &bins()).unwrap_err().to_string();
+        plan_for(&RunArgs { method: Some(pm_methods::Method::Path), ..a }, &root(), &bins()).unwrap_err().to_string();
     assert!(e.contains("progressive photon mapping's"), "{e}");
 }

@@ -80,19 +80,10 @@ fn quality_and_budget_pick_the_fitting_point_with_the_least_error() {
 fn furnace_split_finds_an_unbiased_path_tracer_unbiased() {
     let scene = pm_tests::load_scene("furnace.gltf");
     let maps = pm_tests::photon_maps(&scene, 20_000, 0, 0.25);
-    let mut p = pm_tests::render_params(pm_render::Method::Path, 24, 24);
-    p.spp = 16;
-    let camera = scene.camera.as_ref().unwrap();
-    let images: Vec<Vec<glam::Vec3>> = (1..=4)
-        .map(|seed| {
-            let film = p.film(seed);
-            pm_tests::with_photon_mapping(&scene, &maps, &p, |pm| {
-                let (img, _) =
-                    pm_render::render_method(p.mode, pm, camera, &film, film.rect(), false, &|_, _| {}).unwrap();
-                img.total().to_vec()
-            })
-        })
-        .collect();
+    let mut p = pm_tests::render_params(pm_methods::Method::Path, 24, 24);
+    p.render.spp = 16;
+    let images: Vec<Vec<glam::Vec3>> =
+        (1..=4).map(|seed| pm_tests::render_seeded(&scene, &maps, &p, seed).0.total().to_vec()).collect();
     let exact = vec![glam::Vec3::splat(5.0); 24 * 24];
     let keep = vec![true; 24 * 24];
     let refs: Vec<&[glam::Vec3]> = images.iter().map(Vec::as_slice).collect();

@@ -5,7 +5,8 @@
 //! independent eye rays.
 
 use glam::Vec3;
-use pm_render::{Film, Image, Integrator, Method, Rect, RenderParams, render_region};
+use pm_methods::Method;
+use pm_render::{Film, Image, Integrator, Rect, render_region};
 use pm_tests::{load_scene, photon_maps, render_params, with_photon_mapping};
 
 /// Render `film` as tiles of `tw` x `th` pixels and assemble them.
@@ -55,8 +56,9 @@ fn tiles_equal_the_whole_image_for_every_integrator() {
     let camera = scene.camera.clone().unwrap();
     let maps = photon_maps(&scene, 20_000, 3_000, 0.25);
     // Small gathers keep this fast; spp 4 makes supersampling cross tile borders.
-    let p = RenderParams { gather_rays: 24, spp: 4, ..render_params(Method::Full, 37, 29) };
-    let film = p.film(1);
+    let mut p = render_params(Method::Full, 37, 29);
+    (p.render.gather_rays, p.render.spp) = (24, 4);
+    let film = p.render.film(1);
     with_photon_mapping(&scene, &maps, &p, |pm| {
         assert!(pm.cache().is_some_and(|c| !c.is_empty()), "the shared cache is in use");
         let img = assert_tiles_equal_whole("full", &camera, &film, &pm);
@@ -80,8 +82,9 @@ fn the_g_buffer_holds_each_pixels_first_hit() {
     let scene = load_scene("cornell_spheres.gltf");
     let camera = scene.camera.clone().unwrap();
     let maps = photon_maps(&scene, 20_000, 3_000, 0.25);
-    let p = RenderParams { gather_rays: 16, spp: 1, ..render_params(Method::Full, 24, 20) };
-    let film = p.film(1);
+    let mut p = render_params(Method::Full, 24, 20);
+    (p.render.gather_rays, p.render.spp) = (16, 1);
+    let film = p.render.film(1);
     let rect = Rect { x0: 3, y0: 2, x1: 21, y1: 17 };
     let gb = with_photon_mapping(&scene, &maps, &p, |pm| {
         render_region(&camera, &film, rect, &pm, true, &|_, _| {}).unwrap().0.gbuffer.unwrap()

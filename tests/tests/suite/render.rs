@@ -1,6 +1,7 @@
 //! Stage 4 against analytic answers and the path tracer.
 
-use pm_render::{Lookup, Method};
+use pm_methods::Method;
+use pm_render::Lookup;
 use pm_tests::{against_constant, load_scene, photon_maps, render, render_params};
 
 /// Furnace: radiance is exactly 5.0 everywhere (a closed, flat-faceted sphere with
@@ -18,10 +19,10 @@ fn furnace_renders_five_in_full_and_path_modes() {
     let scene = load_scene("furnace.gltf");
     let maps = photon_maps(&scene, 200_000, 0, 0.25);
     let mut cfg = render_params(Method::Full, 24, 24);
-    cfg.light_samples = 16;
+    cfg.render.light_samples = 16;
     let (full, fs) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Path;
-    cfg.spp = 1024;
+    cfg.render.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     for (name, img) in [("full", &full), ("path", &path)] {
         let (mean, rms, worst) = against_constant(img.total(), 5.0);
@@ -50,7 +51,7 @@ fn full_agrees_with_the_path_tracer_on_cornell_boxes() {
     let mut cfg = render_params(Method::Full, 48, 48);
     let (full, _) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Path;
-    cfg.spp = 1024;
+    cfg.render.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     let (f, p) = (full.total(), path.total());
     let e = pm_image::compare(f, p, 1.0);
@@ -75,9 +76,9 @@ fn exact_and_precomputed_lookups_agree_on_cornell_spheres() {
     let scene = load_scene("cornell_spheres.gltf");
     let maps = photon_maps(&scene, 200_000, 20_000, 1.0);
     let mut cfg = render_params(Method::Full, 48, 48);
-    cfg.spp = 1;
+    cfg.render.spp = 1;
     let (pre, ps) = render(&scene, &maps, &cfg);
-    cfg.gather_lookup = Lookup::Exact;
+    cfg.render.gather_lookup = Lookup::Exact;
     let (exact, es) = render(&scene, &maps, &cfg);
     let e = pm_image::compare(pre.total(), exact.total(), f32::INFINITY);
     let (rmse, bias) = (e.rel_rmse, e.rel_bias);
@@ -96,8 +97,8 @@ fn no_nan_or_inf_in_any_layer() {
         let maps = photon_maps(&scene, 50_000, 5_000, 0.25);
         for mode in [Method::Full, Method::Photons, Method::Radiance, Method::Indirect, Method::Path] {
             let mut cfg = render_params(mode, 16, 16);
-            cfg.spp = 4;
-            cfg.gather_rays = 64;
+            cfg.render.spp = 4;
+            cfg.render.gather_rays = 64;
             let (img, stats) = render(&scene, &maps, &cfg);
             assert_eq!(stats.nonfinite_pixels, 0, "{name} {mode:?}");
             for (layer, px) in img.named() {
@@ -135,7 +136,7 @@ fn unimportant_indirect_light_uses_the_photon_map_instead_of_gathering() {
     let maps = photon_maps(&scene, 100_000, 0, 0.25);
     let mut cfg = render_params(Method::Full, 32, 32);
     let (gathered, gs) = render(&scene, &maps, &cfg);
-    cfg.indirect_threshold = 1e9;
+    cfg.render.indirect_threshold = 1e9;
     let (thinned, ts) = render(&scene, &maps, &cfg);
     assert!(gs.final_gathers > 0 && gs.thinned == 0);
     eprintln!("final gathers {} -> {}, thinned shading points {}", gs.final_gathers, ts.final_gathers, ts.thinned);
@@ -157,7 +158,7 @@ fn components_agree_with_the_path_tracers_components() {
     let mut cfg = render_params(Method::Full, 40, 40);
     let (full, _) = render(&scene, &maps, &cfg);
     cfg.mode = Method::Path;
-    cfg.spp = 1024;
+    cfg.render.spp = 1024;
     let (path, _) = render(&scene, &maps, &cfg);
     pm_tests::assert_components_agree("cornell_spheres", &full, &path);
 }

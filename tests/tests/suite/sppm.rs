@@ -79,7 +79,7 @@ fn sppm_error_and_bias_fall_with_passes() {
     // and 256 passes: (passes, split, estimated noise of seed 1's render).
     let study = |probes: u32, seeds: u64| {
         let params =
-            SppmParams { passes: 256, photons_per_pass: 20_000, boundary_probes: probes, ..Default::default() };
+            SppmParams { passes: 256, photons_per_pass: 20_000, sppm_boundary_probes: probes, ..Default::default() };
         let mut runs: Vec<Sppm> =
             (1..=seeds).map(|seed| Sppm::new(&scene, w, h, params, seed, 1, 12).unwrap()).collect();
         let mut out = Vec::new();
@@ -119,7 +119,7 @@ fn sppm_error_and_bias_fall_with_passes() {
     let batch: Vec<Vec<glam::Vec3>> = (1..=2)
         .map(|seed| {
             let maps = pm_tests::photon_maps_seeded(&scene, 100_000, 0, 0.25, seed);
-            pm_tests::render(&scene, &maps, &pm_tests::render_params(pm_render::Method::Full, w, h)).0.total().to_vec()
+            pm_tests::render(&scene, &maps, &pm_tests::render_params(pm_methods::Method::Full, w, h)).0.total().to_vec()
         })
         .collect();
     let refs: Vec<&[glam::Vec3]> = batch.iter().map(Vec::as_slice).collect();
@@ -142,11 +142,11 @@ fn the_runner_renders_sppm_without_maps() {
     let dir = tempfile::tempdir().unwrap();
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let bins = xtask::stages::Bins { dir: pm_tests::bin_dir() };
-    let mean = |mode: pm_render::Method, name: &str| {
+    let mean = |mode: pm_methods::Method, name: &str| {
         let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 256, name);
         pm_tests::edit_pipeline(&p, |c| {
-            c.render.mode = mode;
-            (c.render.passes, c.render.photons_per_pass) = (32, 20_000);
+            c.mode = mode;
+            (c.sppm.passes, c.sppm.photons_per_pass) = (32, 20_000);
         });
         let out = dir.path().join(name);
         let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
@@ -157,7 +157,7 @@ fn the_runner_renders_sppm_without_maps() {
         let px = img.total().unwrap();
         px.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * px.len()) as f64
     };
-    let (s, p) = (mean(pm_render::Method::Sppm, "sppm"), mean(pm_render::Method::Path, "path"));
+    let (s, p) = (mean(pm_methods::Method::Sppm, "sppm"), mean(pm_methods::Method::Path, "path"));
     eprintln!("runner: SPPM mean {s:.4}, path tracer {p:.4}");
     assert!((s / p - 1.0).abs() < 0.05, "SPPM {s} vs path {p}");
 }

@@ -11,11 +11,12 @@ use std::path::PathBuf;
 /// file, the scene, the kd-tree); 2 the pieces every renderer shares (photon
 /// tracing, estimates, the rasteriser, light sampling, images); 3 the image loop and integrators
 /// (pm-render: nothing below it may depend on it); 4 what the real-time methods
-/// share (pm-live: the frame loop and shading); 5 the real-time methods (never on
-/// each other); 6 the stage shell; 7 stage binaries (never on each other); 8 the
-/// pipeline as data (pm-pipeline: settings, steps, job graph, above the stages whose
-/// parameter types it holds); 9 the test crate.
-const LAYERS: [(&str, u8); 26] = [
+/// share (pm-live: the frame loop and shading) and the progressive method; 5 the
+/// real-time methods (never on each other); 6 the methods by name (pm-methods: the
+/// one dispatch, every method's settings); 7 the stage shell and the pipeline as
+/// data (pm-pipeline: settings, steps, job graph); 8 stage binaries (never on each
+/// other, and no library on them); 9 the test crate.
+const LAYERS: [(&str, u8); 27] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -33,19 +34,20 @@ const LAYERS: [(&str, u8); 26] = [
     ("pm-sppm", 4),
     ("pm-vertex", 5),
     ("pm-ispm", 5),
-    ("pm-stage", 6),
+    ("pm-methods", 6),
+    ("pm-stage", 7),
+    ("pm-pipeline", 7),
     ("photon-trace", STAGE),
     ("photon-sort", STAGE),
     ("photon-irradiance", STAGE),
     ("photon-render", STAGE),
     ("photon-inspect", STAGE),
     ("photon-live", STAGE),
-    ("pm-pipeline", 8),
     ("pm-tests", 9),
 ];
 
 /// The layer of the stage binaries.
-const STAGE: u8 = 7;
+const STAGE: u8 = 8;
 
 /// ARCHITECTURE.md's "knows nothing about" column, as crates each may not use.
 const KNOWS_NOTHING_ABOUT: [(&str, &[&str]); 16] = [
@@ -104,6 +106,9 @@ fn crates_depend_only_downward_and_stages_never_on_each_other() {
             if theirs > own || (own == STAGE && theirs == STAGE) {
                 problems.push(format!("{name} (layer {own}) depends on {d} (layer {theirs})"));
             }
+            if theirs == STAGE && own != STAGE {
+                problems.push(format!("{name} is a library and depends on the stage crate {d}"));
+            }
         }
     }
     assert!(problems.is_empty(), "{problems:#?}");
@@ -117,6 +122,34 @@ fn crates_know_nothing_about_what_architecture_md_says() {
         for d in deps.get(name).unwrap_or_else(|| panic!("{name} is not in crates/")) {
             if forbidden.contains(&d.as_str()) {
                 problems.push(format!("{name} depends on {d}"));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}
+
+/// pm-render's settings hold only what its own integrators (the photon-map
+/// integrators and the path tracer) read: no key shares a name with another
+/// method's settings or is named for another method (`sppm_*`, and so for each
+/// method added to pm-methods). A method's settings live in its own crate.
+#[test]
+fn the_renderers_settings_hold_no_other_methods_keys() {
+    use clap::ValueEnum;
+    let own = ["full", "photons", "radiance", "indirect", "path"];
+    let others: Vec<String> = pm_methods::Method::value_variants()
+        .iter()
+        .map(|m| m.to_string())
+        .filter(|m| !own.contains(&m.as_str()))
+        .collect();
+    assert!(others.contains(&"sppm".to_string()), "{others:?}");
+    let mut problems = Vec::new();
+    for key in pm_render::RenderParams::FIELDS {
+        if pm_sppm::SppmParams::FIELDS.contains(key) {
+            problems.push(format!("render.{key} is also sppm.{key}"));
+        }
+        for m in &others {
+            if key.starts_with(&format!("{m}_")) || *key == m.as_str() {
+                problems.push(format!("render.{key} is named for --mode {m}: move it to that method's crate"));
             }
         }
     }

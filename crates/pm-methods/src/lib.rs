@@ -1,0 +1,273 @@
+//! Every way of making an image, by name, and the one place a name becomes a
+//! method (as pbrt-v4's `Integrator::Create` dispatches on the integrator's name
+//! once and each integrator reads only its own parameters).
+//!
+//! - [`Method`]: the methods `photon-render --mode` and pipeline.toml's
+//!   `[render] mode` name; [`Settings`] holds every method's own settings (each
+//!   declared once in its own crate with `pm_params::params!`: pm-render's
+//!   [`RenderParams`], which every method reads for the image, light samples and
+//!   depth; pm-sppm's [`SppmParams`]); [`render`] runs one on a view of a scene.
+//! - [`live`]: the real-time methods `photon-live --method` names
+//!   ([`live::LiveMethod`]) and their settings ([`live::LiveParams`]).
+//!
+//! Adding a method (ARCHITECTURE.md, "Adding an integrator"): its crate, its
+//! `params!` struct, a variant here with what it needs ([`Method::needs`]), a field
+//! of [`Settings`] and an arm of [`render`]. No other method's crate or settings
+//! change. This crate does no I/O: the stage binaries read the files a method
+//! needs and write what it makes.
+
+pub mod live;
+
+use pm_render::{
+    Image, IndirectView, Integrator, Lookup, PathTracer, PhotonMapping, PhotonsView, RadianceView, RenderParams,
+    RenderStats, View,
+};
+use pm_sppm::Sppm;
+pub use pm_sppm::SppmParams;
+
+pm_params::value_enum! {
+    /// What makes the image: the method, and so the integrator.
+    pub enum Method {
+        /// Direct + specular + caustics + final-gathered indirect from the photon
+        /// maps (Christensen 1999: the complete image).
+        Full,
+        /// Radiance from the global map directly at the eye hit (Figure 1b).
+        Photons,
+        /// Precomputed irradiance x reflectance / pi (Figure 1e; 1c/1d show the irradiance).
+        Radiance,
+        /// The soft indirect term from final gathering alone (Figure 1f).
+        Indirect,
+        /// Unbiased path tracing: the reference (needs no photon maps).
+        Path,
+        /// Stochastic progressive photon mapping: passes of eye paths and photons
+        /// with shrinking radii, the batch pipeline's consistent limit (needs no
+        /// photon maps; Hachisuka and Jensen 2009; the pm-sppm crate).
+        Sppm,
+    }
+}
+
+/// What a method reads besides the scene, and how it runs: the one table the
+/// stage binaries and the runner ask instead of naming methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Needs {
+    /// It reads the pipeline's photon maps (else it traces its own paths and
+    /// photons, and the pipeline is one step).
+    pub photon_maps: bool,
+    /// It reads the caustic and volume maps too.
+    pub caustic_and_volume: bool,
+    /// It reads soft indirect light from an irradiance cache (when the settings
+    /// enable one).
+    pub cache: bool,
+    /// It reads the precomputed irradiance of global photons (Christensen's
+    /// section 2.2) when final gathers look it up.
+    pub irradiance: bool,
+    /// It runs in passes that can be checkpointed, stopped by a time budget,
+    /// resumed from a state file and averaged over independent runs.
+    pub progressive: bool,
+}
+
+impl Method {
+    /// What the method reads and how it runs.
+    pub fn needs(self) -> Needs {
+        let none = Needs {
+            photon_maps: false,
+            caustic_and_volume: false,
+            cache: false,
+            irradiance: false,
+            progressive: false,
+        };
+        match self {
+            Method::Full => {
+                Needs { photon_maps: true, caustic_and_volume: true, cache: true, irradiance: true, ..none }
+            }
+            Method::Indirect => Needs { photon_maps: true, cache: true, irradiance: true, ..none },
+            Method::Radiance => Needs { photon_maps: true, irradiance: true, ..none },
+            Method::Photons => Needs { photon_maps: true, ..none },
+            Method::Path => none,
+            Method::Sppm => Needs { progressive: true, ..none },
+        }
+    }
+
+    /// What the method leaves out of `scene`'s light, as a note for the user.
+    pub fn leaves_out(self, scene: &pm_scene::Scene) -> Option<String> {
+        (self == Method::Sppm && scene.has_scattering_media()).then(|| {
+            format!(
+                "--mode {self}: media attenuate the eye paths but their in-scattered light is left out (no volume layer); light they scatter onto surfaces is counted"
+            )
+        })
+    }
+
+    /// True when the method with final-gather lookups `lookup` makes k-nearest
+    /// estimates from the global map (Figure 1b's radiance at the eye hit, or exact
+    /// lookups at gather-ray hits); otherwise the global map is only searched
+    /// through its precomputed-irradiance subset, for the nearest photon.
+    pub fn searches_global(self, lookup: Lookup) -> bool {
+        self == Method::Photons || (lookup == Lookup::Exact && self.needs().photon_maps)
+    }
+}
+
+/// Every method's settings, each group declared once in its method's crate:
+/// `photon-render`'s options (`--mode` and the groups flattened), pipeline.toml's
+/// `[render]` (with `mode`) and `[sppm]` sections.
+#[derive(Clone, Debug, PartialEq, Default, clap::Args, serde::Serialize)]
+pub struct Settings {
+    /// What makes the image.
+    #[arg(long, default_value_t = Method::Full)]
+    pub mode: Method,
+    /// The image, light samples and depth (every method) and the photon-map
+    /// integrators' settings (pm-render).
+    #[command(flatten)]
+    pub render: RenderParams,
+    /// Progressive photon mapping's (`--mode sppm`; pm-sppm).
+    #[command(flatten, next_help_heading = "Progressive photon mapping (--mode sppm)")]
+    pub sppm: SppmParams,
+}
+
+impl Default for Method {
+    fn default() -> Self {
+        Method::Full
+    }
+}
+
+impl Settings {
+    /// Every group's range checks, naming the option or `section.key`.
+    pub fn check(&self, cli: bool) -> Result<(), String> {
+        use pm_params::Naming;
+        let naming = |section| if cli { Naming::Cli } else { Naming::File(section) };
+        self.render.check(naming("render"))?;
+        self.sppm.validate(naming("sppm"))
+    }
+
+    /// The passes a progressive method is asked for (none for the others).
+    pub fn passes(&self) -> Option<u32> {
+        (self.mode == Method::Sppm).then_some(self.sppm.passes)
+    }
+
+    /// The photon paths a progressive method traces per pass (none for the others).
+    pub fn photons_per_pass(&self) -> Option<u64> {
+        (self.mode == Method::Sppm).then_some(self.sppm.photons_per_pass)
+    }
+
+    /// The command-line arguments that give every setting its value.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut a = vec!["--mode".to_string(), self.mode.to_string()];
+        a.extend(self.render.to_args());
+        a.extend(self.sppm.to_args());
+        a
+    }
+}
+
+/// What a method renders from: the photon-map integrators' state (maps, cache,
+/// resolved settings), built by the caller when [`Needs::photon_maps`], or only
+/// the scene.
+pub enum Input<'a, G> {
+    /// The photon maps (and cache) of the scene.
+    PhotonMaps(PhotonMapping<'a, G>),
+    /// The scene alone: the method traces its own paths and photons.
+    Scene(&'a pm_scene::Scene),
+}
+
+/// A progressive method's state after a pass, as the caller sees it (to show
+/// progress, write a checkpoint image or the state file, or stop).
+pub trait Progressive {
+    /// Passes done.
+    fn passes(&self) -> u32;
+    /// The image of `rect` after the passes done.
+    fn region_image(&self, rect: pm_render::Rect) -> Image;
+    /// Estimated noise of the image so far (relative RMS, bias not included) over
+    /// the pixels the accuracy study compares; none before two passes.
+    fn noise(&self) -> Option<f64>;
+    /// The state as its file holds it.
+    fn state(&self) -> pm_format::StateFile;
+}
+
+impl Progressive for Sppm<'_> {
+    fn passes(&self) -> u32 {
+        Sppm::passes(self)
+    }
+
+    fn region_image(&self, rect: pm_render::Rect) -> Image {
+        Sppm::region_image(self, rect)
+    }
+
+    /// Each pixel's variance from its passes' spread, over all pixels but the
+    /// light seen directly and its neighbours (whose anti-aliased edge would decide
+    /// the figure).
+    fn noise(&self) -> Option<f64> {
+        let var = self.variances()?;
+        let image = self.image();
+        let (w, h) = (image.width as usize, image.height as usize);
+        let keep = pm_image::accuracy::keep_mask(&image.total, w, h, None);
+        Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
+    }
+
+    fn state(&self) -> pm_format::StateFile {
+        self.to_file()
+    }
+}
+
+/// How a progressive method runs: from the passes of a state file when given
+/// (the path names it in a refusal), calling `after_pass` after each pass
+/// (`Ok(false)` stops with the passes done).
+pub struct Passes<'a> {
+    /// A state to continue from, and the file it was read from.
+    pub start: Option<(&'a std::path::Path, &'a pm_format::StateFile)>,
+    /// Called after each pass.
+    pub after_pass: &'a mut dyn FnMut(&dyn Progressive) -> Result<bool, String>,
+}
+
+/// What a render made.
+pub struct Rendered {
+    /// The image of the view's rectangle, with its layers.
+    pub image: Image,
+    /// Its statistics.
+    pub stats: RenderStats,
+    /// Passes done, for a progressive method.
+    pub passes: Option<u32>,
+}
+
+/// Render `view` by `settings.mode` from `input`: the one dispatch from a method
+/// to its integrator. `progress` hears pixels done (or passes, for a progressive
+/// method without `passes`); `passes` drives a progressive method.
+pub fn render<G: pm_format::PhotonRecord>(
+    settings: &Settings,
+    input: Input<'_, G>,
+    view: View,
+    passes: Option<Passes>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Rendered, String> {
+    let method = settings.mode;
+    match (method, input) {
+        (Method::Sppm, Input::Scene(scene)) => {
+            let mut no_hooks = |s: &dyn Progressive| {
+                progress(s.passes() as u64, settings.sppm.passes as u64);
+                Ok(true)
+            };
+            let (start, after_pass): (_, &mut dyn FnMut(&dyn Progressive) -> Result<bool, String>) = match passes {
+                Some(p) => (p.start, p.after_pass),
+                None => (None, &mut no_hooks),
+            };
+            let (image, stats, done) =
+                pm_sppm::render_with(scene, &settings.render, &settings.sppm, view, start, &mut |s| after_pass(s))?;
+            Ok(Rendered { image, stats, passes: Some(done) })
+        }
+        (Method::Path, Input::Scene(scene)) => {
+            let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;
+            image(view, &pt, progress)
+        }
+        (Method::Full, Input::PhotonMaps(pm)) => image(view, &pm, progress),
+        (Method::Photons, Input::PhotonMaps(pm)) => image(view, &PhotonsView(pm), progress),
+        (Method::Radiance, Input::PhotonMaps(pm)) => image(view, &RadianceView(pm), progress),
+        (Method::Indirect, Input::PhotonMaps(pm)) => image(view, &IndirectView(pm), progress),
+        (m, _) => Err(format!(
+            "--mode {m} {} photon maps",
+            if m.needs().photon_maps { "renders from" } else { "traces its own paths, without" }
+        )),
+    }
+}
+
+/// The image loop over an integrator.
+fn image<I: Integrator>(view: View, integrator: &I, progress: &(dyn Fn(u64, u64) + Sync)) -> Result<Rendered, String> {
+    let (image, stats) = pm_render::render_region(view.camera, view.film, view.rect, integrator, false, progress)?;
+    Ok(Rendered { image, stats, passes: None })
+}
