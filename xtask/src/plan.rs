@@ -4,7 +4,7 @@
 //! template; `--estimate` predicts the wall time on more machines from a run's
 //! task times.
 
-use crate::run::{LiveArgs, RunArgs, live_setup, setup};
+use crate::run::{LiveArgs, RunArgs, live_plan, setup};
 use crate::stages::Bins;
 use anyhow::{Context, Result};
 use pm_pipeline::jobs::{JobPlan, TaskTime, estimate, job_plan, openjd, slurm};
@@ -56,14 +56,6 @@ pub enum Emit {
 pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
     let setup = setup(args, root, bins)?;
     job_plan(&setup, &|name: &str| bins.path(name), args.parts())
-}
-
-/// The job graph of the real-time animation `args` describes: `frame_tasks` runs
-/// of frames and their assembly ([`pm_pipeline::jobs::live_plan`]).
-pub fn live_plan(args: &LiveArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
-    let set = live_setup(args, root)?;
-    std::fs::create_dir_all(&set.out).with_context(|| format!("{}: cannot create", set.out.display()))?;
-    pm_pipeline::jobs::live_plan(&bins.path("photon-live"), &set.args, &set.out, args.frames, args.frame_tasks, set.fps)
 }
 
 /// Write `plan.json` (and the job files) for `args`.

@@ -350,13 +350,21 @@ pub fn live_setup(args: &LiveArgs, root: &Path) -> Result<LiveSetup> {
     Ok(LiveSetup { out, args, fps: cfg.live.frame.fps })
 }
 
+/// The job graph of the real-time animation `args` describes: `frame_tasks` runs
+/// of frames and their assembly ([`pm_pipeline::jobs::live_plan`]).
+pub fn live_plan(args: &LiveArgs, root: &Path, bins: &Bins) -> Result<pm_pipeline::jobs::JobPlan> {
+    let set = live_setup(args, root)?;
+    std::fs::create_dir_all(&set.out).with_context(|| format!("{}: cannot create", set.out.display()))?;
+    pm_pipeline::jobs::live_plan(&bins.path("photon-live"), &set.args, &set.out, args.frames, args.frame_tasks, set.fps)
+}
+
 /// `cargo xtask live`: build the binaries and run `photon-live` with the pipeline
 /// file's `[live]` settings (with `--frame-tasks N`, as the job plan's frame tasks
 /// and assembly).
 pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     let bins = Bins::build(root)?;
     if args.frame_tasks > 1 {
-        let plan = crate::plan::live_plan(args, root, &bins)?;
+        let plan = live_plan(args, root, &bins)?;
         let (_, wall) = crate::exec::execute_and_record(&plan, args.workers)?;
         println!("{} frames as {} tasks in {wall:.2} s with {} worker(s)", args.frames, args.frame_tasks, args.workers);
         println!("wrote {}/frames, live.apng and frames.csv", plan.out);

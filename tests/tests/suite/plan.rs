@@ -177,7 +177,7 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
         workers: 2,
         ..Default::default()
     };
-    let plan = xtask::plan::live_plan(&args("split", 3), &root, &bins()).unwrap();
+    let plan = xtask::run::live_plan(&args("split", 3), &root, &bins()).unwrap();
     assert_eq!(plan.steps.len(), 2);
     assert_eq!((plan.steps[0].tasks, plan.steps[1].after.as_slice()), (3, &["photon-live frames".to_string()][..]));
     for (name, text) in slurm(&plan) {
@@ -190,7 +190,7 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
     let one = args("one", 1);
     let set_args = {
         // One run, as `cargo xtask live` makes it.
-        let plan = xtask::plan::live_plan(&one, &root, &bins()).unwrap();
+        let plan = xtask::run::live_plan(&one, &root, &bins()).unwrap();
         let a = &plan.steps[0].args;
         assert_eq!(a[a.len() - 2..], ["--frame-task".to_string(), "{TASK}/1".to_string()]);
         a[..a.len() - 2].to_vec()

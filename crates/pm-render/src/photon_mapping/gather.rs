@@ -4,6 +4,7 @@
 //! of Ward and Heckbert 1992 ("Irradiance Gradients") from the same rays.
 
 use super::PhotonMapping;
+use super::scratch::Scratch;
 use crate::icache::Gather;
 use crate::{Lookup, facing};
 use glam::Vec3;
@@ -11,44 +12,10 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
-use pm_kdtree::KnnScratch;
 use pm_sampling::{Sampler, basis};
 use pm_scene::{Hit, MediumId};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
-
-/// Per-thread scratch memory of the photon-map integrators (photon queries).
-#[derive(Default)]
-pub struct Scratch {
-    pub(crate) knn: KnnScratch,
-    pub(crate) rejected: Vec<f32>,
-    /// The beam estimate's traversal stack.
-    pub(crate) stack: Vec<u32>,
-    /// Calls of [`Scratch::clock`] so far (one in [`TIME_EVERY`] is timed).
-    ticks: u32,
-}
-
-/// The per-component times in the render statistics time one call in this many and
-/// count it this many times: reading the clock at every shading point was 5% of
-/// rendering (perf, cornell_spheres 1024 x 1024).
-pub(crate) const TIME_EVERY: u32 = 8;
-
-impl Scratch {
-    /// The start of a timed call, for one call in [`TIME_EVERY`] of this thread's.
-    #[inline]
-    pub(crate) fn clock(&mut self) -> Option<std::time::Instant> {
-        self.ticks = self.ticks.wrapping_add(1);
-        self.ticks.is_multiple_of(TIME_EVERY).then(std::time::Instant::now)
-    }
-}
-
-/// Add a timed call's share to `counter` [ns]: its elapsed time x [`TIME_EVERY`].
-#[inline]
-pub(crate) fn add_time(counter: &std::sync::atomic::AtomicU64, start: Option<std::time::Instant>) {
-    if let Some(t) = start {
-        counter.fetch_add(t.elapsed().as_nanos() as u64 * TIME_EVERY as u64, std::sync::atomic::Ordering::Relaxed);
-    }
-}
 
 /// Most hidden photons one precomputed lookup tries before it misses.
 const VISIBILITY_TESTS: u32 = 16;

@@ -6,9 +6,10 @@
 
 mod gather;
 mod prepass;
+mod scratch;
 mod volume;
 
-pub use gather::Scratch;
+pub use scratch::Scratch;
 
 use crate::icache::IrradianceCache;
 use crate::integrator::{Components, Counters, Film, FirstHit, Integrator, VisibleSurface};
@@ -175,7 +176,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     if let Some(c) = &ctx.cache {
         let t = scratch.clock();
         let e = c.lookup(p, ns, 2.0);
-        gather::add_time(&ctx.counters.ns_icache, t);
+        scratch::add_time(&ctx.counters.ns_icache, t);
         if let Some(e) = e {
             ctx.counters.cache_hits.fetch_add(1, Relaxed);
             return e;
@@ -184,7 +185,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     let t = scratch.clock();
     ctx.counters.gathers.fetch_add(1, Relaxed);
     let g = final_gather(ctx, p, ns, ng, medium, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
-    gather::add_time(&ctx.counters.ns_gather, t);
+    scratch::add_time(&ctx.counters.ns_gather, t);
     g.e
 }
 
@@ -346,7 +347,7 @@ fn trace_hit<G: PhotonRecord>(
     } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
         l += follow(s, scratch, bs.wi, bs.weight);
     }
-    gather::add_time(&ctx.counters.ns_specular, t0);
+    scratch::add_time(&ctx.counters.ns_specular, t0);
     Components { specular: l, ..Default::default() }
 }
 
@@ -420,7 +421,7 @@ fn shade_full<G: PhotonRecord>(
     if let Some(v) = vs {
         v.direct = reflected;
     }
-    gather::add_time(&ctx.counters.ns_direct, t);
+    scratch::add_time(&ctx.counters.ns_direct, t);
     let t = scratch.clock();
     let caustic = match &ctx.maps.caustic {
         Some(tree) => {
@@ -433,7 +434,7 @@ fn shade_full<G: PhotonRecord>(
         }
         None => Rgb::ZERO,
     };
-    gather::add_time(&ctx.counters.ns_caustic, t);
+    scratch::add_time(&ctx.counters.ns_caustic, t);
     let e = if !cfg.indirect {
         Rgb::ZERO
     } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {

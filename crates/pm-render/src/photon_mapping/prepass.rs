@@ -2,7 +2,8 @@
 //! rendering will look them up), driven by the photon-map integrator's final
 //! gathers.
 
-use super::gather::{GatherFor, Scratch, final_gather};
+use super::gather::{GatherFor, final_gather};
+use super::scratch::Scratch;
 use super::{PhotonMapping, cheap_indirect, diffuse_points};
 use crate::icache::IrradianceCache;
 use crate::integrator::{Film, pixel_seed};

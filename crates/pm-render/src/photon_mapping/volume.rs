@@ -4,7 +4,7 @@
 //! scattering from the volume map; along final-gather rays, every volume photon.
 
 use super::PhotonMapping;
-use super::gather::Scratch;
+use super::scratch::Scratch;
 use crate::VolumeEstimate;
 use glam::Vec3;
 use pm_color::Rgb;
