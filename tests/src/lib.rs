@@ -163,7 +163,9 @@ pub fn render_seeded(
     let film = p.render.film(seed);
     let view = pm_render::View { camera, film: &film, rect: film.rect() };
     let r = if p.mode.needs().photon_maps {
-        with_photon_mapping(scene, maps, p, |pm| pm_methods::render(p, Input::PhotonMaps(pm), view, None, &|_, _| {}))
+        with_photon_mapping(scene, maps, p, |pm| {
+            pm_methods::render(p, Input::PhotonMaps(Box::new(pm)), view, None, &|_, _| {})
+        })
     } else {
         pm_methods::render(p, Input::<CompactIrrPhoton>::Scene(scene), view, None, &|_, _| {})
     }

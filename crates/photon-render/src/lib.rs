@@ -386,7 +386,7 @@ impl Job<'_> {
             }
             pm = pm.with_cache(c);
         }
-        let r = self.render(Input::PhotonMaps(pm))?;
+        let r = self.render(Input::PhotonMaps(Box::new(pm)))?;
         Ok((Some(r.image), r.stats, cache))
     }
 

@@ -27,9 +27,11 @@ pub use pm_sppm::SppmParams;
 
 pm_params::value_enum! {
     /// What makes the image: the method, and so the integrator.
+    #[derive(Default)]
     pub enum Method {
         /// Direct + specular + caustics + final-gathered indirect from the photon
         /// maps (Christensen 1999: the complete image).
+        #[default]
         Full,
         /// Radiance from the global map directly at the eye hit (Figure 1b).
         Photons,
@@ -112,7 +114,7 @@ impl Method {
 #[derive(Clone, Debug, PartialEq, Default, clap::Args, serde::Serialize)]
 pub struct Settings {
     /// What makes the image.
-    #[arg(long, default_value_t = Method::Full)]
+    #[arg(long, default_value_t = Method::default())]
     pub mode: Method,
     /// The image, light samples and depth (every method) and the photon-map
     /// integrators' settings (pm-render).
@@ -121,12 +123,6 @@ pub struct Settings {
     /// Progressive photon mapping's (`--mode sppm`; pm-sppm).
     #[command(flatten, next_help_heading = "Progressive photon mapping (--mode sppm)")]
     pub sppm: SppmParams,
-}
-
-impl Default for Method {
-    fn default() -> Self {
-        Method::Full
-    }
 }
 
 impl Settings {
@@ -161,8 +157,9 @@ impl Settings {
 /// resolved settings), built by the caller when [`Needs::photon_maps`], or only
 /// the scene.
 pub enum Input<'a, G> {
-    /// The photon maps (and cache) of the scene.
-    PhotonMaps(PhotonMapping<'a, G>),
+    /// The photon maps (and cache) of the scene (boxed: it is several hundred
+    /// bytes, the other variant one pointer).
+    PhotonMaps(Box<PhotonMapping<'a, G>>),
     /// The scene alone: the method traces its own paths and photons.
     Scene(&'a pm_scene::Scene),
 }
@@ -239,26 +236,26 @@ pub fn render<G: pm_format::PhotonRecord>(
     let method = settings.mode;
     match (method, input) {
         (Method::Sppm, Input::Scene(scene)) => {
-            let mut no_hooks = |s: &dyn Progressive| {
-                progress(s.passes() as u64, settings.sppm.passes as u64);
-                Ok(true)
+            let (render, sppm) = (&settings.render, &settings.sppm);
+            let (image, stats, done) = match passes {
+                Some(Passes { start, after_pass }) => {
+                    pm_sppm::render_with(scene, render, sppm, view, start, &mut |s| after_pass(s))?
+                }
+                None => {
+                    let (image, stats) = pm_sppm::render(scene, render, sppm, view, progress)?;
+                    (image, stats, sppm.passes)
+                }
             };
-            let (start, after_pass): (_, &mut dyn FnMut(&dyn Progressive) -> Result<bool, String>) = match passes {
-                Some(p) => (p.start, p.after_pass),
-                None => (None, &mut no_hooks),
-            };
-            let (image, stats, done) =
-                pm_sppm::render_with(scene, &settings.render, &settings.sppm, view, start, &mut |s| after_pass(s))?;
             Ok(Rendered { image, stats, passes: Some(done) })
         }
         (Method::Path, Input::Scene(scene)) => {
             let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;
             image(view, &pt, progress)
         }
-        (Method::Full, Input::PhotonMaps(pm)) => image(view, &pm, progress),
-        (Method::Photons, Input::PhotonMaps(pm)) => image(view, &PhotonsView(pm), progress),
-        (Method::Radiance, Input::PhotonMaps(pm)) => image(view, &RadianceView(pm), progress),
-        (Method::Indirect, Input::PhotonMaps(pm)) => image(view, &IndirectView(pm), progress),
+        (Method::Full, Input::PhotonMaps(pm)) => image(view, &*pm, progress),
+        (Method::Photons, Input::PhotonMaps(pm)) => image(view, &PhotonsView(*pm), progress),
+        (Method::Radiance, Input::PhotonMaps(pm)) => image(view, &RadianceView(*pm), progress),
+        (Method::Indirect, Input::PhotonMaps(pm)) => image(view, &IndirectView(*pm), progress),
         (m, _) => Err(format!(
             "--mode {m} {} photon maps",
             if m.needs().photon_maps { "renders from" } else { "traces its own paths, without" }

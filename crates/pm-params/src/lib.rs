@@ -219,7 +219,7 @@ macro_rules! value_enum {
         $(#[$meta:meta])*
         pub enum $name:ident {
             $(
-                $(#[doc = $doc:literal])*
+                $(#[$vmeta:meta])*
                 $variant:ident,
             )*
         }
@@ -229,7 +229,7 @@ macro_rules! value_enum {
         #[serde(rename_all = "kebab-case")]
         pub enum $name {
             $(
-                $(#[doc = $doc])*
+                $(#[$vmeta])*
                 $variant,
             )*
         }
