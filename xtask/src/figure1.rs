@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use pm_estimate::IrradianceParams;
 use pm_methods::Method;
 use pm_render::{Lookup, RenderParams};
+use pm_runner::bins::{self, Bins};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use xtask::stages::{self, Bins};
 
 /// Options of `cargo xtask figure1`.
 #[derive(clap::Args, Debug)]
@@ -30,8 +30,8 @@ fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String
     let stats = std::env::temp_dir().join(format!("figure1-{name}-{}.json", std::process::id()));
     let mut a = args.to_vec();
     a.extend(["--stats-json".to_string(), stats.display().to_string()]);
-    stages::run(bins, name, &a, name, true)?;
-    let v = stages::read_stats(&stats);
+    bins::run(bins, name, &a, name, true)?;
+    let v = bins::read_stats(&stats);
     let _ = std::fs::remove_file(stats);
     v
 }
@@ -49,14 +49,14 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
 
     let mut a = vec![s(&"--scene"), scene.clone(), s(&"--out"), out.display().to_string()];
     a.extend(base.trace.to_args());
-    let trace: photon_trace::Report = stage(&bins, "photon-trace", &a)?;
+    let trace: pm_stage::report::TraceReport = stage(&bins, "photon-trace", &a)?;
     let mut sort_s = 0.0;
     for m in ["global", "caustic"] {
-        let r: photon_sort::Report =
+        let r: pm_stage::report::SortReport =
             stage(&bins, "photon-sort", &[o(&format!("{m}.pmap")), s(&"--out"), o(&format!("{m}.kd.pmap"))])?;
         sort_s += r.seconds;
     }
-    let precompute = |fraction: f64, file: &str| -> Result<photon_irradiance::Report> {
+    let precompute = |fraction: f64, file: &str| -> Result<pm_stage::report::IrradianceReport> {
         let mut a = vec![o("global.kd.pmap"), s(&"--out"), o(file)];
         a.extend(IrradianceParams { fraction, ..base.irradiance.clone() }.to_args());
         stage(&bins, "photon-irradiance", &a)
@@ -69,12 +69,12 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         if irradiance {
             a.push(s(&"--irradiance"));
         }
-        stages::run(&bins, "photon-inspect", &a, "photon-inspect", true)
+        bins::run(&bins, "photon-inspect", &a, "photon-inspect", true)
     };
     inspect("global.kd.pmap", "a_photon_map.png", false)?;
     inspect("global.irr1.pmap", "c_precomputed_all.png", true)?;
     inspect("global.irr.pmap", "d_precomputed_quarter.png", true)?;
-    let render = |mode: Method, png: &str, lookup: Lookup| -> Result<photon_render::Report> {
+    let render = |mode: Method, png: &str, lookup: Lookup| -> Result<pm_stage::report::RenderReport> {
         let mut a = vec![s(&"--scene"), scene.clone(), s(&"--global"), o("global.irr.pmap")];
         a.extend([
             s(&"--caustic"),
@@ -111,7 +111,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{sheet_w}\" height=\"{sheet_h}\" font-family=\"monospace\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     );
     // The PNG: the same layout, captions rasterised with the plots' bundled font.
-    let mut sheet = xtask::plot::Canvas::new(sheet_w, sheet_h);
+    let mut sheet = crate::plot::Canvas::new(sheet_w, sheet_h);
     for (k, (file, caption)) in panels.iter().enumerate() {
         let (x0, y0) = ((k % 4) as u32 * cell_w, (k / 4) as u32 * cell_h);
         writeln!(svg, "<image href=\"{file}\" x=\"{x0}\" y=\"{y0}\" width=\"{tile}\" height=\"{tile}\"/>")?;
@@ -133,7 +133,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     pm_image::write_png(&out.join("contact_sheet.png"), sheet_w, sheet_h, &sheet.px, 0.0)?;
 
     // The section 3 table.
-    let fg = |v: &photon_render::Report| {
+    let fg = |v: &pm_stage::report::RenderReport| {
         v.prepass_seconds + v.thread_seconds.get("final_gather").copied().unwrap_or(0.0) / v.threads.max(1) as f64
     };
     let saved = fg(&exact) - fg(&full);

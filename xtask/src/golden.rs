@@ -9,11 +9,11 @@
 //! CSV, Markdown, SVG, job scripts).
 
 use anyhow::{Context, Result, bail};
+use pm_runner::bins::{self, Bins};
+use pm_runner::run::{self, RunArgs};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use xtask::run::{self, RunArgs};
-use xtask::stages::{self, Bins};
 
 /// Options of `cargo xtask golden`.
 #[derive(clap::Args, Debug)]
@@ -73,7 +73,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             let mut set = run::live_setup(&la, root)?;
             // Linear EXR frames too: 8-bit PNGs could hide a change in the last bits.
             set.args.push("--exr".into());
-            stages::run(&bins, "photon-live", &set.args, &name, true)?;
+            bins::run(&bins, "photon-live", &set.args, &name, true)?;
         }
     }
     println!("golden: figure1");

@@ -4,9 +4,9 @@
 //! through the bounce counts, one through the bounce-map sizes, one through the
 //! subsampling factors.
 
+use crate::plot;
 use anyhow::{Context, Result, ensure};
 use std::path::PathBuf;
-use xtask::plot;
 
 /// Options of `cargo xtask ispm-plot`.
 #[derive(clap::Args, Debug)]

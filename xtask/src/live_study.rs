@@ -5,11 +5,11 @@
 //! the batch pipeline's image for each distribution and total, against frame time.
 //! Writes results.csv, results.md and SVG/PNG plots.
 
+use crate::plot;
 use anyhow::{Context, Result};
+use pm_runner::bins::{self, Bins};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use xtask::plot;
-use xtask::stages::{self, Bins};
 
 /// Options of `cargo xtask live-study`.
 #[derive(clap::Args, Debug)]
@@ -42,7 +42,7 @@ fn room(n: u32, root: &Path) -> String {
 fn run_live(bins: &Bins, dir: &Path, args: &[String], warmup: usize) -> Result<([f64; 5], f64)> {
     let mut a = args.to_vec();
     a.extend(["--out".into(), dir.display().to_string()]);
-    stages::run(bins, "photon-live", &a, "photon-live", true)?;
+    bins::run(bins, "photon-live", &a, "photon-live", true)?;
     let csv =
         std::fs::read_to_string(dir.join("frames.csv")).with_context(|| format!("{}: frames.csv", dir.display()))?;
     let rows = pm_live::rows_from_csv::<pm_vertex::VertexFrame>(&csv)
@@ -119,14 +119,14 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     // Accuracy: a static light (time 0) against the batch pipeline's image.
     println!("reference: the batch pipeline on jozwowski_room_1024 at 512 x 512 ...");
     let reference_dir = out.join("reference");
-    let run_args = xtask::run::RunArgs {
+    let run_args = pm_runner::run::RunArgs {
         scene: Some(PathBuf::from(room(1024, root))),
         out: Some(reference_dir.clone()),
         width: Some(512),
         height: Some(512),
         ..Default::default()
     };
-    xtask::run::run_with(&run_args, root, &bins)?;
+    pm_runner::run::run_with(&run_args, root, &bins)?;
     let reference = pm_image::read_exr(&reference_dir.join("image.exr"))?;
     let reference = reference.total().context("reference has no total layer")?.to_vec();
     println!("accuracy (static light):");

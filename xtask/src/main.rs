@@ -1,15 +1,18 @@
 //! Project automation, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
 //! One module per task; `cargo xtask <task> --help` explains each.
 
-use xtask::{assemble, gen_scenes, plan, run, slurm_selftest};
+use pm_runner::run;
+use pm_scenegen::scenes as gen_scenes;
+use pm_study::{peer, plot, tradeoff};
 
+mod assemble;
 mod figure1;
 mod golden;
 mod ispm_plot;
 mod live_study;
-mod peer;
+mod plan;
 mod scale;
-mod tradeoff;
+mod slurm_selftest;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -4,10 +4,10 @@
 //! template; `--estimate` predicts the wall time on more machines from a run's
 //! task times.
 
-use crate::run::{LiveArgs, RunArgs, live_plan, setup};
-use crate::stages::Bins;
 use anyhow::{Context, Result};
-use pm_pipeline::jobs::{JobPlan, TaskTime, estimate, job_plan, openjd, slurm};
+use pm_pipeline::jobs::{TaskTime, estimate, openjd, slurm};
+use pm_runner::bins::Bins;
+use pm_runner::run::{LiveArgs, RunArgs, live_plan, plan_for};
 use std::path::{Path, PathBuf};
 
 /// Options of `cargo xtask plan`.
@@ -49,13 +49,6 @@ pub enum Emit {
     Slurm,
     /// Open Job Description (AWS Deadline Cloud's format): one job template.
     Openjd,
-}
-
-/// The job graph of `args` (its pipeline, scene, output, `tiles`,
-/// `trace_slices`, `runs` and `run_time_budget`), with the stage binaries in `bins`.
-pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<JobPlan> {
-    let setup = setup(args, root, bins)?;
-    job_plan(&setup, &|name: &str| bins.path(name), args.parts())
 }
 
 /// Write `plan.json` (and the job files) for `args`.

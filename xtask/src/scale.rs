@@ -4,10 +4,10 @@
 //! memory, and the scene load and BVH build times the stage prints.
 
 use anyhow::{Context, Result, bail};
+use pm_runner::bins::Bins;
+use pm_runner::run::RunArgs;
 use std::path::Path;
 use std::process::Command;
-use xtask::run::RunArgs;
-use xtask::stages::Bins;
 
 /// Options of `cargo xtask scale`.
 #[derive(clap::Args, Debug)]
@@ -31,7 +31,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
         bail!("/usr/bin/time (GNU time) is needed for peak memory: install Debian's `time` package");
     }
     let bins = Bins::build(root)?;
-    let plan = xtask::plan::plan_for(&args.run, root, &bins)?;
+    let plan = pm_runner::run::plan_for(&args.run, root, &bins)?;
     std::fs::create_dir_all(&plan.out).with_context(|| format!("{}: cannot create", plan.out))?;
     let mut rows = Vec::new();
     for step in &plan.steps {

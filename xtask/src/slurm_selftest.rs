@@ -6,11 +6,11 @@
 //! tiles, waits for it, and compares its photon maps and image with
 //! `cargo xtask run`'s (one trace, one render) byte for byte.
 
-use crate::plan::plan_for;
-use crate::run::{RunArgs, run_with};
-use crate::stages::Bins;
 use anyhow::{Context, Result, bail, ensure};
 use pm_pipeline::jobs::slurm;
+use pm_runner::bins::Bins;
+use pm_runner::run::plan_for;
+use pm_runner::run::{RunArgs, run_with};
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};

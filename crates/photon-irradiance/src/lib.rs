@@ -8,6 +8,7 @@ use clap::Parser;
 use pm_estimate::{IrradianceParams, KnnParams};
 use pm_format::{MapKind, Order, ReadExpect, with_map};
 use pm_stage::Progress;
+use pm_stage::report::IrradianceReport;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -39,37 +40,8 @@ pub struct Cli {
     pub threads: usize,
 }
 
-/// What a precompute did: written as `--stats-json` and read back by the runner.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Report {
-    /// Input map.
-    pub input: String,
-    /// Photons in the map.
-    pub photons: usize,
-    /// Estimates computed (photons given an irradiance).
-    pub computed: u64,
-    /// Estimates that found no photon.
-    pub empty_estimates: u64,
-    /// The parameters.
-    pub params: IrradianceParams,
-    /// Largest search radius used \[m\].
-    pub max_radius_m: f32,
-    /// The scene diagonal the relative radius refers to \[m\] (from the map's header).
-    pub scene_diagonal_m: f32,
-    /// Estimate radii \[m\]: 5th, 50th, 95th percentile and largest.
-    pub radius_m: [f32; 4],
-    /// Estimates whose radius reached the largest search radius.
-    pub estimates_at_max_radius: usize,
-    /// Wall time \[s\].
-    pub seconds: f64,
-    /// Wall time per estimate \[us\].
-    pub microseconds_per_estimate: f64,
-    /// Worker threads.
-    pub threads: usize,
-}
-
 /// Run the stage; returns the statistics.
-pub fn run(cli: &Cli) -> Result<Report> {
+pub fn run(cli: &Cli) -> Result<IrradianceReport> {
     let p = &cli.params;
     p.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     pm_stage::init_threads(cli.threads)?;
@@ -105,7 +77,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let pct = |q: f64| {
         stats.radii.get(((stats.radii.len() as f64 - 1.0) * q).round().max(0.0) as usize).copied().unwrap_or(0.0)
     };
-    let report = Report {
+    let report = IrradianceReport {
         input: cli.input.display().to_string(),
         photons: n,
         computed: stats.computed as u64,

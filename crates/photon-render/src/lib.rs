@@ -7,10 +7,9 @@ use clap::Parser;
 use pm_format::{FullPhoton, MapKind, Order, PhotonRecord, ReadExpect, with_map};
 use pm_kdtree::{Buckets, KdTree};
 use pm_methods::{Input, Method, Passes, Progressive, Settings};
-use pm_render::{
-    Image, Integrator, IrradianceCache, Lookup, Maps, PhotonMapping, Rect, RenderParams, RenderStats, View,
-};
+use pm_render::{Image, Integrator, IrradianceCache, Lookup, Maps, PhotonMapping, Rect, RenderStats, View};
 use pm_stage::Progress;
+use pm_stage::report::RenderReport;
 use std::path::PathBuf;
 
 /// Command line of `photon-render`.
@@ -156,7 +155,7 @@ fn parse_region(s: &str) -> Result<[u32; 4], String> {
 }
 
 /// Run the stage; returns the statistics.
-pub fn run(cli: &Cli) -> Result<Report> {
+pub fn run(cli: &Cli) -> Result<RenderReport> {
     let p = &cli.settings.render;
     cli.settings.check(true).map_err(|e| anyhow::anyhow!(e))?;
     let progressive = cli.checkpoint.is_some() || cli.time_budget.is_some() || cli.state.is_some() || cli.run.is_some();
@@ -274,7 +273,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
             )?;
         }
     }
-    let report = Report { unfinished: unfinished.get(), ..report(cli, region, &scene, &stats, &cache, &notes) };
+    let report = RenderReport { unfinished: unfinished.get(), ..report(cli, region, &scene, &stats, &cache, &notes) };
     if let Some(path) = &cli.stats_json {
         pm_stage::write_json(path, &serde_json::to_value(&report)?)?;
     }
@@ -463,72 +462,6 @@ impl Job<'_> {
     }
 }
 
-/// What a render did: written as `--stats-json` and read back by the runner, the
-/// trade-off study and figure1 into this type.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Report {
-    /// "full", "photons", "radiance", "indirect", "path", "sppm", or "icache" (--icache-out).
-    pub mode: String,
-    /// Soft indirect light computed.
-    pub indirect: bool,
-    /// The render parameters.
-    pub params: RenderParams,
-    /// Progressive photon mapping's parameters (mode sppm).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sppm: Option<pm_methods::SppmParams>,
-    /// The region rendered (X0, Y0, X1, Y1), or none for the whole image.
-    pub region: Option<[u32; 4]>,
-    /// Wall time: the cache prepass plus the image loop \[s\].
-    pub seconds: f64,
-    /// Wall time of the cache prepass \[s\] (0 when the cache was read from a file).
-    pub prepass_seconds: f64,
-    /// Thread time per component \[s\] (direct, caustics, final_gather, specular, irradiance_cache).
-    pub thread_seconds: std::collections::BTreeMap<String, f64>,
-    /// Final gathers: the cache's records plus those done while rendering.
-    pub final_gathers: u64,
-    /// Irradiance-cache records.
-    pub cache_records: u64,
-    /// Where the cache came from: "prepass", "file" or "" (none).
-    pub cache_source: String,
-    /// Shading points served by the cache.
-    pub cache_hits: u64,
-    /// Final-gather rays, prepass included when it ran in this process.
-    pub gather_rays: u64,
-    /// Final-gather rays of the prepass.
-    pub prepass_gather_rays: u64,
-    /// Secondary final gathers.
-    pub secondary_gathers: u64,
-    /// Photon-map lookups at gather-ray hits.
-    pub lookups: u64,
-    /// Precomputed lookups that found no similar photon.
-    pub lookup_misses: u64,
-    /// Rank of the accepted photon in precomputed lookups: 1st, 2nd, later.
-    pub lookup_rank_1_2_more: [u64; 3],
-    /// Paths cut by the depth limit.
-    pub terminated_paths: u64,
-    /// Pixel values written as 0 because they came out NaN or infinite.
-    pub nonfinite_pixels: u64,
-    /// Shading points where the importance threshold replaced a final gather.
-    pub thinned_shading_points: u64,
-    /// Eye samples.
-    pub samples: u64,
-    /// Eye samples per pixel of the region.
-    pub samples_per_pixel: f64,
-    /// Supersampled pixels.
-    pub supersampled_pixels: u64,
-    /// The scene diagonal relative lengths refer to \[m\].
-    pub scene_diagonal_m: f32,
-    /// Worker threads.
-    pub threads: usize,
-    /// Notes printed on stderr.
-    pub notes: Vec<String>,
-    /// Progressive photon mapping: --time-budget stopped the render before its
-    /// --passes, and its --state holds the passes done (run the same command again
-    /// to continue; the program exits with [`pm_stage::EXIT_UNFINISHED`]).
-    #[serde(default)]
-    pub unfinished: bool,
-}
-
 /// Write the render's layers to `out` (and create the folders of the other
 /// outputs): a region's EXR says where it sits, for `cargo xtask assemble`.
 fn write_exr(cli: &Cli, out: &std::path::Path, region: Option<[u32; 4]>, layers: &pm_image::Layers) -> Result<()> {
@@ -564,13 +497,13 @@ fn report(
     s: &RenderStats,
     cache: &CacheReport,
     notes: &[String],
-) -> Report {
+) -> RenderReport {
     let p = &cli.settings.render;
     let pixels = match region {
         Some([x0, y0, x1, y1]) => (x1 - x0) as f64 * (y1 - y0) as f64,
         None => p.width as f64 * p.height as f64,
     };
-    Report {
+    RenderReport {
         mode: if cli.icache_out.is_some() { "icache".to_string() } else { cli.settings.mode.to_string() },
         indirect: !cli.no_indirect,
         params: p.clone(),

@@ -6,6 +6,7 @@ use anyhow::Result;
 use clap::Parser;
 use pm_format::{Order, ReadExpect, with_map};
 use pm_stage::Progress;
+use pm_stage::report::SortReport;
 use std::path::PathBuf;
 
 /// Command line of `photon-sort`.
@@ -32,25 +33,8 @@ pub struct Cli {
     pub threads: usize,
 }
 
-/// What a sort did: written as `--stats-json` and read back by the runner.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Report {
-    /// Input map.
-    pub input: String,
-    /// Photons sorted.
-    pub photons: usize,
-    /// Depth of the kd-tree.
-    pub depth: u32,
-    /// Bytes per record.
-    pub record_bytes: usize,
-    /// Wall time \[s\].
-    pub seconds: f64,
-    /// Worker threads.
-    pub threads: usize,
-}
-
 /// Run the stage.
-pub fn run(cli: &Cli) -> Result<Report> {
+pub fn run(cli: &Cli) -> Result<SortReport> {
     pm_stage::init_threads(cli.threads)?;
     let mut map = pm_format::read(&cli.input, &ReadExpect::default())?;
     let n = map.len();
@@ -69,7 +53,7 @@ pub fn run(cli: &Cli) -> Result<Report> {
     let secs = progress.finish();
     anyhow::ensure!(verified, "internal error: the balanced tree failed verification");
     let layout = map.header().layout;
-    let stats = Report {
+    let stats = SortReport {
         input: cli.input.display().to_string(),
         photons: n,
         depth,

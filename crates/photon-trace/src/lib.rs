@@ -11,6 +11,7 @@ use pm_format::{
 };
 use pm_photon::{Budget, LightSelector, MapPass, MapStats, RecordLayout, Slice, TraceConfig, TraceParams, TracedSlice};
 use pm_stage::Progress;
+use pm_stage::report::{LightReport, MapReport, TraceReport};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -119,73 +120,6 @@ fn parse_share(s: &str) -> Result<(String, f64), String> {
     Ok((n.to_owned(), w))
 }
 
-/// What a tracing run did: written as `--stats-json` and read back by the runner
-/// into this type, so the writer and the reader cannot disagree on a key.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Report {
-    /// Scene file.
-    pub scene: String,
-    /// Worker threads.
-    pub threads: usize,
-    /// Each light, its power [W per channel] and the probability of emitting from it.
-    pub lights: Vec<LightReport>,
-    /// The global map.
-    pub global: MapReport,
-    /// The caustic map.
-    pub caustic: MapReport,
-    /// The volume map.
-    #[serde(default)]
-    pub volume: MapReport,
-    /// Wall time of the stage \[s\].
-    pub seconds: f64,
-}
-
-/// One light of [`Report`].
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct LightReport {
-    /// Its name.
-    pub name: String,
-    /// Emitted power Phi [W per channel].
-    pub power_w: [f32; 3],
-    /// Probability of choosing it for a photon.
-    pub selection_probability: f64,
-}
-
-/// One map of [`Report`]: why it was skipped, or what tracing it did.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct MapReport {
-    /// Why no map was written (absent when one was).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub skipped: Option<String>,
-    /// Photons emitted (the power scale's N).
-    pub emitted: u64,
-    /// Photons stored.
-    pub stored: u64,
-    /// Stored photons by bounces before the store (index 0: direct).
-    pub stored_per_bounce: Vec<u64>,
-    /// Photons emitted per light, by light name.
-    pub emitted_per_light: Vec<(String, u64)>,
-    /// Per light, the fraction of its photons whose first ray hit the scene (an
-    /// environment's photons start on the bounding sphere's disc: most miss an
-    /// object that fills little of it, or a room seen through a window).
-    #[serde(default)]
-    pub reached_fraction_per_light: Vec<(String, f64)>,
-    /// Rays traced.
-    pub rays: u64,
-    /// Paths cut by the bounce limit.
-    pub truncated_paths: u64,
-    /// True when emission stopped at the cap before reaching the target.
-    pub hit_emission_cap: bool,
-    /// Sum of stored photon power [W per channel].
-    pub total_power_w: [f64; 3],
-    /// Wall time \[s\].
-    pub seconds: f64,
-    /// Photon paths per second.
-    pub paths_per_second: f64,
-    /// Rays per second.
-    pub rays_per_second: f64,
-}
-
 /// Run the stage.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -202,7 +136,7 @@ pub fn run(cli: Cli) -> Result<()> {
 
 /// Trace both maps and write them (or, with `--analyze`, print the scene analysis
 /// and return no report).
-pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
+pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
     let scene_path = args.scene.as_ref().context("--scene is required")?;
     args.params.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let out = match (&args.out, args.analyze) {
@@ -228,7 +162,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<Report>> {
             cap: args.max_emitted.unwrap_or(target.saturating_mul(100).saturating_add(1_000_000)),
         },
     };
-    let mut report = Report {
+    let mut report = TraceReport {
         scene: scene_path.display().to_string(),
         threads: pm_stage::thread_count(),
         lights: scene
@@ -326,7 +260,7 @@ const MAPS: [(MapPass, MapKind, &str); 3] = [
     (MapPass::Volume, MapKind::Volume, "volume"),
 ];
 
-fn map_slot(report: &mut Report, pass: MapPass) -> &mut MapReport {
+fn map_slot(report: &mut TraceReport, pass: MapPass) -> &mut MapReport {
     match pass {
         MapPass::Global => &mut report.global,
         MapPass::Caustic => &mut report.caustic,
@@ -415,10 +349,10 @@ struct SliceParams {
 /// Merge the output folders of every slice of one trace (`--slice J/M`) into
 /// `out`/global.pmap, caustic.pmap and volume.pmap, byte-identical to one run's
 /// maps.
-pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Report> {
+pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<TraceReport> {
     let start = Instant::now();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
-    let mut report = Report { scene: format!("{} slices", inputs.len()), threads: 1, ..Default::default() };
+    let mut report = TraceReport { scene: format!("{} slices", inputs.len()), threads: 1, ..Default::default() };
     for (pass, kind, name) in MAPS {
         let file = format!("{name}.pmap");
         let present: Vec<&PathBuf> = inputs.iter().filter(|d| d.join(&file).exists()).collect();

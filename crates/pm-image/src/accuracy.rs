@@ -19,7 +19,7 @@
 use glam::Vec3;
 
 /// Bias and noise of one setting (relative to the reference's mean).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Split {
     /// sqrt(bias^2 + noise^2): the expected error of one render against the truth.
     pub error: f64,

@@ -26,8 +26,8 @@ pub struct Front {
     pub size: u32,
     /// Where it was measured.
     pub machine: String,
-    /// The defaults' stage times \[s\]: trace, sort, precompute, render.
-    pub defaults_s: [f64; 4],
+    /// The defaults' stage times.
+    pub defaults_s: StageTimes,
     /// The Pareto front, fastest first.
     pub points: Vec<Point>,
 }
@@ -37,8 +37,8 @@ pub struct Front {
 pub struct Point {
     /// The setting, e.g. "gather rays 64".
     pub label: String,
-    /// Stage times \[s\]: trace, sort, precompute, render.
-    pub times_s: [f64; 4],
+    /// Its stage times.
+    pub times_s: StageTimes,
     /// Expected error of one render (relative), and its bias and noise.
     pub error: f64,
     /// Bias (relative RMS).
@@ -47,6 +47,65 @@ pub struct Point {
     pub noise: f64,
     /// The pipeline.toml values that differ from the defaults: section, key, value.
     pub overrides: Vec<(String, String, Value)>,
+}
+
+/// Wall time of each batch stage \[s\] (a real-time or peer row counts its frame or
+/// render time as `render`). Written in front.json as the array [trace, sort,
+/// precompute, render].
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+#[serde(from = "[f64; 4]", into = "[f64; 4]")]
+pub struct StageTimes {
+    /// photon-trace \[s\].
+    pub trace: f64,
+    /// photon-sort, every map \[s\].
+    pub sort: f64,
+    /// photon-irradiance \[s\].
+    pub irradiance: f64,
+    /// photon-render \[s\].
+    pub render: f64,
+}
+
+impl StageTimes {
+    /// The whole pipeline \[s\].
+    pub fn total(&self) -> f64 {
+        self.trace + self.sort + self.irradiance + self.render
+    }
+
+    /// Predicted time for an image of `pixels` pixels when these were measured at
+    /// `size` x `size` \[s\]: the photon stages as they are, the render scaled by
+    /// the pixel count.
+    pub fn predict(&self, size: u32, pixels: f64) -> f64 {
+        self.trace + self.sort + self.irradiance + self.render * pixels / (size as f64 * size as f64).max(1.0)
+    }
+}
+
+impl From<[f64; 4]> for StageTimes {
+    fn from([trace, sort, irradiance, render]: [f64; 4]) -> Self {
+        StageTimes { trace, sort, irradiance, render }
+    }
+}
+
+impl From<StageTimes> for [f64; 4] {
+    fn from(t: StageTimes) -> Self {
+        [t.trace, t.sort, t.irradiance, t.render]
+    }
+}
+
+/// The Pareto front of `items`: those no faster item beats in error, fastest
+/// first (an item of infinite error is never on it). The one rule the trade-off
+/// study draws and writes front.json with.
+pub fn pareto<T>(items: &[T], time: impl Fn(&T) -> f64, error: impl Fn(&T) -> f64) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..items.len()).collect();
+    order.sort_by(|&a, &b| time(&items[a]).total_cmp(&time(&items[b])));
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in order {
+        if error(&items[i]) < best {
+            best = error(&items[i]);
+            front.push(i);
+        }
+    }
+    front
 }
 
 /// A pipeline.toml value.
@@ -103,12 +162,6 @@ pub fn front_path(pipeline: &Path, scene: &str) -> Option<PathBuf> {
         .find(|p| p.exists())
 }
 
-/// Predicted time of stage times `t` (measured at `size` x `size`) for an image of
-/// `pixels` pixels [s].
-fn predict(t: &[f64; 4], size: u32, pixels: f64) -> f64 {
-    t[0] + t[1] + t[2] + t[3] * pixels / (size as f64 * size as f64).max(1.0)
-}
-
 /// The front point a pipeline file asked for.
 pub struct Choice {
     /// Its values that differ from the defaults: section, key, value.
@@ -139,12 +192,12 @@ pub fn choose(cfg: &Pipeline, path: &Path) -> Result<Option<Choice>> {
     )
     .with_context(|| format!("{}: not a front", front_file.display()))?;
     let pixels = cfg.render.width as f64 * cfg.render.height as f64;
-    let defaults = predict(&front.defaults_s, front.size, pixels);
+    let defaults = front.defaults_s.predict(front.size, pixels);
     let (budget, what) = match what {
         Budget::Relative(q) => (q.budget_factor() * defaults, q.to_string()),
         Budget::Seconds(s) => (s, "time budget".to_string()),
     };
-    let fits = front.points.iter().filter(|p| predict(&p.times_s, front.size, pixels) <= budget);
+    let fits = front.points.iter().filter(|p| p.times_s.predict(front.size, pixels) <= budget);
     let (point, note) = match fits.min_by(|a, b| a.error.total_cmp(&b.error)) {
         Some(p) => (p, ""),
         None => (front.points.first().context("the front has no points")?, " (nothing fits: the fastest point)"),
@@ -156,7 +209,7 @@ pub fn choose(cfg: &Pipeline, path: &Path) -> Result<Option<Choice>> {
         front.size,
         front.size,
         front.machine,
-        predict(&point.times_s, front.size, pixels),
+        point.times_s.predict(front.size, pixels),
         100.0 * point.error,
         100.0 * point.bias,
         100.0 * point.noise
@@ -170,4 +223,31 @@ enum Budget {
     Relative(crate::Quality),
     /// Seconds.
     Seconds(f64),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// front.json keeps its stage times as [trace, sort, precompute, render]: the
+    /// fronts in docs/ were written that way and still read.
+    #[test]
+    fn stage_times_are_an_array_in_the_file() {
+        let t = StageTimes { trace: 1.0, sort: 2.0, irradiance: 3.0, render: 4.0 };
+        assert_eq!(serde_json::to_string(&t).unwrap(), "[1.0,2.0,3.0,4.0]");
+        assert_eq!(serde_json::from_str::<StageTimes>("[1.0,2.0,3.0,4.0]").unwrap(), t);
+        assert_eq!(t.total(), 10.0);
+        // A 64 x 64 study predicts a 128 x 128 render four times as long.
+        assert_eq!(t.predict(64, 128.0 * 128.0), 1.0 + 2.0 + 3.0 + 16.0);
+    }
+
+    /// The front: each point faster than the next and more accurate than every
+    /// faster point; infinite errors never on it.
+    #[test]
+    fn pareto_keeps_what_no_faster_point_beats() {
+        // (time, error)
+        let pts = [(3.0, 0.1), (1.0, 0.5), (2.0, 0.6), (4.0, 0.2), (0.5, f64::INFINITY), (5.0, 0.05)];
+        assert_eq!(pareto(&pts, |p| p.0, |p| p.1), [1, 0, 5]);
+        assert!(pareto(&pts[4..5], |p| p.0, |p| p.1).is_empty());
+    }
 }

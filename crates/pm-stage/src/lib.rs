@@ -7,6 +7,8 @@
 //! `main.rs` of a few lines that calls [`main_with`]. This crate knows nothing about
 //! what a stage computes.
 
+pub mod report;
+
 use anyhow::{Context, Result};
 use std::io::IsTerminal;
 use std::path::Path;

@@ -82,8 +82,8 @@ fn root() -> PathBuf {
 fn run_pipeline(dir: &Path, scene: &str, effects: &str, name: &str) -> PathBuf {
     let p = pm_tests::small_pipeline(dir, scene, effects, 1, name);
     let out = dir.join(name);
-    let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
-    xtask::run::run_with(&args, &root(), &xtask::stages::Bins { dir: pm_tests::bin_dir() }).unwrap();
+    let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
+    pm_runner::run::run_with(&args, &root(), &pm_runner::bins::Bins { dir: pm_tests::bin_dir() }).unwrap();
     out
 }
 

@@ -416,9 +416,9 @@ fn bad_environment_images_stop_the_run_before_anything_is_written() {
         let p = pm_tests::small_pipeline(d, "cornell_boxes.gltf", "\"auto\"", 1, file);
         pm_tests::edit_pipeline(&p, |c| c.environment = Some(pm_pipeline::EnvironmentCfg::File(d.join(file))));
         let out = d.join(format!("out-{file}"));
-        let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
+        let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
         let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-        let e = xtask::run::run_with(&args, &root, &xtask::stages::Bins { dir: pm_tests::bin_dir() })
+        let e = pm_runner::run::run_with(&args, &root, &pm_runner::bins::Bins { dir: pm_tests::bin_dir() })
             .err()
             .unwrap_or_else(|| panic!("{file}: the run succeeded"));
         let msg = format!("{e:#}");

@@ -26,7 +26,7 @@ impl Doc {
     /// Write `dir/NAME.gltf` (with its .bin and PNGs) through the scene generator's
     /// glTF writer: textures sampled nearest, quads without vertex normals.
     fn write(&self, dir: &Path, name: &str) -> PathBuf {
-        let mut g = xtask::gltf::Doc::default();
+        let mut g = pm_scenegen::gltf::Doc::default();
         for m in &self.materials {
             g.material(m.clone());
         }
@@ -35,8 +35,8 @@ impl Doc {
         }
         for (i, (p, material, colors)) in self.quads.iter().enumerate() {
             let mesh =
-                xtask::gltf::Mesh { p: p.map(|v| v.to_array()).to_vec(), n: vec![], idx: vec![0, 1, 2, 0, 2, 3] };
-            let attrs = xtask::gltf::Attrs {
+                pm_scenegen::gltf::Mesh { p: p.map(|v| v.to_array()).to_vec(), n: vec![], idx: vec![0, 1, 2, 0, 2, 3] };
+            let attrs = pm_scenegen::gltf::Attrs {
                 uv: vec![[0., 0.], [1., 0.], [1., 1.], [0., 1.]],
                 color: colors.map_or(vec![], |c| c.map(|v| v.to_array()).to_vec()),
                 ..Default::default()

@@ -393,7 +393,7 @@ fn the_volumetric_caustic_agrees_with_the_path_tracer() {
 /// the file and the table.
 #[test]
 fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
-    use xtask::run::{RunArgs, run_with};
+    use pm_runner::run::{RunArgs, run_with};
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = tempfile::tempdir().unwrap();
     let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 2, "fog");
@@ -403,7 +403,7 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     });
     let out = dir.path().join("out");
     let args = RunArgs { pipeline: Some(p.clone()), out: Some(out.clone()), ..Default::default() };
-    let bins = xtask::stages::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
     let ran: Vec<String> =
         run_with(&args, &root, &bins).unwrap().into_iter().filter(|o| o.ran).map(|o| o.step).collect();
     assert!(ran.contains(&"photon-sort volume".to_string()), "{ran:?}");

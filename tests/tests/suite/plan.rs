@@ -6,11 +6,11 @@
 //! stopped by a time budget and continued give the same image.
 
 use pm_pipeline::jobs::{JobPlan, JobStep, openjd, slurm};
+use pm_runner::bins::Bins;
+use pm_runner::exec::execute;
+use pm_runner::run::plan_for;
+use pm_runner::run::{RunArgs, run_with};
 use std::path::{Path, PathBuf};
-use xtask::exec::execute;
-use xtask::plan::plan_for;
-use xtask::run::{RunArgs, run_with};
-use xtask::stages::Bins;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -169,7 +169,7 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
         (p.live.vertex.per_frame, p.live.vertex.total) = (300, 900);
         (p.live.frame.width, p.live.frame.height) = (24, 16);
     });
-    let args = |out: &str, frame_tasks: u32| xtask::run::LiveArgs {
+    let args = |out: &str, frame_tasks: u32| pm_runner::run::LiveArgs {
         pipeline: Some(pipeline.clone()),
         out: Some(dir.path().join(out)),
         frames: 5,
@@ -177,7 +177,7 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
         workers: 2,
         ..Default::default()
     };
-    let plan = xtask::run::live_plan(&args("split", 3), &root, &bins()).unwrap();
+    let plan = pm_runner::run::live_plan(&args("split", 3), &root, &bins()).unwrap();
     assert_eq!(plan.steps.len(), 2);
     assert_eq!((plan.steps[0].tasks, plan.steps[1].after.as_slice()), (3, &["photon-live frames".to_string()][..]));
     for (name, text) in slurm(&plan) {
@@ -190,7 +190,7 @@ fn an_animation_in_frame_tasks_writes_what_one_run_writes() {
     let one = args("one", 1);
     let set_args = {
         // One run, as `cargo xtask live` makes it.
-        let plan = xtask::run::live_plan(&one, &root, &bins()).unwrap();
+        let plan = pm_runner::run::live_plan(&one, &root, &bins()).unwrap();
         let a = &plan.steps[0].args;
         assert_eq!(a[a.len() - 2..], ["--frame-task".to_string(), "{TASK}/1".to_string()]);
         a[..a.len() - 2].to_vec()

@@ -5,9 +5,9 @@
 //! Uses the stage binaries that `cargo test --release --workspace` builds next to
 //! this test (target/release).
 
+use pm_runner::bins::Bins;
+use pm_runner::run::{Outcome, RunArgs, run_with};
 use std::path::{Path, PathBuf};
-use xtask::run::{Outcome, RunArgs, run_with};
-use xtask::stages::Bins;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")

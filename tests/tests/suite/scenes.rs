@@ -3,7 +3,7 @@
 #[test]
 fn committed_scenes_are_up_to_date() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes");
-    if let Err(e) = xtask::gen_scenes::run(&dir, true) {
+    if let Err(e) = pm_scenegen::scenes::run(&dir, true) {
         panic!("{e:#}");
     }
 }

@@ -141,7 +141,7 @@ fn sppm_error_and_bias_fall_with_passes() {
 fn the_runner_renders_sppm_without_maps() {
     let dir = tempfile::tempdir().unwrap();
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let bins = xtask::stages::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
     let mean = |mode: pm_methods::Method, name: &str| {
         let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 256, name);
         pm_tests::edit_pipeline(&p, |c| {
@@ -149,8 +149,8 @@ fn the_runner_renders_sppm_without_maps() {
             (c.sppm.passes, c.sppm.photons_per_pass) = (32, 20_000);
         });
         let out = dir.path().join(name);
-        let args = xtask::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
-        let ran = xtask::run::run_with(&args, &root, &bins).unwrap();
+        let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
+        let ran = pm_runner::run::run_with(&args, &root, &bins).unwrap();
         let steps: Vec<&str> = ran.iter().filter(|o| o.ran).map(|o| o.step.as_str()).collect();
         assert_eq!(steps, ["photon-render"], "{name}");
         let img = pm_image::read_exr(&out.join("image.exr")).unwrap();

@@ -14,9 +14,13 @@ use std::path::PathBuf;
 /// share (pm-live: the frame loop and shading) and the progressive method; 5 the
 /// real-time methods (never on each other); 6 the methods by name (pm-methods: the
 /// one dispatch, every method's settings); 7 the stage shell and the pipeline as
-/// data (pm-pipeline: settings, steps, job graph); 8 stage binaries (never on each
-/// other, and no library on them); 9 the test crate.
-const LAYERS: [(&str, u8); 27] = [
+/// data (pm-pipeline: settings, steps, job graph; pm-stage: what every stage
+/// shares, and the statistics each writes); 8 stage binaries (never on each other,
+/// and no library on them); 9 what runs the stage binaries as processes, by path
+/// (pm-runner: the pipeline and job plans; pm-study: the trade-off and peer
+/// studies); 10 the test crate. pm-scenegen (the glTF writer and the
+/// project's scenes) sits with the pieces at 2.
+const LAYERS: [(&str, u8); 30] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -29,6 +33,7 @@ const LAYERS: [(&str, u8); 27] = [
     ("pm-raster", 2),
     ("pm-light", 2),
     ("pm-image", 2),
+    ("pm-scenegen", 2),
     ("pm-render", 3),
     ("pm-live", 4),
     ("pm-sppm", 4),
@@ -43,7 +48,9 @@ const LAYERS: [(&str, u8); 27] = [
     ("photon-render", STAGE),
     ("photon-inspect", STAGE),
     ("photon-live", STAGE),
-    ("pm-tests", 9),
+    ("pm-runner", 9),
+    ("pm-study", 9),
+    ("pm-tests", 10),
 ];
 
 /// The layer of the stage binaries.
@@ -108,6 +115,30 @@ fn crates_depend_only_downward_and_stages_never_on_each_other() {
             }
             if theirs == STAGE && own != STAGE {
                 problems.push(format!("{name} is a library and depends on the stage crate {d}"));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}
+
+/// xtask is a program over library crates: it has no library, and no crate uses it
+/// (tests run the pipeline through pm-runner, write scenes through pm-scenegen).
+#[test]
+fn nothing_depends_on_xtask() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    assert!(
+        !root.join("xtask/src/lib.rs").exists(),
+        "xtask/src/lib.rs: move what other crates need into a library crate"
+    );
+    let mut manifests: Vec<PathBuf> =
+        std::fs::read_dir(root.join("crates")).unwrap().map(|e| e.unwrap().path().join("Cargo.toml")).collect();
+    manifests.push(root.join("tests/Cargo.toml"));
+    let mut problems = Vec::new();
+    for m in manifests {
+        let doc: toml::Table = toml::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+        for section in ["dependencies", "dev-dependencies", "build-dependencies"] {
+            if doc.get(section).and_then(|d| d.as_table()).is_some_and(|t| t.contains_key("xtask")) {
+                problems.push(format!("{}: [{section}] names xtask", m.display()));
             }
         }
     }

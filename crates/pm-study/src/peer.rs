@@ -13,11 +13,11 @@
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
+use pm_runner::bins::Bins;
 use pm_scene::{LightKind, Scene};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use xtask::stages::Bins;
 
 /// Options of `cargo xtask peer`.
 #[derive(clap::Args, Debug)]
@@ -327,7 +327,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
             if !out.status.success() {
                 bail!("photon-render failed on {name}: {}", String::from_utf8_lossy(&out.stderr).trim());
             }
-            let report: photon_render::Report = serde_json::from_slice(&std::fs::read(&stats)?)?;
+            let report: pm_stage::report::RenderReport = serde_json::from_slice(&std::fs::read(&stats)?)?;
             ours_s = ours_s.min(report.seconds);
             let seconds = mitsuba.render(&xml, args.spp, run + 1, &theirs_exr).with_context(|| name.clone())?;
             theirs_s = theirs_s.min(seconds);
@@ -413,7 +413,7 @@ mod tests {
     use super::*;
 
     fn scene(name: &str) -> Scene {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
         pm_scene::load(&root.join(name)).unwrap()
     }
 

@@ -26,14 +26,14 @@ pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
                 // Stopped at its time budget with its state saved: run it again from
                 // the state, as a re-queued Slurm task does.
                 let mut runs = 1;
-                while !crate::stages::run_resumable(program, &args, &name, true).map_err(intact)? {
+                while !crate::bins::run_resumable(program, &args, &name, true).map_err(intact)? {
                     runs += 1;
                 }
                 if runs > 1 {
                     println!("  {name}: ran {runs} times, each continuing from the state the one before saved");
                 }
             } else {
-                crate::stages::run_program(program, &args, &name, true).map_err(intact)?;
+                crate::bins::run_program(program, &args, &name, true).map_err(intact)?;
             }
             let seconds = t.elapsed().as_secs_f64();
             println!("  {name}: done in {seconds:.2} s");

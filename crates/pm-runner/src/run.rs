@@ -3,7 +3,7 @@
 //! report.json; a step whose arguments and input contents are unchanged is skipped.
 //! `cargo xtask live`: photon-live with pipeline.toml's `[live]` settings.
 
-use crate::stages::{self, Bins};
+use crate::bins::{self, Bins};
 use anyhow::{Context, Result, bail};
 use pm_pipeline::steps::{Kind, Step, step_key, steps};
 use pm_pipeline::{EffectsCfg, Pipeline, Setup};
@@ -222,7 +222,7 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
             }
         }
         let t = Instant::now();
-        stages::run(bins, step.program(), &a, &step.name, false)
+        bins::run(bins, step.program(), &a, &step.name, false)
             .map_err(|e| anyhow::anyhow!("{e}; earlier outputs in {} are intact", out.display()))?;
         let secs = t.elapsed().as_secs_f64();
         println!("  {}: done in {secs:.2} s", step.name);
@@ -257,14 +257,14 @@ pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>
 /// the statistics themselves.
 fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
     fn read<T: serde::de::DeserializeOwned + serde::Serialize>(p: &Path) -> Result<(T, serde_json::Value)> {
-        let t: T = stages::read_stats(p)?;
+        let t: T = bins::read_stats(p)?;
         let v = serde_json::to_value(&t)?;
         Ok((t, v))
     }
     Ok(match step.kind {
         Kind::Trace => {
-            let (s, v) = read::<photon_trace::Report>(&step.stats)?;
-            let map = |m: &photon_trace::MapReport, emitted: bool| match &m.skipped {
+            let (s, v) = read::<pm_stage::report::TraceReport>(&step.stats)?;
+            let map = |m: &pm_stage::report::MapReport, emitted: bool| match &m.skipped {
                 Some(why) => why.clone(),
                 None if emitted => format!("{} emitted / {} stored", m.emitted, m.stored),
                 None => format!("{} stored", m.stored),
@@ -272,19 +272,19 @@ fn key_figures(step: &Step) -> Result<(String, serde_json::Value)> {
             (format!("global: {}; caustic: {}", map(&s.global, true), map(&s.caustic, false)), v)
         }
         Kind::Sort => {
-            let (s, v) = read::<photon_sort::Report>(&step.stats)?;
+            let (s, v) = read::<pm_stage::report::SortReport>(&step.stats)?;
             (format!("{} photons, tree depth {}", s.photons, s.depth), v)
         }
         Kind::Irradiance => {
-            let (s, v) = read::<photon_irradiance::Report>(&step.stats)?;
+            let (s, v) = read::<pm_stage::report::IrradianceReport>(&step.stats)?;
             (format!("{} estimates (k = {}), median radius {:.4} m", s.computed, s.params.k, s.radius_m[1]), v)
         }
         Kind::Icache => {
-            let (s, v) = read::<photon_render::Report>(&step.stats)?;
+            let (s, v) = read::<pm_stage::report::RenderReport>(&step.stats)?;
             (format!("{} cache records, {} gather rays", s.cache_records, s.prepass_gather_rays), v)
         }
         Kind::Render => {
-            let (s, v) = read::<photon_render::Report>(&step.stats)?;
+            let (s, v) = read::<pm_stage::report::RenderReport>(&step.stats)?;
             (
                 format!(
                     "{}x{} {}, {:.2} samples/pixel, {} final gathers, {} gather rays",
@@ -372,7 +372,14 @@ pub fn live(args: &LiveArgs, root: &Path) -> Result<()> {
     }
     let set = live_setup(args, root)?;
     println!("photon-live {}", set.args.join(" "));
-    stages::run(&bins, "photon-live", &set.args, "photon-live", false)?;
+    bins::run(&bins, "photon-live", &set.args, "photon-live", false)?;
     println!("wrote {}/frames, live.apng and frames.csv", set.out.display());
     Ok(())
+}
+
+/// The job graph of `args` (its pipeline, scene, output, `tiles`,
+/// `trace_slices`, `runs` and `run_time_budget`), with the stage binaries in `bins`.
+pub fn plan_for(args: &RunArgs, root: &Path, bins: &Bins) -> Result<pm_pipeline::jobs::JobPlan> {
+    let setup = setup(args, root, bins)?;
+    pm_pipeline::jobs::job_plan(&setup, &|name: &str| bins.path(name), args.parts())
 }

@@ -1,6 +1,6 @@
 //! Plots as lists of shapes, drawn once as SVG and rasterised to PNG, so both show
 //! the same drawing, text included: the PNG's text is rasterised with ab_glyph from
-//! a bundled font (Noto Mono, SIL Open Font License, `xtask/assets/OFL.txt`), so no
+//! a bundled font (Noto Mono, SIL Open Font License, `crates/pm-study/assets/OFL.txt`), so no
 //! system font is needed.
 
 use anyhow::Result;
