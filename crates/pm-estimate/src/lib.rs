@@ -18,7 +18,8 @@ mod volume;
 
 pub use precompute::{PrecomputeStats, precompute, selected};
 pub use volume::{
-    Inscattering, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march, spheres,
+    Inscattering, Segment, Steps, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march,
+    spheres,
 };
 
 use glam::Vec3;

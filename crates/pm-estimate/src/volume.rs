@@ -72,11 +72,27 @@ fn inscattered_found<R: PhotonRecord>(
     (sum / (4.0 / 3.0 * PI * r2 * r2.sqrt()), r2)
 }
 
+/// A segment of a ray through a homogeneous medium, what every volume estimate
+/// integrates along: from `o` in unit direction `d`, `t_max` metres long, with
+/// extinction `sigma_t` [m^-1 per channel].
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    /// Where it starts, and where the light arrives \[m\].
+    pub o: Vec3,
+    /// Its unit direction.
+    pub d: Vec3,
+    /// Its length \[m\].
+    pub t_max: f32,
+    /// The medium's extinction coefficient [m^-1 per channel].
+    pub sigma_t: Rgb,
+}
+
 /// The jittered march both volume marches take: the integral over (0, `t_max`)
 /// of e^(-sigma_t t) `f(o + t d)` in equal steps of at most `step` \[m\] (at most
 /// 4096 of them), each sampled at the same fraction `u` in [0, 1) of its step,
 /// stopping where the transmittance falls below 1e-6.
-fn march(o: Vec3, d: Vec3, t_max: f32, sigma_t: Rgb, step: f32, u: f32, mut f: impl FnMut(Vec3) -> Rgb) -> Rgb {
+fn march(seg: &Segment, step: f32, u: f32, mut f: impl FnMut(Vec3) -> Rgb) -> Rgb {
+    let Segment { o, d, t_max, sigma_t } = *seg;
     if !(t_max > 0.0 && step > 0.0) {
         return Rgb::ZERO;
     }
@@ -94,28 +110,31 @@ fn march(o: Vec3, d: Vec3, t_max: f32, sigma_t: Rgb, step: f32, u: f32, mut f: i
     sum * dt
 }
 
-/// Multiple-scattered radiance [W sr^-1 m^-2 per channel] arriving at `o` along the
-/// segment from `o` in unit direction `d` of `t_max` metres through a homogeneous
-/// medium of extinction `sigma_t` [m^-1]: the integral of e^(-sigma_t t) times
-/// [`inscattered`] at o + t d, by ray marching (Jensen and Christensen 1998, eq.
-/// 12) in equal steps of at most `step` \[m\] (at most 4096 of them), each sampled at
-/// the same fraction `u` in [0, 1) of its step (a jittered march: unbiased in the
-/// integral over u).
-#[allow(clippy::too_many_arguments)]
+/// How a ray march samples its segment: equal steps of at most `step` \[m\] (at
+/// most 4096 of them), each sampled at the same fraction `u` in [0, 1) of its step
+/// (a jittered march: unbiased in the integral over u).
+#[derive(Clone, Copy, Debug)]
+pub struct Steps {
+    /// The longest step \[m\].
+    pub step: f32,
+    /// Where in each step it samples, a fraction in [0, 1).
+    pub u: f32,
+}
+
+/// Multiple-scattered radiance [W sr^-1 m^-2 per channel] arriving at `seg.o`
+/// along the segment: the integral of e^(-sigma_t t) times [`inscattered`] (the k
+/// nearest photons `p` asks for, counting every photon when `all`) at o + t d, by
+/// ray marching (Jensen and Christensen 1998, eq. 12) in `steps`.
 pub fn ray_march<R: PhotonRecord>(
     tree: &impl Neighbours<R>,
-    o: Vec3,
-    d: Vec3,
-    t_max: f32,
-    sigma_t: Rgb,
-    step: f32,
-    u: f32,
-    all: bool,
+    seg: &Segment,
+    steps: Steps,
     p: &KnnParams,
+    all: bool,
     scratch: &mut KnnScratch,
     phase: impl Fn(Vec3) -> f32,
 ) -> Rgb {
-    march(o, d, t_max, sigma_t, step, u, |x| inscattered(tree, x, all, p, scratch, &phase))
+    march(seg, steps.step, steps.u, |x| inscattered(tree, x, all, p, scratch, &phase))
 }
 
 /// One k-nearest query per photon of `tree` (heap order), `f` turning each into
@@ -197,23 +216,18 @@ impl Inscattering {
     }
 }
 
-/// The light [W sr^-1 m^-2 per channel] scattered toward `o` along the segment
-/// from `o` in unit direction `d` of `t_max` metres through a homogeneous medium of
-/// extinction `sigma_t` [m^-1], from precomputed in-scattering `pre` over `tree`:
+/// The light [W sr^-1 m^-2 per channel] scattered toward `seg.o` along the
+/// segment, from precomputed in-scattering `pre` over `tree`:
 /// a jittered march as [`ray_march`]'s (at fraction `u` of each step, unbiased in
 /// the integral over u) in steps of the photons' median radius, each step reading
 /// the nearest photon within `max_d2` [m^2] instead of estimating from k of them
 /// (Christensen 1999 section 2.2's lookup, in a medium). Scattering is taken as
 /// isotropic: what gather rays carry has mostly scattered many times. `rejected`
 /// is scratch.
-#[allow(clippy::too_many_arguments)]
 pub fn precomputed_march<R: PhotonRecord>(
     tree: &KdTree<R>,
     pre: &Inscattering,
-    o: Vec3,
-    d: Vec3,
-    t_max: f32,
-    sigma_t: Rgb,
+    seg: &Segment,
     u: f32,
     max_d2: f32,
     rejected: &mut Vec<f32>,
@@ -221,7 +235,7 @@ pub fn precomputed_march<R: PhotonRecord>(
     if pre.values.is_empty() {
         return Rgb::ZERO;
     }
-    march(o, d, t_max, sigma_t, pre.step, u, |x| match tree.nearest(x, max_d2, |_| true, rejected) {
+    march(seg, pre.step, u, |x| match tree.nearest(x, max_d2, |_| true, rejected) {
         Some(near) => pre.values[near.index as usize],
         None => Rgb::ZERO,
     })
@@ -241,24 +255,19 @@ pub fn spheres<R: PhotonRecord>(tree: &KdTree<R>, radii: &[f32]) -> SphereTree {
 }
 
 /// The beam radiance estimate [W sr^-1 m^-2 per channel] of the multiple-scattered
-/// light arriving at `o` along the segment from `o` in unit direction `d` of
-/// `t_max` metres through a homogeneous medium of extinction `sigma_t` [m^-1]
-/// (Jarosz, Zwicker and Jensen 2008, eq. 9): the sum over the photons whose
+/// light arriving at `seg.o` along the segment (Jarosz, Zwicker and Jensen 2008, eq. 9): the sum over the photons whose
 /// sphere the segment crosses of K_r(d_p) e^(-sigma_t t_p) phase(wi_p) Phi_p, t_p
 /// where the ray passes the photon closest, at distance d_p, and K_r = 1 / (pi r^2)
 /// the constant kernel of the photon's own radius r. `records` are the tree's
 /// photons (heap order), `stack` scratch.
-#[allow(clippy::too_many_arguments)]
 pub fn beam<R: PhotonRecord>(
     records: &[R],
     spheres: &SphereTree,
-    o: Vec3,
-    d: Vec3,
-    t_max: f32,
-    sigma_t: Rgb,
+    seg: &Segment,
     stack: &mut Vec<u32>,
     phase: impl Fn(Vec3) -> f32,
 ) -> Rgb {
+    let Segment { o, d, t_max, sigma_t } = *seg;
     let mut sum = Rgb::ZERO;
     spheres.for_each_crossed(o, d, t_max, stack, |i, t, _, r2| {
         let r = &records[i as usize];
@@ -324,9 +333,10 @@ mod tests {
                 let y = 0.4 + 0.2 * (r as f32 + 0.5) / rays as f32;
                 let o = Vec3::new(0.2, y, 0.5 - 0.1 * (r % 3) as f32);
                 let u = (r as f32 + 0.5) / rays as f32;
-                march += ray_march(&tree, o, Vec3::X, 0.6, sigma_t, 0.02, u, false, &p, &mut scratch, iso);
-                beamed += beam(&nodes, &spheres, o, Vec3::X, 0.6, sigma_t, &mut stack, iso);
-                looked_up += precomputed_march(&tree, &pre, o, Vec3::X, 0.6, sigma_t, u, 0.04, &mut rejected);
+                let seg = Segment { o, d: Vec3::X, t_max: 0.6, sigma_t };
+                march += ray_march(&tree, &seg, Steps { step: 0.02, u }, &p, false, &mut scratch, iso);
+                beamed += beam(&nodes, &spheres, &seg, &mut stack, iso);
+                looked_up += precomputed_march(&tree, &pre, &seg, u, 0.04, &mut rejected);
             }
             let (march, beamed) = (march / rays as f32, beamed / rays as f32);
             let want = if sigma > 0.0 { ls * (1.0 - (-sigma * 0.6f32).exp()) / sigma } else { ls * 0.6 };

@@ -152,23 +152,20 @@ impl<'a> DirectLighting<'a> {
         mis: bool,
     ) -> Option<(usize, Rgb, Vec3, Vec3, f32)> {
         let (li, p_sel) = self.lights.pick(u[3]);
-        let (c, o, wi, t_max) = self.unshadowed_on(li, p_sel as f32, hit, bsdf, wo, u, mis)?;
+        let (c, o, wi, t_max) = self.unshadowed_on((li, p_sel as f32), &Lit { hit, bsdf, wo }, u, mis)?;
         Some((li, c, o, wi, t_max))
     }
 
     /// [`Self::unshadowed`] on light `li`, chosen with probability `p_sel`.
-    #[allow(clippy::too_many_arguments)]
     #[inline]
     fn unshadowed_on(
         &self,
-        li: usize,
-        p_sel: f32,
-        hit: &Hit,
-        bsdf: &Bsdf,
-        wo: Vec3,
+        (li, p_sel): (usize, f32),
+        at: &Lit,
         u: [f32; 4],
         mis: bool,
     ) -> Option<(Rgb, Vec3, Vec3, f32)> {
+        let Lit { hit, bsdf, wo } = *at;
         let scene = self.scene;
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
         let ls = scene.lights[li].sample_li(scene, hit.p, pm_scene::facing(hit.ng, wo), u_tri, u)?;
@@ -200,17 +197,15 @@ impl<'a> DirectLighting<'a> {
     /// cornell_boxes, bias 4.4% against 2.0% from four samples on (trade-off study).
     /// In a medium the visibility is each shadow ray's transmittance (per channel):
     /// the ratio estimates the mean transmittance the light arrives with.
-    #[allow(clippy::too_many_arguments)]
     fn closed_form_direct(
         &self,
-        hit: &Hit,
-        bsdf: &Bsdf,
+        at: &Lit,
         unoccluded: &[Rgb],
-        wo: Vec3,
         s: &mut Sampler,
         n: u32,
         medium: Option<MediumId>,
     ) -> Rgb {
+        let Lit { hit, bsdf, wo } = *at;
         let net = (n > 1).then(|| s.net_4d());
         let (mut seen, mut all) = ([Rgb::ZERO; CLOSED_FORM_LIGHTS], [0.0f32; CLOSED_FORM_LIGHTS]);
         let scene = self.scene;
@@ -234,7 +229,7 @@ impl<'a> DirectLighting<'a> {
                 sum += u * (seen[li] / all[li]);
             } else if unoccluded.len() > 1 && u.max_element() > 0.0 {
                 // No sample chose this light: one of its own decides its visibility.
-                let v = self.unshadowed_on(li, 1.0, hit, bsdf, wo, light_numbers(s), false);
+                let v = self.unshadowed_on((li, 1.0), at, light_numbers(s), false);
                 if let Some((_, o, wi, t_max)) = v {
                     let v = scene.transmittance_along(o, wi, t_max, medium);
                     if v != Rgb::ZERO {
@@ -355,7 +350,7 @@ impl DirectLighting<'_> {
             }
             // Nothing of any light above the horizon: no shadow rays.
             return if lit {
-                self.closed_form_direct(hit, bsdf, &unoccluded[..scene.lights.len()], wo, s, n, medium)
+                self.closed_form_direct(&Lit { hit, bsdf, wo }, &unoccluded[..scene.lights.len()], s, n, medium)
             } else {
                 Rgb::ZERO
             };
@@ -405,4 +400,12 @@ impl DirectLighting<'_> {
         }
         sum / n.max(1) as f32
     }
+}
+
+/// The point being lit: its hit, its BSDF and the direction toward the viewer.
+#[derive(Clone, Copy)]
+struct Lit<'a> {
+    hit: &'a Hit,
+    bsdf: &'a Bsdf,
+    wo: Vec3,
 }

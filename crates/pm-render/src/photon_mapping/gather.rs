@@ -125,7 +125,8 @@ fn gather_radiance<G: PhotonRecord>(
         if media && let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
             let t_seg = scene.segment_length(o, d, hit.as_ref());
             if m.scatters() {
-                l += beta * super::volume::gathered(ctx, o, d, t_seg, m, s, scratch);
+                let seg = pm_estimate::Segment { o, d, t_max: t_seg, sigma_t: m.sigma_t() };
+                l += beta * super::volume::gathered(ctx, &seg, m, s, scratch);
             }
             beta *= m.transmittance(t_seg);
         }
@@ -188,7 +189,8 @@ fn secondary_irradiance<G: PhotonRecord>(
     let mut h = *hit;
     h.ns = facing(hit.ns, n);
     let e_direct = ctx.light.direct(&h, &unit, n, s, 1, medium);
-    let g = final_gather(ctx, hit.p, h.ns, n, medium, ctx.cfg.secondary_rays, s, GatherFor::Secondary, scratch);
+    let at = GatherPoint { x: hit.p, ns: h.ns, ng: n, medium };
+    let g = final_gather(ctx, &at, ctx.cfg.secondary_rays, s, GatherFor::Secondary, scratch);
     e_direct + g.e
 }
 
@@ -207,22 +209,32 @@ pub(crate) enum GatherFor {
     Secondary,
 }
 
-/// A final gather at `x` with shading normal `ns` and geometric normal `ng` (both on
-/// the side being lit, in medium `medium`): E = pi / (M N) sum L_jk over M x N strata with
+/// Where a final gather looks from: a point, its shading and geometric normals
+/// (both on the side being lit) and the medium it is in.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GatherPoint {
+    /// The point \[m\].
+    pub x: Vec3,
+    /// Shading normal, on the lit side.
+    pub ns: Vec3,
+    /// Geometric normal, on the lit side.
+    pub ng: Vec3,
+    /// The medium around it (None: vacuum or the scene's world medium).
+    pub medium: Option<MediumId>,
+}
+
+/// A final gather at `at` (`rays` rays): E = pi / (M N) sum L_jk over M x N strata with
 /// sin^2 theta_j uniform in [j/M, (j+1)/M) and phi_k in [2 pi k / N, 2 pi (k+1) / N)
 /// (cosine-weighted stratified sampling, Ward and Heckbert 1992).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn final_gather<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
-    x: Vec3,
-    ns: Vec3,
-    ng: Vec3,
-    medium: Option<MediumId>,
+    at: &GatherPoint,
     rays: u32,
     s: &mut Sampler,
     purpose: GatherFor,
     scratch: &mut Scratch,
 ) -> Gather {
+    let GatherPoint { x, ns, ng, medium } = *at;
     let secondary = purpose != GatherFor::Secondary;
     let m = ((rays as f32 / PI).sqrt().round() as usize).max(1);
     let n = ((rays as f32 / m as f32).round() as usize).max(1);

@@ -140,7 +140,8 @@ macro_rules! photon_map_integrator {
                 let pm = $get;
                 let hit = first.resolve(pm.scene, o, d);
                 let medium = pm.scene.eye_medium(o);
-                trace_from(pm, &($shade as Shade<G>), o, hit, d, 0, medium, s, scratch, vs)
+                let ray = SpecularRay { o, d, depth: 0, medium };
+                trace_from(pm, &($shade as Shade<G>), &ray, hit, s, scratch, vs)
             }
             fn volume(&self) -> bool {
                 let $pm = self;
@@ -184,7 +185,8 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
     }
     let t = scratch.clock();
     ctx.counters.gathers.fetch_add(1, Relaxed);
-    let g = final_gather(ctx, p, ns, ng, medium, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
+    let at = gather::GatherPoint { x: p, ns, ng, medium };
+    let g = final_gather(ctx, &at, ctx.cfg.gather_rays, s, gather::GatherFor::Estimate, scratch);
     scratch::add_time(&ctx.counters.ns_gather, t);
     g.e
 }
@@ -238,25 +240,32 @@ struct At<'h> {
     medium: Option<MediumId>,
 }
 
-/// Radiance components along a ray from `o` in direction `d` whose first hit is
-/// `hit`, starting in medium `medium`: recursive specular reflection and
+/// A ray of the specular recursion: from `o` in unit direction `d`, after `depth`
+/// specular bounces, starting in medium `medium`.
+#[derive(Clone, Copy, Debug)]
+struct SpecularRay {
+    o: Vec3,
+    d: Vec3,
+    depth: u32,
+    medium: Option<MediumId>,
+}
+
+/// Radiance components along `ray`, whose first hit is `hit`: recursive specular
+/// reflection and
 /// refraction, and `shade` at the first non-specular hit. Index-matched boundaries
 /// are passed; in a medium the segment attenuates what lies beyond it and adds
 /// the light scattered toward the viewer along it (the volume layer from the eye,
 /// the specular layer seen through mirrors and glass).
-#[allow(clippy::too_many_arguments)]
 fn trace_from<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     shade: &Shade<G>,
-    o: Vec3,
+    ray: &SpecularRay,
     hit: Option<pm_scene::Hit>,
-    d: Vec3,
-    depth: u32,
-    medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
     vs: Option<&mut VisibleSurface>,
 ) -> Components {
+    let SpecularRay { o, d, depth, medium } = *ray;
     let scene = ctx.scene;
     let mut c = match &hit {
         None => {
@@ -275,9 +284,10 @@ fn trace_from<G: PhotonRecord>(
                 let o2 = scene.offset_origin(h.p, h.ng, d);
                 let next = scene.intersect(o2, d, f32::INFINITY);
                 let m2 = scene.medium_after(h, d, medium);
-                trace_from(ctx, shade, o2, next, d, depth, m2, s, scratch, vs).scaled(tint)
+                let through = SpecularRay { o: o2, d, depth, medium: m2 };
+                trace_from(ctx, shade, &through, next, s, scratch, vs).scaled(tint)
             }
-            None => trace_hit(ctx, shade, h, d, depth, medium, s, scratch, vs),
+            None => trace_hit(ctx, shade, h, ray, s, scratch, vs),
         },
     };
     if !scene.has_media() {
@@ -287,7 +297,8 @@ fn trace_from<G: PhotonRecord>(
         let t_seg = scene.segment_length(o, d, hit.as_ref());
         c = c.scaled(m.transmittance(t_seg));
         if m.scatters() {
-            let l = volume::eye_inscattered(ctx, o, d, t_seg, medium, m, s, scratch);
+            let seg = pm_estimate::Segment { o, d, t_max: t_seg, sigma_t: m.sigma_t() };
+            let l = volume::eye_inscattered(ctx, &seg, medium, m, s, scratch);
             if depth == 0 {
                 c.volume += l;
             } else {
@@ -298,20 +309,17 @@ fn trace_from<G: PhotonRecord>(
     c
 }
 
-/// [`trace_from`] from its hit (before the segment's transmittance), reached in
-/// medium `medium`.
-#[allow(clippy::too_many_arguments)]
+/// [`trace_from`] from `ray`'s hit (before the segment's transmittance).
 fn trace_hit<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     shade: &Shade<G>,
     hit: &pm_scene::Hit,
-    d: Vec3,
-    depth: u32,
-    medium: Option<MediumId>,
+    ray: &SpecularRay,
     s: &mut Sampler,
     scratch: &mut Scratch,
     mut vs: Option<&mut VisibleSurface>,
 ) -> Components {
+    let SpecularRay { d, depth, medium, .. } = *ray;
     let (scene, cfg, hit) = (ctx.scene, &ctx.cfg, *hit);
     let wo = -d;
     let le = scene.emitted(&hit, wo);
@@ -332,7 +340,8 @@ fn trace_hit<G: PhotonRecord>(
         let o2 = ctx.scene.offset_origin(hit.p, hit.ng, wi);
         let m2 = if scene.has_media() { scene.medium_after(&hit, wi, medium) } else { None };
         let next = ctx.scene.intersect(o2, wi, f32::INFINITY);
-        w * trace_from(ctx, shade, o2, next, wi, depth + 1, m2, s, scratch, None).total()
+        let bounce = SpecularRay { o: o2, d: wi, depth: depth + 1, medium: m2 };
+        w * trace_from(ctx, shade, &bounce, next, s, scratch, None).total()
     };
     let u = s.next_2d();
     let uc = s.next_1d();

@@ -2,7 +2,7 @@
 //! rendering will look them up), driven by the photon-map integrator's final
 //! gathers.
 
-use super::gather::{GatherFor, final_gather};
+use super::gather::{GatherFor, GatherPoint, final_gather};
 use super::scratch::Scratch;
 use super::{PhotonMapping, cheap_indirect, diffuse_points};
 use crate::icache::IrradianceCache;
@@ -55,17 +55,8 @@ impl IrradianceCache {
                                 return None;
                             }
                         }
-                        let g = final_gather(
-                            pm,
-                            hit.p,
-                            ns,
-                            ng,
-                            medium,
-                            cfg.gather_rays,
-                            &mut s,
-                            GatherFor::Record,
-                            &mut scratch,
-                        );
+                        let at = GatherPoint { x: hit.p, ns, ng, medium };
+                        let g = final_gather(pm, &at, cfg.gather_rays, &mut s, GatherFor::Record, &mut scratch);
                         Some((hit.p, ns, g))
                     })
                 })
