@@ -85,7 +85,10 @@ impl Step {
 }
 
 /// The steps of the pipeline `cfg` on `scene` into `out`, simulating caustics,
-/// indirect light and light in media as told.
+/// indirect light and light in media as told: for a method that traces its own
+/// paths one render; else Christensen's stages (trace, a sort per map, the
+/// irradiance precompute), the irradiance cache when the method uses one, and the
+/// render.
 pub fn steps(
     cfg: &Pipeline,
     scene: &Path,
@@ -94,140 +97,191 @@ pub fn steps(
     indirect: bool,
     volume: bool,
 ) -> Result<Vec<Step>> {
-    let o = |f: &str| out.join(f);
-    let s = |p: &Path| p.display().to_string();
     let mut scene_files = scene_inputs(scene)?;
     scene_files.extend(cfg.environment_file().map(Path::to_owned));
-    let seed = ["--seed".to_string(), cfg.seed.to_string()];
+    let run = Run { cfg, scene, out, scene_files };
     if !cfg.mode.needs().photon_maps {
-        // Methods that trace their own paths (and photons): no maps, one step.
-        let mut args = vec!["--scene".into(), s(scene)];
-        args.extend(cfg.scene_args());
-        args.extend(seed);
-        args.extend(cfg.settings().to_args());
-        return Ok(vec![Step {
+        return Ok(vec![run.render_alone()]);
+    }
+    let mut steps = vec![run.trace(caustics, indirect, volume)];
+    steps.extend(["global", "caustic", "volume"].map(|map| run.sort(map)));
+    steps.push(run.irradiance());
+    steps.extend(run.render(indirect));
+    Ok(steps)
+}
+
+/// What every step of one run shares: the settings, the scene, the output folder
+/// and the files that loading the scene reads.
+struct Run<'a> {
+    cfg: &'a Pipeline,
+    scene: &'a Path,
+    out: &'a Path,
+    scene_files: Vec<PathBuf>,
+}
+
+impl Run<'_> {
+    /// A file of the output folder.
+    fn o(&self, f: &str) -> PathBuf {
+        self.out.join(f)
+    }
+
+    /// --scene and the scene and light options every step that loads the scene gets.
+    fn scene_args(&self) -> Vec<String> {
+        let mut a = vec!["--scene".to_string(), self.scene.display().to_string()];
+        a.extend(self.cfg.scene_args());
+        a
+    }
+
+    fn seed(&self) -> [String; 2] {
+        ["--seed".to_string(), self.cfg.seed.to_string()]
+    }
+
+    /// A method that traces its own paths (and photons): no maps, one step.
+    fn render_alone(&self) -> Step {
+        let mut args = self.scene_args();
+        args.extend(self.seed());
+        args.extend(self.cfg.settings().to_args());
+        Step {
             name: "photon-render".into(),
             kind: Kind::Render,
             args,
-            writes: vec![("--out", o("image.exr")), ("--png", o("image.png"))],
-            stats: o("render.stats.json"),
-            inputs: scene_files,
-            outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
+            writes: vec![("--out", self.o("image.exr")), ("--png", self.o("image.png"))],
+            stats: self.o("render.stats.json"),
+            inputs: self.scene_files.clone(),
+            outputs: vec![self.o("image.exr"), self.o("image.png"), self.o("render.stats.json")],
             needs: None,
             optional: vec![],
-        }]);
+        }
     }
-    let mut trace = cfg.trace.clone();
-    if !indirect {
-        trace.global_photons = 0;
+
+    /// Stage 1: the maps the scene calls for (a skipped effect's map is neither
+    /// traced nor written).
+    fn trace(&self, caustics: bool, indirect: bool, volume: bool) -> Step {
+        let cfg = self.cfg;
+        let mut trace = cfg.trace.clone();
+        if !indirect {
+            trace.global_photons = 0;
+        }
+        if !caustics {
+            trace.caustic_photons = 0;
+        }
+        if !volume {
+            trace.volume_photons = 0;
+        }
+        let mut args = self.scene_args();
+        args.extend(trace.to_args());
+        args.extend(self.seed());
+        for (name, share) in &cfg.light_shares {
+            args.extend(["--light-share".into(), format!("{name}={share}")]);
+        }
+        Step {
+            name: "photon-trace".into(),
+            kind: Kind::Trace,
+            args,
+            writes: vec![("--out", self.out.to_owned())],
+            stats: self.o("trace.stats.json"),
+            inputs: self.scene_files.clone(),
+            outputs: [
+                indirect.then(|| self.o("global.pmap")),
+                caustics.then(|| self.o("caustic.pmap")),
+                volume.then(|| self.o("volume.pmap")),
+                Some(self.o("trace.stats.json")),
+            ]
+            .into_iter()
+            .flatten()
+            .collect(),
+            needs: None,
+            optional: vec![],
+        }
     }
-    if !caustics {
-        trace.caustic_photons = 0;
-    }
-    if !volume {
-        trace.volume_photons = 0;
-    }
-    let scene_args = cfg.scene_args();
-    let mut trace_args = vec!["--scene".into(), s(scene)];
-    trace_args.extend(scene_args.clone());
-    trace_args.extend(trace.to_args());
-    trace_args.extend(seed.clone());
-    for (name, share) in &cfg.light_shares {
-        trace_args.extend(["--light-share".into(), format!("{name}={share}")]);
-    }
-    let mut steps = vec![Step {
-        name: "photon-trace".into(),
-        kind: Kind::Trace,
-        args: trace_args,
-        writes: vec![("--out", out.to_owned())],
-        stats: o("trace.stats.json"),
-        inputs: scene_files.clone(),
-        // The maps the scene calls for (a skipped effect's map is not written).
-        outputs: [
-            indirect.then(|| o("global.pmap")),
-            caustics.then(|| o("caustic.pmap")),
-            volume.then(|| o("volume.pmap")),
-            Some(o("trace.stats.json")),
-        ]
-        .into_iter()
-        .flatten()
-        .collect(),
-        needs: None,
-        optional: vec![],
-    }];
-    for map in ["global", "caustic", "volume"] {
-        let (input, output, stats) =
-            (o(&format!("{map}.pmap")), o(&format!("{map}.kd.pmap")), o(&format!("sort-{map}.stats.json")));
-        steps.push(Step {
+
+    /// Stage 2 for `map`, skipped by the runner when its map is absent.
+    fn sort(&self, map: &str) -> Step {
+        let (input, output, stats) = (
+            self.o(&format!("{map}.pmap")),
+            self.o(&format!("{map}.kd.pmap")),
+            self.o(&format!("sort-{map}.stats.json")),
+        );
+        Step {
             name: format!("photon-sort {map}"),
             kind: Kind::Sort,
-            args: vec![s(&input)],
+            args: vec![input.display().to_string()],
             writes: vec![("--out", output.clone())],
             stats: stats.clone(),
             inputs: vec![input.clone()],
             outputs: vec![output, stats],
             needs: Some(input),
             optional: vec![],
-        });
+        }
     }
-    let mut irr_args = vec![s(&o("global.kd.pmap"))];
-    irr_args.extend(cfg.irradiance.to_args());
-    steps.push(Step {
-        name: "photon-irradiance".into(),
-        kind: Kind::Irradiance,
-        args: irr_args,
-        writes: vec![("--out", o("global.irr.pmap"))],
-        stats: o("irradiance.stats.json"),
-        inputs: vec![o("global.kd.pmap")],
-        outputs: vec![o("global.irr.pmap"), o("irradiance.stats.json")],
-        needs: Some(o("global.kd.pmap")),
-        optional: vec![],
-    });
-    let r = &cfg.render;
-    let mut base = vec!["--scene".into(), s(scene)];
-    base.extend(scene_args);
-    if indirect {
-        base.extend(["--global".into(), s(&o("global.irr.pmap"))]);
-    } else {
-        base.push("--no-indirect".into());
-    }
-    base.extend(seed);
-    let map_inputs = [scene_files, vec![o("global.irr.pmap")]].concat();
-    let uses_cache = indirect && r.icache_accuracy > 0.0 && cfg.mode.needs().cache;
-    let mut render_args = base.clone();
-    let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap"), o("volume.kd.pmap")]].concat();
-    if uses_cache {
-        // The cache step gets only what shapes the cache (the rest at defaults), so
-        // changing the rest re-runs only the render.
-        let mut a = base;
-        a.extend(r.cache_settings().render_params().to_args());
-        steps.push(Step {
-            name: "photon-render icache".into(),
-            kind: Kind::Icache,
-            args: a,
-            writes: vec![("--icache-out", o("icache.bin"))],
-            stats: o("icache.stats.json"),
-            inputs: map_inputs,
-            outputs: vec![o("icache.bin"), o("icache.stats.json")],
-            needs: Some(o("global.irr.pmap")),
+
+    /// Stage 3: irradiance at a subset of the global photons.
+    fn irradiance(&self) -> Step {
+        let mut args = vec![self.o("global.kd.pmap").display().to_string()];
+        args.extend(self.cfg.irradiance.to_args());
+        Step {
+            name: "photon-irradiance".into(),
+            kind: Kind::Irradiance,
+            args,
+            writes: vec![("--out", self.o("global.irr.pmap"))],
+            stats: self.o("irradiance.stats.json"),
+            inputs: vec![self.o("global.kd.pmap")],
+            outputs: vec![self.o("global.irr.pmap"), self.o("irradiance.stats.json")],
+            needs: Some(self.o("global.kd.pmap")),
             optional: vec![],
-        });
-        render_args.extend(["--icache".into(), s(&o("icache.bin"))]);
-        render_inputs.push(o("icache.bin"));
+        }
     }
-    render_args.extend(cfg.settings().to_args());
-    steps.push(Step {
-        name: "photon-render".into(),
-        kind: Kind::Render,
-        args: render_args,
-        writes: vec![("--out", o("image.exr")), ("--png", o("image.png"))],
-        stats: o("render.stats.json"),
-        inputs: render_inputs,
-        outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
-        needs: None,
-        optional: vec![("--caustic", o("caustic.kd.pmap")), ("--volume", o("volume.kd.pmap"))],
-    });
-    Ok(steps)
+
+    /// Stage 4 from the maps: the irradiance-cache step when the method uses a
+    /// cache, then the render.
+    fn render(&self, indirect: bool) -> Vec<Step> {
+        let (cfg, r) = (self.cfg, &self.cfg.render);
+        let o = |f: &str| self.o(f);
+        let mut base = self.scene_args();
+        if indirect {
+            base.extend(["--global".into(), o("global.irr.pmap").display().to_string()]);
+        } else {
+            base.push("--no-indirect".into());
+        }
+        base.extend(self.seed());
+        let map_inputs = [self.scene_files.clone(), vec![o("global.irr.pmap")]].concat();
+        let uses_cache = indirect && r.icache_accuracy > 0.0 && cfg.mode.needs().cache;
+        let mut steps = Vec::new();
+        let mut render_args = base.clone();
+        let mut render_inputs = [map_inputs.clone(), vec![o("caustic.kd.pmap"), o("volume.kd.pmap")]].concat();
+        if uses_cache {
+            // The cache step gets only what shapes the cache (the rest at defaults),
+            // so changing the rest re-runs only the render.
+            let mut a = base;
+            a.extend(r.cache_settings().render_params().to_args());
+            steps.push(Step {
+                name: "photon-render icache".into(),
+                kind: Kind::Icache,
+                args: a,
+                writes: vec![("--icache-out", o("icache.bin"))],
+                stats: o("icache.stats.json"),
+                inputs: map_inputs,
+                outputs: vec![o("icache.bin"), o("icache.stats.json")],
+                needs: Some(o("global.irr.pmap")),
+                optional: vec![],
+            });
+            render_args.extend(["--icache".into(), o("icache.bin").display().to_string()]);
+            render_inputs.push(o("icache.bin"));
+        }
+        render_args.extend(cfg.settings().to_args());
+        steps.push(Step {
+            name: "photon-render".into(),
+            kind: Kind::Render,
+            args: render_args,
+            writes: vec![("--out", o("image.exr")), ("--png", o("image.png"))],
+            stats: o("render.stats.json"),
+            inputs: render_inputs,
+            outputs: vec![o("image.exr"), o("image.png"), o("render.stats.json")],
+            needs: None,
+            optional: vec![("--caustic", o("caustic.kd.pmap")), ("--volume", o("volume.kd.pmap"))],
+        });
+        steps
+    }
 }
 
 /// blake3 over the program (its name and the binary's contents: a rebuilt stage

@@ -112,17 +112,18 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
             return Err(content(format!("node {}: transform is not finite", node.index())));
         }
         let node_name = node.name().map_or_else(|| format!("node #{}", node.index()), str::to_owned);
+        let at = Placed { index: node.index(), name: &node_name, world };
         let (a, w) = (&mut animation, &mut warnings);
         if let Some(mesh) = node.mesh() {
-            walk.mesh(&node, &node_name, mesh, world, &mats, &buffers, a, w).map_err(content)?;
+            walk.mesh(&at, mesh, &mats, &buffers, a, w).map_err(content)?;
         }
         if let Some(light) = node.light() {
-            walk.light(&node, &node_name, light, world, units, a, w).map_err(content)?;
+            walk.light(&at, light, units, a, w).map_err(content)?;
         }
         if walk.camera.is_none()
             && let Some(cam) = node.camera()
         {
-            walk.camera(&node, &node_name, cam, world, a, w).map_err(content)?;
+            walk.camera(&at, cam, a, w).map_err(content)?;
         }
     }
     if walk.skipped_degenerate > 0 {
@@ -178,17 +179,99 @@ fn read_document(
     Ok((gltf.document, buffers, *hasher.finalize().as_bytes()))
 }
 
+/// One glTF material as [`read_material`] reads it.
+struct ReadMaterial {
+    material: Material,
+    /// The medium it bounds (volume attenuation and scattering), if any.
+    medium: Option<crate::Medium>,
+    /// Whether a texture reads TEXCOORD_1.
+    uses_uv1: bool,
+    /// The TEXCOORD_n set its normal texture reads.
+    normal_uv_set: Option<u8>,
+}
+
 /// One glTF material: its BSDF factors, the textures it reads (decoded by
-/// `loader`), alpha and emission, and the medium it bounds (volume attenuation and
-/// scattering); with whether a texture reads TEXCOORD_1 and the set its normal
-/// texture reads. Errors name the material.
+/// `loader`), alpha and emission, and the medium it bounds. Errors name the
+/// material; what is not read is said once in `warnings`.
 fn read_material(
     m: gltf::Material,
     i: usize,
     loader: &mut TextureLoader,
     warnings: &mut Vec<String>,
-) -> Result<(Material, Option<crate::Medium>, bool, Option<u8>), String> {
+) -> Result<ReadMaterial, String> {
     let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
+    let factors = read_factors(&m, &name, warnings)?;
+    let bsdf = Bsdf::from_pbr(&factors);
+    let pbr = m.pbr_metallic_roughness();
+    // Every texture a material reads, with its coordinate set and transform.
+    let mut uses_uv1 = false;
+    let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, String> {
+        let Some((texture, tex_coord, transform)) = source else { return Ok(None) };
+        let (r, above) = loader
+            .texture_ref(texture, tex_coord, transform, srgb)
+            .map_err(|e| format!("material '{name}': {what} texture: {e}"))?;
+        if above {
+            warnings.push(format!(
+                "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
+            ));
+        }
+        uses_uv1 |= r.uv_set == 1;
+        Ok(Some(r))
+    };
+    let base_texture = texture(info(pbr.base_color_texture()), true, "base colour")?;
+    let metallic_roughness_texture = texture(info(pbr.metallic_roughness_texture()), false, "metallicRoughness")?;
+    let emissive_texture = texture(info(m.emissive_texture()), true, "emissive")?;
+    let specular_texture = texture(info(m.specular().and_then(|s| s.specular_texture())), false, "specular")?;
+    let specular_color_texture =
+        texture(info(m.specular().and_then(|s| s.specular_color_texture())), true, "specular colour")?;
+    let normal = m.normal_texture();
+    let normal_scale = normal.as_ref().map_or(1.0, |nt| nt.scale());
+    if !normal_scale.is_finite() {
+        return Err(format!("material '{name}': normal texture scale {normal_scale} is not finite"));
+    }
+    let normal_texture = texture(normal.map(|nt| normal_source(&nt)), false, "normal")?;
+    // What is not read, said once per material: material extensions the loader
+    // does not know (clearcoat, sheen, iridescence, ...), then textures.
+    if let Some(ext) = m.extensions() {
+        for k in ext.keys().filter(|k| *k != "KHR_materials_volume_scatter") {
+            warnings.push(format!("material '{name}': extension {k} ignored"));
+        }
+    }
+    if m.occlusion_texture().is_some() {
+        warnings.push(format!(
+            "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
+        ));
+    }
+    let alpha_mode = read_alpha_mode(&m, &name)?;
+    let medium = read_medium(&m, &name, factors.thin, warnings)?;
+    let ef = m.emissive_factor();
+    let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
+    if !pm_color::is_valid(emission) {
+        return Err(format!("material '{name}': emission {emission} is not a non-negative finite colour"));
+    }
+    let material = Material {
+        name,
+        bsdf,
+        pbr: factors,
+        base_alpha: pbr.base_color_factor()[3],
+        alpha_mode,
+        base_texture,
+        metallic_roughness_texture,
+        emissive_texture,
+        specular_texture,
+        specular_color_texture,
+        normal_texture,
+        normal_scale,
+        emission,
+        double_sided: m.double_sided(),
+        interior: None,
+    };
+    Ok(ReadMaterial { material, medium, uses_uv1, normal_uv_set: normal_texture.map(|t| t.uv_set) })
+}
+
+/// The material's scattering factors (base colour, metallic, roughness,
+/// transmission, ior, KHR_materials_specular, thin-walled or not), checked.
+fn read_factors(m: &gltf::Material, name: &str, warnings: &mut Vec<String>) -> Result<Pbr, String> {
     let pbr = m.pbr_metallic_roughness();
     let bc = pbr.base_color_factor();
     let mut base = Rgb::new(bc[0], bc[1], bc[2]);
@@ -217,7 +300,7 @@ fn read_material(
     if !(ior.is_finite() && ior >= 1.0) {
         return Err(format!("material '{name}': ior {ior} must be >= 1"));
     }
-    let factors = Pbr {
+    Ok(Pbr {
         base,
         metallic: pbr.metallic_factor().clamp(0.0, 1.0),
         roughness: pbr.roughness_factor().clamp(0.0, 1.0),
@@ -226,65 +309,28 @@ fn read_material(
         thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
         specular,
         specular_color,
-    };
-    let bsdf = Bsdf::from_pbr(&factors);
-    // Every texture a material reads, with its coordinate set and transform.
-    let mut uses_uv1 = false;
-    let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, String> {
-        let Some((texture, tex_coord, transform)) = source else { return Ok(None) };
-        let (r, above) = loader
-            .texture_ref(texture, tex_coord, transform, srgb)
-            .map_err(|e| format!("material '{name}': {what} texture: {e}"))?;
-        if above {
-            warnings.push(format!(
-                "material '{name}': {what} texture reads a coordinate set above TEXCOORD_1; TEXCOORD_0 used"
-            ));
-        }
-        uses_uv1 |= r.uv_set == 1;
-        Ok(Some(r))
-    };
-    let base_texture = texture(info(pbr.base_color_texture()), true, "base colour")?;
-    let metallic_roughness_texture = texture(info(pbr.metallic_roughness_texture()), false, "metallicRoughness")?;
-    let emissive_texture = texture(info(m.emissive_texture()), true, "emissive")?;
-    let specular_texture = texture(info(m.specular().and_then(|s| s.specular_texture())), false, "specular")?;
-    let specular_color_texture =
-        texture(info(m.specular().and_then(|s| s.specular_color_texture())), true, "specular colour")?;
-    let normal = m.normal_texture();
-    let normal_scale = normal.as_ref().map_or(1.0, |nt| nt.scale());
-    if !normal_scale.is_finite() {
-        return Err(format!("material '{name}': normal texture scale {normal_scale} is not finite"));
-    }
-    let normal_texture = texture(
-        normal.map(|nt| {
-            // KHR_texture_transform on a normal texture is only in its JSON.
-            let transform = nt.extension_value("KHR_texture_transform").map(|t| {
-                let pair = |k: &str, d: f32| {
-                    let a = t.get(k).and_then(|v| v.as_array());
-                    let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
-                    [at(0), at(1)]
-                };
-                let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
-                let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
-                (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
-            });
-            (nt.texture(), nt.tex_coord(), transform)
-        }),
-        false,
-        "normal",
-    )?;
-    // What is not read, said once per material: material extensions the loader
-    // does not know (clearcoat, sheen, iridescence, ...), then textures.
-    if let Some(ext) = m.extensions() {
-        for k in ext.keys().filter(|k| *k != "KHR_materials_volume_scatter") {
-            warnings.push(format!("material '{name}': extension {k} ignored"));
-        }
-    }
-    if m.occlusion_texture().is_some() {
-        warnings.push(format!(
-            "material '{name}': occlusion texture ignored (occlusion is what the light transport computes)"
-        ));
-    }
-    let alpha_mode = match m.alpha_mode() {
+    })
+}
+
+/// A normal texture as a texture source: KHR_texture_transform on a normal
+/// texture is only in its JSON.
+fn normal_source<'a>(nt: &gltf::material::NormalTexture<'a>) -> TextureSource<'a> {
+    let transform = nt.extension_value("KHR_texture_transform").map(|t| {
+        let pair = |k: &str, d: f32| {
+            let a = t.get(k).and_then(|v| v.as_array());
+            let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
+            [at(0), at(1)]
+        };
+        let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+        let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
+        (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
+    });
+    (nt.texture(), nt.tex_coord(), transform)
+}
+
+/// The material's alpha mode, its cutoff checked.
+fn read_alpha_mode(m: &gltf::Material, name: &str) -> Result<AlphaMode, String> {
+    Ok(match m.alpha_mode() {
         gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
         gltf::material::AlphaMode::Mask => {
             let cutoff = m.alpha_cutoff().unwrap_or(0.5);
@@ -294,79 +340,72 @@ fn read_material(
             AlphaMode::Mask { cutoff }
         }
         gltf::material::AlphaMode::Blend => AlphaMode::Blend,
-    };
-    // KHR_materials_volume: attenuationColor is what is left after
-    // attenuationDistance, so sigma_t = -ln(colour) / distance; with the draft
-    // KHR_materials_volume_scatter, scatterAlbedo (earlier drafts:
-    // multiscatterColor) is the multiple-scattering albedo, mapped to the
-    // single-scattering albedo by Kulla and Conty's fit as the draft says, and
-    // scatterAnisotropy is Henyey-Greenstein's g. A volume that is not thin (a
-    // thicknessFactor above 0) bounds a medium, clear when nothing attenuates.
+    })
+}
+
+/// The medium a material bounds. KHR_materials_volume: attenuationColor is what
+/// is left after attenuationDistance, so sigma_t = -ln(colour) / distance; with
+/// the draft KHR_materials_volume_scatter, scatterAlbedo (earlier drafts:
+/// multiscatterColor) is the multiple-scattering albedo, mapped to the
+/// single-scattering albedo by Kulla and Conty's fit as the draft says, and
+/// scatterAnisotropy is Henyey-Greenstein's g. A volume that is not `thin` (a
+/// thicknessFactor above 0) bounds a medium, clear when nothing attenuates.
+fn read_medium(
+    m: &gltf::Material,
+    name: &str,
+    thin: bool,
+    warnings: &mut Vec<String>,
+) -> Result<Option<crate::Medium>, String> {
     let scatter = m.extension_value("KHR_materials_volume_scatter");
-    let mut medium = None;
-    if let Some(v) = m.volume() {
-        let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
-        let (albedo, g) = match scatter {
-            Some(x) => {
-                let colour = x.get("scatterAlbedo").or_else(|| x.get("multiscatterColor"));
-                let rho_ms = match colour.and_then(|v| v.as_array()) {
-                    Some(a) if a.len() == 3 && a.iter().all(|v| v.as_f64().is_some()) => {
-                        let c: Vec<f32> = a.iter().map(|v| v.as_f64().unwrap_or(0.0) as f32).collect();
-                        Rgb::new(c[0], c[1], c[2])
-                    }
-                    Some(_) => return Err(format!("material '{name}': scatterAlbedo is not three numbers")),
-                    None => Rgb::ZERO,
-                };
-                if !rho_ms.is_finite() || rho_ms.min_element() < 0.0 || rho_ms.max_element() > 1.0 {
-                    return Err(format!("material '{name}': scatterAlbedo {rho_ms} is not in [0, 1]"));
-                }
-                let g = match x.get("scatterAnisotropy") {
-                    Some(v) => {
-                        v.as_f64().ok_or_else(|| format!("material '{name}': scatterAnisotropy is not a number"))?
-                    }
-                    None => 0.0,
-                } as f32;
-                (crate::single_scattering_albedo(rho_ms), g)
-            }
-            None => (Rgb::ZERO, 0.0),
-        };
-        let volume = crate::Medium::from_attenuation(name.clone(), c, d, albedo, g)?;
-        if factors.thin {
-            if !volume.is_clear() {
-                warnings.push(format!(
-                    "material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"
-                ));
-            }
-        } else {
-            medium = Some(volume);
+    let Some(v) = m.volume() else {
+        if scatter.is_some() {
+            warnings.push(format!(
+                "material '{name}': KHR_materials_volume_scatter ignored (it needs KHR_materials_volume)"
+            ));
         }
-    } else if scatter.is_some() {
-        warnings
-            .push(format!("material '{name}': KHR_materials_volume_scatter ignored (it needs KHR_materials_volume)"));
-    }
-    let ef = m.emissive_factor();
-    let emission = Rgb::new(ef[0], ef[1], ef[2]) * m.emissive_strength().unwrap_or(1.0);
-    if !pm_color::is_valid(emission) {
-        return Err(format!("material '{name}': emission {emission} is not a non-negative finite colour"));
-    }
-    let material = Material {
-        name,
-        bsdf,
-        pbr: factors,
-        base_alpha: bc[3],
-        alpha_mode,
-        base_texture,
-        metallic_roughness_texture,
-        emissive_texture,
-        specular_texture,
-        specular_color_texture,
-        normal_texture,
-        normal_scale,
-        emission,
-        double_sided: m.double_sided(),
-        interior: None,
+        return Ok(None);
     };
-    Ok((material, medium, uses_uv1, normal_texture.map(|t| t.uv_set)))
+    let (c, d) = (Rgb::from(v.attenuation_color()), v.attenuation_distance());
+    let (albedo, g) = match scatter {
+        Some(x) => {
+            let colour = x.get("scatterAlbedo").or_else(|| x.get("multiscatterColor"));
+            let rho_ms = match colour.and_then(|v| v.as_array()) {
+                Some(a) if a.len() == 3 && a.iter().all(|v| v.as_f64().is_some()) => {
+                    let c: Vec<f32> = a.iter().map(|v| v.as_f64().unwrap_or(0.0) as f32).collect();
+                    Rgb::new(c[0], c[1], c[2])
+                }
+                Some(_) => return Err(format!("material '{name}': scatterAlbedo is not three numbers")),
+                None => Rgb::ZERO,
+            };
+            if !rho_ms.is_finite() || rho_ms.min_element() < 0.0 || rho_ms.max_element() > 1.0 {
+                return Err(format!("material '{name}': scatterAlbedo {rho_ms} is not in [0, 1]"));
+            }
+            let g = match x.get("scatterAnisotropy") {
+                Some(v) => v.as_f64().ok_or_else(|| format!("material '{name}': scatterAnisotropy is not a number"))?,
+                None => 0.0,
+            } as f32;
+            (crate::single_scattering_albedo(rho_ms), g)
+        }
+        None => (Rgb::ZERO, 0.0),
+    };
+    let volume = crate::Medium::from_attenuation(name.to_string(), c, d, albedo, g)?;
+    if !thin {
+        return Ok(Some(volume));
+    }
+    if !volume.is_clear() {
+        warnings
+            .push(format!("material '{name}': volume attenuation ignored (thicknessFactor 0 makes it thin-walled)"));
+    }
+    Ok(None)
+}
+
+/// A node as the walk places it: its index (what animations name), its name for
+/// messages, and its world (camera-world) transform.
+#[derive(Clone, Copy)]
+struct Placed<'a> {
+    index: usize,
+    name: &'a str,
+    world: Mat4,
 }
 
 /// What the walk over the scene's nodes collects: triangles in world (camera-world)
@@ -412,11 +451,11 @@ impl Materials {
         let (mut materials, mut uv1_needed, mut tangent_sets) = (Vec::new(), Vec::new(), Vec::new());
         let mut media = Vec::new();
         for (i, m) in doc.materials().enumerate() {
-            let (material, medium, uses_uv1, tangent_set) = read_material(m, i, &mut loader, warnings)?;
-            media.push(medium);
-            uv1_needed.push(uses_uv1);
-            tangent_sets.push(tangent_set);
-            materials.push(material);
+            let read = read_material(m, i, &mut loader, warnings)?;
+            media.push(read.medium);
+            uv1_needed.push(read.uses_uv1);
+            tangent_sets.push(read.normal_uv_set);
+            materials.push(read.material);
         }
         // glTF's default material (primitives without one): white-ish diffuse.
         let default = materials.len() as u32;
@@ -431,21 +470,19 @@ impl Materials {
 }
 
 impl NodeWalk {
-    /// The triangles of `mesh` (on `node`, placed by `world`), its objects, and an
+    /// The triangles of `mesh` (on the node `at`), its objects, and an
     /// area light per emissive primitive; animated nodes' meshes are kept at rest
     /// for re-posing.
-    #[allow(clippy::too_many_arguments)]
     fn mesh(
         &mut self,
-        node: &gltf::Node,
-        node_name: &str,
+        at: &Placed,
         mesh: gltf::Mesh,
-        world: Mat4,
         mats: &Materials,
         buffers: &[gltf::buffer::Data],
         animation: &mut Animation,
         warnings: &mut Vec<String>,
     ) -> Result<(), String> {
+        let Placed { index, name: node_name, world } = *at;
         let normal_m = Mat3::from_mat4(world).inverse().transpose();
         for (pi, prim) in mesh.primitives().enumerate() {
             if prim.mode() != gltf::mesh::Mode::Triangles {
@@ -483,17 +520,13 @@ impl NodeWalk {
                     Some(m) if m != node_name => format!("{node_name} ({m})"),
                     _ => node_name.to_string(),
                 };
-                if animation.moves(node.index()) {
+                if animation.moves(index) {
                     // The same primitive in the node's own space, re-posed per frame.
                     let mut rest = Vec::new();
                     instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
                         .map_err(|m| format!("{what}: {m}"))?;
                     if rest.len() == self.triangles.len() - first {
-                        animation.meshes.push(AnimatedMesh {
-                            object: self.objects.len(),
-                            node: node.index(),
-                            local: rest,
-                        });
+                        animation.meshes.push(AnimatedMesh { object: self.objects.len(), node: index, local: rest });
                     } else {
                         warnings.push(format!(
                             "node '{node_name}': its triangles degenerate differently at rest; not animated"
@@ -511,19 +544,17 @@ impl NodeWalk {
         Ok(())
     }
 
-    /// A `KHR_lights_punctual` light on `node` (placed by `world`), its intensity
+    /// A `KHR_lights_punctual` light on the node `at`, its intensity
     /// read in `units`.
-    #[allow(clippy::too_many_arguments)]
     fn light(
         &mut self,
-        node: &gltf::Node,
-        node_name: &str,
+        at: &Placed,
         light: gltf::khr_lights_punctual::Light,
-        world: Mat4,
         units: LightUnits,
         animation: &mut Animation,
         warnings: &mut Vec<String>,
     ) -> Result<(), String> {
+        let Placed { index, name: node_name, world } = *at;
         let position = world.transform_point3(Vec3::ZERO);
         let axis = world.transform_vector3(-Vec3::Z).normalize_or_zero();
         let c = light.color();
@@ -563,23 +594,22 @@ impl NodeWalk {
                 LightKind::Directional { direction: axis, irradiance: value, cap: 0.0, center: Vec3::ZERO, radius: 0.0 }
             }
         };
-        if animation.moves(node.index()) {
-            animation.lights.push((self.lights.len(), node.index()));
+        if animation.moves(index) {
+            animation.lights.push((self.lights.len(), index));
         }
         self.lights.push(Light { name: node_name.to_string(), kind, power: Rgb::ZERO });
         Ok(())
     }
 
-    /// The camera on `node` (placed by `world`), if it is perspective.
+    /// The camera on the node `at`, if it is perspective.
     fn camera(
         &mut self,
-        node: &gltf::Node,
-        node_name: &str,
+        at: &Placed,
         cam: gltf::Camera,
-        world: Mat4,
         animation: &mut Animation,
         warnings: &mut Vec<String>,
     ) -> Result<(), String> {
+        let Placed { index, name: node_name, world } = *at;
         match cam.projection() {
             gltf::camera::Projection::Perspective(p) => {
                 let r = Mat3::from_mat4(world);
@@ -591,8 +621,8 @@ impl NodeWalk {
                 if right == Vec3::ZERO || !(yfov > 0.0 && yfov < std::f32::consts::PI) {
                     return Err(format!("camera on '{node_name}': degenerate orientation or yfov {yfov}"));
                 }
-                if animation.moves(node.index()) {
-                    animation.camera = Some(node.index());
+                if animation.moves(index) {
+                    animation.camera = Some(index);
                 }
                 self.camera = Some(Camera {
                     position: world.transform_point3(Vec3::ZERO),

@@ -20,22 +20,30 @@ fn axes() -> &'static [Axis] {
     <Axis as clap::ValueEnum>::value_variants()
 }
 
-/// A panel at (x0, y0) of size w x h: `value` of each row that `show` admits
-/// against its total time (log axis), a line through each axis's points (with the
-/// defaults' point), and `front` dashed; with `zoom` the value axis spans the shown
-/// rows' range instead of starting at 0.
-#[allow(clippy::too_many_arguments)]
+/// Where a panel goes and how it is drawn.
+struct Panel<'a> {
+    /// Its corner and size: x0, y0, w, h (SVG pixels).
+    at: (f64, f64, f64, f64),
+    title: &'a str,
+    y_label: &'a str,
+    /// Each point labelled with its setting.
+    labels: bool,
+    /// The value axis spans the shown rows' range instead of starting at 0.
+    zoom: bool,
+}
+
+/// Panel `p`: `value` of each row that `show` admits against its total time (log
+/// axis), a line through each axis's points (with the defaults' point), and
+/// `front` dashed.
 fn panel(
     shapes: &mut Vec<Shape>,
-    (x0, y0, w, h): (f64, f64, f64, f64),
-    title: &str,
-    y_label: &str,
+    p: &Panel,
     rows: &[Row],
     value: &dyn Fn(&Row) -> f64,
     show: &dyn Fn(&Row) -> bool,
     front: &[usize],
-    (labels, zoom): (bool, bool),
 ) {
+    let Panel { at: (x0, y0, w, h), title, y_label, labels, zoom } = *p;
     let m = 55.0;
     let vis: Vec<usize> = (0..rows.len()).filter(|&i| show(&rows[i])).collect();
     let t: Vec<f64> = rows.iter().map(|r| r.total().max(1e-3)).collect();
@@ -113,28 +121,23 @@ pub fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
     let zoom_front = pareto(rows, Row::total, |r| if photon_map(r) { r.image().error } else { f64::INFINITY });
     let mut s = Vec::new();
     let error = |r: &Row| r.image().error;
-    panel(
-        &mut s,
-        (0.0, 0.0, 640.0, 560.0),
-        "every method: error of one render against time",
-        "error sqrt(bias^2 + noise^2)",
-        rows,
-        &error,
-        &|_| true,
-        front,
-        (false, false),
-    );
-    panel(
-        &mut s,
-        (650.0, 0.0, 760.0, 560.0),
-        "the photon-map settings, zoomed",
-        "error sqrt(bias^2 + noise^2)",
-        rows,
-        &error,
-        &photon_map,
-        &zoom_front,
-        (true, true),
-    );
+    let y_label = "error sqrt(bias^2 + noise^2)";
+    let every = Panel {
+        at: (0.0, 0.0, 640.0, 560.0),
+        title: "every method: error of one render against time",
+        y_label,
+        labels: false,
+        zoom: false,
+    };
+    panel(&mut s, &every, rows, &error, &|_| true, front);
+    let zoomed = Panel {
+        at: (650.0, 0.0, 760.0, 560.0),
+        title: "the photon-map settings, zoomed",
+        y_label,
+        labels: true,
+        zoom: true,
+    };
+    panel(&mut s, &zoomed, rows, &error, &photon_map, &zoom_front);
     legend(&mut s, 1430.0, 60.0);
     plot::draw(&s, 1590.0, 560.0, &out.join("plot.svg"), &out.join("plot.png"))?;
 
@@ -181,17 +184,9 @@ pub fn plots(out: &Path, rows: &[Row], front: &[usize]) -> Result<()> {
     for (k, name) in layers.iter().enumerate() {
         let (px, py) = ((k % 2) as f64 * 480.0, (k / 2) as f64 * 340.0);
         let f = pareto(rows, Row::total, |r| r.layers.get(Some(*name)).error);
-        panel(
-            &mut s,
-            (px, py, 480.0, 340.0),
-            &format!("{name} layer"),
-            "error",
-            rows,
-            &|r| r.layers.get(Some(*name)).error,
-            &|_| true,
-            &f,
-            (false, false),
-        );
+        let title = format!("{name} layer");
+        let p = Panel { at: (px, py, 480.0, 340.0), title: &title, y_label: "error", labels: false, zoom: false };
+        panel(&mut s, &p, rows, &|r| r.layers.get(Some(*name)).error, &|_| true, &f);
     }
     legend(&mut s, 985.0, 60.0);
     let height = 340.0 * layers.len().div_ceil(2) as f64;
