@@ -28,10 +28,7 @@ pub struct Args {
 /// its typed statistics.
 fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String]) -> Result<T> {
     let stats = std::env::temp_dir().join(format!("figure1-{name}-{}.json", std::process::id()));
-    let mut a = args.to_vec();
-    a.extend(["--stats-json".to_string(), stats.display().to_string()]);
-    bins::run(bins, name, &a, name, true)?;
-    let v = bins::read_stats(&stats);
+    let v = bins::run_for_report(bins, name, args, &stats);
     let _ = std::fs::remove_file(stats);
     v
 }

@@ -121,6 +121,21 @@ fn wait_for(program: &Path, args: &[String], quiet: bool) -> Result<(std::proces
     Ok((status, last))
 }
 
+/// Run stage `name` quietly with `args` and `--stats-json stats` (its messages are
+/// kept for the error if it fails) and read the statistics into its typed report
+/// (`pm_stage::report`).
+pub fn run_for_report<T: serde::de::DeserializeOwned>(
+    bins: &Bins,
+    name: &str,
+    args: &[String],
+    stats: &Path,
+) -> Result<T> {
+    let mut a = args.to_vec();
+    a.extend(["--stats-json".to_string(), stats.display().to_string()]);
+    run(bins, name, &a, name, true)?;
+    read_stats(stats)
+}
+
 /// Read a stage's statistics file into its typed report.
 pub fn read_stats<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;

@@ -109,15 +109,6 @@ fn live_frame(
     Ok((pm_image::read_exr(&exr)?, mean))
 }
 
-/// Run one stage quietly (its messages are kept for the error if it fails) and
-/// read its typed statistics.
-fn stage<T: serde::de::DeserializeOwned>(bins: &Bins, name: &str, args: &[String], stats: &Path) -> Result<T> {
-    let mut a = args.to_vec();
-    a.extend(["--stats-json".to_string(), stats.display().to_string()]);
-    bins::run(bins, name, &a, name, true)?;
-    bins::read_stats(stats)
-}
-
 /// The reference: two path-traced halves of `spp / 2` paths per pixel with their
 /// own seeds, cached by the content of the scene and every file it reads (its
 /// environment too), the scene options, size and count. Returns their layers.
@@ -147,7 +138,7 @@ fn reference_halves(
             a.extend(["--out".into(), exr.display().to_string()]);
             a.extend(p.to_args());
             let r: pm_stage::report::RenderReport =
-                stage(bins, "photon-render", &a, &out.join(format!("reference-{h}.stats.json")))?;
+                bins::run_for_report(bins, "photon-render", &a, &out.join(format!("reference-{h}.stats.json")))?;
             println!("  {:.1} s", r.seconds);
         }
         std::fs::write(&key_file, &key)?;
@@ -349,7 +340,7 @@ fn render_batch(study: &mut Study, st: &Setting, seed: u64, id: &str) -> Result<
         }
     }
     let stats = study.out.join(format!("{id}.stats.json"));
-    let r: pm_stage::report::RenderReport = stage(&study.bins, "photon-render", &a, &stats)?;
+    let r: pm_stage::report::RenderReport = bins::run_for_report(&study.bins, "photon-render", &a, &stats)?;
     times.render = r.seconds;
     Ok((pm_image::read_exr(&img)?, times))
 }
@@ -363,18 +354,20 @@ fn trace_maps(bins: &Bins, scene_args: &[String], st: &Setting, seed: u64, mdir:
     a.extend(["--out".to_string(), mdir.display().to_string()]);
     a.extend(st.trace.to_args());
     a.extend(["--seed".to_string(), seed.to_string()]);
-    let t: pm_stage::report::TraceReport = stage(bins, "photon-trace", &a, &mdir.join("trace.json"))?;
+    let t: pm_stage::report::TraceReport = bins::run_for_report(bins, "photon-trace", &a, &mdir.join("trace.json"))?;
     let mut sort = 0.0;
     for m in ["global", "caustic", "volume"] {
         if Path::new(&o(&format!("{m}.pmap"))).exists() {
             let a = [o(&format!("{m}.pmap")), "--out".to_string(), o(&format!("{m}.kd.pmap"))];
-            let r: pm_stage::report::SortReport = stage(bins, "photon-sort", &a, &mdir.join("sort.json"))?;
+            let r: pm_stage::report::SortReport =
+                bins::run_for_report(bins, "photon-sort", &a, &mdir.join("sort.json"))?;
             sort += r.seconds;
         }
     }
     let mut a = vec![o("global.kd.pmap"), "--out".to_string(), o("global.irr.pmap")];
     a.extend(st.irradiance.to_args());
-    let i: pm_stage::report::IrradianceReport = stage(bins, "photon-irradiance", &a, &mdir.join("irr.json"))?;
+    let i: pm_stage::report::IrradianceReport =
+        bins::run_for_report(bins, "photon-irradiance", &a, &mdir.join("irr.json"))?;
     Ok([t.seconds, sort, i.seconds])
 }
 
