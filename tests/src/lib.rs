@@ -51,7 +51,7 @@ pub fn bin_dir() -> PathBuf {
 pub fn load_scene(name: &str) -> Scene {
     let path = scene_path(name);
     let mut scene = pm_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    pm_stage::light_scene(&mut scene, &path, &pm_stage::SceneArgs::default()).unwrap_or_else(|e| panic!("{e}"));
+    pm_stage::light_scene(&mut scene, &path, &pm_stage::SceneOptions::default()).unwrap_or_else(|e| panic!("{e}"));
     scene
 }
 

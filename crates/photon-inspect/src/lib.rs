@@ -40,7 +40,7 @@ pub struct Cli {
     pub scene: Option<PathBuf>,
     /// How the scene file is read (as the map was traced).
     #[command(flatten)]
-    pub scene_args: pm_stage::SceneArgs,
+    pub scene_options: pm_stage::SceneOptions,
     /// Colour by precomputed irradiance instead of power (maps with irradiance).
     #[arg(long)]
     pub irradiance: bool,
@@ -164,7 +164,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             .with_context(|| format!("{}: cannot write", ply.display()))?;
     }
     if let (Some(png), Some(scene_path)) = (&cli.image, &cli.scene) {
-        let scene = pm_stage::load_scene("photon-inspect", scene_path, &cli.scene_args)?;
+        let scene = pm_stage::load_scene("photon-inspect", scene_path, &cli.scene_options)?;
         ensure!(
             scene.content_hash == map.header().scene_hash,
             "{}: the map was traced in another scene than {}",

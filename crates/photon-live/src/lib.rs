@@ -86,7 +86,7 @@ pub struct Cli {
     pub params: LiveParams,
     /// How the scene files are read.
     #[command(flatten)]
-    pub scene_args: pm_stage::SceneArgs,
+    pub scene_options: pm_stage::SceneOptions,
 }
 
 /// Subcommands.
@@ -140,7 +140,7 @@ pub fn run(cli: &Cli) -> Result<()> {
         None => 0..cli.frames,
     };
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-live", scene_path, &cli.scene_args)?;
+    let scene = pm_stage::load_scene("photon-live", scene_path, &cli.scene_options)?;
     if p.frame.direct == pm_live::DirectMode::ShadowMap
         && let Some(why) = pm_live::why_no_shadow_maps(&scene)
     {
@@ -155,7 +155,7 @@ pub fn run(cli: &Cli) -> Result<()> {
     match p.method {
         LiveMethod::Vertex => {
             let photon_scene = match &cli.photon_scene {
-                Some(path) => Some(pm_stage::load_scene("photon-live", path, &cli.scene_args)?),
+                Some(path) => Some(pm_stage::load_scene("photon-live", path, &cli.scene_options)?),
                 None => None,
             };
             let (hash, origin, diagonal) = (scene.content_hash, scene.origin.to_array(), scene.bounds.diagonal());

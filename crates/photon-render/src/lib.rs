@@ -74,7 +74,7 @@ pub struct Cli {
     pub settings: Settings,
     /// How the scene file is read.
     #[command(flatten)]
-    pub scene_args: pm_stage::SceneArgs,
+    pub scene_options: pm_stage::SceneOptions,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -171,7 +171,7 @@ pub fn run(cli: &Cli) -> Result<RenderReport> {
         ensure!(b.is_finite() && b > 0.0, "--time-budget {b}: give a positive number of seconds");
     }
     pm_stage::init_threads(cli.threads)?;
-    let scene = pm_stage::load_scene("photon-render", &cli.scene, &cli.scene_args)?;
+    let scene = pm_stage::load_scene("photon-render", &cli.scene, &cli.scene_options)?;
     let camera = scene
         .camera
         .clone()

@@ -62,7 +62,7 @@ pub struct TraceArgs {
     pub scene: Option<PathBuf>,
     /// How the scene file is read.
     #[command(flatten)]
-    pub scene_args: pm_stage::SceneArgs,
+    pub scene_options: pm_stage::SceneOptions,
     /// Output folder for global.pmap, caustic.pmap and volume.pmap (created if
     /// missing).
     #[arg(long)]
@@ -93,10 +93,6 @@ pub struct TraceArgs {
     /// With a stored target each slice stops at its share plus 10%.
     #[arg(long, value_name = "J/M", value_parser = parse_slice)]
     pub slice: Option<Slice>,
-    /// Give light NAME this fraction of the photon budget (repeatable); other lights share
-    /// the rest in proportion to their power.
-    #[arg(long = "light-share", value_parser = parse_share)]
-    pub light_shares: Vec<(String, f64)>,
     /// Write statistics (counts, photons per bounce, time) as JSON.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
@@ -112,12 +108,6 @@ pub struct TraceArgs {
 fn parse_slice(s: &str) -> Result<Slice, String> {
     let (index, count) = pm_stage::parse_part(s, "slice")?;
     Ok(Slice { index, count })
-}
-
-fn parse_share(s: &str) -> Result<(String, f64), String> {
-    let (n, w) = s.rsplit_once('=').ok_or("expected NAME=FRACTION")?;
-    let w: f64 = w.parse().map_err(|e| format!("FRACTION: {e}"))?;
-    Ok((n.to_owned(), w))
 }
 
 /// Run the stage.
@@ -147,12 +137,13 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
     let out = &out;
     pm_stage::init_threads(args.threads)?;
     let start = Instant::now();
-    let scene = pm_stage::load_scene("photon-trace", scene_path, &args.scene_args)?;
+    let scene = pm_stage::load_scene("photon-trace", scene_path, &args.scene_options)?;
     if args.analyze {
         println!("{}", serde_json::to_string_pretty(&pm_light::analyze(&scene))?);
         return Ok(None);
     }
-    let selector = LightSelector::new(&scene, &args.light_shares).with_context(|| scene_path.display().to_string())?;
+    let light_shares = args.params.light_shares();
+    let selector = LightSelector::new(&scene, &light_shares).with_context(|| scene_path.display().to_string())?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
     let full = args.params.layout == RecordLayout::Full;
     let budget = |emit: Option<u64>, target: u64| match emit {
@@ -206,8 +197,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
         let traced = pm_photon::trace_slice(&scene, &cfg, slice, &|n| progress.set(n))
             .with_context(|| scene_path.display().to_string())?;
         let secs = progress.finish();
-        let params =
-            MapParams { seed: args.seed, budget, layout: args.params.layout, light_shares: &args.light_shares };
+        let params = MapParams { seed: args.seed, budget, layout: args.params.layout, light_shares: &light_shares };
         let header = |order, layout, n_emitted, params: String| {
             Header::new(kind, order, layout, n_emitted, scene.content_hash, scene.bounds.diagonal(), params)
                 .with_origin(scene.origin.to_array())

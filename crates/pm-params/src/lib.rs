@@ -18,7 +18,8 @@ use std::ops::Bound;
 pub enum Naming<'a> {
     /// `--gather-rays`.
     Cli,
-    /// `render.gather_rays` (the section's name).
+    /// `render.gather_rays` (the section's name); the key alone for `""`, the
+    /// file's top level.
     File(&'a str),
 }
 
@@ -32,6 +33,7 @@ impl Naming<'_> {
     pub fn name_keyed(&self, field: &str, key: &str) -> String {
         match self {
             Naming::Cli => format!("--{}", field.replace('_', "-")),
+            Naming::File("") => key.to_string(),
             Naming::File(section) => format!("{section}.{key}"),
         }
     }
@@ -62,6 +64,12 @@ impl Value for f64 {
 pub trait Accepts<T>: fmt::Display {
     /// True when `v` is acceptable.
     fn accepts(&self, v: &T) -> bool;
+
+    /// Why `v` is refused, to follow "NAME = VALUE" in an error; `None` when it
+    /// is accepted.
+    fn refusal(&self, v: &T) -> Option<String> {
+        (!self.accepts(v)).then(|| format!("is out of range ({self})"))
+    }
 }
 
 /// An interval of finite values.
@@ -84,6 +92,11 @@ pub fn above<T>(lo: T) -> Range<T> {
 /// `lo <= v <= hi`.
 pub fn between<T>(lo: T, hi: T) -> Range<T> {
     Range { lo: Bound::Included(lo), hi: Bound::Included(hi) }
+}
+
+/// Any finite value.
+pub fn finite<T>() -> Range<T> {
+    Range { lo: Bound::Unbounded, hi: Bound::Unbounded }
 }
 
 /// `lo < v <= hi`.
@@ -115,6 +128,7 @@ impl<T: fmt::Display> fmt::Display for Range<T> {
             (Bound::Excluded(l), Bound::Unbounded) => write!(f, "finite and above {l}"),
             (Bound::Included(l), Bound::Included(h)) => write!(f, "in [{l}, {h}]"),
             (Bound::Excluded(l), Bound::Included(h)) => write!(f, "in ({l}, {h}]"),
+            (Bound::Unbounded, Bound::Unbounded) => write!(f, "finite"),
             _ => write!(f, "in range"),
         }
     }
@@ -136,6 +150,33 @@ impl fmt::Display for Any {
     }
 }
 
+/// A value that knows its own limits (a medium's coefficients, a sun's angle):
+/// what [`Valid`] asks.
+pub trait SelfChecked {
+    /// What is wrong with it, if anything.
+    fn problem(&self) -> Option<String>;
+}
+
+/// Accepts a [`SelfChecked`] value with nothing wrong with it.
+#[derive(Clone, Copy, Debug)]
+pub struct Valid;
+
+impl<T: SelfChecked> Accepts<T> for Valid {
+    fn accepts(&self, v: &T) -> bool {
+        v.problem().is_none()
+    }
+
+    fn refusal(&self, v: &T) -> Option<String> {
+        v.problem().map(|p| format!("is refused: {p}"))
+    }
+}
+
+impl fmt::Display for Valid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("valid")
+    }
+}
+
 /// Declare a parameter struct once. Each field is
 /// `/// doc with unit` `name: Type = default => check;` where `check` is an
 /// [`Accepts`] (for example `at_least(1)`, `between(0.0, 1.0)`, `Any`). Generates
@@ -147,34 +188,69 @@ impl fmt::Display for Any {
 /// `name as "key": Type = ...` gives the field another key in its file section
 /// than its option's name: a method's own section can say `alpha` where the
 /// command line, shared by every method, says `--sppm-alpha`.
+///
+/// A field without `= default` is an `Option<T>` (an option given at most once,
+/// absent by default) or a `Vec<T>` (an option given any number of times, each
+/// value one `T`); `check` then applies to each value, and `to_args` repeats the
+/// option per value. `#[serde(...)]` attributes after the doc comment pass through
+/// to the field: a list whose file form is a table (`[media.NAME]`) says how with
+/// `#[serde(with = "...")]`; then `#[arg(...)]` ones, such as `value_name`.
 #[macro_export]
 macro_rules! params {
     (@key $field:ident) => { stringify!($field) };
     (@key $field:ident $key:literal) => { $key };
+    (@default) => { Default::default() };
+    (@default $default:expr) => { $default };
+    // The values a field holds: itself, or each of an Option's or a Vec's.
+    (@values $value:expr) => { $value.iter() };
+    (@values $value:expr, $default:expr) => { std::iter::once(&$value) };
+    // The struct, a field at a time: one with a default takes exactly one value.
+    (@struct [$($meta:tt)*] $name:ident [$($done:tt)*]) => {
+        $($meta)*
+        #[derive(Clone, Debug, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
+        #[serde(deny_unknown_fields, default)]
+        pub struct $name {
+            $($done)*
+        }
+    };
+    (@struct $meta:tt $name:ident [$($done:tt)*]
+        {$($attr:tt)*} $field:ident {$($key:literal)?} {$ty:ty} {$default:expr} $($rest:tt)*) => {
+        $crate::params!(@struct $meta $name [$($done)*
+            $($attr)*
+            #[arg(long, default_value_t = $default, action = clap::ArgAction::Set, allow_hyphen_values = true)]
+            $(#[serde(rename = $key)])?
+            pub $field: $ty,
+        ] $($rest)*);
+    };
+    (@struct $meta:tt $name:ident [$($done:tt)*]
+        {$($attr:tt)*} $field:ident {$($key:literal)?} {$ty:ty} {} $($rest:tt)*) => {
+        $crate::params!(@struct $meta $name [$($done)*
+            $($attr)*
+            #[arg(long, allow_hyphen_values = true)]
+            $(#[serde(rename = $key)])?
+            pub $field: $ty,
+        ] $($rest)*);
+    };
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
             $(
                 $(#[doc = $doc:literal])*
-                $field:ident $(as $key:literal)? : $ty:ty = $default:expr => $check:expr;
+                $(#[serde($($serde:tt)*)])*
+                $(#[arg($($clap:tt)*)])*
+                $field:ident $(as $key:literal)? : $ty:ty $(= $default:expr)? => $check:expr;
             )*
         }
     ) => {
-        $(#[$meta])*
-        #[derive(Clone, Debug, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
-        #[serde(deny_unknown_fields, default)]
-        pub struct $name {
+        $crate::params!(@struct [$(#[$meta])*] $name []
             $(
-                $(#[doc = $doc])*
-                #[arg(long, default_value_t = $default, action = clap::ArgAction::Set, allow_hyphen_values = true)]
-                $(#[serde(rename = $key)])?
-                pub $field: $ty,
+                {$(#[doc = $doc])* $(#[serde($($serde)*)])* $(#[arg($($clap)*)])*} $field {$($key)?} {$ty} {$($default)?}
             )*
-        }
+        );
 
         impl Default for $name {
             fn default() -> Self {
-                $name { $($field: $default,)* }
+                $name { $($field: $crate::params!(@default $($default)?),)* }
             }
         }
 
@@ -186,13 +262,15 @@ macro_rules! params {
             pub fn validate(&self, naming: $crate::Naming) -> Result<(), String> {
                 $(
                     let check = $check;
-                    if !$crate::Accepts::accepts(&check, &self.$field) {
-                        return Err(format!(
-                            "{} = {} is out of range ({})",
-                            naming.name_keyed(stringify!($field), $crate::params!(@key $field $($key)?)),
-                            self.$field,
-                            check
-                        ));
+                    for value in $crate::params!(@values self.$field $(, $default)?) {
+                        if let Some(why) = $crate::Accepts::refusal(&check, value) {
+                            return Err(format!(
+                                "{} = {} {}",
+                                naming.name_keyed(stringify!($field), $crate::params!(@key $field $($key)?)),
+                                value,
+                                why
+                            ));
+                        }
                     }
                 )*
                 Ok(())
@@ -202,8 +280,10 @@ macro_rules! params {
             pub fn to_args(&self) -> Vec<String> {
                 let mut v = Vec::new();
                 $(
-                    v.push(format!("--{}", stringify!($field).replace('_', "-")));
-                    v.push(self.$field.to_string());
+                    for value in $crate::params!(@values self.$field $(, $default)?) {
+                        v.push(format!("--{}", stringify!($field).replace('_', "-")));
+                        v.push(value.to_string());
+                    }
                 )*
                 v
             }
@@ -280,6 +360,68 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         p: P,
+    }
+
+    /// A value with limits of its own: even numbers.
+    #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+    pub struct Even(u32);
+
+    impl std::str::FromStr for Even {
+        type Err = String;
+        fn from_str(s: &str) -> Result<Even, String> {
+            s.parse().map(Even).map_err(|_| format!("'{s}' is not a number"))
+        }
+    }
+
+    impl fmt::Display for Even {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "{}", self.0)
+        }
+    }
+
+    impl SelfChecked for Even {
+        fn problem(&self) -> Option<String> {
+            (self.0 % 2 == 1).then(|| format!("{} is odd", self.0))
+        }
+    }
+
+    params! {
+        /// Options given at most once or any number of times.
+        pub struct Lists {
+            /// An optional radius [m].
+            radius: Option<f32> => above(0.0);
+            /// Repeatable, with its own key in the file.
+            #[serde(skip_serializing_if = "Vec::is_empty")]
+            even as "evens": Vec<Even> => Valid;
+            /// A plain one beside them.
+            k: u32 = 3 => at_least(1);
+        }
+    }
+
+    #[derive(Parser, Debug)]
+    struct ListCli {
+        #[command(flatten)]
+        l: Lists,
+    }
+
+    #[test]
+    fn optional_and_repeated_fields_agree_between_cli_file_and_args() {
+        let none = ListCli::try_parse_from(["x"]).unwrap().l;
+        assert_eq!(none, Lists::default());
+        assert_eq!(none, toml::from_str::<Lists>("").unwrap());
+        assert_eq!(none.to_args(), ["--k", "3"]);
+        let cli = ListCli::try_parse_from(["x", "--radius", "0.5", "--even", "2", "--even", "4"]).unwrap().l;
+        let file: Lists = toml::from_str("radius = 0.5\nevens = [2, 4]").unwrap();
+        assert_eq!(cli, file);
+        assert_eq!(cli.to_args(), ["--radius", "0.5", "--even", "2", "--even", "4", "--k", "3"]);
+        let back: Vec<String> = std::iter::once("x".to_string()).chain(cli.to_args()).collect();
+        assert_eq!(ListCli::try_parse_from(&back).unwrap().l, cli);
+        assert_eq!(Lists::FIELDS, ["radius", "evens", "k"]);
+        let odd = ListCli::try_parse_from(["x", "--even", "2", "--even", "3"]).unwrap().l;
+        assert_eq!(odd.validate(Naming::Cli).unwrap_err(), "--even = 3 is refused: 3 is odd");
+        let bad: Lists = toml::from_str("radius = -1.0").unwrap();
+        assert_eq!(bad.validate(Naming::File("")).unwrap_err(), "radius = -1 is out of range (finite and above 0)");
+        assert!(ListCli::try_parse_from(["x", "--radius", "1", "--radius", "2"]).is_err());
     }
 
     #[test]

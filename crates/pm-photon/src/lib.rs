@@ -60,6 +60,67 @@ pm_params::params! {
         volume_photons: u64 = 200_000 => pm_params::between(0, MAX_PHOTONS);
         /// Record layout: compact (RGBE power, 1-byte directions; 18/23 bytes) or full (f32; 40/64 bytes).
         layout: RecordLayout = RecordLayout::Compact => pm_params::Any;
+        /// Give light NAME this fraction of the photons emitted, NAME=FRACTION
+        /// (repeatable); the other lights share the rest in proportion to their
+        /// power. In pipeline.toml a table [trace.light_shares], name to fraction.
+        #[serde(with = "light_share_table", skip_serializing_if = "Vec::is_empty")]
+        #[arg(value_name = "NAME=FRACTION")]
+        light_share as "light_shares": Vec<LightShare> => pm_params::Valid;
+    }
+}
+
+/// A light's name and its share of the photons emitted, a fraction in [0, 1]:
+/// `--light-share NAME=FRACTION`, or a key of pipeline.toml's `[trace.light_shares]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightShare {
+    /// The light's name in the glTF file (or the start of it: [`LightSelector::new`]).
+    pub light: String,
+    /// Its fraction of the photons emitted.
+    pub share: f64,
+}
+
+impl std::str::FromStr for LightShare {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<LightShare, String> {
+        let (light, share) = s.rsplit_once('=').ok_or_else(|| format!("expected NAME=FRACTION, got '{s}'"))?;
+        let share = share.trim().parse().map_err(|_| format!("'{share}' is not a number"))?;
+        Ok(LightShare { light: light.to_string(), share })
+    }
+}
+
+impl std::fmt::Display for LightShare {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}={}", self.light, self.share)
+    }
+}
+
+impl pm_params::SelfChecked for LightShare {
+    fn problem(&self) -> Option<String> {
+        (!(0.0..=1.0).contains(&self.share)).then(|| "a share is a fraction in [0, 1]".to_string())
+    }
+}
+
+impl TraceParams {
+    /// The light shares as [`LightSelector::new`] takes them: (name, share).
+    pub fn light_shares(&self) -> Vec<(String, f64)> {
+        self.light_share.iter().map(|l| (l.light.clone(), l.share)).collect()
+    }
+}
+
+/// `[trace.light_shares]`: light name to share, in name order.
+mod light_share_table {
+    use super::LightShare;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+    use std::collections::BTreeMap;
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<LightShare>, D::Error> {
+        let table = BTreeMap::<String, f64>::deserialize(d)?;
+        Ok(table.into_iter().map(|(light, share)| LightShare { light, share }).collect())
+    }
+
+    pub fn serialize<S: Serializer>(v: &[LightShare], s: S) -> Result<S::Ok, S::Error> {
+        v.iter().map(|l| (l.light.as_str(), l.share)).collect::<BTreeMap<_, _>>().serialize(s)
     }
 }
 

@@ -8,7 +8,6 @@ use pm_params::Naming;
 use pm_photon::TraceParams;
 use pm_render::RenderParams;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pm_params::value_enum! {
@@ -46,42 +45,14 @@ pub struct Pipeline {
     /// Random seed of every stage.
     #[serde(default = "one")]
     pub seed: u64,
-    /// Units of the scene's point, spot and directional light intensities:
-    /// "photometric" (the glTF specification: candela and lux, at 683 lm/W) or
-    /// "radiometric" (W/sr and W/m^2); every stage that reads the scene gets it.
+    /// How every program that loads the scene reads and lights it: the top-level
+    /// keys light_units, environment, environment_strength,
+    /// environment_rotation_deg, sun_angle_deg, portals and the `[media.NAME]`
+    /// tables (moved here from the top level when the file is read).
     #[serde(default)]
-    pub light_units: pm_scene::LightUnits,
-    /// Light from infinitely far away: an equirectangular .exr or .hdr (relative
-    /// to the pipeline file; Blender's orientation) or a colour of radiance
-    /// [W sr^-1 m^-2 per channel]. Wins over one the glTF file's extras name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub environment: Option<EnvironmentCfg>,
-    /// Multiplier of the environment's radiance (default 1).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub environment_strength: Option<f32>,
-    /// Rotation of the environment about the up axis \[degrees\] (default 0).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub environment_rotation_deg: Option<f32>,
-    /// Angular diameter of directional lights' sun disc \[degrees\]: one number for
-    /// all, or a table by light name.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sun_angle_deg: Option<SunAngleCfg>,
-    /// Meshes (one quad each: windows, doors) through which the environment
-    /// lights an interior (portals: its photons and light samples go through
-    /// them).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub portals: Vec<String>,
-    /// Participating media by material name (`[media.NAME]`: inside that
-    /// material's closed meshes) or filling the scene (`[media.scene]`); each wins
-    /// over the glTF file's KHR_materials_volume(_scatter).
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub media: BTreeMap<String, MediumCfg>,
+    pub scene_options: pm_stage::SceneOptions,
     /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
     pub effects: EffectsCfg,
-    /// Light name to fraction of the photon budget; the other lights share the rest
-    /// by power.
-    #[serde(default)]
-    pub light_shares: BTreeMap<String, f64>,
     /// Stage 1.
     #[serde(default)]
     pub trace: TraceParams,
@@ -116,49 +87,6 @@ pub struct Pipeline {
     /// What quality or time_budget_s chose (not a key of the file).
     #[serde(skip)]
     pub chosen: Option<String>,
-}
-
-/// A `[media.NAME]` table: a homogeneous medium in physical units.
-#[derive(Deserialize, Serialize, Debug, Clone, PartialEq, Default)]
-#[serde(deny_unknown_fields)]
-pub struct MediumCfg {
-    /// Absorption coefficient sigma_a [m^-1 per channel].
-    #[serde(default)]
-    pub sigma_a: [f32; 3],
-    /// Scattering coefficient sigma_s [m^-1 per channel].
-    #[serde(default)]
-    pub sigma_s: [f32; 3],
-    /// Henyey-Greenstein asymmetry g in (-1, 1) (0: isotropic).
-    #[serde(default)]
-    pub g: f32,
-}
-
-impl MediumCfg {
-    /// As the stages' `--medium` option takes it.
-    fn arg(&self, name: &str) -> pm_stage::MediumArg {
-        pm_stage::MediumArg { name: name.to_string(), sigma_a: self.sigma_a, sigma_s: self.sigma_s, g: self.g }
-    }
-}
-
-/// `environment = "sky.exr"` or `environment = [r, g, b]`.
-#[derive(Deserialize, Serialize, Debug, Clone, PartialEq)]
-#[serde(untagged)]
-pub enum EnvironmentCfg {
-    /// An image file (made absolute when the pipeline file is read).
-    File(PathBuf),
-    /// One colour of radiance [W sr^-1 m^-2 per channel].
-    Colour([f32; 3]),
-}
-
-/// `sun_angle_deg = 0.53` (every directional light) or `sun_angle_deg = { Sun =
-/// 0.53 }` (by light name).
-#[derive(Deserialize, Serialize, Debug, Clone, PartialEq)]
-#[serde(untagged)]
-pub enum SunAngleCfg {
-    /// Every directional light.
-    All(f32),
-    /// By light name.
-    Named(BTreeMap<String, f32>),
 }
 
 /// `effects = "auto"` or a list of forced effects.
@@ -210,7 +138,8 @@ fn set_key<T: serde::Serialize + serde::de::DeserializeOwned>(
 
 /// Keys that moved to their method's own section: (section, old key, new
 /// section, new key).
-const MOVED: [(&str, &str, &str, &str); 5] = [
+const MOVED: [(&str, &str, &str, &str); 6] = [
+    ("", "light_shares", "trace", "light_shares"),
     ("render", "passes", "sppm", "passes"),
     ("render", "photons_per_pass", "sppm", "photons_per_pass"),
     ("render", "sppm_alpha", "sppm", "alpha"),
@@ -232,35 +161,55 @@ fn table_mut<'a, 'i>(doc: &'a mut Doc<'i>, key: &str) -> Option<&'a mut Doc<'i>>
 
 /// Move the keys of an older pipeline file to their new places: progressive
 /// photon mapping's from `[render]` to `[sppm]`, the real-time methods' from
-/// the flat `[live]` to `[live.vertex]` and `[live.ispm]`. Returns what moved as
-/// (old, new) names; a key at both places is an error naming both.
+/// the flat `[live]` to `[live.vertex]` and `[live.ispm]`, the light shares into
+/// `[trace]`. Returns what moved as (old, new) names; a key at both places is an
+/// error naming both.
 fn move_old_keys(doc: &mut Doc<'_>) -> Result<Vec<(String, String)>> {
     let live_moves = LiveParams::moved_keys().map(|(key, part)| ("live", key, part, key));
     let moves: Vec<(&str, &str, &str, &str)> = MOVED.into_iter().chain(live_moves).collect();
     let mut moved = Vec::new();
     for (from, key, to, new_key) in moves {
-        let Some((old_key, value)) = table_mut(doc, from).and_then(|t| t.remove_entry(key)) else {
-            continue;
-        };
         // `live.vertex` is a table inside `[live]`; `sppm` a section of its own.
-        let (parent, new_section) = match from {
-            "live" => (table_mut(doc, "live").expect("it held the key"), format!("live.{to}")),
-            _ => (&mut *doc, to.to_string()),
-        };
-        let (old, new) = (format!("{from}.{key}"), format!("{new_section}.{new_key}"));
-        let span = value.span();
-        let empty = || toml::Spanned::new(span.clone(), toml::de::DeValue::Table(Default::default()));
-        let target = match parent.entry(toml::Spanned::new(span.clone(), to.into())).or_insert_with(empty).get_mut() {
-            toml::de::DeValue::Table(t) => t,
-            _ => bail!("{new_section} is not a table"),
-        };
-        if target.contains_key(new_key) {
-            bail!("{old} and {new} are the same setting: give only {new}");
+        let to = if from == "live" { format!("live.{to}") } else { to.to_string() };
+        let name =
+            |section: &str, key: &str| if section.is_empty() { key.to_string() } else { format!("{section}.{key}") };
+        let (old, new) = (name(from, key), name(&to, new_key));
+        if move_key(doc, (from, key), (&to, new_key))
+            .map_err(|()| anyhow::anyhow!("{old} and {new} are the same setting: give only {new}"))?
+        {
+            moved.push((old, new));
         }
-        target.insert(toml::Spanned::new(old_key.span(), new_key.into()), value);
-        moved.push((old, new));
     }
     Ok(moved)
+}
+
+/// Move `from`'s `key` (`from` a section, or "" for the top level) to `to`'s
+/// `new_key` (`to` a dotted path of tables, made when missing), keeping the
+/// value's place in the text. False when there was no such key; `Err` when the
+/// new place already holds one (or is not a table).
+fn move_key(doc: &mut Doc<'_>, (from, key): (&str, &str), (to, new_key): (&str, &str)) -> Result<bool, ()> {
+    let source = if from.is_empty() { Some(&mut *doc) } else { table_mut(doc, from) };
+    let Some((old_key, value)) = source.and_then(|t| t.remove_entry(key)) else {
+        return Ok(false);
+    };
+    let span = value.span();
+    let mut target = doc;
+    for part in to.split('.') {
+        let empty = || toml::Spanned::new(span.clone(), toml::de::DeValue::Table(Default::default()));
+        target = match target
+            .entry(toml::Spanned::new(span.clone(), part.to_string().into()))
+            .or_insert_with(empty)
+            .get_mut()
+        {
+            toml::de::DeValue::Table(t) => t,
+            _ => return Err(()),
+        };
+    }
+    if target.contains_key(new_key) {
+        return Err(());
+    }
+    target.insert(toml::Spanned::new(old_key.span(), new_key.to_string().into()), value);
+    Ok(true)
 }
 
 impl Pipeline {
@@ -285,40 +234,16 @@ impl Pipeline {
             println!("{file}: {}", choice.summary);
             p.chosen = Some(choice.summary);
         }
-        if let Some(EnvironmentCfg::File(f)) = &mut p.environment {
+        if let Some(pm_stage::EnvironmentArg::File(f)) = &mut p.scene_options.environment {
             let joined = path.parent().unwrap_or(Path::new(".")).join(&*f);
             *f = std::path::absolute(&joined).unwrap_or(joined);
         }
-        let check = |key: &str, v: Option<f32>, ok: bool, range: &str| match v {
-            Some(v) if !ok => bail!("{file}: {key} = {v} is out of range ({range})"),
-            _ => Ok(()),
-        };
-        let strength = p.environment_strength;
-        check("environment_strength", strength, strength.is_none_or(|v| v.is_finite() && v >= 0.0), ">= 0")?;
-        let rotation = p.environment_rotation_deg;
-        check("environment_rotation_deg", rotation, rotation.is_none_or(f32::is_finite), "finite")?;
-        if let Some(EnvironmentCfg::Colour(c)) = &p.environment {
-            pm_scene::Environment::constant(glam::Vec3::from_array(*c)).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-        }
-        for (name, deg) in p.sun_angles() {
-            if !pm_scene::Scene::sun_angle_ok(deg) {
-                let key = name.map_or("sun_angle_deg".to_string(), |n| format!("sun_angle_deg.{n}"));
-                bail!("{file}: {key} = {deg} is out of range (0 < degrees < 180)");
-            }
-        }
         let fail = |e: String| anyhow::anyhow!("{file}: {e}");
+        p.scene_options.validate(Naming::File("")).map_err(fail)?;
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
         p.settings().check(false).map_err(fail)?;
         p.live.check(false).map_err(fail)?;
-        for (name, m) in &p.media {
-            m.arg(name).medium().map_err(|e| anyhow::anyhow!("{file}: [media.{name}]: {e}"))?;
-        }
-        for (name, share) in &p.light_shares {
-            if !(0.0..=1.0).contains(share) {
-                bail!("{file}: light_shares.{name} = {share} is out of range (in [0, 1])");
-            }
-        }
         Ok(p)
     }
 
@@ -349,6 +274,12 @@ impl Pipeline {
         let one_line = |e: toml::de::Error| anyhow::anyhow!("{}", e.to_string().trim().replace('\n', " "));
         let mut doc = toml::de::DeTable::parse(text).map_err(one_line)?;
         let moved = move_old_keys(doc.get_mut())?;
+        if doc.get_ref().contains_key("scene_options") {
+            bail!("scene_options is not a key: its keys (light_units, environment, portals, ...) go at the top level");
+        }
+        for key in pm_stage::SceneOptions::FIELDS {
+            move_key(doc.get_mut(), ("", key), ("scene_options", key)).expect("scene_options is a new table");
+        }
         let mode = match table_mut(doc.get_mut(), "render").and_then(|r| r.remove("mode")) {
             None => Method::default(),
             Some(v) => {
@@ -388,6 +319,10 @@ impl Pipeline {
     /// The settings as a pipeline file (what [`Self::load`] reads back equal).
     pub fn to_toml(&self) -> String {
         let mut table = toml::Table::try_from(self).expect("a pipeline serialises");
+        // The scene options are keys of the top level.
+        if let Some(toml::Value::Table(options)) = table.remove("scene_options") {
+            table.extend(options);
+        }
         if let Some(render) = table.get_mut("render").and_then(toml::Value::as_table_mut) {
             render.insert("mode".into(), toml::Value::String(self.mode.to_string()));
         }
@@ -399,56 +334,9 @@ impl Pipeline {
     pub fn live_args(&self, scene: &Path, out: &Path, frames: u32) -> Vec<String> {
         let mut a = vec!["--scene".to_string(), scene.display().to_string(), "--out".into(), out.display().to_string()];
         a.extend(["--frames".into(), frames.to_string(), "--seed".into(), self.seed.to_string()]);
-        a.extend(self.scene_args());
+        a.extend(self.scene_options.to_args());
         a.extend(self.live.to_args());
         a
-    }
-
-    /// The sun angles as (light name or all, degrees).
-    fn sun_angles(&self) -> Vec<(Option<String>, f32)> {
-        match &self.sun_angle_deg {
-            None => Vec::new(),
-            Some(SunAngleCfg::All(d)) => vec![(None, *d)],
-            Some(SunAngleCfg::Named(m)) => m.iter().map(|(n, d)| (Some(n.clone()), *d)).collect(),
-        }
-    }
-
-    /// How every program that loads the scene reads and lights it: the light
-    /// units, the environment and the sun angles, as options
-    /// ([`pm_stage::SceneArgs`]'s).
-    pub fn scene_args(&self) -> Vec<String> {
-        let mut a = vec!["--light-units".to_string(), self.light_units.to_string()];
-        match &self.environment {
-            Some(EnvironmentCfg::File(f)) => a.extend(["--environment".into(), f.display().to_string()]),
-            Some(EnvironmentCfg::Colour([r, g, b])) => a.extend(["--environment".into(), format!("{r},{g},{b}")]),
-            None => {}
-        }
-        if let Some(v) = self.environment_strength {
-            a.extend(["--environment-strength".into(), v.to_string()]);
-        }
-        if let Some(v) = self.environment_rotation_deg {
-            a.extend(["--environment-rotation-deg".into(), v.to_string()]);
-        }
-        for (name, deg) in self.sun_angles() {
-            let v = name.map_or(deg.to_string(), |n| format!("{n}={deg}"));
-            a.extend(["--sun-angle-deg".into(), v]);
-        }
-        for p in &self.portals {
-            a.extend(["--portal".into(), p.clone()]);
-        }
-        for (name, m) in &self.media {
-            a.extend(["--medium".into(), m.arg(name).to_string()]);
-        }
-        a
-    }
-
-    /// The environment image file, if the settings name one (an input of every
-    /// step that loads the scene).
-    pub fn environment_file(&self) -> Option<&Path> {
-        match &self.environment {
-            Some(EnvironmentCfg::File(f)) => Some(f),
-            _ => None,
-        }
     }
 }
 
@@ -556,5 +444,45 @@ mod tests {
         let q = Pipeline::load(&copy).unwrap();
         assert_eq!(q.to_toml(), p.to_toml());
         assert_eq!((q.settings(), q.live, q.trace, q.irradiance), (p.settings(), p.live, p.trace, p.irradiance));
+    }
+
+    /// The scene options are top-level keys of the file, typed by the one
+    /// definition the stages' options use ([`pm_stage::SceneOptions`]): what the
+    /// file says is what the runner passes, and it writes back as top-level keys.
+    /// An older file's top-level `[light_shares]` is read as `[trace.light_shares]`.
+    #[test]
+    fn scene_options_are_top_level_keys_passed_on_as_the_stages_options() {
+        let text = "scene = \"s.gltf\"\neffects = \"auto\"\nlight_units = \"radiometric\"\n\
+            environment = [0.1, 0.2, 0.3]\nenvironment_strength = 2\nportals = [\"window\"]\n\
+            sun_angle_deg = { Sun = 0.5 }\n[media.fog]\nsigma_s = [0.3, 0.3, 0.3]\ng = 0.2\n\
+            [light_shares]\nLamp = 0.25\n";
+        let (p, moved) = Pipeline::parse(text).unwrap();
+        assert_eq!(moved, [("light_shares".to_string(), "trace.light_shares".to_string())]);
+        let o = &p.scene_options;
+        assert_eq!(o.light_units, pm_scene::LightUnits::Radiometric);
+        assert_eq!(o.environment, Some(pm_stage::EnvironmentArg::Colour([0.1, 0.2, 0.3])));
+        assert_eq!((o.environment_strength, o.environment_rotation_deg), (2.0, 0.0));
+        assert_eq!(o.sun_angle_deg, [pm_stage::SunAngle { light: Some("Sun".into()), deg: 0.5 }]);
+        let fog = pm_stage::MediumArg { name: "fog".into(), sigma_a: [0.0; 3], sigma_s: [0.3; 3], g: 0.2 };
+        assert_eq!((o.portal.as_slice(), o.medium.as_slice()), (["window".to_string()].as_slice(), [fog].as_slice()));
+        assert_eq!(p.trace.light_shares(), [("Lamp".to_string(), 0.25)]);
+        let args = o.to_args().join(" ");
+        assert_eq!(
+            args,
+            "--light-units radiometric --environment 0.1,0.2,0.3 --environment-strength 2 \
+             --environment-rotation-deg 0 --sun-angle-deg Sun=0.5 --portal window \
+             --medium fog:sigma_a=0,0,0:sigma_s=0.3,0.3,0.3:g=0.2"
+        );
+        assert!(p.trace.to_args().join(" ").ends_with("--light-share Lamp=0.25"));
+        let written = p.to_toml();
+        assert!(!written.contains("scene_options") && written.contains("\nportals = "), "{written}");
+        let (q, none) = Pipeline::parse(&written).unwrap();
+        assert!(none.is_empty());
+        assert_eq!((&q.scene_options, &q.trace), (&p.scene_options, &p.trace));
+        // The table is not a key of its own; a wrong value names its line.
+        let e = Pipeline::parse("scene = \"s.gltf\"\neffects = \"auto\"\n[scene_options]\nportals = []").unwrap_err();
+        assert!(e.to_string().contains("scene_options is not a key"), "{e}");
+        let e = Pipeline::parse("scene = \"s.gltf\"\neffects = \"auto\"\nenvironment_strength = \"x\"").unwrap_err();
+        assert!(e.to_string().contains("line 3"), "{e}");
     }
 }

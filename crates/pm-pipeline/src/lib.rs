@@ -16,4 +16,4 @@ pub mod jobs;
 pub mod quality;
 pub mod steps;
 
-pub use config::{AutoWord, EffectName, EffectsCfg, EnvironmentCfg, MediumCfg, Pipeline, Quality, Setup, SunAngleCfg};
+pub use config::{AutoWord, EffectName, EffectsCfg, Pipeline, Quality, Setup};

@@ -98,7 +98,7 @@ pub fn steps(
     volume: bool,
 ) -> Result<Vec<Step>> {
     let mut scene_files = scene_inputs(scene)?;
-    scene_files.extend(cfg.environment_file().map(Path::to_owned));
+    scene_files.extend(cfg.scene_options.environment_file().map(Path::to_owned));
     let run = Run { cfg, scene, out, scene_files };
     if !cfg.mode.needs().photon_maps {
         return Ok(vec![run.render_alone()]);
@@ -128,7 +128,7 @@ impl Run<'_> {
     /// --scene and the scene and light options every step that loads the scene gets.
     fn scene_args(&self) -> Vec<String> {
         let mut a = vec!["--scene".to_string(), self.scene.display().to_string()];
-        a.extend(self.cfg.scene_args());
+        a.extend(self.cfg.scene_options.to_args());
         a
     }
 
@@ -171,9 +171,6 @@ impl Run<'_> {
         let mut args = self.scene_args();
         args.extend(trace.to_args());
         args.extend(self.seed());
-        for (name, share) in &cfg.light_shares {
-            args.extend(["--light-share".into(), format!("{name}={share}")]);
-        }
         Step {
             name: "photon-trace".into(),
             kind: Kind::Trace,

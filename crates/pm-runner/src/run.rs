@@ -115,7 +115,7 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let analysis: pm_light::Effects = {
         let o = std::process::Command::new(bins.path("photon-trace"))
             .args(["--scene".to_string(), scene.display().to_string(), "--analyze".into()])
-            .args(cfg.scene_args())
+            .args(cfg.scene_options.to_args())
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {

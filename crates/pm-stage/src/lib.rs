@@ -8,6 +8,9 @@
 //! what a stage computes.
 
 pub mod report;
+mod scene_options;
+
+pub use scene_options::{EnvironmentArg, MediumArg, SceneOptions, SunAngle};
 
 use anyhow::{Context, Result};
 use std::io::IsTerminal;
@@ -77,163 +80,22 @@ pub fn thread_count() -> usize {
     rayon::current_num_threads()
 }
 
-/// How a stage reads its scene file and lights it: options of every stage that
-/// loads one, pipeline.toml's top-level keys of the same names for the runner.
-#[derive(clap::Args, Debug, Clone)]
-pub struct SceneArgs {
-    /// Units of the glTF file's point, spot and directional light intensities:
-    /// photometric (the glTF specification: candela and lux, divided by 683 lm/W into
-    /// W/sr and W/m^2; what Blender's exporter writes by default) or radiometric
-    /// (already W/sr and W/m^2; Blender's "Unitless" export). Emissive materials are
-    /// radiance either way.
-    #[arg(long, value_enum, default_value_t = pm_scene::LightUnits::Photometric)]
-    pub light_units: pm_scene::LightUnits,
-    /// Light from infinitely far away: an equirectangular image (.exr or Radiance
-    /// .hdr, twice as wide as high, oriented as Blender's Environment Texture: the
-    /// image's centre faces +X, its top row the zenith) of radiance
-    /// [W sr^-1 m^-2 per channel], or one colour R,G,B of radiance. Replaces an
-    /// environment the glTF file's scene extras name.
-    #[arg(long, value_name = "FILE|R,G,B")]
-    pub environment: Option<String>,
-    /// Multiplier of the environment's radiance.
-    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
-    pub environment_strength: f32,
-    /// Rotation of the environment about the up (+Y) axis [degrees] (Blender's
-    /// mapping rotation about Z): 90 turns the image's centre from +X to -Z.
-    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
-    pub environment_rotation_deg: f32,
-    /// Give directional lights a size: the angular diameter of the sun's disc
-    /// [degrees, 0 < DEG < 180] (Blender's sun "angle", lost in glTF export), with
-    /// the same irradiance at normal incidence: soft shadows. NAME=DEG for one
-    /// light, DEG for all; repeatable.
-    #[arg(long, value_name = "[NAME=]DEG")]
-    pub sun_angle_deg: Vec<String>,
-    /// A mesh (one quad: a window, a door) through which the environment lights an
-    /// interior: it becomes an opening, and the environment's photons and light
-    /// samples go through it instead of the whole sky (Bitterli et al. 2015).
-    /// Repeatable; needs an environment.
-    #[arg(long, value_name = "MESH")]
-    pub portal: Vec<String>,
-    /// A homogeneous participating medium inside the closed meshes of material
-    /// NAME, or filling the scene for NAME "scene" (fog, haze, water: the camera
-    /// and lights are in it unless inside a mesh with a medium of its own; it fills
-    /// the scene's bounding sphere). Coefficients per metre per channel, g the
-    /// Henyey-Greenstein asymmetry in (-1, 1); keys left out are zero. Wins over the
-    /// glTF file's KHR_materials_volume(_scatter). Repeatable.
-    #[arg(long, value_name = "NAME:sigma_a=R,G,B:sigma_s=R,G,B:g=G")]
-    pub medium: Vec<String>,
-}
-
-/// One `--medium` value: a material's name (or "scene") and its medium's
-/// coefficients, the form pipeline.toml's `[media.NAME]` is passed on in.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MediumArg {
-    /// The material, or "scene".
-    pub name: String,
-    /// Absorption coefficient sigma_a [m^-1 per channel].
-    pub sigma_a: [f32; 3],
-    /// Scattering coefficient sigma_s [m^-1 per channel].
-    pub sigma_s: [f32; 3],
-    /// Henyey-Greenstein asymmetry.
-    pub g: f32,
-}
-
-impl MediumArg {
-    /// Parse NAME:key=value:... (keys sigma_a, sigma_s, g; the name is everything
-    /// before the first of them, so it may hold a colon).
-    pub fn parse(s: &str) -> Result<MediumArg> {
-        let bad = |why: &str| anyhow::anyhow!("--medium {s}: {why} (expected NAME:sigma_a=R,G,B:sigma_s=R,G,B:g=G)");
-        let parts: Vec<&str> = s.split(':').collect();
-        let is_key = |p: &str| ["sigma_a=", "sigma_s=", "g="].iter().any(|k| p.trim_start().starts_with(k));
-        let first_key = parts.iter().position(|p| is_key(p)).unwrap_or(parts.len());
-        let name = parts[..first_key].join(":");
-        if name.is_empty() {
-            return Err(bad("no material name"));
-        }
-        let mut m = MediumArg { name, sigma_a: [0.0; 3], sigma_s: [0.0; 3], g: 0.0 };
-        for p in &parts[first_key..] {
-            let (k, v) = p.split_once('=').ok_or_else(|| bad(&format!("'{p}' is not key=value")))?;
-            let rgb = |v: &str| -> Result<[f32; 3]> {
-                let c = parse_colour(v).ok_or_else(|| bad(&format!("{k}={v} is not three numbers")))?;
-                Ok(c.to_array())
-            };
-            match k.trim() {
-                "sigma_a" => m.sigma_a = rgb(v)?,
-                "sigma_s" => m.sigma_s = rgb(v)?,
-                "g" => m.g = v.trim().parse().map_err(|_| bad(&format!("g={v} is not a number")))?,
-                other => return Err(bad(&format!("unknown key '{other}'"))),
-            }
-        }
-        Ok(m)
-    }
-
-    /// The medium it gives (refused, naming it, when a coefficient is negative or
-    /// not finite or g is outside (-1, 1)).
-    pub fn medium(&self) -> Result<pm_scene::Medium, String> {
-        let rgb = glam::Vec3::from_array;
-        pm_scene::Medium::new(self.name.clone(), rgb(self.sigma_a), rgb(self.sigma_s), self.g)
-    }
-}
-
-/// The `--medium` value [`MediumArg::parse`] reads back equal.
-impl std::fmt::Display for MediumArg {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let [a, b, c] = self.sigma_a;
-        let [d, e, g3] = self.sigma_s;
-        write!(f, "{}:sigma_a={a},{b},{c}:sigma_s={d},{e},{g3}:g={}", self.name, self.g)
-    }
-}
-
-/// The options' defaults: the file as it is.
-impl Default for SceneArgs {
-    fn default() -> Self {
-        SceneArgs {
-            light_units: pm_scene::LightUnits::Photometric,
-            environment: None,
-            environment_strength: 1.0,
-            environment_rotation_deg: 0.0,
-            sun_angle_deg: Vec::new(),
-            portal: Vec::new(),
-            medium: Vec::new(),
-        }
-    }
-}
-
-/// One `--sun-angle-deg` value: the light's name (all directional lights when
-/// none) and the angular diameter [degrees].
-pub fn parse_sun_angle(s: &str) -> Result<(Option<String>, f32)> {
-    let (name, deg) = match s.rsplit_once('=') {
-        Some((n, d)) => (Some(n.trim().to_string()), d),
-        None => (None, s),
-    };
-    let deg: f32 = deg.trim().parse().map_err(|_| anyhow::anyhow!("--sun-angle-deg {s}: expected [NAME=]DEG"))?;
-    if !pm_scene::Scene::sun_angle_ok(deg) {
-        anyhow::bail!("--sun-angle-deg {s}: the angle must be in (0, 180) degrees");
-    }
-    Ok((name, deg))
-}
-
-/// An `--environment` value that is a colour: three comma-separated numbers.
-fn parse_colour(s: &str) -> Option<glam::Vec3> {
-    let v: Vec<f32> = s.split(',').map(|x| x.trim().parse().ok()).collect::<Option<_>>()?;
-    (v.len() == 3).then(|| glam::Vec3::new(v[0], v[1], v[2]))
-}
-
 /// Light `scene` (read from `path`) as `how` says: the environment (the command
 /// line's, else the one the glTF file's scene extras name) and sun sizes. Every
 /// error names the file at fault.
-pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneArgs) -> Result<()> {
-    let from_file = scene.environment_spec.clone();
+pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneOptions) -> Result<()> {
+    how.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
+    let in_file = |e: String| anyhow::anyhow!("{}: {e}", path.display());
     let spec = match &how.environment {
         Some(e) => Some(pm_scene::EnvironmentSpec {
-            source: match parse_colour(e) {
-                Some(c) => pm_scene::EnvironmentSource::Colour(c),
-                None => pm_scene::EnvironmentSource::File(e.into()),
+            source: match e {
+                EnvironmentArg::Colour(c) => pm_scene::EnvironmentSource::Colour(glam::Vec3::from_array(*c)),
+                EnvironmentArg::File(f) => pm_scene::EnvironmentSource::File(f.clone()),
             },
             strength: how.environment_strength,
             rotation_deg: how.environment_rotation_deg,
         }),
-        None => from_file,
+        None => scene.environment_spec.clone(),
     };
     if let Some(spec) = spec {
         let env = match &spec.source {
@@ -243,26 +105,27 @@ pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneArgs) ->
         };
         scene.set_environment(env);
     }
-    scene.set_portals(&how.portal).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    for s in &how.sun_angle_deg {
-        let (name, deg) = parse_sun_angle(s)?;
-        if scene.set_sun_angle(name.as_deref(), deg) == 0 {
-            let what = name.map_or("no directional light".to_string(), |n| format!("no directional light '{n}'"));
-            anyhow::bail!("{}: --sun-angle-deg {s}: the scene has {what}", path.display());
+    scene.set_portals(&how.portal).map_err(in_file)?;
+    for sun in &how.sun_angle_deg {
+        if scene.set_sun_angle(sun.light.as_deref(), sun.deg) == 0 {
+            let what = sun
+                .light
+                .as_ref()
+                .map_or("no directional light".to_string(), |n| format!("no directional light '{n}'"));
+            anyhow::bail!("{}: --sun-angle-deg {sun}: the scene has {what}", path.display());
         }
     }
-    for s in &how.medium {
-        let m = MediumArg::parse(s)?;
-        let medium = m.medium().map_err(|e| anyhow::anyhow!("--medium {s}: {e}"))?;
-        scene.set_medium(&m.name, medium).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    for m in &how.medium {
+        let medium = m.medium().map_err(|e| anyhow::anyhow!("--medium {m}: {e}"))?;
+        scene.set_medium(&m.name, medium).map_err(in_file)?;
     }
     // Lights and media as they now are: where each light and the camera sit.
-    scene.finish_media().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    scene.finish_media().map_err(in_file)?;
     Ok(())
 }
 
 /// Load a scene, printing each of its warnings once on stderr.
-pub fn load_scene(stage: &str, path: &Path, how: &SceneArgs) -> Result<pm_scene::Scene> {
+pub fn load_scene(stage: &str, path: &Path, how: &SceneOptions) -> Result<pm_scene::Scene> {
     let mut scene = pm_scene::load_with(path, how.light_units)?;
     light_scene(&mut scene, path, how)?;
     for w in &scene.warnings {

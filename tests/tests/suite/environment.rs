@@ -414,7 +414,9 @@ fn bad_environment_images_stop_the_run_before_anything_is_written() {
         ("negative.exr", "non-negative"),
     ] {
         let p = pm_tests::small_pipeline(d, "cornell_boxes.gltf", "\"auto\"", 1, file);
-        pm_tests::edit_pipeline(&p, |c| c.environment = Some(pm_pipeline::EnvironmentCfg::File(d.join(file))));
+        pm_tests::edit_pipeline(&p, |c| {
+            c.scene_options.environment = Some(pm_stage::EnvironmentArg::File(d.join(file)))
+        });
         let out = d.join(format!("out-{file}"));
         let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
         let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");

@@ -390,7 +390,7 @@ fn the_volumetric_caustic_agrees_with_the_path_tracer() {
 /// medium, so stage 1 writes volume.pmap, photon-sort sorts it and photon-render
 /// reads it; the image has a volume layer holding light (and the box without the
 /// fog none, and no volume step). A bad `[media.NAME]` is a one-line error naming
-/// the file and the table.
+/// the file, the key and the medium.
 #[test]
 fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     use pm_runner::run::{RunArgs, run_with};
@@ -398,7 +398,8 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     let dir = tempfile::tempdir().unwrap();
     let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 2, "fog");
     pm_tests::edit_pipeline(&p, |c| {
-        c.media.insert("scene".into(), pm_pipeline::MediumCfg { sigma_a: [0.03; 3], sigma_s: [0.3; 3], g: 0.3 });
+        let fog = pm_stage::MediumArg { name: "scene".into(), sigma_a: [0.03; 3], sigma_s: [0.3; 3], g: 0.3 };
+        c.scene_options.medium.push(fog);
         c.trace.volume_photons = 20_000;
     });
     let out = dir.path().join("out");
@@ -424,14 +425,14 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     assert!(volume.1.iter().map(|p| p.element_sum()).sum::<f32>() > 0.0);
     // Without the fog: no volume map, no volume layer.
     pm_tests::edit_pipeline(&p, |c| {
-        c.media.clear();
+        c.scene_options.medium.clear();
     });
     let ran: Vec<String> =
         run_with(&args, &root, &bins).unwrap().into_iter().filter(|o| o.ran).map(|o| o.step).collect();
     assert!(!ran.contains(&"photon-sort volume".to_string()) && !out.join("volume.kd.pmap").exists(), "{ran:?}");
     let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
     assert!(!img.layers.iter().any(|(n, _)| n == "volume"));
-    // Bad media, refused in one line naming the file and the table.
+    // Bad media, refused in one line naming the file, the key and the medium.
     let base = std::fs::read_to_string(&p).unwrap();
     for (table, what) in [
         ("sigma_s = [-0.1, 0.3, 0.3]", "sigma_s"),
@@ -440,7 +441,7 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     ] {
         std::fs::write(&p, format!("{base}\n[media.scene]\n{table}\n")).unwrap();
         let e = pm_pipeline::Pipeline::load(&p).expect_err("refused").to_string();
-        assert!(e.contains("fog.toml") && e.contains("[media.scene]") && e.contains(what) && !e.contains('\n'), "{e}");
+        assert!(e.contains("fog.toml") && e.contains("media = scene:") && e.contains(what) && !e.contains('\n'), "{e}");
     }
 }
 

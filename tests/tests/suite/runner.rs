@@ -107,8 +107,8 @@ fn pipeline_toml_errors_name_the_key() {
     for (edit, what) in [
         (top("environment_strength", "-1.0"), "environment_strength = -1 is out of range"),
         (top("environment", "[1.0, -1.0, 0.0]"), "radiance must be finite and non-negative"),
-        (top("sun_angle_deg", "200.0"), "sun_angle_deg = 200 is out of range"),
-        (top("sun_angle_deg", "{ Sun = 0.0 }"), "sun_angle_deg.Sun = 0 is out of range"),
+        (top("sun_angle_deg", "200.0"), "sun_angle_deg = 200 is refused: the angle must be in (0, 180) degrees"),
+        (top("sun_angle_deg", "{ Sun = 0.0 }"), "sun_angle_deg = Sun=0 is refused"),
         (with("render", "bogus_key", toml::Value::Integer(1)), "bogus_key"),
         (with("render", "k", toml::Value::String("fifty".into())), "k = \"fifty\""),
         (with("trace", "global_photons", toml::Value::Integer(10_000_000_000)), "trace.global_photons"),

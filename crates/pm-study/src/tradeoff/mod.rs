@@ -219,15 +219,16 @@ fn prepare(args: &Args, root: &Path, base: &pm_pipeline::Pipeline) -> Result<(St
     let out = args.out.clone().unwrap_or_else(|| root.join("out/tradeoff").join(&name));
     std::fs::create_dir_all(&out)?;
     let bins = Bins::build(root)?;
+    // pipeline.toml's scene options (its environment, media, ...) and the portals given.
+    let mut options = base.scene_options.clone();
+    options.portal.extend(args.portal.iter().cloned());
     let mut scene_args = vec!["--scene".to_string(), scene.display().to_string()];
-    for p in &args.portal {
-        scene_args.extend(["--portal".to_string(), p.clone()]);
-    }
+    scene_args.extend(options.to_args());
     let loaded = pm_scene::load(&scene).map_err(|e| anyhow::anyhow!("{e}"));
     let diagonal = loaded.as_ref().map(|s| s.bounds.diagonal()).unwrap_or(1.0);
     // Media of the file, or of pipeline.toml's [media.*] tables.
     let media = loaded.as_ref().is_ok_and(|s| s.has_scattering_media())
-        || base.media.values().any(|m| m.sigma_s.iter().any(|&v| v > 0.0));
+        || options.medium.iter().any(|m| m.sigma_s.iter().any(|&v| v > 0.0));
     let mitsuba = match &args.peer {
         Some(python) => {
             let m = crate::peer::Mitsuba::start(python, &args.peer_variant, &out.join("mitsuba"))?;
