@@ -242,7 +242,14 @@ impl Ispm {
         let indirect = SplatLight { photons: &photons, index: &index };
         let shading = LiveShading::new(scene, indirect, direct, f, maps.as_ref()).map_err(|e| e.to_string())?;
         let visibility = Visibility::Fragments(scene, &self.fragments);
-        pm_render::render_into(camera, &film, film.rect(), &shading, false, visibility, buffers, &|_, _| {})?;
+        pm_render::render_into(
+            pm_render::Shot { camera, film: &film, rect: film.rect() },
+            &shading,
+            false,
+            visibility,
+            buffers,
+            &|_, _| {},
+        )?;
         let t_direct = t.elapsed().as_secs_f64();
         let t = Instant::now();
         gbuffer_into(scene, &self.fragments, camera, &mut self.gbuffer);

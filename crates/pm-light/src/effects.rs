@@ -67,132 +67,167 @@ fn index_matched(m: &pm_scene::Material) -> bool {
     matches!(m.bsdf, Bsdf::Glass { eta: 1.0, .. })
 }
 
-/// Analyse a scene (see [`Effects`]).
+/// Analyse a scene (see [`Effects`]): one probe per effect.
 pub fn analyze(scene: &Scene) -> Effects {
-    let object_of = |tri: u32| scene.objects.iter().position(|o| o.tris.contains(&tri));
-    let is_specular = |tri: u32| scene.materials[scene.triangles[tri as usize].material as usize].bsdf.is_specular();
-    let lit: Vec<usize> = (0..scene.lights.len()).filter(|&i| scene.lights[i].power.max_element() > 0.0).collect();
     let any_diffuse = scene.triangles.iter().any(|t| !scene.materials[t.material as usize].bsdf.is_specular());
+    let caustics = caustics(scene, any_diffuse);
+    let indirect = indirect(scene, any_diffuse);
+    let specular_seen = specular_seen(scene);
+    let glossy = glossy(scene);
+    let direct = direct_lights(scene);
+    let volume = volume_reached(scene);
+    // Light scattered in a medium lights the surfaces too: indirect light that
+    // final gathers (reading the volume map along their rays) bring.
+    let indirect = if !indirect.yes && volume.yes && any_diffuse {
+        Decision::yes(format!("light scattered in the medium ({}) reaches the surfaces", volume.reason))
+    } else {
+        indirect
+    };
+    Effects { caustics, indirect, specular_seen, glossy, volume, direct }
+}
 
-    // Caustics: aim probe rays from every light at every specular object.
+/// The object triangle `tri` belongs to.
+fn object_of(scene: &Scene, tri: u32) -> Option<usize> {
+    scene.objects.iter().position(|o| o.tris.contains(&tri))
+}
+
+/// The name of the object triangle `tri` belongs to ("?" for none).
+fn object_name(scene: &Scene, tri: u32) -> String {
+    object_of(scene, tri).map_or_else(|| "?".to_string(), |o| scene.objects[o].name.clone())
+}
+
+/// True when triangle `tri`'s material is a mirror or glass.
+fn is_specular(scene: &Scene, tri: u32) -> bool {
+    scene.materials[scene.triangles[tri as usize].material as usize].bsdf.is_specular()
+}
+
+/// Caustics: probe rays aimed from every light that emits at every mirror or
+/// glass object (not an index-matched boundary); yes when one hits it first.
+fn caustics(scene: &Scene, any_diffuse: bool) -> Decision {
+    let lit: Vec<usize> = (0..scene.lights.len()).filter(|&i| scene.lights[i].power.max_element() > 0.0).collect();
     let specular_objects: Vec<usize> = (0..scene.objects.len())
         .filter(|&o| {
             let m = &scene.materials[scene.objects[o].material as usize];
             m.bsdf.is_specular() && !index_matched(m)
         })
         .collect();
-    let caustics = if specular_objects.is_empty() {
-        Decision::no("no mirror or glass surface".into())
-    } else if !any_diffuse {
-        Decision::no("no non-specular surface for focused light to land on".into())
-    } else {
-        let mut reached: Vec<(usize, usize)> = Vec::new();
-        for &o in &specular_objects {
-            let target: Target = scene.objects[o].bounding_sphere(scene);
-            for &l in &lit {
-                let hit = (0..PROBES / 4).any(|i| {
-                    let mut s = Sampler::new(0x6361_7573 + o as u64 * 131 + l as u64, i);
-                    let Some(ray) = scene.lights[l].sample_emission_toward(scene, &mut s, &[target]) else {
-                        return false;
-                    };
-                    first_hit(scene, ray.origin, ray.dir).is_some_and(|h| object_of(h.tri) == Some(o))
-                });
-                if hit {
-                    reached.push((o, l));
-                }
-            }
-        }
-        if reached.is_empty() {
-            let names: Vec<String> = specular_objects.iter().map(|&o| format!("'{}'", scene.objects[o].name)).collect();
-            Decision::no(format!("{} not reachable from any light", names.join(", ")))
-        } else {
-            let mut objs: Vec<String> = reached
-                .iter()
-                .map(|&(o, _)| {
-                    let ob = &scene.objects[o];
-                    format!("{} '{}'", kind_name(&scene.materials[ob.material as usize].bsdf), ob.name)
-                })
-                .collect();
-            objs.dedup();
-            let mut lights: Vec<String> = reached.iter().map(|&(_, l)| format!("'{}'", scene.lights[l].name)).collect();
-            lights.sort();
-            lights.dedup();
-            Decision::yes(format!("{} reachable from {}", objs.join(", "), lights.join(", ")))
-        }
-    };
-
-    // Indirect: follow probe photons to their first non-specular hit, bounce once
-    // diffusely, and see whether that reaches another non-specular surface.
-    // Probe photons leave the lights as the tracer's do: chosen by power.
-    let selector = crate::LightSelector::new(scene, &[]).ok();
-    let mut pair: Option<(u32, u32)> = None;
-    if let Some(selector) = selector.filter(|_| any_diffuse) {
-        'probe: for i in 0..PROBES {
-            let mut s = Sampler::new(0x696e_6469, i);
-            let (l, _) = selector.pick(s.next_1d());
-            let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
-            let (mut o, mut d) = (ray.origin, ray.dir);
-            for _ in 0..8 {
-                let Some(h) = first_hit(scene, o, d) else { continue 'probe };
-                let bsdf = scene.bsdf(&h);
-                if bsdf.is_specular() {
-                    let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { continue 'probe };
-                    o = scene.offset_origin(h.p, h.ng, bs.wi);
-                    d = bs.wi;
-                    continue;
-                }
-                let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
-                let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
-                let o2 = scene.offset_origin(h.p, h.ng, d2);
-                if let Some(h2) = first_hit(scene, o2, d2)
-                    && !is_specular(h2.tri)
-                {
-                    pair = Some((h.tri, h2.tri));
-                    break 'probe;
-                }
-                continue 'probe;
+    if specular_objects.is_empty() {
+        return Decision::no("no mirror or glass surface".into());
+    }
+    if !any_diffuse {
+        return Decision::no("no non-specular surface for focused light to land on".into());
+    }
+    let mut reached: Vec<(usize, usize)> = Vec::new();
+    for &o in &specular_objects {
+        let target: Target = scene.objects[o].bounding_sphere(scene);
+        for &l in &lit {
+            let hit = (0..PROBES / 4).any(|i| {
+                let mut s = Sampler::new(0x6361_7573 + o as u64 * 131 + l as u64, i);
+                let Some(ray) = scene.lights[l].sample_emission_toward(scene, &mut s, &[target]) else {
+                    return false;
+                };
+                first_hit(scene, ray.origin, ray.dir).is_some_and(|h| object_of(scene, h.tri) == Some(o))
+            });
+            if hit {
+                reached.push((o, l));
             }
         }
     }
-    let name = |tri: u32| object_of(tri).map_or_else(|| "?".to_string(), |o| scene.objects[o].name.clone());
-    let indirect = match pair {
-        Some((a, b)) => Decision::yes(format!("light reflected by '{}' reaches '{}'", name(a), name(b))),
-        None if !any_diffuse => Decision::no("no non-specular surface".into()),
+    if reached.is_empty() {
+        let names: Vec<String> = specular_objects.iter().map(|&o| format!("'{}'", scene.objects[o].name)).collect();
+        return Decision::no(format!("{} not reachable from any light", names.join(", ")));
+    }
+    let mut objs: Vec<String> = reached
+        .iter()
+        .map(|&(o, _)| {
+            let ob = &scene.objects[o];
+            format!("{} '{}'", kind_name(&scene.materials[ob.material as usize].bsdf), ob.name)
+        })
+        .collect();
+    objs.dedup();
+    let mut lights: Vec<String> = reached.iter().map(|&(_, l)| format!("'{}'", scene.lights[l].name)).collect();
+    lights.sort();
+    lights.dedup();
+    Decision::yes(format!("{} reachable from {}", objs.join(", "), lights.join(", ")))
+}
+
+/// Indirect: probe photons leave the lights as the tracer's do (chosen by
+/// power), follow specular bounces to their first non-specular hit, bounce once
+/// diffusely, and yes when that reaches another non-specular surface.
+fn indirect(scene: &Scene, any_diffuse: bool) -> Decision {
+    if !any_diffuse {
+        return Decision::no("no non-specular surface".into());
+    }
+    match crate::LightSelector::new(scene, &[]).ok().and_then(|selector| diffuse_pair(scene, &selector)) {
+        Some((a, b)) => {
+            Decision::yes(format!("light reflected by '{}' reaches '{}'", object_name(scene, a), object_name(scene, b)))
+        }
         None => Decision::no(format!(
             "no probe of {PROBES} found diffusely reflected light reaching another non-specular surface"
         )),
-    };
+    }
+}
 
-    // Specular seen by the camera: a coarse grid of eye rays.
-    let specular_seen = match &scene.camera {
-        None => Decision::no("no camera".into()),
-        Some(cam) => {
-            let mut seen: Vec<String> = Vec::new();
-            for j in 0..48 {
-                for i in 0..48 {
-                    let aspect = cam.aspect.unwrap_or(1.0);
-                    let d = cam.ray_direction((i as f32 + 0.5) / 48.0, (j as f32 + 0.5) / 48.0, aspect);
-                    if let Some(h) = first_hit(scene, cam.position, d)
-                        && is_specular(h.tri)
-                    {
-                        let n = name(h.tri);
-                        if !seen.contains(&n) {
-                            seen.push(n);
-                        }
-                    }
+/// The first probe's (diffuse surface lit, non-specular surface its reflection
+/// reaches) as triangles, for [`indirect`].
+fn diffuse_pair(scene: &Scene, selector: &crate::LightSelector) -> Option<(u32, u32)> {
+    'probe: for i in 0..PROBES {
+        let mut s = Sampler::new(0x696e_6469, i);
+        let (l, _) = selector.pick(s.next_1d());
+        let Some(ray) = scene.lights[l].sample_emission(scene, &mut s) else { continue };
+        let (mut o, mut d) = (ray.origin, ray.dir);
+        for _ in 0..8 {
+            let Some(h) = first_hit(scene, o, d) else { continue 'probe };
+            let bsdf = scene.bsdf(&h);
+            if bsdf.is_specular() {
+                let Some(bs) = bsdf.sample(-d, h.ns, s.next_2d(), s.next_1d()) else { continue 'probe };
+                o = scene.offset_origin(h.p, h.ng, bs.wi);
+                d = bs.wi;
+                continue;
+            }
+            let n = if h.ng.dot(-d) > 0.0 { h.ng } else { -h.ng };
+            let d2 = to_world(cosine_hemisphere(s.next_2d()), n);
+            let o2 = scene.offset_origin(h.p, h.ng, d2);
+            if let Some(h2) = first_hit(scene, o2, d2)
+                && !is_specular(scene, h2.tri)
+            {
+                return Some((h.tri, h2.tri));
+            }
+            continue 'probe;
+        }
+    }
+    None
+}
+
+/// Specular seen by the camera: a grid of 48 x 48 eye rays; yes naming the
+/// mirror and glass objects they hit first.
+fn specular_seen(scene: &Scene) -> Decision {
+    let Some(cam) = &scene.camera else {
+        return Decision::no("no camera".into());
+    };
+    let mut seen: Vec<String> = Vec::new();
+    for j in 0..48 {
+        for i in 0..48 {
+            let aspect = cam.aspect.unwrap_or(1.0);
+            let d = cam.ray_direction((i as f32 + 0.5) / 48.0, (j as f32 + 0.5) / 48.0, aspect);
+            if let Some(h) = first_hit(scene, cam.position, d)
+                && is_specular(scene, h.tri)
+            {
+                let n = object_name(scene, h.tri);
+                if !seen.contains(&n) {
+                    seen.push(n);
                 }
             }
-            if seen.is_empty() {
-                Decision::no("the camera sees no mirror or glass".into())
-            } else {
-                Decision::yes(format!(
-                    "the camera sees {}",
-                    seen.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
-                ))
-            }
         }
-    };
+    }
+    if seen.is_empty() {
+        return Decision::no("the camera sees no mirror or glass".into());
+    }
+    Decision::yes(format!("the camera sees {}", seen.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")))
+}
 
+/// Glossy: the GGX materials some triangle uses.
+fn glossy(scene: &Scene) -> Decision {
     let glossy_names: Vec<String> = scene
         .materials
         .iter()
@@ -203,12 +238,15 @@ pub fn analyze(scene: &Scene) -> Effects {
         })
         .map(|(_, m)| format!("'{}'", m.name))
         .collect();
-    let glossy = if glossy_names.is_empty() {
+    if glossy_names.is_empty() {
         Decision::no("no glossy material".into())
     } else {
         Decision::yes(format!("glossy materials {}", glossy_names.join(", ")))
-    };
+    }
+}
 
+/// The lights by kind, e.g. "1 area light, 2 point lights".
+fn direct_lights(scene: &Scene) -> String {
     let mut counts = [0usize; 6];
     for l in &scene.lights {
         counts[match l.kind {
@@ -220,22 +258,13 @@ pub fn analyze(scene: &Scene) -> Effects {
             LightKind::Environment { .. } => 5,
         }] += 1;
     }
-    let direct = ["area", "point", "spot", "sun disc", "directional", "environment"]
+    ["area", "point", "spot", "sun disc", "directional", "environment"]
         .iter()
         .zip(counts)
         .filter(|(_, c)| *c > 0)
         .map(|(k, c)| format!("{c} {k} light{}", if c == 1 { "" } else { "s" }))
         .collect::<Vec<_>>()
-        .join(", ");
-    let volume = volume_reached(scene);
-    // Light scattered in a medium lights the surfaces too: indirect light that
-    // final gathers (reading the volume map along their rays) bring.
-    let indirect = if !indirect.yes && volume.yes && any_diffuse {
-        Decision::yes(format!("light scattered in the medium ({}) reaches the surfaces", volume.reason))
-    } else {
-        indirect
-    };
-    Effects { caustics, indirect, specular_seen, glossy, volume, direct }
+        .join(", ")
 }
 
 /// Whether light reaches a scattering medium: probe photons leave the lights by

@@ -51,7 +51,7 @@ impl DirectLighting<'_> {
                 _ => None,
             };
             let centre = area.as_ref().map(|q| q.p);
-            let Some((t, pdf_t)) = self.scatter_distance(li, centre, o, d, t_max, m.sigma_t(), ut) else { continue };
+            let Some((t, pdf_t)) = self.scatter_distance(li, centre, (o, d, t_max), m.sigma_t(), ut) else { continue };
             let x = o + d * t;
             let ls = match &area {
                 Some(q) => light.sample_from(q, x),
@@ -70,19 +70,16 @@ impl DirectLighting<'_> {
         sum / n.max(1) as f32
     }
 
-    /// Where along (0, t_max) to scatter for light `li`, and the density [m^-1]:
-    /// equiangular about the light's position (about `picked`, the point already
-    /// picked on an area light), or exponential in the mean of `sigma_t`
-    /// (truncated to the segment) for lights at infinity and points on the ray's
-    /// line.
-    #[allow(clippy::too_many_arguments)]
+    /// Where along the segment (0, t_max) of the ray from `o` in direction `d` to
+    /// scatter for light `li`, and the density [m^-1]: equiangular about the
+    /// light's position (about `picked`, the point already picked on an area
+    /// light), or exponential in the mean of `sigma_t` (truncated to the segment)
+    /// for lights at infinity and points on the ray's line.
     fn scatter_distance(
         &self,
         li: usize,
         picked: Option<Vec3>,
-        o: Vec3,
-        d: Vec3,
-        t_max: f32,
+        (o, d, t_max): (Vec3, Vec3, f32),
         sigma_t: Rgb,
         u: f32,
     ) -> Option<(f32, f32)> {

@@ -268,63 +268,27 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         MapPass::Caustic => light.sample_emission_toward(scene, &mut s, targets),
     };
     let Some(ray) = emitted else { return };
-    let mut phi = ray.power / p_sel as f32;
     let (mut o, mut d) = (ray.origin, ray.dir);
-    let mut specular_chain = true;
-    // In media: the medium the photon is in and its flights (hero channel,
-    // density ratios); the power it carries is phi times `w`, one without media.
-    let media = scene.has_media();
-    let mut medium = if media { scene.light_medium(li) } else { None };
-    let mut flights = Flights::new(if media { s.next_1d() } else { 0.0 });
-    let mut w = 1.0f32;
-    // Scattering events so far (surfaces, specular ones included, and points in
-    // media; index-matched boundaries are not events).
-    let mut events = 0u32;
+    let mut photon = PhotonPath::new(scene, li, ray.power / p_sel as f32, &mut s);
     for _ in 0..MAX_BOUNCES {
-        if !pm_color::is_valid(phi) || phi == Rgb::ZERO {
+        if !pm_color::is_valid(photon.phi) || photon.phi == Rgb::ZERO {
             return;
         }
         out.rays += 1;
         let hit = scene.intersect(o, d, f32::INFINITY);
-        if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+        if let Some(m) = scene.medium(photon.medium).filter(|m| !m.is_clear()) {
             let u = if m.scatters() { s.next_1d() } else { 0.0 };
-            let flight = flights.fly(m, scene.segment_length(o, d, hit.as_ref()), u);
+            let flight = photon.flights.fly(m, scene.segment_length(o, d, hit.as_ref()), u);
             let (FreeFlight::Through { weight, .. } | FreeFlight::Scatter { weight, .. }) = flight;
-            phi *= weight;
-            w = flights.weight();
+            photon.phi *= weight;
+            photon.w = photon.flights.weight();
             if let FreeFlight::Scatter { t, .. } = flight {
                 out.reached = true;
-                if cfg.pass == MapPass::Caustic {
-                    return; // L S+ V ...: no caustic
+                let p = o + d * t;
+                match photon.in_medium(cfg.pass, m, p, -d, &mut s, out) {
+                    Some(wi) => (o, d) = (p, wi),
+                    None => return,
                 }
-                let (p, wo) = (o + d * t, -d);
-                if cfg.pass == MapPass::Volume {
-                    let mut f = flags::AXIS_LEAF | flags::VOLUME;
-                    if events == 0 {
-                        f |= flags::DIRECT;
-                    } else if specular_chain {
-                        f |= flags::CAUSTIC;
-                    }
-                    let photon = Photon {
-                        position: p,
-                        power: phi * w,
-                        wi: wo,
-                        flags: f,
-                        normal: Vec3::ZERO,
-                        irradiance: Rgb::ZERO,
-                    };
-                    out.photons.push((photon, events));
-                }
-                // Russian roulette by the single-scattering albedo.
-                let q = pm_color::mean(m.albedo()).min(1.0);
-                if !(q > 0.0) || s.next_1d() >= q {
-                    return;
-                }
-                phi /= q;
-                let ps = m.phase.sample(wo, s.next_2d());
-                specular_chain = false;
-                events += 1;
-                (o, d) = (p, ps.wi);
                 continue;
             }
         }
@@ -332,25 +296,119 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
         out.reached = true;
         if let Some(tint) = scene.index_matched(&hit) {
             // Straight through, into the medium beyond: no event.
-            phi *= tint;
-            medium = scene.medium_after(&hit, d, medium);
+            photon.phi *= tint;
+            photon.medium = scene.medium_after(&hit, d, photon.medium);
             o = scene.offset_origin(hit.p, hit.ng, d);
             continue;
         }
-        let bsdf = scene.bsdf(&hit);
-        let wo = -d;
-        let specular = bsdf.is_specular();
-        if !specular {
+        match photon.on_surface(scene, cfg.pass, &hit, -d, &mut s, out) {
+            Some(wi) => (o, d) = (scene.offset_origin(hit.p, hit.ng, wi), wi),
+            None => return,
+        }
+    }
+    out.truncated = true;
+}
+
+/// A photon's state between its events.
+struct PhotonPath {
+    /// Power it carries \[W per channel\], before `w`.
+    phi: Rgb,
+    /// Every event so far was specular (a caustic photon when it lands).
+    specular_chain: bool,
+    /// The medium it is in and its flights (hero channel, density ratios); the
+    /// power it carries is `phi` times `w`, one without media.
+    medium: Option<pm_scene::MediumId>,
+    flights: Flights,
+    w: f32,
+    /// Scattering events so far (surfaces, specular ones included, and points in
+    /// media; index-matched boundaries are not events).
+    events: u32,
+}
+
+impl PhotonPath {
+    /// A photon of power `phi` leaving light `light`.
+    fn new(scene: &Scene, light: usize, phi: Rgb, s: &mut Sampler) -> PhotonPath {
+        let media = scene.has_media();
+        PhotonPath {
+            phi,
+            specular_chain: true,
+            medium: if media { scene.light_medium(light) } else { None },
+            flights: Flights::new(if media { s.next_1d() } else { 0.0 }),
+            w: 1.0,
+            events: 0,
+        }
+    }
+
+    /// A scattering event at `p` in medium `m`, the photon travelling toward
+    /// `-wo`: stored in the volume map, then Russian roulette by the single-
+    /// scattering albedo and the phase function sampled. The new direction, or
+    /// `None` when the photon ends (a caustic photon ends on entering: L S+ V is no
+    /// caustic).
+    fn in_medium(
+        &mut self,
+        pass: MapPass,
+        m: &pm_scene::Medium,
+        p: Vec3,
+        wo: Vec3,
+        s: &mut Sampler,
+        out: &mut PathOut,
+    ) -> Option<Vec3> {
+        if pass == MapPass::Caustic {
+            return None;
+        }
+        if pass == MapPass::Volume {
+            let mut f = flags::AXIS_LEAF | flags::VOLUME;
+            if self.events == 0 {
+                f |= flags::DIRECT;
+            } else if self.specular_chain {
+                f |= flags::CAUSTIC;
+            }
+            let photon = Photon {
+                position: p,
+                power: self.phi * self.w,
+                wi: wo,
+                flags: f,
+                normal: Vec3::ZERO,
+                irradiance: Rgb::ZERO,
+            };
+            out.photons.push((photon, self.events));
+        }
+        let q = pm_color::mean(m.albedo()).min(1.0);
+        if !(q > 0.0) || s.next_1d() >= q {
+            return None;
+        }
+        self.phi /= q;
+        let ps = m.phase.sample(wo, s.next_2d());
+        self.specular_chain = false;
+        self.events += 1;
+        Some(ps.wi)
+    }
+
+    /// A surface event at `hit`, the photon arriving from `wo`: stored at a
+    /// non-specular surface in the maps of `pass`, then [`scatter`]. The new
+    /// direction, or `None` when the photon ends (the caustic pass ends at the
+    /// first non-specular surface, or when the chain stops being specular).
+    fn on_surface(
+        &mut self,
+        scene: &Scene,
+        pass: MapPass,
+        hit: &pm_scene::Hit,
+        wo: Vec3,
+        s: &mut Sampler,
+        out: &mut PathOut,
+    ) -> Option<Vec3> {
+        let bsdf = scene.bsdf(hit);
+        if !bsdf.is_specular() {
             let side_n = if wo.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-            let caustic = events > 0 && specular_chain;
-            let store = match cfg.pass {
+            let caustic = self.events > 0 && self.specular_chain;
+            let store = match pass {
                 MapPass::Global => true,
                 MapPass::Caustic => caustic,
                 MapPass::Volume => false,
             };
             if store {
                 let mut f = flags::AXIS_LEAF;
-                if events == 0 {
+                if self.events == 0 {
                     f |= flags::DIRECT;
                 }
                 if caustic {
@@ -358,32 +416,30 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
                 }
                 let photon = Photon {
                     position: hit.p,
-                    power: phi * w / scene.store_probability(&hit),
+                    power: self.phi * self.w / scene.store_probability(hit),
                     wi: wo,
                     flags: f,
                     normal: side_n,
                     irradiance: Rgb::ZERO,
                 };
-                out.photons.push((photon, events));
+                out.photons.push((photon, self.events));
             }
-            if cfg.pass == MapPass::Caustic {
-                return; // the caustic map only needs the first non-specular hit
+            if pass == MapPass::Caustic {
+                return None; // the caustic map only needs the first non-specular hit
             }
         }
-        let Some((bs, factor)) = scatter(&bsdf, &hit, wo, &mut s) else { return };
-        phi *= factor;
-        specular_chain &= bs.specular;
-        if cfg.pass == MapPass::Caustic && !specular_chain {
-            return;
+        let (bs, factor) = scatter(&bsdf, hit, wo, s)?;
+        self.phi *= factor;
+        self.specular_chain &= bs.specular;
+        if pass == MapPass::Caustic && !self.specular_chain {
+            return None;
         }
-        events += 1;
-        if media {
-            medium = scene.medium_after(&hit, bs.wi, medium);
+        self.events += 1;
+        if scene.has_media() {
+            self.medium = scene.medium_after(hit, bs.wi, self.medium);
         }
-        o = scene.offset_origin(hit.p, hit.ng, bs.wi);
-        d = bs.wi;
+        Some(bs.wi)
     }
-    out.truncated = true;
 }
 
 /// One scattering event of a photon that arrived at `hit` from direction `wo`:

@@ -146,9 +146,7 @@ fn image_loop(scene: &pm_scene::Scene, camera: &pm_scene::Camera, film: &Film) -
     let flat = Flat(Default::default());
     best_of(10, || {
         pm_render::render_into(
-            camera,
-            film,
-            film.rect(),
+            pm_render::Shot { camera, film, rect: film.rect() },
             &flat,
             false,
             pm_render::Visibility::Raster(scene),

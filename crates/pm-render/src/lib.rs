@@ -33,7 +33,7 @@ pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderSta
 pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
-pub use render::{FrameBuffers, Image, Visibility, render_into, render_region, render_region_with};
+pub use render::{FrameBuffers, Image, Shot, Visibility, render_into, render_region, render_region_with};
 
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;

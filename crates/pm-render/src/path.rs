@@ -85,137 +85,221 @@ fn path_radiance(
 ) -> Components {
     let scene = light.scene;
     let (mut o, mut d) = (o, d);
-    let mut beta = Rgb::ONE;
-    let mut l = Components::default();
-    let mut prev_pdf = 0.0f32;
-    // The last non-specular vertex (a surface or a point in a medium) and its normal
-    // on the side light comes from (zero in a medium): light sampling's densities
-    // depend on them. `travelled` is the distance from it along the current
-    // direction to the current ray's origin (index-matched boundaries passed).
-    let mut prev_p = o;
-    let mut prev_n = Vec3::Z;
-    let mut prev_specular = true;
-    let mut travelled = 0.0f32;
-    // Classification of emission found at the next hit, and the path's history.
-    let mut emission_layer = Layer::Direct;
-    let mut specular_before_d1 = false;
-    let mut d1_in_medium = false;
-    let mut n_diffuse = 0u32;
-    let media = scene.has_media();
-    let mut medium = scene.eye_medium(o);
-    // In media: the path's flights (hero channel, density ratios); `w` is what
-    // every contribution and the roulette weigh by (one without media).
-    let mut flights = Flights::new(if media { s.next_1d() } else { 0.0 });
-    let mut w = 1.0f32;
-    let mut eye_ray = true;
+    let mut path = Path::new(scene, o, s);
     for depth in 0..MAX_PATH {
         let hit = if depth == 0 { first.resolve(scene, o, d) } else { scene.intersect(o, d, f32::INFINITY) };
         // The segment's medium: scatter inside it, or attenuate what lies beyond.
-        if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+        if let Some(m) = scene.medium(path.medium).filter(|m| !m.is_clear()) {
             let t_seg = scene.segment_length(o, d, hit.as_ref());
             let u = if m.scatters() { s.next_1d() } else { 0.0 };
-            let flight = flights.fly(m, t_seg, u);
-            w = flights.weight();
+            let flight = path.flights.fly(m, t_seg, u);
+            path.w = path.flights.weight();
             match flight {
-                FreeFlight::Through { weight, .. } => beta *= weight,
+                FreeFlight::Through { weight, .. } => path.beta *= weight,
                 FreeFlight::Scatter { t, weight, .. } => {
-                    beta *= weight;
-                    eye_ray = false;
+                    path.beta *= weight;
                     let p = o + d * t;
-                    let wo = -d;
-                    n_diffuse += 1;
-                    d1_in_medium |= n_diffuse == 1;
-                    let nee_layer =
-                        volume_or(d1_in_medium, specular_before_d1, layer_of_light_at(specular_before_d1, n_diffuse));
-                    l.add_to(nee_layer, beta * w * light.medium_sample(p, wo, &m.phase, medium, s, true));
-                    let ps = m.phase.sample(wo, s.next_2d());
-                    let sampled = layer_of_sampled(specular_before_d1, n_diffuse, false);
-                    emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
-                    prev_pdf = ps.pdf;
-                    prev_specular = false;
-                    (prev_p, prev_n, travelled) = (p, Vec3::ZERO, 0.0);
-                    if !roulette(&mut beta, w, depth, s) {
-                        return l;
+                    match path.scatter(light, m, p, -d, depth, s) {
+                        Some(wi) => (o, d) = (p, wi),
+                        None => return path.l,
                     }
-                    (o, d) = (p, ps.wi);
                     continue;
                 }
             }
         }
         let Some(hit) = hit else {
-            // Left the scene: the environment and sun discs, weighed against light
-            // sampling like emission found on a surface.
-            let le = scene.escaped(d);
-            if le.max_element() > 0.0 {
-                let mis =
-                    if prev_specular { 1.0 } else { power_heuristic(prev_pdf, light.pdf_escaped(prev_p, prev_n, d)) };
-                l.add_to(emission_layer, beta * w * le * mis);
-            }
-            return l;
+            path.escape(light, d);
+            return path.l;
         };
         if let Some(tint) = scene.index_matched(&hit) {
             // Straight through, into the medium beyond: no bounce.
-            beta *= tint;
-            medium = scene.medium_after(&hit, d, medium);
+            path.beta *= tint;
+            path.medium = scene.medium_after(&hit, d, path.medium);
             let next = scene.offset_origin(hit.p, hit.ng, d);
-            travelled += (next - o).dot(d);
+            path.travelled += (next - o).dot(d);
             o = next;
             continue;
         }
-        let wo = -d;
-        let le = scene.emitted(&hit, wo);
+        match path.surface(light, &hit, -d, depth, s, vs.as_deref_mut()) {
+            Some(wi) => (o, d) = (scene.offset_origin(hit.p, hit.ng, wi), wi),
+            None => return path.l,
+        }
+    }
+    counters.terminated_paths.fetch_add(1, Relaxed);
+    path.l
+}
+
+/// A path's state between its vertices: the throughput, what it has gathered, the
+/// last non-specular vertex that light sampling's densities depend on, the history
+/// that decides each contribution's layer, and the medium it is in.
+struct Path {
+    /// Throughput (without `w`).
+    beta: Rgb,
+    /// Radiance gathered so far, by layer.
+    l: Components,
+    /// Density of the last sampled direction (BSDF or phase function).
+    prev_pdf: f32,
+    /// The last non-specular vertex (a surface or a point in a medium) and its
+    /// normal on the side light comes from (zero in a medium).
+    prev_p: Vec3,
+    prev_n: Vec3,
+    /// Whether the last sampled direction was a specular one (no MIS).
+    prev_specular: bool,
+    /// Distance from `prev_p` along the current direction to the current ray's
+    /// origin (index-matched boundaries passed).
+    travelled: f32,
+    /// The layer of emission found at the next hit.
+    emission_layer: Layer,
+    specular_before_d1: bool,
+    d1_in_medium: bool,
+    /// Non-specular vertices so far.
+    n_diffuse: u32,
+    medium: Option<pm_scene::MediumId>,
+    /// In media: the path's flights (hero channel, density ratios); `w` is what
+    /// every contribution and the roulette weigh by (one without media).
+    flights: Flights,
+    w: f32,
+    /// Still on the eye ray (the visible surface is recorded there).
+    eye_ray: bool,
+}
+
+impl Path {
+    /// A path leaving the eye at `o`.
+    fn new(scene: &Scene, o: Vec3, s: &mut Sampler) -> Path {
+        Path {
+            beta: Rgb::ONE,
+            l: Components::default(),
+            prev_pdf: 0.0,
+            prev_p: o,
+            prev_n: Vec3::Z,
+            prev_specular: true,
+            travelled: 0.0,
+            emission_layer: Layer::Direct,
+            specular_before_d1: false,
+            d1_in_medium: false,
+            n_diffuse: 0,
+            medium: scene.eye_medium(o),
+            flights: Flights::new(if scene.has_media() { s.next_1d() } else { 0.0 }),
+            w: 1.0,
+            eye_ray: true,
+        }
+    }
+
+    /// The layer of light arriving straight from a light at the current
+    /// non-specular vertex.
+    fn nee_layer(&self) -> Layer {
+        volume_or(
+            self.d1_in_medium,
+            self.specular_before_d1,
+            layer_of_light_at(self.specular_before_d1, self.n_diffuse),
+        )
+    }
+
+    /// A scattering event at `p` in medium `m`, light arriving toward `wo`:
+    /// next-event estimation, then the phase function sampled. The new direction,
+    /// or `None` when the path ends.
+    fn scatter(
+        &mut self,
+        light: &DirectLighting,
+        m: &pm_scene::Medium,
+        p: Vec3,
+        wo: Vec3,
+        depth: u32,
+        s: &mut Sampler,
+    ) -> Option<Vec3> {
+        self.eye_ray = false;
+        self.n_diffuse += 1;
+        self.d1_in_medium |= self.n_diffuse == 1;
+        let nee_layer = self.nee_layer();
+        self.l.add_to(nee_layer, self.beta * self.w * light.medium_sample(p, wo, &m.phase, self.medium, s, true));
+        let ps = m.phase.sample(wo, s.next_2d());
+        let sampled = layer_of_sampled(self.specular_before_d1, self.n_diffuse, false);
+        self.emission_layer = volume_or(self.d1_in_medium, self.specular_before_d1, sampled);
+        self.prev_pdf = ps.pdf;
+        self.prev_specular = false;
+        (self.prev_p, self.prev_n, self.travelled) = (p, Vec3::ZERO, 0.0);
+        roulette(&mut self.beta, self.w, depth, s).then_some(ps.wi)
+    }
+
+    /// The path left the scene along `d`: the environment and sun discs, weighed
+    /// against light sampling like emission found on a surface.
+    fn escape(&mut self, light: &DirectLighting, d: Vec3) {
+        let le = light.scene.escaped(d);
         if le.max_element() > 0.0 {
-            if prev_specular {
-                l.add_to(emission_layer, beta * w * le);
-            } else if let Some(p_l) = light.pdf_emitter(prev_p, hit.tri, d, travelled + hit.t) {
-                l.add_to(emission_layer, beta * w * le * power_heuristic(prev_pdf, p_l));
+            let mis = if self.prev_specular {
+                1.0
+            } else {
+                power_heuristic(self.prev_pdf, light.pdf_escaped(self.prev_p, self.prev_n, d))
+            };
+            self.l.add_to(self.emission_layer, self.beta * self.w * le * mis);
+        }
+    }
+
+    /// A surface hit seen from `wo`: its emission (weighed against light
+    /// sampling), next-event estimation at a non-specular one, then the BSDF
+    /// sampled. The new direction, or `None` when the path ends.
+    fn surface(
+        &mut self,
+        light: &DirectLighting,
+        hit: &pm_scene::Hit,
+        wo: Vec3,
+        depth: u32,
+        s: &mut Sampler,
+        mut vs: Option<&mut VisibleSurface>,
+    ) -> Option<Vec3> {
+        let scene = light.scene;
+        let le = scene.emitted(hit, wo);
+        if le.max_element() > 0.0 {
+            if self.prev_specular {
+                self.l.add_to(self.emission_layer, self.beta * self.w * le);
+            } else if let Some(p_l) = light.pdf_emitter(self.prev_p, hit.tri, -wo, self.travelled + hit.t) {
+                self.l.add_to(self.emission_layer, self.beta * self.w * le * power_heuristic(self.prev_pdf, p_l));
             }
         }
-        let bsdf = scene.bsdf(&hit);
-        if eye_ray && let Some(v) = vs.as_deref_mut() {
-            *v = VisibleSurface::at(scene, &hit, wo, bsdf, le);
+        let bsdf = scene.bsdf(hit);
+        if self.eye_ray
+            && let Some(v) = vs.as_deref_mut()
+        {
+            *v = VisibleSurface::at(scene, hit, wo, bsdf, le);
         }
         let specular = bsdf.is_specular();
-        if specular && n_diffuse == 0 {
-            specular_before_d1 = true;
+        if specular && self.n_diffuse == 0 {
+            self.specular_before_d1 = true;
         }
         if !specular {
-            n_diffuse += 1;
+            self.n_diffuse += 1;
             // Next-event estimation, one light sample, MIS against BSDF sampling
-            // (the BSDF-sampled continuation below picks up emission with its weight).
-            let nee_layer =
-                volume_or(d1_in_medium, specular_before_d1, layer_of_light_at(specular_before_d1, n_diffuse));
-            let nee = beta * w * light.light_sample(&hit, &bsdf, wo, s, true, medium);
-            l.add_to(nee_layer, nee);
-            if eye_ray && let Some(v) = vs.as_deref_mut() {
+            // (the BSDF-sampled continuation picks up emission with its weight).
+            let nee = self.beta * self.w * light.light_sample(hit, &bsdf, wo, s, true, self.medium);
+            self.l.add_to(self.nee_layer(), nee);
+            if self.eye_ray
+                && let Some(v) = vs
+            {
                 v.direct = nee;
             }
         }
-        eye_ray = false;
+        self.eye_ray = false;
         let u = s.next_2d();
         let uc = s.next_1d();
-        let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return l };
+        let bs = bsdf.sample(wo, hit.ns, u, uc)?;
         let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
         if same_side == bs.transmitted {
-            return l;
+            return None;
         }
-        let sampled = layer_of_sampled(specular_before_d1, n_diffuse, specular);
-        emission_layer = volume_or(d1_in_medium, specular_before_d1, sampled);
-        beta *= bs.weight;
-        prev_pdf = bs.pdf;
-        prev_specular = bs.specular;
-        if !roulette(&mut beta, w, depth, s) {
-            return l;
+        let sampled = layer_of_sampled(self.specular_before_d1, self.n_diffuse, specular);
+        self.emission_layer = volume_or(self.d1_in_medium, self.specular_before_d1, sampled);
+        self.beta *= bs.weight;
+        self.prev_pdf = bs.pdf;
+        self.prev_specular = bs.specular;
+        if !roulette(&mut self.beta, self.w, depth, s) {
+            return None;
         }
-        (prev_p, prev_n, travelled) = (hit.p, pm_scene::facing(hit.ng, wo), 0.0);
-        if media {
-            medium = scene.medium_after(&hit, bs.wi, medium);
+        (self.prev_p, self.prev_n, self.travelled) = (hit.p, pm_scene::facing(hit.ng, wo), 0.0);
+        if scene.has_media() {
+            self.medium = scene.medium_after(hit, bs.wi, self.medium);
         }
-        o = scene.offset_origin(hit.p, hit.ng, bs.wi);
-        d = bs.wi;
+        Some(bs.wi)
     }
-    counters.terminated_paths.fetch_add(1, Relaxed);
-    l
 }
 
 /// The layer of emission found along a direction sampled at a vertex (a surface,

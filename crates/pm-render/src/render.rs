@@ -208,24 +208,34 @@ pub fn render_region_with<I: Integrator>(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, RenderStats), String> {
     let mut bufs = FrameBuffers::default();
-    let (gb, stats) = render_into(camera, film, rect, integ, gbuffer, visibility, &mut bufs, progress)?;
+    let (gb, stats) = render_into(Shot { camera, film, rect }, integ, gbuffer, visibility, &mut bufs, progress)?;
     let [total, layers @ ..] = std::mem::take(&mut bufs.layers);
     Ok((Image { rect, width: rect.width(), height: rect.height(), total, layers, gbuffer: gb }, stats))
 }
 
+/// What a render looks at: the camera, its film (size, samples, seed) and the
+/// region of the film to render.
+#[derive(Clone, Copy)]
+pub struct Shot<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// The film.
+    pub film: &'a Film,
+    /// The region of the film.
+    pub rect: Rect,
+}
+
 /// The region loop into `bufs` (its layers hold the result), reusing their memory;
 /// returns the G-buffer when asked for and the statistics.
-#[allow(clippy::too_many_arguments)]
 pub fn render_into<I: Integrator>(
-    camera: &Camera,
-    film: &Film,
-    rect: Rect,
+    shot: Shot,
     integ: &I,
     gbuffer: bool,
     visibility: Visibility,
     bufs: &mut FrameBuffers,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Option<Vec<VisibleSurface>>, RenderStats), String> {
+    let Shot { camera, film, rect } = shot;
     if !film.contains(rect) {
         return Err(format!("region {rect:?} is empty or outside the {}x{} image", film.width, film.height));
     }

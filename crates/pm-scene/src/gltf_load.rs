@@ -133,8 +133,11 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     // BVH is built, the load's other peak.
     let NodeWalk { triangles, lights, objects, camera, decoded, .. } = walk;
     drop((decoded, buffers));
-    let mut scene =
-        Scene::build(triangles, mats.materials, mats.textures, lights, objects, camera, content_hash, warnings);
+    let mut scene = Scene::build(
+        crate::Contents { triangles, materials: mats.materials, textures: mats.textures, lights, objects, camera },
+        content_hash,
+        warnings,
+    );
     for (i, m) in mats.media.into_iter().enumerate() {
         if let Some(m) = m {
             let id = scene.add_medium(m);

@@ -156,20 +156,22 @@ pub struct Scene {
     bvh_inv_scale: f32,
 }
 
+/// What a scene is made of before its acceleration structure is built.
+pub(crate) struct Contents {
+    /// Degenerate ones already removed.
+    pub triangles: Vec<Triangle>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub lights: Vec<Light>,
+    pub objects: Vec<Object>,
+    pub camera: Option<Camera>,
+}
+
 impl Scene {
-    /// Build the acceleration structure over `triangles` (degenerate ones must
-    /// already be removed).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn build(
-        triangles: Vec<Triangle>,
-        materials: Vec<Material>,
-        textures: Vec<Texture>,
-        lights: Vec<Light>,
-        objects: Vec<Object>,
-        camera: Option<Camera>,
-        content_hash: [u8; 32],
-        warnings: Vec<String>,
-    ) -> Scene {
+    /// Build the acceleration structure over the contents' triangles; the scene
+    /// file's hash and what loading it warned of are kept with it.
+    pub(crate) fn build(contents: Contents, content_hash: [u8; 32], warnings: Vec<String>) -> Scene {
+        let Contents { triangles, materials, textures, lights, objects, camera } = contents;
         // Lists grown as they are built (subdivision, proxies, skipped degenerate
         // triangles) keep spare capacity: before the loader reserved its list at
         // its final size, this was a fifth of a loaded scene's triangle bytes.
@@ -245,7 +247,8 @@ impl Scene {
             }
         }
         lights.extend(extra_lights);
-        Scene::build(triangles, materials, Vec::new(), lights, objects, camera, [0; 32], Vec::new())
+        let textures = Vec::new();
+        Scene::build(Contents { triangles, materials, textures, lights, objects, camera }, [0; 32], Vec::new())
     }
 
     /// The index of the object (in `objects`) that triangle `tri` belongs to.

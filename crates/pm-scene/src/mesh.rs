@@ -340,16 +340,15 @@ impl Scene {
                 _ => l.clone(),
             })
             .collect();
-        let mut scene = Scene::build(
+        let contents = crate::Contents {
             triangles,
-            self.materials.clone(),
-            self.textures.clone(),
+            materials: self.materials.clone(),
+            textures: self.textures.clone(),
             lights,
             objects,
-            self.camera.clone(),
-            self.content_hash,
-            self.warnings.clone(),
-        );
+            camera: self.camera.clone(),
+        };
+        let mut scene = Scene::build(contents, self.content_hash, self.warnings.clone());
         // The same surfaces (or a stand-in for them): keep the original's bounds, so
         // every relative radius means the same length; lights keep their indices, so
         // the animation carries over.

@@ -442,8 +442,14 @@ impl pm_live::FrameMethod for Vertex {
             DrawMode::Rays => Visibility::Rays,
         };
         let film = self.film(frame);
-        let (_, rs) =
-            pm_render::render_into(world.camera(), &film, film.rect(), &shading, false, visibility, out, &|_, _| {})?;
+        let (_, rs) = pm_render::render_into(
+            pm_render::Shot { camera: world.camera(), film: &film, rect: film.rect() },
+            &shading,
+            false,
+            visibility,
+            out,
+            &|_, _| {},
+        )?;
         // The rasteriser ran beside the photon update: its time counts as drawing.
         let draw_s = raster + t.elapsed().as_secs_f64();
         let row = VertexFrame {
