@@ -34,9 +34,11 @@ pub struct Cli {
     /// Sorted caustic map (caustic.kd.pmap).
     #[arg(long)]
     pub caustic: Option<PathBuf>,
-    /// Sorted volume map (volume.kd.pmap): light scattered more than once in
-    /// participating media (full mode; without it, media still attenuate and
-    /// single scattering is computed from the lights).
+    /// Sorted volume map (volume.kd.pmap): light scattered in participating media,
+    /// read along eye rays (full mode: multiple scattering) and along final-gather
+    /// rays (full and indirect modes and the cache prepass: all of it). Without it,
+    /// media still attenuate and eye rays' single scattering is computed from the
+    /// lights.
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Output OpenEXR image (of the --region when given: its data window says where
@@ -186,12 +188,11 @@ pub fn run(cli: &Cli) -> Result<RenderReport> {
     let mode = if cli.icache_out.is_some() { Method::Indirect } else { cli.settings.mode };
     let needs = mode.needs();
     let indirect = !cli.no_indirect;
-    let full = needs.caustic_and_volume;
-    let needs_global = needs.photon_maps && (indirect || !full);
+    let needs_global = needs.photon_maps && (indirect || !needs.caustic);
     let needs_irradiance = needs.irradiance && p.gather_lookup == Lookup::Precomputed;
     // The caustic and volume maps: kd-trees of this scene, read as full records.
-    let full_map = |path: &Option<PathBuf>, kind: MapKind| -> Result<Option<pm_format::PhotonMap<FullPhoton>>> {
-        let Some(path) = path.as_ref().filter(|_| full) else { return Ok(None) };
+    let full_map = |path: &Option<PathBuf>, kind: MapKind, wanted: bool| {
+        let Some(path) = path.as_ref().filter(|_| wanted) else { return Ok(None) };
         let expect = ReadExpect {
             kind: Some(kind),
             order: Some(Order::KdTree),
@@ -200,14 +201,14 @@ pub fn run(cli: &Cli) -> Result<RenderReport> {
         };
         let map = pm_format::read_as::<FullPhoton>(path, &expect)?;
         pm_stage::verify_kd_tree(path, &map.records)?;
-        Ok(Some(map))
+        anyhow::Ok(Some(map))
     };
-    let caustic = full_map(&cli.caustic, MapKind::Caustic)?;
-    let volume = full_map(&cli.volume, MapKind::Volume)?;
+    let caustic = full_map(&cli.caustic, MapKind::Caustic, needs.caustic)?;
+    let volume = full_map(&cli.volume, MapKind::Volume, needs.volume)?;
     let mut notes = Vec::new();
     if let Some(note) = mode.leaves_out(&scene) {
         notes.push(note);
-    } else if full && scene.has_scattering_media() && volume.is_none() {
+    } else if needs.volume && scene.has_scattering_media() && volume.is_none() {
         notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());
     }
     let global = match (&cli.global, needs_global) {

@@ -145,6 +145,60 @@ pub fn error_map(image: &[Vec3], reference: &[Vec3], keep: &[bool]) -> Vec<f32> 
         .collect()
 }
 
+/// How an image agrees with a reference over the kept pixels: the relative
+/// difference of their means, and the worst relative difference of the means of
+/// `n` x `n` blocks (what the differential checks judge a method by).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Agreement {
+    /// mean(image) / mean(reference) - 1 over the kept pixels and channels (0
+    /// when both are black).
+    pub mean: f64,
+    /// The largest |block mean of image / block mean of reference - 1| over the
+    /// blocks that count: at least half their pixels kept and a reference mean of
+    /// at least a tenth of the image's (darker blocks' relative errors are noise).
+    pub worst_block: f64,
+    /// That block's column and row.
+    pub worst_at: (usize, usize),
+}
+
+/// [`Agreement`] of `image` with `reference` (both `width` wide) over the pixels
+/// `keep` selects, in blocks of `n` x `n` pixels.
+pub fn agreement(image: &[Vec3], reference: &[Vec3], width: usize, keep: &[bool], n: usize) -> Agreement {
+    let (mi, mr) = (kept_mean(image, keep), kept_mean(reference, keep));
+    let mean = if mr > 0.0 {
+        mi / mr - 1.0
+    } else if mi > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let (cols, height) = (width.div_ceil(n.max(1)), image.len() / width.max(1));
+    let rows = height.div_ceil(n.max(1));
+    // Per block: sums of the image and the reference over kept pixels, pixels kept, pixels.
+    let mut blocks = vec![(0.0f64, 0.0f64, 0usize, 0usize); cols * rows];
+    for i in 0..image.len().min(reference.len()).min(keep.len()) {
+        let b = &mut blocks[(i / width / n) * cols + i % width / n];
+        b.3 += 1;
+        if keep[i] {
+            b.0 += image[i].element_sum() as f64;
+            b.1 += reference[i].element_sum() as f64;
+            b.2 += 1;
+        }
+    }
+    let mut worst = (0.0f64, (0, 0));
+    for (k, &(a, r, kept, all)) in blocks.iter().enumerate() {
+        let reference_mean = r / (3 * kept.max(1)) as f64;
+        if 2 * kept < all || kept == 0 || reference_mean < 0.1 * mr {
+            continue;
+        }
+        let e = (a / r - 1.0).abs();
+        if e > worst.0 || e.is_nan() {
+            worst = (if e.is_nan() { f64::INFINITY } else { e }, (k % cols, k / cols));
+        }
+    }
+    Agreement { mean, worst_block: worst.0, worst_at: worst.1 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -206,5 +260,29 @@ mod tests {
         let keep = keep_mask(&img, w, h, None);
         let out: Vec<usize> = (0..w * h).filter(|&i| !keep[i]).collect();
         assert_eq!(out, [w + 2, w + 3, w + 4, 2 * w + 2, 2 * w + 3, 2 * w + 4, 3 * w + 2, 3 * w + 3, 3 * w + 4]);
+    }
+
+    /// A known answer: an image 10% bright in one 8 x 8 block and 1% dark
+    /// elsewhere; masked pixels and black blocks do not count.
+    #[test]
+    fn agreement_finds_the_mean_and_the_worst_block() {
+        let (w, h) = (32usize, 16usize);
+        let reference: Vec<Vec3> = (0..w * h).map(|i| Vec3::splat(1.0 + (i % 7) as f32)).collect();
+        let mut image: Vec<Vec3> = reference.iter().map(|p| *p * 0.99).collect();
+        for y in 8..16 {
+            for x in 16..24 {
+                image[y * w + x] = reference[y * w + x] * 1.1;
+            }
+        }
+        let mut keep = vec![true; w * h];
+        // A masked light's pixels, wildly off, do not count.
+        keep[0] = false;
+        image[0] = Vec3::splat(1e6);
+        let a = agreement(&image, &reference, w, &keep, 8);
+        assert_eq!(a.worst_at, (2, 1));
+        assert!((a.worst_block - 0.1).abs() < 1e-5, "{a:?}");
+        assert!(a.mean > -0.01 && a.mean < 0.02, "{a:?}");
+        let same = agreement(&reference, &reference, w, &vec![true; w * h], 8);
+        assert_eq!((same.mean, same.worst_block), (0.0, 0.0));
     }
 }

@@ -55,8 +55,12 @@ pub struct Needs {
     /// It reads the pipeline's photon maps (else it traces its own paths and
     /// photons, and the pipeline is one step).
     pub photon_maps: bool,
-    /// It reads the caustic and volume maps too.
-    pub caustic_and_volume: bool,
+    /// It reads the caustic map too (caustics seen at the eye's surfaces).
+    pub caustic: bool,
+    /// It reads the volume map too: light scattered in media along its eye rays
+    /// and, through the final gathers' rays, onto surfaces (so the irradiance
+    /// cache's prepass, the indirect view, reads it as well).
+    pub volume: bool,
     /// It reads soft indirect light from an irradiance cache (when the settings
     /// enable one).
     pub cache: bool,
@@ -73,16 +77,17 @@ impl Method {
     pub fn needs(self) -> Needs {
         let none = Needs {
             photon_maps: false,
-            caustic_and_volume: false,
+            caustic: false,
+            volume: false,
             cache: false,
             irradiance: false,
             progressive: false,
         };
         match self {
             Method::Full => {
-                Needs { photon_maps: true, caustic_and_volume: true, cache: true, irradiance: true, ..none }
+                Needs { photon_maps: true, caustic: true, volume: true, cache: true, irradiance: true, ..none }
             }
-            Method::Indirect => Needs { photon_maps: true, cache: true, irradiance: true, ..none },
+            Method::Indirect => Needs { photon_maps: true, volume: true, cache: true, irradiance: true, ..none },
             Method::Radiance => Needs { photon_maps: true, irradiance: true, ..none },
             Method::Photons => Needs { photon_maps: true, ..none },
             Method::Path => none,

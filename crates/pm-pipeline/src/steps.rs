@@ -257,10 +257,11 @@ impl Run<'_> {
                 args: a,
                 writes: vec![("--icache-out", o("icache.bin"))],
                 stats: o("icache.stats.json"),
-                inputs: map_inputs,
+                inputs: [map_inputs.clone(), vec![o("volume.kd.pmap")]].concat(),
                 outputs: vec![o("icache.bin"), o("icache.stats.json")],
                 needs: Some(o("global.irr.pmap")),
-                optional: vec![],
+                // Gather rays through a medium read the light it scatters.
+                optional: vec![("--volume", o("volume.kd.pmap"))],
             });
             render_args.extend(["--icache".into(), o("icache.bin").display().to_string()]);
             render_inputs.push(o("icache.bin"));
