@@ -337,6 +337,7 @@ impl Job<'_> {
             caustic: caustic.map(|c| KdTree::with_buckets(&c.records[..], &caustic_buckets)),
             volume: self.volume.map(|v| {
                 pm_render::VolumeMap::new(
+                    self.scene,
                     &v.records,
                     p.volume_k,
                     p.volume_radius_rel_diag * self.scene.bounds.diagonal(),

@@ -18,8 +18,8 @@ mod volume;
 
 pub use precompute::{PrecomputeStats, precompute, selected};
 pub use volume::{
-    Inscattering, Segment, Steps, beam, beam_radii, beam_spheres, counted, inscattered, precomputed_march, ray_march,
-    spheres,
+    Beams, Inscattering, MIN_INSIDE, Segment, Steps, beam, beam_radii, beam_spheres, counted, inscattered,
+    precomputed_march, ray_march,
 };
 
 use glam::Vec3;

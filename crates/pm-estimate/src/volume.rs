@@ -241,39 +241,102 @@ pub fn precomputed_march<R: PhotonRecord>(
     })
 }
 
-/// The photons of a volume map as spheres of their beam radii ([`beam_radii`]),
-/// ready for [`beam`].
-pub fn beam_spheres<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32, all: bool) -> SphereTree {
-    spheres(tree, &beam_radii(tree, k, max_d2, all))
+/// A volume map's photons as spheres for [`beam`]: the spheres, and each
+/// photon's kernel weight (heap order): 1, or more for a photon whose sphere
+/// reaches out of its medium ([`Beams::with_inside_fractions`]).
+#[derive(Clone, Debug, Default)]
+pub struct Beams {
+    /// The photons' spheres.
+    pub spheres: SphereTree,
+    /// Each photon's kernel weight.
+    pub weights: Vec<f32>,
 }
 
-/// The photons of `tree` as spheres of `radii` \[m\] (heap order), ready for
-/// [`beam`].
-pub fn spheres<R: PhotonRecord>(tree: &KdTree<R>, radii: &[f32]) -> SphereTree {
-    let centres: Vec<Vec3> = tree.nodes().iter().map(|r| r.position()).collect();
-    SphereTree::new(&centres, radii)
+/// The least fraction of a photon's sphere taken to lie in its medium: a photon
+/// in a gap thinner than its sphere keeps its weight at most 1 / this (a bounded
+/// gain for a bounded variance).
+pub const MIN_INSIDE: f32 = 0.25;
+
+impl Beams {
+    /// The photons of `tree` as spheres of `radii` \[m\] (heap order), every
+    /// kernel weight 1.
+    pub fn new<R: PhotonRecord>(tree: &KdTree<R>, radii: &[f32]) -> Beams {
+        let centres: Vec<Vec3> = tree.nodes().iter().map(|r| r.position()).collect();
+        Beams { spheres: SphereTree::new(&centres, radii), weights: vec![1.0; radii.len()] }
+    }
+
+    /// Correct the kernels for the medium's boundary: `inside(i, r)` is the
+    /// fraction of photon `i`'s sphere of radius `r` in the photon's medium (walls,
+    /// a fog box's faces and objects in it cut it), and the photon's kernel is
+    /// divided by it (at least [`MIN_INSIDE`]), so that each photon's power stays
+    /// in the medium and a density estimate near a boundary is not diluted by the
+    /// empty space beyond it (the renormalised-kernel boundary correction of
+    /// density estimation). Without it the volume layer of a 0.3 m box of dense
+    /// fog came out 8% dark, 20% near its top face (issue 53).
+    pub fn with_inside_fractions(mut self, inside: impl Fn(usize, f32) -> f32 + Sync) -> Beams {
+        let spheres = &self.spheres;
+        self.weights.par_iter_mut().enumerate().for_each(|(i, w)| {
+            let (_, r) = spheres.sphere(i);
+            if r > 0.0 {
+                *w = 1.0 / inside(i, r).clamp(MIN_INSIDE, 1.0);
+            }
+        });
+        self
+    }
+}
+
+/// The photons of a volume map as spheres of their beam radii ([`beam_radii`]),
+/// ready for [`beam`].
+pub fn beam_spheres<R: PhotonRecord>(tree: &KdTree<R>, k: usize, max_d2: f32, all: bool) -> Beams {
+    Beams::new(tree, &beam_radii(tree, k, max_d2, all))
 }
 
 /// The beam radiance estimate [W sr^-1 m^-2 per channel] of the multiple-scattered
-/// light arriving at `seg.o` along the segment (Jarosz, Zwicker and Jensen 2008, eq. 9): the sum over the photons whose
-/// sphere the segment crosses of K_r(d_p) e^(-sigma_t t_p) phase(wi_p) Phi_p, t_p
-/// where the ray passes the photon closest, at distance d_p, and K_r = 1 / (pi r^2)
-/// the constant kernel of the photon's own radius r. `records` are the tree's
-/// photons (heap order), `stack` scratch.
+/// light arriving at `seg.o` along the segment (after Jarosz, Zwicker and Jensen
+/// 2008, eq. 9, with a 3D kernel): the sum over the photons whose sphere the
+/// segment passes through of w_p K_r Phi_p phase(wi_p) times the integral of
+/// e^(-sigma_t t) over the part of the photon's chord inside the segment, K_r =
+/// 3 / (4 pi r^3) the constant kernel of the photon's own radius r and w_p its
+/// kernel weight. Through a photon's whole sphere this is the 2D beam kernel
+/// 1 / (pi r^2) on average; at the segment's ends only the part of the chord
+/// inside counts, so a ray that enters or leaves the medium at a grazing angle
+/// gets what the medium holds along it (the 2D kernel counted a photon only when
+/// the ray passed closest to it inside the segment, and lost the photons beside
+/// a grazing ray's ends). `records` are the tree's photons (heap order), `stack`
+/// scratch.
 pub fn beam<R: PhotonRecord>(
     records: &[R],
-    spheres: &SphereTree,
+    beams: &Beams,
     seg: &Segment,
     stack: &mut Vec<u32>,
     phase: impl Fn(Vec3) -> f32,
 ) -> Rgb {
     let Segment { o, d, t_max, sigma_t } = *seg;
     let mut sum = Rgb::ZERO;
-    spheres.for_each_crossed(o, d, t_max, stack, |i, t, _, r2| {
+    beams.spheres.for_each_crossed(o, d, t_max, stack, |i, t, d2, r2| {
         let r = &records[i as usize];
-        sum += (-sigma_t * t).exp() * r.power() * (phase(r.wi()) / (PI * r2));
+        let h = (r2 - d2).max(0.0).sqrt();
+        let (a, b) = ((t - h).max(0.0), (t + h).min(t_max));
+        if !(b > a) {
+            return;
+        }
+        let kernel = beams.weights[i as usize] * 3.0 / (4.0 * PI * r2 * r2.sqrt());
+        sum += attenuated_length(sigma_t, a, b) * r.power() * (phase(r.wi()) * kernel);
     });
     sum
+}
+
+/// The integral of e^(-sigma_t s) ds over [a, b] \[m\], per channel.
+fn attenuated_length(sigma_t: Rgb, a: f32, b: f32) -> Rgb {
+    let one = |sigma: f32| {
+        let x = sigma * (b - a);
+        if x < 1e-4 {
+            (b - a) * (1.0 - 0.5 * x) * (-sigma * a).exp()
+        } else {
+            (-sigma * a).exp() * -(-x).exp_m1() / sigma
+        }
+    };
+    Rgb::new(one(sigma_t.x), one(sigma_t.y), one(sigma_t.z))
 }
 
 #[cfg(test)]

@@ -1,7 +1,8 @@
 //! Photons as spheres for the beam radiance estimate (Jarosz, Zwicker and Jensen
 //! 2008, "The beam radiance estimate for volumetric photon mapping", section 4):
 //! every photon with its own radius, in a bounding-volume hierarchy of the spheres,
-//! queried with a ray segment for every photon whose sphere the segment crosses.
+//! queried with a ray segment for every photon whose sphere the segment passes
+//! through.
 
 use glam::Vec3;
 
@@ -55,6 +56,11 @@ impl SphereTree {
         t
     }
 
+    /// Photon `i`'s centre \[m\] and radius \[m\] (zero: left out).
+    pub fn sphere(&self, i: usize) -> (Vec3, f32) {
+        (self.centres[i], self.radii2[i].sqrt())
+    }
+
     /// Photons in the hierarchy.
     pub fn len(&self) -> usize {
         self.order.len()
@@ -100,10 +106,11 @@ impl SphereTree {
     }
 
     /// Call `f(photon, t, d2, r2)` for every photon whose sphere the segment from
-    /// `o` along unit `d` over [0, `t_max`] crosses at its point of closest
-    /// approach: t the distance along the ray to that point \[m\], d2 the squared
-    /// distance of the photon from the ray and r2 its squared radius [m^2] (d2 <
-    /// r2). `stack` is scratch.
+    /// `o` along unit `d` over [0, `t_max`] passes through (its chord through the
+    /// sphere, [t - h, t + h] with h = sqrt(r2 - d2), overlaps the segment): t the
+    /// distance along the ray to the point of closest approach \[m\] (which may lie
+    /// outside the segment), d2 the squared distance of the photon from the ray and
+    /// r2 its squared radius [m^2] (d2 < r2). `stack` is scratch.
     pub fn for_each_crossed(
         &self,
         o: Vec3,
@@ -133,13 +140,13 @@ impl SphereTree {
                 for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
                     let v = self.centres[i as usize] - o;
                     let t = v.dot(d);
-                    if !(0.0..=t_max).contains(&t) {
-                        continue;
-                    }
                     let d2 = (v - d * t).length_squared();
                     let r2 = self.radii2[i as usize];
                     if d2 < r2 {
-                        f(i, t, d2, r2);
+                        let h = (r2 - d2).sqrt();
+                        if t + h >= 0.0 && t - h <= t_max {
+                            f(i, t, d2, r2);
+                        }
                     }
                 }
             } else {
@@ -185,7 +192,9 @@ mod tests {
                 let v = centres[i] - o;
                 let t = v.dot(d);
                 let d2 = (v - d * t).length_squared();
-                if radii[i] > 0.0 && (0.0..=t_max).contains(&t) && d2 < radii[i] * radii[i] {
+                let r2 = radii[i] * radii[i];
+                let h = (r2 - d2).max(0.0).sqrt();
+                if radii[i] > 0.0 && d2 < r2 && t + h >= 0.0 && t - h <= t_max {
                     want.push((i as u32, t, d2));
                 }
             }

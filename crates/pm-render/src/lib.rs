@@ -35,8 +35,10 @@ pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView,
 pub use pm_raster::Rect;
 pub use render::{FrameBuffers, Image, Shot, Visibility, render_into, render_region, render_region_with};
 
+use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};
 use pm_kdtree::KdTree;
+use pm_scene::Scene;
 
 pm_params::value_enum! {
     /// How final-gather rays get the radiance at their hit points.
@@ -294,9 +296,9 @@ pub struct VolumeMap<'a> {
     /// The photons, balanced.
     pub tree: KdTree<'a, FullPhoton>,
     /// Every photon but the direct ones, as beam spheres.
-    pub multiple: pm_kdtree::SphereTree,
+    pub multiple: pm_estimate::Beams,
     /// Every photon, as beam spheres.
-    pub all: pm_kdtree::SphereTree,
+    pub all: pm_estimate::Beams,
     /// The in-scattered radiance per unit length at each photon (heap order)
     /// [W sr^-1 m^-3 per channel] that final-gather rays look up
     /// ([`pm_estimate::precomputed_inscattering`]; empty unless asked for).
@@ -304,23 +306,62 @@ pub struct VolumeMap<'a> {
 }
 
 impl<'a> VolumeMap<'a> {
-    /// The volume map of kd-tree `nodes` with beam radii from the `k` nearest
-    /// photons within `max_radius` \[m\], and with each photon's in-scattered
-    /// radiance precomputed from as many when `precompute` (final gathers look it
-    /// up: [`Lookup::Precomputed`]).
-    pub fn new(nodes: &'a [FullPhoton], k: usize, max_radius: f32, precompute: bool) -> VolumeMap<'a> {
+    /// The volume map of kd-tree `nodes` in `scene` with beam radii from the `k`
+    /// nearest photons within `max_radius` \[m\], their kernels corrected for the
+    /// media's boundaries ([`pm_estimate::Beams::with_inside_fractions`], from
+    /// [`inside_fractions`]), and with each photon's in-scattered radiance
+    /// precomputed from as many when `precompute` (final gathers look it up:
+    /// [`Lookup::Precomputed`]).
+    pub fn new(scene: &Scene, nodes: &'a [FullPhoton], k: usize, max_radius: f32, precompute: bool) -> VolumeMap<'a> {
         let tree = KdTree::new(nodes);
         let max_d2 = max_radius * max_radius;
         let multiple = pm_estimate::beam_spheres(&tree, k, max_d2, false);
         let (all, inscattering) = if precompute {
             // The precomputation's queries give the all-photon radii too.
             let (inscattering, radii) = pm_estimate::Inscattering::with_beam_radii(&tree, k, max_d2);
-            (pm_estimate::spheres(&tree, &radii), inscattering)
+            (pm_estimate::Beams::new(&tree, &radii), inscattering)
         } else {
             (pm_estimate::beam_spheres(&tree, k, max_d2, true), Default::default())
         };
+        let reach = |i: usize| multiple.spheres.sphere(i).1.max(all.spheres.sphere(i).1);
+        let free = free_distances(scene, nodes, reach);
+        let inside = |i: usize, r: f32| inside_fraction(&free[i], r);
+        let (multiple, all) = (multiple.with_inside_fractions(inside), all.with_inside_fractions(inside));
         VolumeMap { tree, multiple, all, inscattering }
     }
+}
+
+/// Directions the medium around a photon is probed in: a Fibonacci sphere (equal
+/// solid angles).
+const PROBES: usize = 32;
+
+/// For each photon, the distance from it to the first surface (a wall, a medium's
+/// boundary, an object) in each of [`PROBES`] fixed directions, up to `reach(i)`
+/// \[m\]. In parallel, each photon on its own (independent of the thread count).
+fn free_distances(scene: &Scene, nodes: &[FullPhoton], reach: impl Fn(usize) -> f32 + Sync) -> Vec<[f32; PROBES]> {
+    use rayon::prelude::*;
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let dirs: [Vec3; PROBES] = std::array::from_fn(|j| {
+        let z = 1.0 - (2.0 * j as f32 + 1.0) / PROBES as f32;
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        let phi = golden * j as f32;
+        Vec3::new(s * phi.cos(), s * phi.sin(), z)
+    });
+    nodes
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let (p, far) = (r.position(), reach(i));
+            std::array::from_fn(|j| if far > 0.0 { scene.intersect(p, dirs[j], far).map_or(far, |h| h.t) } else { 0.0 })
+        })
+        .collect()
+}
+
+/// The fraction of a sphere of radius `r` around a photon that lies in its
+/// medium, from its [`free_distances`]: the mean over the directions of the cube
+/// of the free part of the radius (each direction's cone of the sphere).
+fn inside_fraction(free: &[f32; PROBES], r: f32) -> f32 {
+    free.iter().map(|&s| (s.min(r) / r).powi(3)).sum::<f32>() / PROBES as f32
 }
 
 /// The photons of a kd-tree map that carry a precomputed irradiance, as their own
