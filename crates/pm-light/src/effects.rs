@@ -135,7 +135,7 @@ fn caustics(scene: &Scene, any_diffuse: bool) -> Decision {
     }
     if reached.is_empty() {
         let names: Vec<String> = specular_objects.iter().map(|&o| format!("'{}'", scene.objects[o].name)).collect();
-        return Decision::no(format!("{} not reachable from any light", names.join(", ")));
+        return Decision::no(format!("{} not reachable from any light", a_few(&names)));
     }
     let mut objs: Vec<String> = reached
         .iter()
@@ -148,7 +148,16 @@ fn caustics(scene: &Scene, any_diffuse: bool) -> Decision {
     let mut lights: Vec<String> = reached.iter().map(|&(_, l)| format!("'{}'", scene.lights[l].name)).collect();
     lights.sort();
     lights.dedup();
-    Decision::yes(format!("{} reachable from {}", objs.join(", "), lights.join(", ")))
+    Decision::yes(format!("{} reachable from {}", a_few(&objs), a_few(&lights)))
+}
+
+/// The first few of `names` and how many more: a room with 48 lamps names four.
+fn a_few(names: &[String]) -> String {
+    const FEW: usize = 4;
+    match names.len() {
+        n if n <= FEW => names.join(", "),
+        n => format!("{} and {} more", names[..FEW - 1].join(", "), n - (FEW - 1)),
+    }
 }
 
 /// Indirect: probe photons leave the lights as the tracer's do (chosen by
@@ -305,4 +314,15 @@ fn volume_reached(scene: &Scene) -> Decision {
     }
     let names: Vec<String> = scattering.iter().map(|n| format!("'{n}'")).collect();
     Decision::no(format!("no probe of {PROBES} from the lights reaches medium {}", names.join(", ")))
+}
+
+#[cfg(test)]
+mod tests {
+    /// Four names or fewer are all listed; more, the first three and a count.
+    #[test]
+    fn a_few_names_and_how_many_more() {
+        let names: Vec<String> = (1..=48).map(|i| format!("'lamp {i}'")).collect();
+        assert_eq!(super::a_few(&names[..4]), "'lamp 1', 'lamp 2', 'lamp 3', 'lamp 4'");
+        assert_eq!(super::a_few(&names), "'lamp 1', 'lamp 2', 'lamp 3' and 45 more");
+    }
 }

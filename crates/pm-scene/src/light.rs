@@ -260,17 +260,16 @@ impl Light {
         let cone_pdf = |o: Vec3, d: Vec3| -> f32 {
             let mut pdf = 0.0;
             for t in targets {
-                if let Some(cos_max) = cone_cos(o, t)
-                    && d.dot((t.center - o).normalize()) >= cos_max
-                {
+                let (axis, cos_max) = cone_to(o, t);
+                if d.dot(axis) >= cos_max {
                     pdf += uniform_cone_pdf(cos_max);
                 }
             }
             pdf / targets.len() as f32
         };
-        let cone_dir = |o: Vec3, t: &Target| -> Option<Vec3> {
-            let cos_max = cone_cos(o, t)?;
-            Some(to_world(uniform_cone(u_dir, cos_max), (t.center - o).normalize()))
+        let cone_dir = |o: Vec3, t: &Target| -> Vec3 {
+            let (axis, cos_max) = cone_to(o, t);
+            to_world(uniform_cone(u_dir, cos_max), axis)
         };
         match &self.kind {
             LightKind::Area { two_sided, .. } => {
@@ -287,7 +286,7 @@ impl Light {
                     // pdf_pos = 1/A, pdf_dir = cos/pi (per side), so Phi-hat = L_e pi A sides.
                     (to_world(cosine_hemisphere(u_dir), n), emission * (PI * area * sides))
                 } else {
-                    let d = cone_dir(p, pick(u_tgt))?;
+                    let d = cone_dir(p, pick(u_tgt));
                     let cos = if *two_sided { d.dot(ng).abs() } else { d.dot(ng) };
                     let pdf = cone_pdf(p, d);
                     if cos <= 0.0 || pdf <= 0.0 {
@@ -302,7 +301,7 @@ impl Light {
                 if targets.is_empty() {
                     Some(EmittedRay { origin: *position, dir: uniform_sphere(u_dir), power: *intensity * FOUR_PI })
                 } else {
-                    let d = cone_dir(*position, pick(u_tgt))?;
+                    let d = cone_dir(*position, pick(u_tgt));
                     let pdf = cone_pdf(*position, d);
                     (pdf > 0.0).then(|| EmittedRay { origin: *position, dir: d, power: *intensity / pdf })
                 }
@@ -311,7 +310,7 @@ impl Light {
                 let (d, pdf) = if targets.is_empty() {
                     (to_world(uniform_cone(u_dir, *cos_outer), *direction), uniform_cone_pdf(*cos_outer))
                 } else {
-                    let d = cone_dir(*position, pick(u_tgt))?;
+                    let d = cone_dir(*position, pick(u_tgt));
                     (d, cone_pdf(*position, d))
                 };
                 let f = spot_falloff(d.dot(*direction), *cos_inner, *cos_outer);
@@ -626,12 +625,19 @@ fn pick_radiance(
     }
 }
 
-/// cos of the half-angle of the cone from `o` that bounds target `t`; None if `o` is
-/// inside the sphere (the caller then cannot aim).
-fn cone_cos(o: Vec3, t: &Target) -> Option<f32> {
-    let d2 = (t.center - o).length_squared();
-    let r2 = t.radius * t.radius;
-    (d2 > r2 * 1.0001).then(|| (1.0 - r2 / d2).max(0.0).sqrt())
+/// The cone from `o` that bounds target `t`: its axis and the cos of its
+/// half-angle; the whole sphere of directions (cos -1) from inside the target.
+fn cone_to(o: Vec3, t: &Target) -> (Vec3, f32) {
+    let v = t.center - o;
+    let (d2, r2) = (v.length_squared(), t.radius * t.radius);
+    if d2 > r2 * 1.0001 {
+        (v / d2.sqrt(), (1.0 - r2 / d2).max(0.0).sqrt())
+    } else {
+        // From inside the sphere (a light behind a glass panel wider than the
+        // gap between them): every direction leads to the target. Such a target
+        // once got no photons at all, and the analysis called it unreachable.
+        (Vec3::Z, -1.0)
+    }
 }
 
 /// glTF KHR_lights_punctual spot attenuation: t^2 with t = clamp((cos - cos_outer) /

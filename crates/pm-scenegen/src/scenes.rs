@@ -158,6 +158,24 @@ fn cornell_spheres() -> Doc {
     doc
 }
 
+/// The Cornell box with its chrome and glass spheres, the ceiling light behind a
+/// clear glass panel: a closed slab 6 mm thick (ior 1.5) 4 cm below the light
+/// and 5 cm wider than it on each side. Every photon from the light crosses the
+/// panel and a shadow ray cannot refract, so all the room's light is a caustic
+/// (L S+ D); the effects analysis once found no caustics in it (issue 53).
+fn cornell_glass_panel() -> Doc {
+    let mut doc = cornell_spheres();
+    let (_, glass) = chrome_and_glass(&mut doc, 0.006);
+    let (half, bottom) = (0.30, 2.0 - 0.002 - 0.04 - 0.006);
+    let mut slab = block(0.0, 0.0, 2.0 * half, 0.006, 2.0 * half, 0.0);
+    slab = merge(&[slab, quad([-half, 0.0, -half], [half, 0.0, -half], [half, 0.0, half], [-half, 0.0, half])]);
+    for q in &mut slab.p {
+        q[1] += bottom;
+    }
+    doc.mesh_node("glass_panel", &slab, glass);
+    doc
+}
+
 fn cornell_boxes() -> Doc {
     let mut doc = Doc::default();
     cornell_shell(&mut doc);
@@ -833,6 +851,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("cornell_boxes", cornell_boxes()),
         ("cornell_fog", cornell_fog()),
         ("cornell_fogbox", cornell_fogbox()),
+        ("cornell_glass_panel", cornell_glass_panel()),
         ("volumetric_caustic", volumetric_caustic()),
         ("furnace", furnace()),
         ("plane_point", plane_point()),
