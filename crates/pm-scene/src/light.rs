@@ -631,7 +631,7 @@ fn cone_to(o: Vec3, t: &Target) -> (Vec3, f32) {
     let v = t.center - o;
     let (d2, r2) = (v.length_squared(), t.radius * t.radius);
     if d2 > r2 * 1.0001 {
-        (v / d2.sqrt(), (1.0 - r2 / d2).max(0.0).sqrt())
+        (v.normalize(), (1.0 - r2 / d2).max(0.0).sqrt())
     } else {
         // From inside the sphere (a light behind a glass panel wider than the
         // gap between them): every direction leads to the target. Such a target
