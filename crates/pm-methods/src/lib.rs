@@ -95,6 +95,19 @@ impl Method {
         }
     }
 
+    /// How closely the method's image agrees with the path tracer's on any scene,
+    /// on its defaults (the one statement of it; `cargo xtask differential` judges
+    /// by it): the batch renderer (`full`) and SPPM within 2% in the image's mean
+    /// and 15% in every 8 x 8 block's, the light's pixels left out. None for the
+    /// partial views (`indirect`, `radiance`, `photons`: Christensen's Figure 1)
+    /// and for the path tracer, which is the reference.
+    pub fn agreement(self) -> Option<Agreement> {
+        match self {
+            Method::Full | Method::Sppm => Some(Agreement { mean: 0.02, worst_block: 0.15 }),
+            Method::Indirect | Method::Radiance | Method::Photons | Method::Path => None,
+        }
+    }
+
     /// What the method leaves out of `scene`'s light, as a note for the user.
     pub fn leaves_out(self, scene: &pm_scene::Scene) -> Option<String> {
         (self == Method::Sppm && scene.has_scattering_media()).then(|| {
@@ -111,6 +124,15 @@ impl Method {
     pub fn searches_global(self, lookup: Lookup) -> bool {
         self == Method::Photons || (lookup == Lookup::Exact && self.needs().photon_maps)
     }
+}
+
+/// The most a method's image may differ from the path tracer's (relative).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Agreement {
+    /// In the mean over the image.
+    pub mean: f64,
+    /// In any 8 x 8 block's mean.
+    pub worst_block: f64,
 }
 
 /// Every method's settings, each group declared once in its method's crate:

@@ -37,6 +37,9 @@ pub struct Doc {
     pub top_level: serde_json::Map<String, Value>,
     /// The scene's `extras` (the environment it is lit by), if any.
     pub scene_extras: Option<Value>,
+    /// A node (its translation, rotation, scale) to hold every other node as its
+    /// children, as a Blender export's root does; none: every node is a root.
+    pub root: Option<Value>,
 }
 
 /// A texture image and its sampler.
@@ -242,12 +245,21 @@ impl Doc {
     /// Write `dir/NAME.gltf`, `NAME.bin` and the textures' `NAME_K.png` (with
     /// `check`, compare with the files there instead and fail if one differs).
     pub fn write(self, dir: &Path, name: &str, check: bool) -> Result<()> {
-        let n_nodes = self.nodes.len();
+        let mut nodes = self.nodes;
+        let n_nodes = nodes.len();
+        let roots: Vec<usize> = match self.root {
+            Some(mut r) => {
+                r["children"] = json!((0..n_nodes).collect::<Vec<_>>());
+                nodes.push(r);
+                vec![n_nodes]
+            }
+            None => (0..n_nodes).collect(),
+        };
         let mut root = json!({
             "asset": {"version": "2.0", "generator": "photon-map xtask gen-scenes"},
             "scene": 0,
-            "scenes": [{"name": name, "nodes": (0..n_nodes).collect::<Vec<_>>()}],
-            "nodes": self.nodes,
+            "scenes": [{"name": name, "nodes": roots}],
+            "nodes": nodes,
             "meshes": self.meshes,
             "materials": self.materials,
             "accessors": self.accessors,

@@ -4,4 +4,5 @@
 //! checks itself on is plain glTF that any viewer opens.
 
 pub mod gltf;
+pub mod random;
 pub mod scenes;

@@ -9,7 +9,7 @@ use std::path::Path;
 
 /// An axis-aligned quad with corners a, b, c, d in counter-clockwise order as seen
 /// from the side its normal points to.
-fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Mesh {
+pub(crate) fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Mesh {
     let e1 = sub(b, a);
     let e2 = sub(d, a);
     let n = normalize(cross(e1, e2));
@@ -17,7 +17,7 @@ fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Mesh {
 }
 
 /// Several quads as one mesh.
-fn merge(parts: &[Mesh]) -> Mesh {
+pub(crate) fn merge(parts: &[Mesh]) -> Mesh {
     let mut m = Mesh { p: vec![], n: vec![], idx: vec![] };
     for part in parts {
         let base = m.p.len() as u32;
@@ -29,7 +29,7 @@ fn merge(parts: &[Mesh]) -> Mesh {
 }
 
 /// UV sphere with smooth normals; `inward` flips normals and winding (front faces inside).
-fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
+pub(crate) fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
     let mut p = vec![];
     let mut n = vec![];
     for j in 0..=rings {
@@ -62,7 +62,7 @@ fn sphere(c: [f32; 3], r: f32, seg: u32, rings: u32, inward: bool) -> Mesh {
 }
 
 /// A box of size (sx, sy, sz) standing on the floor at (cx, cz), rotated by `angle` about y.
-fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
+pub(crate) fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
     let (s, c) = angle.sin_cos();
     let at = |x: f32, y: f32, z: f32| [cx + c * x + s * z, y, cz - s * x + c * z];
     let (hx, hz) = (sx / 2.0, sz / 2.0);
@@ -84,21 +84,21 @@ fn block(cx: f32, cz: f32, sx: f32, sy: f32, sz: f32, angle: f32) -> Mesh {
 /// A Lambertian material: glTF's dielectric with its specular layer turned off
 /// (KHR_materials_specular's specularFactor 0; without it every glTF dielectric has
 /// a GGX layer, Appendix B). The analytic scenes need pure Lambertian surfaces.
-fn diffuse(name: &str, rgb: [f32; 3]) -> Value {
+pub(crate) fn diffuse(name: &str, rgb: [f32; 3]) -> Value {
     lambertian(
         json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}),
     )
 }
 
 /// Material `m` with its dielectric specular layer turned off.
-fn lambertian(mut m: Value) -> Value {
+pub(crate) fn lambertian(mut m: Value) -> Value {
     m["extensions"]["KHR_materials_specular"] = json!({"specularFactor": 0.0});
     m
 }
 
 /// A white-emitting Lambertian material (albedo 0.8) of radiance `strength`
 /// [W sr^-1 m^-2 per channel], through KHR_materials_emissive_strength.
-fn emitter(doc: &mut Doc, name: &str, strength: f64) -> usize {
+pub(crate) fn emitter(doc: &mut Doc, name: &str, strength: f64) -> usize {
     let m = doc.material(lambertian(json!({
         "name": name,
         "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
@@ -134,7 +134,7 @@ fn cornell_shell(doc: &mut Doc) {
 /// A chrome material (metal, roughness 0) and a solid glass one (ior 1.5,
 /// KHR_materials_volume of `thickness`: without it glTF glass is thin-walled and
 /// focuses nothing), as the spheres scenes use them.
-fn chrome_and_glass(doc: &mut Doc, thickness: f64) -> (usize, usize) {
+pub(crate) fn chrome_and_glass(doc: &mut Doc, thickness: f64) -> (usize, usize) {
     let chrome = doc.material(json!({"name": "chrome", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.0}}));
     let glass = doc.material(json!({
         "name": "glass",
@@ -189,7 +189,7 @@ fn cornell_boxes() -> Doc {
 /// walls without a bounce) from `lo` to `hi`: KHR_materials_volume's extinction
 /// -ln(`colour`) / 1 m and the draft KHR_materials_volume_scatter's multiple-
 /// scattering albedo `albedo` and anisotropy `g`.
-fn fog_box(doc: &mut Doc, lo: [f32; 3], hi: [f32; 3], colour: f64, albedo: f64, g: f64) {
+pub(crate) fn fog_box(doc: &mut Doc, lo: [f32; 3], hi: [f32; 3], colour: f64, albedo: f64, g: f64) {
     let fog = doc.material(json!({
         "name": "fog",
         "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},

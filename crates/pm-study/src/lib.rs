@@ -5,6 +5,7 @@
 //! of shapes). `cargo xtask tradeoff` and `cargo xtask peer` call it; it runs the
 //! stage binaries through pm-runner.
 
+pub mod differential;
 pub mod peer;
 pub mod plot;
 pub mod tradeoff;

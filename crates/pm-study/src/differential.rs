@@ -1,0 +1,298 @@
+//! `cargo xtask differential`: every method against the path tracer on scenes no
+//! one tuned for (issue 53). Writes the generator's scenes
+//! ([`pm_scenegen::random`]), renders each with the path tracer twice (two seeds:
+//! their difference is the reference's own noise), then runs each method as a
+//! user does (`cargo xtask run` on the repository's pipeline.toml, only the scene,
+//! the image size and the method changed) and judges it by the bound its own
+//! documentation states ([`pm_methods::Method::agreement`]): the image's mean and
+//! its worst 8 x 8 block, and each layer that holds at least a twentieth of the
+//! light, the light's pixels left out, with the reference's noise allowed on top.
+//! A method that fails to run is `crashed`; one that writes a NaN, infinite or
+//! negative pixel is `nonfinite`. Writes DIR/report.json and prints one line.
+
+use anyhow::{Context, Result};
+use glam::Vec3;
+use pm_color::Layer;
+use pm_image::accuracy::{Agreement, agreement, keep_mask};
+use pm_methods::Method;
+use pm_runner::bins::{self, Bins};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Options of `cargo xtask differential`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scenes to generate and check.
+    #[arg(long, default_value_t = 200)]
+    pub scenes: u32,
+    /// The generator's seed: equal seeds give the same scenes.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Image width and height [pixels].
+    #[arg(long, default_value_t = 48)]
+    pub size: u32,
+    /// Methods to check (those with a stated bound: full, sppm).
+    #[arg(long, value_delimiter = ',', default_value = "full,sppm")]
+    pub methods: Vec<Method>,
+    /// Path-traced samples per pixel of each of the reference's two halves.
+    #[arg(long, default_value_t = 512)]
+    pub reference_spp: u32,
+    /// Output folder [default: out/differential].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// How one method did on one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outcome {
+    /// The scene's file name.
+    pub scene: String,
+    /// The method.
+    pub method: String,
+    /// "passed", "failed", "crashed" or "nonfinite".
+    pub verdict: String,
+    /// What was off: the layer ("image" for the whole), its mean's and worst
+    /// block's relative differences, and the reference's noise in each.
+    pub layers: Vec<LayerOutcome>,
+    /// The error, for a crash.
+    pub error: Option<String>,
+}
+
+/// One layer's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct LayerOutcome {
+    /// "image" or the layer's name.
+    pub layer: String,
+    /// Relative difference of the means.
+    pub mean: f64,
+    /// Largest relative difference of an 8 x 8 block's mean.
+    pub worst_block: f64,
+    /// That block (column, row).
+    pub worst_at: (usize, usize),
+    /// The reference's noise in the same two figures.
+    pub noise: (f64, f64),
+    /// Whether it is within the bound (plus the noise).
+    pub within: bool,
+}
+
+/// Counts per method.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Counts {
+    /// Within the bound.
+    pub passed: u32,
+    /// Outside it.
+    pub failed: u32,
+    /// The run failed.
+    pub crashed: u32,
+    /// A pixel not finite or negative.
+    pub nonfinite: u32,
+}
+
+/// DIR/report.json.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Scenes checked.
+    pub scenes: u32,
+    /// The generator's seed.
+    pub seed: u64,
+    /// Counts per method.
+    pub methods: BTreeMap<String, Counts>,
+    /// The bound each method is judged by.
+    pub bounds: BTreeMap<String, pm_methods::Agreement>,
+    /// The outcomes that did not pass, worst first (by how far outside).
+    pub worst: Vec<Outcome>,
+}
+
+/// Run the check.
+pub fn run(args: &Args, root: &Path) -> Result<Report> {
+    let out = args.out.clone().unwrap_or_else(|| root.join("out/differential"));
+    let bins = Bins::build(root)?;
+    let methods: Vec<(Method, pm_methods::Agreement)> = args
+        .methods
+        .iter()
+        .map(|m| m.agreement().map(|a| (*m, a)).with_context(|| format!("--methods {m}: it states no bound")))
+        .collect::<Result<_>>()?;
+    let scenes = pm_scenegen::random::write(&out.join("scenes"), args.seed, args.scenes)?;
+    let base = pm_pipeline::Pipeline::load(&root.join("pipeline.toml"))?;
+    let mut outcomes = Vec::new();
+    for (k, (scene, recipe)) in scenes.iter().enumerate() {
+        let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        let dir = out.join(&name);
+        std::fs::create_dir_all(&dir)?;
+        eprintln!("differential: {name} ({} of {}): {recipe:?}", k + 1, scenes.len());
+        let halves = [1u64, 2].map(|seed| path_traced(&bins, scene, args, seed, &dir));
+        let (a, b) = match halves {
+            [Ok(a), Ok(b)] => (a, b),
+            [Err(e), _] | [_, Err(e)] => {
+                // No reference: every method's outcome says so.
+                for (m, _) in &methods {
+                    outcomes.push(crashed(&name, *m, &format!("the path tracer failed: {e:#}")));
+                }
+                continue;
+            }
+        };
+        for &(m, bound) in &methods {
+            let outcome = match run_method(root, &bins, &base, scene, m, args.size, &dir.join(m.to_string())) {
+                Ok(img) => judge(&name, m, bound, &img, (&a, &b), args.size as usize),
+                Err(e) => crashed(&name, m, &format!("{e:#}")),
+            };
+            eprintln!("differential: {name} {m}: {}", outcome.verdict);
+            outcomes.push(outcome);
+        }
+    }
+    let mut counts: BTreeMap<String, Counts> = BTreeMap::new();
+    for o in &outcomes {
+        let c = counts.entry(o.method.clone()).or_default();
+        match o.verdict.as_str() {
+            "passed" => c.passed += 1,
+            "failed" => c.failed += 1,
+            "crashed" => c.crashed += 1,
+            _ => c.nonfinite += 1,
+        }
+    }
+    let mut worst: Vec<Outcome> = outcomes.into_iter().filter(|o| o.verdict != "passed").collect();
+    worst.sort_by(|x, y| badness(y).total_cmp(&badness(x)));
+    let bounds = methods.iter().map(|(m, a)| (m.to_string(), *a)).collect();
+    let report = Report { scenes: args.scenes, seed: args.seed, methods: counts, bounds, worst };
+    pm_stage::write_json(&out.join("report.json"), &serde_json::to_value(&report)?)?;
+    println!("{}", summary(&report));
+    Ok(report)
+}
+
+/// The one line printed last: per method, passed of the scenes and the rest.
+pub fn summary(r: &Report) -> String {
+    let parts: Vec<String> = r
+        .methods
+        .iter()
+        .map(|(m, c)| {
+            format!(
+                "{m} {}/{} passed ({} failed, {} crashed, {} non-finite)",
+                c.passed, r.scenes, c.failed, c.crashed, c.nonfinite
+            )
+        })
+        .collect();
+    format!("differential: {} scenes of seed {}: {}", r.scenes, r.seed, parts.join("; "))
+}
+
+/// How far outside its bound an outcome is (crashes and non-finite first).
+fn badness(o: &Outcome) -> f64 {
+    match o.verdict.as_str() {
+        "crashed" | "nonfinite" => f64::INFINITY,
+        _ => o.layers.iter().map(|l| l.mean.abs().max(l.worst_block)).fold(0.0, f64::max),
+    }
+}
+
+fn crashed(scene: &str, m: Method, e: &str) -> Outcome {
+    let verdict = "crashed".to_string();
+    Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()) }
+}
+
+/// The path tracer's image of `scene` with seed `seed`.
+fn path_traced(bins: &Bins, scene: &Path, args: &Args, seed: u64, dir: &Path) -> Result<pm_image::Layers> {
+    let file = dir.join(format!("path-{seed}.exr"));
+    let size = args.size.to_string();
+    let a: Vec<String> = [
+        "--scene",
+        &scene.display().to_string(),
+        "--mode",
+        "path",
+        "--spp",
+        &args.reference_spp.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--width",
+        &size,
+        "--height",
+        &size,
+        "--out",
+        &file.display().to_string(),
+    ]
+    .map(String::from)
+    .to_vec();
+    bins::run(bins, "photon-render", &a, "path tracer", true)?;
+    pm_image::read_exr(&file)
+}
+
+/// Method `m`'s image of `scene` as `cargo xtask run` makes it: the repository's
+/// settings with the scene, the size and the method changed.
+fn run_method(
+    root: &Path,
+    bins: &Bins,
+    base: &pm_pipeline::Pipeline,
+    scene: &Path,
+    m: Method,
+    size: u32,
+    out: &Path,
+) -> Result<pm_image::Layers> {
+    let mut p = base.clone();
+    p.scene = scene.to_path_buf();
+    (p.render.width, p.render.height) = (size, size);
+    p.mode = m;
+    std::fs::create_dir_all(out)?;
+    let file = out.join("pipeline.toml");
+    std::fs::write(&file, p.to_toml())?;
+    let args = pm_runner::run::RunArgs { pipeline: Some(file), out: Some(out.to_path_buf()), ..Default::default() };
+    pm_runner::run::run_with(&args, root, bins)?;
+    pm_image::read_exr(&out.join("image.exr"))
+}
+
+/// A layer of an image (None: the whole), black when the image lacks it.
+fn layer(img: &pm_image::Layers, l: Option<Layer>) -> Vec<Vec3> {
+    let n = (img.width * img.height) as usize;
+    let want = pm_color::layer_name(l);
+    img.layers.iter().find(|(name, _)| name == want).map_or_else(|| vec![Vec3::ZERO; n], |(_, px)| px.clone())
+}
+
+/// Judge method `m`'s image against the reference's halves `a` and `b`.
+fn judge(
+    scene: &str,
+    m: Method,
+    bound: pm_methods::Agreement,
+    img: &pm_image::Layers,
+    (a, b): (&pm_image::Layers, &pm_image::Layers),
+    size: usize,
+) -> Outcome {
+    let mut o =
+        Outcome { scene: scene.into(), method: m.to_string(), verdict: "passed".into(), layers: vec![], error: None };
+    let total = layer(img, None);
+    if total.len() != size * size || total.iter().any(|p| !p.is_finite() || p.min_element() < 0.0) {
+        o.verdict = "nonfinite".into();
+        return o;
+    }
+    let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+        let (la, lb) = (layer(a, l), layer(b, l));
+        let reference = la.iter().zip(&lb).map(|(x, y)| (*x + *y) * 0.5).collect();
+        (reference, la, lb)
+    };
+    let (reference, _, _) = mean_of(None);
+    let keep = keep_mask(&reference, size, size, None);
+    let whole = pm_image::accuracy::kept_mean(&reference, &keep);
+    let layers = [
+        None,
+        Some(Layer::Direct),
+        Some(Layer::Caustic),
+        Some(Layer::Indirect),
+        Some(Layer::Specular),
+        Some(Layer::Volume),
+    ];
+    for l in layers {
+        let (reference, la, lb) = mean_of(l);
+        // Layers that hold less than a twentieth of the light are not judged.
+        if l.is_some() && pm_image::accuracy::kept_mean(&reference, &keep) < 0.05 * whole {
+            continue;
+        }
+        let ours = layer(img, l);
+        let Agreement { mean, worst_block, worst_at } = agreement(&ours, &reference, size, &keep, 8);
+        // The average of two halves has half the noise their difference shows.
+        let halves = agreement(&la, &lb, size, &keep, 8);
+        let noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);
+        let within = mean.abs() <= bound.mean + noise.0 && worst_block <= bound.worst_block + noise.1;
+        if !within {
+            o.verdict = "failed".into();
+        }
+        let name = if l.is_none() { "image".to_string() } else { pm_color::layer_name(l).to_string() };
+        o.layers.push(LayerOutcome { layer: name, mean, worst_block, worst_at, noise, within });
+    }
+    o
+}
