@@ -87,6 +87,9 @@ pub struct Counts {
     pub crashed: u32,
     /// A pixel not finite or negative.
     pub nonfinite: u32,
+    /// Not judged: the path tracer cannot render all of the scene's light (see
+    /// [`reference_blind_spot`]).
+    pub unjudged: u32,
 }
 
 /// DIR/report.json.
@@ -121,6 +124,20 @@ pub fn run(args: &Args, root: &Path) -> Result<Report> {
         let dir = out.join(&name);
         std::fs::create_dir_all(&dir)?;
         eprintln!("differential: {name} ({} of {}): {recipe:?}", k + 1, scenes.len());
+        if let Some(why) = reference_blind_spot(scene) {
+            for (m, _) in &methods {
+                let verdict = "unjudged".to_string();
+                outcomes.push(Outcome {
+                    scene: name.clone(),
+                    method: m.to_string(),
+                    verdict,
+                    layers: vec![],
+                    error: Some(why.clone()),
+                });
+            }
+            eprintln!("differential: {name}: unjudged: {why}");
+            continue;
+        }
         let halves = [1u64, 2].map(|seed| path_traced(&bins, scene, args, seed, &dir));
         let (a, b) = match halves {
             [Ok(a), Ok(b)] => (a, b),
@@ -148,10 +165,12 @@ pub fn run(args: &Args, root: &Path) -> Result<Report> {
             "passed" => c.passed += 1,
             "failed" => c.failed += 1,
             "crashed" => c.crashed += 1,
+            "unjudged" => c.unjudged += 1,
             _ => c.nonfinite += 1,
         }
     }
-    let mut worst: Vec<Outcome> = outcomes.into_iter().filter(|o| o.verdict != "passed").collect();
+    let mut worst: Vec<Outcome> =
+        outcomes.into_iter().filter(|o| o.verdict != "passed" && o.verdict != "unjudged").collect();
     worst.sort_by(|x, y| badness(y).total_cmp(&badness(x)));
     let bounds = methods.iter().map(|(m, a)| (m.to_string(), *a)).collect();
     let report = Report { scenes: args.scenes, seed: args.seed, methods: counts, bounds, worst };
@@ -166,9 +185,10 @@ pub fn summary(r: &Report) -> String {
         .methods
         .iter()
         .map(|(m, c)| {
+            let judged = r.scenes - c.unjudged;
             format!(
-                "{m} {}/{} passed ({} failed, {} crashed, {} non-finite)",
-                c.passed, r.scenes, c.failed, c.crashed, c.nonfinite
+                "{m} {}/{judged} passed ({} failed, {} crashed, {} non-finite; {} unjudged)",
+                c.passed, c.failed, c.crashed, c.nonfinite, c.unjudged
             )
         })
         .collect();
@@ -181,6 +201,31 @@ fn badness(o: &Outcome) -> f64 {
         "crashed" | "nonfinite" => f64::INFINITY,
         _ => o.layers.iter().map(|l| l.mean.abs().max(l.worst_block)).fold(0.0, f64::max),
     }
+}
+
+/// Why the path tracer cannot be the reference for `scene`, if it cannot: light
+/// from a point, spot or sun light (no size) that reaches a mirror or glass
+/// surface. A path from the eye cannot hit such a light after a specular bounce,
+/// so the path tracer leaves out the caustics and whatever they light (L S+ D
+/// ...), which the photon methods render: the first run found +4% to +17%
+/// images with such scenes, every photon method alike. Bidirectional path
+/// tracing (issue 56) will judge them.
+pub fn reference_blind_spot(scene: &Path) -> Option<String> {
+    let s = pm_scene::load(scene).ok()?;
+    let delta = s.lights.iter().find(|l| match l.kind {
+        pm_scene::LightKind::Point { .. } | pm_scene::LightKind::Spot { .. } => true,
+        pm_scene::LightKind::Directional { cap, .. } => cap == 0.0,
+        _ => false,
+    })?;
+    let specular = s.materials.iter().enumerate().find(|(i, m)| {
+        m.bsdf.is_specular()
+            && !matches!(m.bsdf, pm_bsdf::Bsdf::Glass { eta: 1.0, .. })
+            && s.triangles.iter().any(|t| t.material as usize == *i)
+    })?;
+    Some(format!(
+        "the path tracer cannot see light from '{}' (no size) through '{}' (specular)",
+        delta.name, specular.1.name
+    ))
 }
 
 fn crashed(scene: &str, m: Method, e: &str) -> Outcome {
