@@ -107,10 +107,14 @@ pub struct Report {
     pub worst: Vec<Outcome>,
 }
 
-/// Run the check.
+/// Run the check with the stage binaries built for `root`.
 pub fn run(args: &Args, root: &Path) -> Result<Report> {
+    run_with(args, root, &Bins::build(root)?)
+}
+
+/// Run the check with the stage binaries in `bins` (the tests' own build).
+pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
     let out = args.out.clone().unwrap_or_else(|| root.join("out/differential"));
-    let bins = Bins::build(root)?;
     let methods: Vec<(Method, pm_methods::Agreement)> = args
         .methods
         .iter()
@@ -138,7 +142,7 @@ pub fn run(args: &Args, root: &Path) -> Result<Report> {
             eprintln!("differential: {name}: unjudged: {why}");
             continue;
         }
-        let halves = [1u64, 2].map(|seed| path_traced(&bins, scene, args, seed, &dir));
+        let halves = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, &dir));
         let (a, b) = match halves {
             [Ok(a), Ok(b)] => (a, b),
             [Err(e), _] | [_, Err(e)] => {
@@ -150,7 +154,7 @@ pub fn run(args: &Args, root: &Path) -> Result<Report> {
             }
         };
         for &(m, bound) in &methods {
-            let outcome = match run_method(root, &bins, &base, scene, m, args.size, &dir.join(m.to_string())) {
+            let outcome = match run_method(root, bins, &base, scene, m, args.size, &dir.join(m.to_string())) {
                 Ok(img) => judge(&name, m, bound, &img, (&a, &b), args.size as usize),
                 Err(e) => crashed(&name, m, &format!("{e:#}")),
             };

@@ -1,0 +1,43 @@
+//! The differential checks' small run, as CI runs it (issue 53): `cargo xtask
+//! differential` on 20 generated scenes of seed 3 at 24 x 24 pixels, the path
+//! tracer at 128 + 128 samples a pixel, the batch renderer and SPPM on the
+//! repository's settings.
+
+use pm_methods::Method;
+
+/// No method crashes or writes a non-finite or negative pixel on any scene,
+/// every scene is accounted for once per method, the report on disk says what
+/// the run returned. Judged scenes that pass are at least as many as when this
+/// test was written (full 4 and SPPM 8 of 17 judged, 3 unjudged: the failure
+/// classes the run found, in the issue's note, are open), so a change that
+/// breaks a passing case shows here. About 95 s on the 2-core machine.
+#[test]
+fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = tempfile::tempdir().unwrap();
+    let args = pm_study::differential::Args {
+        scenes: 20,
+        seed: 3,
+        size: 24,
+        methods: vec![Method::Full, Method::Sppm],
+        reference_spp: 128,
+        out: Some(dir.path().to_path_buf()),
+    };
+    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let report = pm_study::differential::run_with(&args, &root, &bins).unwrap();
+    let summary = pm_study::differential::summary(&report);
+    eprintln!("{summary}");
+    for (m, c) in &report.methods {
+        assert_eq!((c.crashed, c.nonfinite), (0, 0), "{m}: {summary}: {:?}", report.worst);
+        assert_eq!(c.passed + c.failed + c.unjudged, 20, "{m}: {summary}");
+    }
+    assert_eq!(report.methods.len(), 2);
+    let on_disk: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
+    let written: serde_json::Value = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
+    assert_eq!(on_disk, written);
+    let at_least = [("full", 4), ("sppm", 8)];
+    for (m, n) in at_least {
+        assert!(report.methods[m].passed >= n, "{m}: {summary}");
+    }
+}
