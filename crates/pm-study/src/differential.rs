@@ -6,14 +6,15 @@
 //! the image size and the method changed) and judges it by the bound its own
 //! documentation states ([`pm_methods::Method::agreement`]): the image's mean and
 //! its worst 8 x 8 block, and each layer that holds at least a twentieth of the
-//! light, the light's pixels left out, with the reference's noise allowed on top.
+//! light, the pixels that see a light left out, with the reference's noise
+//! allowed on top.
 //! A method that fails to run is `crashed`; one that writes a NaN, infinite or
 //! negative pixel is `nonfinite`. Writes DIR/report.json and prints one line.
 
 use anyhow::{Context, Result};
 use glam::Vec3;
 use pm_color::Layer;
-use pm_image::accuracy::{Agreement, agreement, keep_mask};
+use pm_image::accuracy::{Agreement, agreement};
 use pm_methods::Method;
 use pm_runner::bins::{self, Bins};
 use serde::Serialize;
@@ -143,6 +144,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             continue;
         }
         let halves = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, &dir));
+        let keep = emitters_left_out(scene, args.size as usize)?;
         let (a, b) = match halves {
             [Ok(a), Ok(b)] => (a, b),
             [Err(e), _] | [_, Err(e)] => {
@@ -155,7 +157,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
         };
         for &(m, bound) in &methods {
             let outcome = match run_method(root, bins, &base, scene, m, args.size, &dir.join(m.to_string())) {
-                Ok(img) => judge(&name, m, bound, &img, (&a, &b), args.size as usize),
+                Ok(img) => judge(&name, m, bound, &img, (&a, &b), &keep),
                 Err(e) => crashed(&name, m, &format!("{e:#}")),
             };
             eprintln!("differential: {name} {m}: {}", outcome.verdict);
@@ -205,6 +207,40 @@ fn badness(o: &Outcome) -> f64 {
         "crashed" | "nonfinite" => f64::INFINITY,
         _ => o.layers.iter().map(|l| l.mean.abs().max(l.worst_block)).fold(0.0, f64::max),
     }
+}
+
+/// The pixels to judge in a `size` x `size` image of `scene`: all but those
+/// where the camera sees an emitter (any of 4 x 4 rays through the pixel) and
+/// their neighbours, whose anti-aliased edges would decide every error. Not a
+/// brightness threshold: a spot light's pool of light on the floor is as bright
+/// as a light, and judging without it once made a -2% image read -58%.
+fn emitters_left_out(scene: &Path, size: usize) -> Result<Vec<bool>> {
+    let s = pm_scene::load(scene)?;
+    let cam = s.camera.as_ref().context("the scene has no camera")?;
+    let sees_light = |x: usize, y: usize| {
+        (0..16).any(|k| {
+            let (u, v) = (
+                (x as f32 + (k % 4) as f32 / 4.0 + 0.125) / size as f32,
+                (y as f32 + (k / 4) as f32 / 4.0 + 0.125) / size as f32,
+            );
+            let d = cam.ray_direction(u, v, 1.0);
+            s.intersect(cam.position, d, f32::INFINITY).is_some_and(|h| s.emitted(&h, -d).max_element() > 0.0)
+        })
+    };
+    let light: Vec<bool> = (0..size * size).map(|i| sees_light(i % size, i / size)).collect();
+    Ok((0..size * size)
+        .map(|i| {
+            let (x, y) = ((i % size) as i64, (i / size) as i64);
+            !(-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let (xx, yy) = (x + dx, y + dy);
+                    (0..size as i64).contains(&xx)
+                        && (0..size as i64).contains(&yy)
+                        && light[(yy * size as i64 + xx) as usize]
+                })
+            })
+        })
+        .collect())
 }
 
 /// Why the path tracer cannot be the reference for `scene`, if it cannot: light
@@ -300,8 +336,9 @@ fn judge(
     bound: pm_methods::Agreement,
     img: &pm_image::Layers,
     (a, b): (&pm_image::Layers, &pm_image::Layers),
-    size: usize,
+    keep: &[bool],
 ) -> Outcome {
+    let size = (keep.len() as f64).sqrt() as usize;
     let mut o =
         Outcome { scene: scene.into(), method: m.to_string(), verdict: "passed".into(), layers: vec![], error: None };
     let total = layer(img, None);
@@ -315,8 +352,7 @@ fn judge(
         (reference, la, lb)
     };
     let (reference, _, _) = mean_of(None);
-    let keep = keep_mask(&reference, size, size, None);
-    let whole = pm_image::accuracy::kept_mean(&reference, &keep);
+    let whole = pm_image::accuracy::kept_mean(&reference, keep);
     let layers = [
         None,
         Some(Layer::Direct),
@@ -328,13 +364,13 @@ fn judge(
     for l in layers {
         let (reference, la, lb) = mean_of(l);
         // Layers that hold less than a twentieth of the light are not judged.
-        if l.is_some() && pm_image::accuracy::kept_mean(&reference, &keep) < 0.05 * whole {
+        if l.is_some() && pm_image::accuracy::kept_mean(&reference, keep) < 0.05 * whole {
             continue;
         }
         let ours = layer(img, l);
-        let Agreement { mean, worst_block, worst_at } = agreement(&ours, &reference, size, &keep, 8);
+        let Agreement { mean, worst_block, worst_at } = agreement(&ours, &reference, size, keep, 8);
         // The average of two halves has half the noise their difference shows.
-        let halves = agreement(&la, &lb, size, &keep, 8);
+        let halves = agreement(&la, &lb, size, keep, 8);
         let noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);
         let within = mean.abs() <= bound.mean + noise.0 && worst_block <= bound.worst_block + noise.1;
         if !within {
