@@ -9,7 +9,9 @@
 //! light, the pixels that see a light left out, with the reference's noise
 //! allowed on top.
 //! A method that fails to run is `crashed`; one that writes a NaN, infinite or
-//! negative pixel is `nonfinite`. Writes DIR/report.json and prints one line.
+//! negative pixel is `nonfinite`. Writes DIR/report.json, DIR/worst.png (a
+//! contact sheet of the worst failures, ours beside the path tracer's, their
+//! figures under them) and prints one line.
 
 use anyhow::{Context, Result};
 use glam::Vec3;
@@ -181,6 +183,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
     let bounds = methods.iter().map(|(m, a)| (m.to_string(), *a)).collect();
     let report = Report { scenes: args.scenes, seed: args.seed, methods: counts, bounds, worst };
     pm_stage::write_json(&out.join("report.json"), &serde_json::to_value(&report)?)?;
+    contact_sheet(&out, &report.worst, args.size as usize)?;
     println!("{}", summary(&report));
     Ok(report)
 }
@@ -199,6 +202,54 @@ pub fn summary(r: &Report) -> String {
         })
         .collect();
     format!("differential: {} scenes of seed {}: {}", r.scenes, r.seed, parts.join("; "))
+}
+
+/// DIR/worst.png: the worst judged outcomes (at most eight), a row each: the
+/// method's image beside the path tracer's (the mean of its halves), each scaled
+/// so the reference's mean is mid-grey, and the figures outside the bound
+/// written under them.
+fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
+    let rows: Vec<&Outcome> = worst.iter().filter(|o| o.verdict == "failed").take(8).collect();
+    let tile = (size * (128 / size.max(1)).max(1)) as u32;
+    let (cell_h, w) = (tile + 34, 2 * tile + 30);
+    let mut sheet = crate::plot::Canvas::new(w.max(620), (rows.len().max(1) as u32) * cell_h);
+    for (k, o) in rows.iter().enumerate() {
+        let dir = out.join(&o.scene);
+        let read = |f: PathBuf| pm_image::read_exr(&f).map(|img| layer(&img, None));
+        let (Ok(ours), Ok(a), Ok(b)) =
+            (read(dir.join(&o.method).join("image.exr")), read(dir.join("path-1.exr")), read(dir.join("path-2.exr")))
+        else {
+            continue;
+        };
+        let reference: Vec<Vec3> = a.iter().zip(&b).map(|(x, y)| (*x + *y) * 0.5).collect();
+        let mean = reference.iter().map(|p| p.element_sum() as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
+        let gain = if mean > 0.0 { (0.18 / mean) as f32 } else { 1.0 };
+        let y0 = k as u32 * cell_h;
+        for (col, px) in [&ours, &reference].into_iter().enumerate() {
+            let x0 = col as u32 * (tile + 10);
+            for y in 0..tile {
+                for x in 0..tile {
+                    let p = px[(y as usize * size / tile as usize) * size + x as usize * size / tile as usize];
+                    sheet.px[((y0 + y) * sheet.width + x0 + x) as usize] = (p * gain).clamp(Vec3::ZERO, Vec3::ONE);
+                }
+            }
+        }
+        let off: Vec<String> = o
+            .layers
+            .iter()
+            .filter(|l| !l.within)
+            .map(|l| format!("{} {:+.0}% (block {:.0}%)", l.layer, 100.0 * l.mean, 100.0 * l.worst_block))
+            .collect();
+        sheet.text(
+            (0.0, (y0 + tile + 13) as f64),
+            &format!("{} {}: ours | path tracer", o.scene, o.method),
+            "start",
+            false,
+            11.0,
+        );
+        sheet.text((0.0, (y0 + tile + 27) as f64), &off.join(", "), "start", false, 11.0);
+    }
+    pm_image::write_png(&out.join("worst.png"), sheet.width, sheet.height, &sheet.px, 0.0)
 }
 
 /// How far outside its bound an outcome is (crashes and non-finite first).

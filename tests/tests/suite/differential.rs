@@ -36,6 +36,10 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
         serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
     let written: serde_json::Value = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
     assert_eq!(on_disk, written);
+    // The contact sheet of the worst: a row per failure shown (at most eight).
+    let (_, h, _) = pm_image::read_png_rgb8(&dir.path().join("worst.png")).unwrap();
+    let failed: u32 = report.methods.values().map(|c| c.failed).sum();
+    assert_eq!(h, failed.clamp(1, 8) * (24 * 5 + 34));
     let at_least = [("full", 4), ("sppm", 8)];
     for (m, n) in at_least {
         assert!(report.methods[m].passed >= n, "{m}: {summary}");
