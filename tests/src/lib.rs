@@ -46,6 +46,11 @@ pub fn bin_dir() -> PathBuf {
     std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
 }
 
+/// The stage binaries of this test build, with no time limit.
+pub fn bins() -> pm_runner::bins::Bins {
+    pm_runner::bins::Bins::at(bin_dir())
+}
+
 /// Load a scene from `scenes/`, lit as the stages light it by default (the
 /// environment its glTF extras name).
 pub fn load_scene(name: &str) -> Scene {

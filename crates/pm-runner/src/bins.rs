@@ -10,14 +10,23 @@ use std::process::{Command, Stdio};
 pub const STAGES: [&str; 6] =
     ["photon-trace", "photon-sort", "photon-irradiance", "photon-render", "photon-inspect", "photon-live"];
 
-/// The folder of the release stage binaries.
+/// The folder of the release stage binaries, and how long a stage may run.
 #[derive(Clone, Debug)]
 pub struct Bins {
     /// The folder.
     pub dir: PathBuf,
+    /// The longest a stage run through [`run`] may take before it is killed and
+    /// its step fails as timed out (none: no limit). The differential checks'
+    /// guard against a hang.
+    pub time_limit: Option<std::time::Duration>,
 }
 
 impl Bins {
+    /// The binaries in `dir`, with no time limit.
+    pub fn at(dir: PathBuf) -> Bins {
+        Bins { dir, time_limit: None }
+    }
+
     /// Where cargo puts release binaries of the workspace at `root`:
     /// `$CARGO_TARGET_DIR/release` when that is set (relative to the current
     /// folder, as cargo reads it), else `root/target/release`.
@@ -32,7 +41,7 @@ impl Bins {
             Some(t) if !t.is_empty() => cwd.join(t),
             _ => root.join("target"),
         };
-        Bins { dir: target.join("release") }
+        Bins::at(target.join("release"))
     }
 
     /// Build every stage binary (release) and locate them.
@@ -70,12 +79,17 @@ impl Bins {
 /// (unless `quiet`) and kept: when the stage fails, the error names the step and
 /// ends with the stage's own last message.
 pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool) -> Result<()> {
-    run_program(&bins.path(program), args, step, quiet)
+    let (status, last) = wait_for(&bins.path(program), args, quiet, bins.time_limit)
+        .map_err(|e| anyhow::anyhow!("stage {step}: {e:#}"))?;
+    if !status.success() {
+        bail!("stage {step} failed ({status}): {}", last.trim());
+    }
+    Ok(())
 }
 
-/// [`run`] for a program given by its path.
+/// [`run`] for a program given by its path, with no time limit.
 pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<()> {
-    let (status, last) = wait_for(program, args, quiet)?;
+    let (status, last) = wait_for(program, args, quiet, None)?;
     if !status.success() {
         bail!("stage {step} failed ({status}): {}", last.trim());
     }
@@ -86,7 +100,7 @@ pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> 
 /// it (exit code [`pm_stage::EXIT_UNFINISHED`]): false when it did, true when it
 /// finished.
 pub fn run_resumable(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<bool> {
-    let (status, last) = wait_for(program, args, quiet)?;
+    let (status, last) = wait_for(program, args, quiet, None)?;
     if status.code() == Some(pm_stage::EXIT_UNFINISHED as i32) {
         return Ok(false);
     }
@@ -97,17 +111,27 @@ pub fn run_resumable(program: &Path, args: &[String], step: &str, quiet: bool) -
 }
 
 /// Run `program` with `args` to its end: its exit status and the last line it
-/// wrote on stderr (echoed unless `quiet`).
-fn wait_for(program: &Path, args: &[String], quiet: bool) -> Result<(std::process::ExitStatus, String)> {
+/// wrote on stderr (echoed unless `quiet`). With a `limit`, a program still
+/// running after it is killed, and the error says it timed out.
+fn wait_for(
+    program: &Path,
+    args: &[String],
+    quiet: bool,
+    limit: Option<std::time::Duration>,
+) -> Result<(std::process::ExitStatus, String)> {
+    let start = std::time::Instant::now();
     let mut child = Command::new(program)
         .args(args)
         .stdout(if quiet { Stdio::null() } else { Stdio::inherit() })
         .stderr(Stdio::piped())
         .spawn()
         .with_context(|| format!("cannot start {}", program.display()))?;
-    let mut last = String::new();
-    if let Some(err) = child.stderr.take() {
-        for line in BufReader::new(err).lines() {
+    // The messages are read beside the wait, so a program that stops writing
+    // cannot hold the wait past its limit.
+    let err = child.stderr.take();
+    let reader = std::thread::spawn(move || {
+        let mut last = String::new();
+        for line in err.into_iter().flat_map(|e| BufReader::new(e).lines()) {
             let line = line.unwrap_or_default();
             if !quiet {
                 let _ = writeln!(std::io::stderr(), "{line}");
@@ -116,8 +140,23 @@ fn wait_for(program: &Path, args: &[String], quiet: bool) -> Result<(std::proces
                 last = line;
             }
         }
-    }
-    let status = child.wait().with_context(|| format!("{} did not finish", program.display()))?;
+        last
+    });
+    let status = match limit {
+        None => child.wait().with_context(|| format!("{} did not finish", program.display()))?,
+        Some(limit) => loop {
+            if let Some(status) = child.try_wait().with_context(|| format!("{} did not finish", program.display()))? {
+                break status;
+            }
+            if start.elapsed() > limit {
+                let _ = child.kill();
+                let _ = child.wait();
+                bail!("{} timed out after {:.2} s and was stopped", program.display(), limit.as_secs_f64());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        },
+    };
+    let last = reader.join().unwrap_or_default();
     Ok((status, last))
 }
 
@@ -156,5 +195,24 @@ mod tests {
         assert_eq!(at(Some("")), Path::new("/repo/target/release"));
         assert_eq!(at(Some("/tmp/t")), Path::new("/tmp/t/release"));
         assert_eq!(at(Some("build")), Path::new("/home/u/work/build/release"));
+    }
+
+    /// A stage that runs past the time limit is stopped and its step fails
+    /// saying so, long before it would have ended; within the limit it runs to
+    /// its end and its last message is kept.
+    #[test]
+    fn a_stage_past_its_time_limit_is_stopped() {
+        let dir = tempfile::tempdir().unwrap();
+        let sleeper = dir.path().join("photon-render");
+        std::fs::write(&sleeper, "#!/bin/sh\necho started >&2\nsleep \"$1\"\necho done >&2\n").unwrap();
+        std::fs::set_permissions(&sleeper, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+        let bins = Bins { dir: dir.path().to_path_buf(), time_limit: Some(std::time::Duration::from_millis(300)) };
+        let start = std::time::Instant::now();
+        let e = run(&bins, "photon-render", &["30".into()], "render", true).unwrap_err().to_string();
+        assert!(e.contains("stage render") && e.contains("timed out"), "{e}");
+        assert!(start.elapsed() < std::time::Duration::from_secs(5));
+        run(&bins, "photon-render", &["0".into()], "render", true).unwrap();
+        let (_, last) = wait_for(&sleeper, &["0".into()], true, bins.time_limit).unwrap();
+        assert_eq!(last, "done");
     }
 }

@@ -8,8 +8,8 @@
 //! its worst 8 x 8 block, and each layer that holds at least a twentieth of the
 //! light, the pixels that see a light left out, with the reference's noise
 //! allowed on top.
-//! A method that fails to run is `crashed`; one that writes a NaN, infinite or
-//! negative pixel is `nonfinite`. Writes DIR/report.json, DIR/worst.png (a
+//! A method that fails to run is `crashed`, one with a stage past the time limit
+//! `hung`; one that writes a NaN, infinite or negative pixel is `nonfinite`. Writes DIR/report.json, DIR/worst.png (a
 //! contact sheet of the worst failures, ours beside the path tracer's, their
 //! figures under them) and prints one line.
 
@@ -44,6 +44,10 @@ pub struct Args {
     /// Output folder [default: out/differential].
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// The longest any one stage may run on a scene [s]: past it the stage is
+    /// stopped and the method counted as hung.
+    #[arg(long, default_value_t = 300.0)]
+    pub time_limit_s: f64,
 }
 
 /// How one method did on one scene.
@@ -53,7 +57,7 @@ pub struct Outcome {
     pub scene: String,
     /// The method.
     pub method: String,
-    /// "passed", "failed", "crashed" or "nonfinite".
+    /// "passed", "failed", "crashed", "hung", "nonfinite" or "unjudged".
     pub verdict: String,
     /// What was off: the layer ("image" for the whole), its mean's and worst
     /// block's relative differences, and the reference's noise in each.
@@ -90,6 +94,8 @@ pub struct Counts {
     pub crashed: u32,
     /// A pixel not finite or negative.
     pub nonfinite: u32,
+    /// A stage ran past the time limit.
+    pub hung: u32,
     /// Not judged: the path tracer cannot render all of the scene's light (see
     /// [`reference_blind_spot`]).
     pub unjudged: u32,
@@ -118,6 +124,9 @@ pub fn run(args: &Args, root: &Path) -> Result<Report> {
 /// Run the check with the stage binaries in `bins` (the tests' own build).
 pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
     let out = args.out.clone().unwrap_or_else(|| root.join("out/differential"));
+    anyhow::ensure!(args.time_limit_s > 0.0, "--time-limit-s {}: give a positive number of seconds", args.time_limit_s);
+    let limited = Bins { time_limit: Some(std::time::Duration::from_secs_f64(args.time_limit_s)), ..bins.clone() };
+    let bins = &limited;
     let methods: Vec<(Method, pm_methods::Agreement)> = args
         .methods
         .iter()
@@ -174,6 +183,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             "failed" => c.failed += 1,
             "crashed" => c.crashed += 1,
             "unjudged" => c.unjudged += 1,
+            "hung" => c.hung += 1,
             _ => c.nonfinite += 1,
         }
     }
@@ -196,8 +206,8 @@ pub fn summary(r: &Report) -> String {
         .map(|(m, c)| {
             let judged = r.scenes - c.unjudged;
             format!(
-                "{m} {}/{judged} passed ({} failed, {} crashed, {} non-finite; {} unjudged)",
-                c.passed, c.failed, c.crashed, c.nonfinite, c.unjudged
+                "{m} {}/{judged} passed ({} failed, {} crashed, {} hung, {} non-finite; {} unjudged)",
+                c.passed, c.failed, c.crashed, c.hung, c.nonfinite, c.unjudged
             )
         })
         .collect();
@@ -255,7 +265,7 @@ fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
 /// How far outside its bound an outcome is (crashes and non-finite first).
 fn badness(o: &Outcome) -> f64 {
     match o.verdict.as_str() {
-        "crashed" | "nonfinite" => f64::INFINITY,
+        "crashed" | "hung" | "nonfinite" => f64::INFINITY,
         _ => o.layers.iter().map(|l| l.mean.abs().max(l.worst_block)).fold(0.0, f64::max),
     }
 }
@@ -319,8 +329,10 @@ pub fn reference_blind_spot(scene: &Path) -> Option<String> {
     ))
 }
 
+/// A method's run that failed: "hung" when a stage ran past the time limit,
+/// else "crashed".
 fn crashed(scene: &str, m: Method, e: &str) -> Outcome {
-    let verdict = "crashed".to_string();
+    let verdict = if e.contains("timed out") { "hung" } else { "crashed" }.to_string();
     Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()) }
 }
 

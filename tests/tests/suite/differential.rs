@@ -5,7 +5,8 @@
 
 use pm_methods::Method;
 
-/// No method crashes or writes a non-finite or negative pixel on any scene,
+/// No method crashes, runs a stage past two minutes or writes a non-finite or
+/// negative pixel on any scene,
 /// every scene is accounted for once per method, the report on disk says what
 /// the run returned. Judged scenes that pass are at least as many as when this
 /// test was written (full 4 and SPPM 8 of 17 judged, 3 unjudged: the failure
@@ -22,13 +23,14 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
         methods: vec![Method::Full, Method::Sppm],
         reference_spp: 128,
         out: Some(dir.path().to_path_buf()),
+        time_limit_s: 120.0,
     };
-    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_tests::bins();
     let report = pm_study::differential::run_with(&args, &root, &bins).unwrap();
     let summary = pm_study::differential::summary(&report);
     eprintln!("{summary}");
     for (m, c) in &report.methods {
-        assert_eq!((c.crashed, c.nonfinite), (0, 0), "{m}: {summary}: {:?}", report.worst);
+        assert_eq!((c.crashed, c.hung, c.nonfinite), (0, 0, 0), "{m}: {summary}: {:?}", report.worst);
         assert_eq!(c.passed + c.failed + c.unjudged, 20, "{m}: {summary}");
     }
     assert_eq!(report.methods.len(), 2);

@@ -83,7 +83,7 @@ fn run_pipeline(dir: &Path, scene: &str, effects: &str, name: &str) -> PathBuf {
     let p = pm_tests::small_pipeline(dir, scene, effects, 1, name);
     let out = dir.join(name);
     let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
-    pm_runner::run::run_with(&args, &root(), &pm_runner::bins::Bins { dir: pm_tests::bin_dir() }).unwrap();
+    pm_runner::run::run_with(&args, &root(), &pm_tests::bins()).unwrap();
     out
 }
 
@@ -218,7 +218,7 @@ fn light_behind_glass_is_a_caustic_and_the_pipeline_renders_it() {
     let file = dir.path().join("panel.toml");
     std::fs::write(&file, p.to_toml()).unwrap();
     let out = dir.path().join("panel");
-    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_tests::bins();
     let args = pm_runner::run::RunArgs { pipeline: Some(file), out: Some(out.clone()), ..Default::default() };
     pm_runner::run::run_with(&args, &root(), &bins).unwrap();
     assert!(out.join("caustic.kd.pmap").exists());

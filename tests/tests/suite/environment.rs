@@ -420,7 +420,7 @@ fn bad_environment_images_stop_the_run_before_anything_is_written() {
         let out = d.join(format!("out-{file}"));
         let args = pm_runner::run::RunArgs { pipeline: Some(p), out: Some(out.clone()), ..Default::default() };
         let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-        let e = pm_runner::run::run_with(&args, &root, &pm_runner::bins::Bins { dir: pm_tests::bin_dir() })
+        let e = pm_runner::run::run_with(&args, &root, &pm_tests::bins())
             .err()
             .unwrap_or_else(|| panic!("{file}: the run succeeded"));
         let msg = format!("{e:#}");

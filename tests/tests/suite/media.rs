@@ -405,7 +405,7 @@ fn the_pipeline_traces_sorts_and_renders_a_volume_map() {
     });
     let out = dir.path().join("out");
     let args = RunArgs { pipeline: Some(p.clone()), out: Some(out.clone()), ..Default::default() };
-    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_tests::bins();
     let ran: Vec<String> =
         run_with(&args, &root, &bins).unwrap().into_iter().filter(|o| o.ran).map(|o| o.step).collect();
     assert!(ran.contains(&"photon-sort volume".to_string()), "{ran:?}");
@@ -596,7 +596,7 @@ fn the_pipeline_on_defaults_agrees_with_the_path_tracer_in_fog_boxes() {
     use pm_runner::run::{RunArgs, run_with};
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = tempfile::tempdir().unwrap();
-    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_tests::bins();
     let dense = pm_stage::MediumArg { name: "fog".into(), sigma_a: [0.6; 3], sigma_s: [2.4; 3], g: 0.3 };
     // (scene, medium, the most each layer's mean may be off: total, indirect, volume)
     for (name, medium, bounds) in

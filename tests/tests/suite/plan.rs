@@ -17,7 +17,7 @@ fn root() -> PathBuf {
 }
 
 fn bins() -> Bins {
-    Bins { dir: pm_tests::bin_dir() }
+    pm_tests::bins()
 }
 
 fn args(dir: &Path, out: &str, tiles: u32, trace_slices: u32) -> RunArgs {

@@ -5,7 +5,6 @@
 //! Uses the stage binaries that `cargo test --release --workspace` builds next to
 //! this test (target/release).
 
-use pm_runner::bins::Bins;
 use pm_runner::run::{Outcome, RunArgs, run_with};
 use std::path::{Path, PathBuf};
 
@@ -19,7 +18,7 @@ fn pipeline(dir: &Path, spp: u32) -> PathBuf {
 
 fn run(p: &Path, out: &Path) -> anyhow::Result<Vec<Outcome>> {
     let args = RunArgs { pipeline: Some(p.to_owned()), out: Some(out.to_owned()), ..Default::default() };
-    run_with(&args, &root(), &Bins { dir: pm_tests::bin_dir() })
+    run_with(&args, &root(), &pm_tests::bins())
 }
 
 fn ran(outcomes: &[Outcome]) -> Vec<&str> {

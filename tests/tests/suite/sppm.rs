@@ -141,7 +141,7 @@ fn sppm_error_and_bias_fall_with_passes() {
 fn the_runner_renders_sppm_without_maps() {
     let dir = tempfile::tempdir().unwrap();
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let bins = pm_runner::bins::Bins { dir: pm_tests::bin_dir() };
+    let bins = pm_tests::bins();
     let mean = |mode: pm_methods::Method, name: &str| {
         let p = pm_tests::small_pipeline(dir.path(), "cornell_boxes.gltf", "\"auto\"", 256, name);
         pm_tests::edit_pipeline(&p, |c| {
