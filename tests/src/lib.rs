@@ -46,6 +46,42 @@ pub fn bin_dir() -> PathBuf {
     std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().to_owned()
 }
 
+/// What a user runs against the independent estimator: `cargo xtask run` on the
+/// repository's pipeline.toml with only the scene (from `scenes/`), the image
+/// size (`size` x `size`) and what `edit` changes, into `dir/NAME`; and
+/// `photon-render --mode path` at `spp` a pixel with the same scene options.
+/// Returns the pipeline's output folder, its image and the path tracer's.
+pub fn defaults_and_path_tracer(
+    dir: &std::path::Path,
+    scene: &str,
+    size: u32,
+    spp: u32,
+    edit: impl FnOnce(&mut pm_pipeline::Pipeline),
+) -> (PathBuf, pm_image::Layers, pm_image::Layers) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let name = scene.trim_end_matches(".gltf");
+    let mut p = pm_pipeline::Pipeline::load(&root.join("pipeline.toml")).unwrap();
+    p.scene = scene_path(scene);
+    (p.render.width, p.render.height) = (size, size);
+    edit(&mut p);
+    let file = dir.join(format!("{name}.toml"));
+    std::fs::write(&file, p.to_toml()).unwrap();
+    let out = dir.join(name);
+    let args = pm_runner::run::RunArgs { pipeline: Some(file), out: Some(out.clone()), ..Default::default() };
+    pm_runner::run::run_with(&args, &root, &bins()).unwrap();
+    let path = out.join("path.exr");
+    let size = size.to_string();
+    let o = std::process::Command::new(bins().path("photon-render"))
+        .args(["--scene", p.scene.to_str().unwrap(), "--mode", "path", "--spp", &spp.to_string()])
+        .args(["--width", &size, "--height", &size, "--out", path.to_str().unwrap()])
+        .args(p.scene_options.to_args())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ours, reference) = (pm_image::read_exr(&out.join("image.exr")).unwrap(), pm_image::read_exr(&path).unwrap());
+    (out, ours, reference)
+}
+
 /// The stage binaries of this test build, with no time limit.
 pub fn bins() -> pm_runner::bins::Bins {
     pm_runner::bins::Bins::at(bin_dir())

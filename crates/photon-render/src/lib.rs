@@ -342,6 +342,7 @@ impl Job<'_> {
                     p.volume_k,
                     p.volume_radius_rel_diag * self.scene.bounds.diagonal(),
                     self.indirect && p.gather_lookup == Lookup::Precomputed,
+                    p.volume_estimate == pm_render::VolumeEstimate::Beam,
                 )
             }),
         };

@@ -47,6 +47,12 @@ pub fn keep_mask(reference: &[Vec3], width: usize, height: usize, above_mean: Op
     let mean = reference.iter().map(|p| p.max_element() as f64).sum::<f64>() / reference.len().max(1) as f64;
     let limit = above_mean.map_or(0.5 * peak, |f| (0.5 * peak).min(f * mean as f32));
     let bright: Vec<bool> = reference.iter().map(|p| p.max_element() > limit && peak > 0.0).collect();
+    left_out_with_neighbours(&bright, width, height)
+}
+
+/// Pixels to compare: all but the `marked` ones of a `width` x `height` image
+/// and their eight neighbours.
+pub fn left_out_with_neighbours(marked: &[bool], width: usize, height: usize) -> Vec<bool> {
     (0..width * height)
         .map(|i| {
             let (x, y) = ((i % width) as i64, (i / width) as i64);
@@ -57,7 +63,7 @@ pub fn keep_mask(reference: &[Vec3], width: usize, height: usize, above_mean: Op
                         && yy >= 0
                         && xx < width as i64
                         && yy < height as i64
-                        && bright[(yy * width as i64 + xx) as usize]
+                        && marked[(yy * width as i64 + xx) as usize]
                 })
             })
         })

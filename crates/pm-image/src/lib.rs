@@ -41,6 +41,14 @@ impl Layers {
         self.by_name(pm_color::layer_name(layer))
     }
 
+    /// The total (`None`) or a layer as pixels of their own; black where the
+    /// file has none (a method that makes no volume layer has none to show).
+    pub fn pixels(&self, layer: Option<Layer>) -> Vec<Vec3> {
+        self.total_or_layer(layer)
+            .map(<[_]>::to_vec)
+            .unwrap_or_else(|| vec![Vec3::ZERO; (self.width * self.height) as usize])
+    }
+
     /// The layer called `name` in the file (the total is [`TOTAL`]).
     pub fn by_name(&self, name: &str) -> Option<&[Vec3]> {
         self.layers.iter().find(|l| l.0 == name).map(|l| l.1.as_slice())

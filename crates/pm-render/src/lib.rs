@@ -311,8 +311,18 @@ impl<'a> VolumeMap<'a> {
     /// media's boundaries ([`pm_estimate::Beams::with_inside_fractions`], from
     /// [`inside_fractions`]), and with each photon's in-scattered radiance
     /// precomputed from as many when `precompute` (final gathers look it up:
-    /// [`Lookup::Precomputed`]).
-    pub fn new(scene: &Scene, nodes: &'a [FullPhoton], k: usize, max_radius: f32, precompute: bool) -> VolumeMap<'a> {
+    /// [`Lookup::Precomputed`]). The boundary correction casts rays, so it is
+    /// made only for the spheres the beam estimate will read (`beam`: it is the
+    /// volume estimate): eye rays' always, final gathers' only without
+    /// `precompute`.
+    pub fn new(
+        scene: &Scene,
+        nodes: &'a [FullPhoton],
+        k: usize,
+        max_radius: f32,
+        precompute: bool,
+        beam: bool,
+    ) -> VolumeMap<'a> {
         let tree = KdTree::new(nodes);
         let max_d2 = max_radius * max_radius;
         let multiple = pm_estimate::beam_spheres(&tree, k, max_d2, false);
@@ -323,10 +333,18 @@ impl<'a> VolumeMap<'a> {
         } else {
             (pm_estimate::beam_spheres(&tree, k, max_d2, true), Default::default())
         };
-        let reach = |i: usize| multiple.spheres.sphere(i).1.max(all.spheres.sphere(i).1);
+        let correct_all = beam && !precompute;
+        if !beam {
+            return VolumeMap { tree, multiple, all, inscattering };
+        }
+        let reach = |i: usize| {
+            let r = multiple.spheres.sphere(i).1;
+            if correct_all { r.max(all.spheres.sphere(i).1) } else { r }
+        };
         let free = free_distances(scene, nodes, reach);
         let inside = |i: usize, r: f32| inside_fraction(&free[i], r);
-        let (multiple, all) = (multiple.with_inside_fractions(inside), all.with_inside_fractions(inside));
+        let multiple = multiple.with_inside_fractions(inside);
+        let all = if correct_all { all.with_inside_fractions(inside) } else { all };
         VolumeMap { tree, multiple, all, inscattering }
     }
 }

@@ -140,7 +140,18 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
         let dir = out.join(&name);
         std::fs::create_dir_all(&dir)?;
         eprintln!("differential: {name} ({} of {}): {recipe:?}", k + 1, scenes.len());
-        if let Some(why) = reference_blind_spot(scene) {
+        // The scene once, for what the path tracer cannot see and the pixels
+        // that see a light.
+        let loaded = match pm_scene::load(scene) {
+            Ok(s) => s,
+            Err(e) => {
+                for (m, _) in &methods {
+                    outcomes.push(crashed(&name, *m, &format!("the scene does not load: {e:#}")));
+                }
+                continue;
+            }
+        };
+        if let Some(why) = reference_blind_spot(&loaded) {
             for (m, _) in &methods {
                 let verdict = "unjudged".to_string();
                 outcomes.push(Outcome {
@@ -155,7 +166,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             continue;
         }
         let halves = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, &dir));
-        let keep = emitters_left_out(scene, args.size as usize)?;
+        let keep = emitters_left_out(&loaded, args.size as usize)?;
         let (a, b) = match halves {
             [Ok(a), Ok(b)] => (a, b),
             [Err(e), _] | [_, Err(e)] => {
@@ -225,7 +236,7 @@ fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
     let mut sheet = crate::plot::Canvas::new(w.max(620), (rows.len().max(1) as u32) * cell_h);
     for (k, o) in rows.iter().enumerate() {
         let dir = out.join(&o.scene);
-        let read = |f: PathBuf| pm_image::read_exr(&f).map(|img| layer(&img, None));
+        let read = |f: PathBuf| pm_image::read_exr(&f).map(|img| img.pixels(None));
         let (Ok(ours), Ok(a), Ok(b)) =
             (read(dir.join(&o.method).join("image.exr")), read(dir.join("path-1.exr")), read(dir.join("path-2.exr")))
         else {
@@ -275,8 +286,7 @@ fn badness(o: &Outcome) -> f64 {
 /// their neighbours, whose anti-aliased edges would decide every error. Not a
 /// brightness threshold: a spot light's pool of light on the floor is as bright
 /// as a light, and judging without it once made a -2% image read -58%.
-fn emitters_left_out(scene: &Path, size: usize) -> Result<Vec<bool>> {
-    let s = pm_scene::load(scene)?;
+fn emitters_left_out(s: &pm_scene::Scene, size: usize) -> Result<Vec<bool>> {
     let cam = s.camera.as_ref().context("the scene has no camera")?;
     let sees_light = |x: usize, y: usize| {
         (0..16).any(|k| {
@@ -289,19 +299,7 @@ fn emitters_left_out(scene: &Path, size: usize) -> Result<Vec<bool>> {
         })
     };
     let light: Vec<bool> = (0..size * size).map(|i| sees_light(i % size, i / size)).collect();
-    Ok((0..size * size)
-        .map(|i| {
-            let (x, y) = ((i % size) as i64, (i / size) as i64);
-            !(-1..=1).any(|dy| {
-                (-1..=1).any(|dx| {
-                    let (xx, yy) = (x + dx, y + dy);
-                    (0..size as i64).contains(&xx)
-                        && (0..size as i64).contains(&yy)
-                        && light[(yy * size as i64 + xx) as usize]
-                })
-            })
-        })
-        .collect())
+    Ok(pm_image::accuracy::left_out_with_neighbours(&light, size, size))
 }
 
 /// Why the path tracer cannot be the reference for `scene`, if it cannot: light
@@ -311,8 +309,7 @@ fn emitters_left_out(scene: &Path, size: usize) -> Result<Vec<bool>> {
 /// ...), which the photon methods render: the first run found +4% to +17%
 /// images with such scenes, every photon method alike. Bidirectional path
 /// tracing (issue 56) will judge them.
-pub fn reference_blind_spot(scene: &Path) -> Option<String> {
-    let s = pm_scene::load(scene).ok()?;
+pub fn reference_blind_spot(s: &pm_scene::Scene) -> Option<String> {
     let delta = s.lights.iter().find(|l| match l.kind {
         pm_scene::LightKind::Point { .. } | pm_scene::LightKind::Spot { .. } => true,
         pm_scene::LightKind::Directional { cap, .. } => cap == 0.0,
@@ -385,13 +382,6 @@ fn run_method(
     pm_image::read_exr(&out.join("image.exr"))
 }
 
-/// A layer of an image (None: the whole), black when the image lacks it.
-fn layer(img: &pm_image::Layers, l: Option<Layer>) -> Vec<Vec3> {
-    let n = (img.width * img.height) as usize;
-    let want = pm_color::layer_name(l);
-    img.layers.iter().find(|(name, _)| name == want).map_or_else(|| vec![Vec3::ZERO; n], |(_, px)| px.clone())
-}
-
 /// Judge method `m`'s image against the reference's halves `a` and `b`.
 fn judge(
     scene: &str,
@@ -404,33 +394,25 @@ fn judge(
     let size = (keep.len() as f64).sqrt() as usize;
     let mut o =
         Outcome { scene: scene.into(), method: m.to_string(), verdict: "passed".into(), layers: vec![], error: None };
-    let total = layer(img, None);
+    let total = img.pixels(None);
     if total.len() != size * size || total.iter().any(|p| !p.is_finite() || p.min_element() < 0.0) {
         o.verdict = "nonfinite".into();
         return o;
     }
     let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
-        let (la, lb) = (layer(a, l), layer(b, l));
+        let (la, lb) = (a.pixels(l), b.pixels(l));
         let reference = la.iter().zip(&lb).map(|(x, y)| (*x + *y) * 0.5).collect();
         (reference, la, lb)
     };
     let (reference, _, _) = mean_of(None);
     let whole = pm_image::accuracy::kept_mean(&reference, keep);
-    let layers = [
-        None,
-        Some(Layer::Direct),
-        Some(Layer::Caustic),
-        Some(Layer::Indirect),
-        Some(Layer::Specular),
-        Some(Layer::Volume),
-    ];
-    for l in layers {
+    for l in crate::tradeoff::results::COMPARED {
         let (reference, la, lb) = mean_of(l);
         // Layers that hold less than a twentieth of the light are not judged.
         if l.is_some() && pm_image::accuracy::kept_mean(&reference, keep) < 0.05 * whole {
             continue;
         }
-        let ours = layer(img, l);
+        let ours = img.pixels(l);
         let Agreement { mean, worst_block, worst_at } = agreement(&ours, &reference, size, keep, 8);
         // The average of two halves has half the noise their difference shows.
         let halves = agreement(&la, &lb, size, keep, 8);

@@ -212,31 +212,12 @@ fn light_behind_glass_is_a_caustic_and_the_pipeline_renders_it() {
     let e = analyze(&load_scene("cornell_glass_panel.gltf"));
     assert!(e.caustics.yes && e.caustics.reason.contains("glass 'glass_panel'"), "{e:?}");
     let dir = tempfile::tempdir().unwrap();
-    let mut p = pm_pipeline::Pipeline::load(&root().join("pipeline.toml")).unwrap();
-    p.scene = pm_tests::scene_path("cornell_glass_panel.gltf");
-    (p.render.width, p.render.height) = (64, 64);
-    let file = dir.path().join("panel.toml");
-    std::fs::write(&file, p.to_toml()).unwrap();
-    let out = dir.path().join("panel");
-    let bins = pm_tests::bins();
-    let args = pm_runner::run::RunArgs { pipeline: Some(file), out: Some(out.clone()), ..Default::default() };
-    pm_runner::run::run_with(&args, &root(), &bins).unwrap();
+    let (out, ours, reference) =
+        pm_tests::defaults_and_path_tracer(dir.path(), "cornell_glass_panel.gltf", 64, 1024, |_| {});
     assert!(out.join("caustic.kd.pmap").exists());
-    let path = out.join("path.exr");
-    let o = std::process::Command::new(bins.path("photon-render"))
-        .args(["--scene", p.scene.to_str().unwrap(), "--mode", "path", "--spp", "1024"])
-        .args(["--width", "64", "--height", "64", "--out", path.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (ours, reference) = (pm_image::read_exr(&out.join("image.exr")).unwrap(), pm_image::read_exr(&path).unwrap());
-    let layer = |img: &pm_image::Layers, l: Option<Layer>| -> Vec<Vec3> {
-        let want = pm_color::layer_name(l);
-        img.layers.iter().find(|(n, _)| n == want).map_or_else(|| vec![Vec3::ZERO; 64 * 64], |(_, px)| px.clone())
-    };
-    let keep = pm_image::accuracy::keep_mask(&layer(&reference, None), 64, 64, None);
+    let keep = pm_image::accuracy::keep_mask(&reference.pixels(None), 64, 64, None);
     for l in [None, Some(Layer::Caustic)] {
-        let a = pm_image::accuracy::agreement(&layer(&ours, l), &layer(&reference, l), 64, &keep, 8);
+        let a = pm_image::accuracy::agreement(&ours.pixels(l), &reference.pixels(l), 64, &keep, 8);
         let what = format!(
             "{}: mean {:+.4}, worst block {:.3} at {:?}",
             pm_color::layer_name(l),

@@ -249,6 +249,7 @@ fn full_with_volume(
             cfg.volume_k,
             cfg.volume_radius_rel_diag * diag,
             cfg.gather_lookup == pm_render::Lookup::Precomputed,
+            cfg.volume_estimate == pm_render::VolumeEstimate::Beam,
         )),
     };
     let camera = scene.camera.as_ref().unwrap();
@@ -593,41 +594,18 @@ fn final_gathers_pass_index_matched_walls_at_full_length() {
 #[test]
 fn the_pipeline_on_defaults_agrees_with_the_path_tracer_in_fog_boxes() {
     use pm_color::Layer;
-    use pm_runner::run::{RunArgs, run_with};
-    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = tempfile::tempdir().unwrap();
-    let bins = pm_tests::bins();
     let dense = pm_stage::MediumArg { name: "fog".into(), sigma_a: [0.6; 3], sigma_s: [2.4; 3], g: 0.3 };
     // (scene, medium, the most each layer's mean may be off: total, indirect, volume)
     for (name, medium, bounds) in
         [("cornell_fog", None, [0.03, 0.05, 0.03]), ("cornell_fogbox", Some(dense), [0.03, 0.05, 0.03])]
     {
-        let mut p = pm_pipeline::Pipeline::load(&root.join("pipeline.toml")).unwrap();
-        p.scene = pm_tests::scene_path(&format!("{name}.gltf"));
-        (p.render.width, p.render.height) = (64, 64);
-        p.scene_options.medium.extend(medium);
-        let file = dir.path().join(format!("{name}.toml"));
-        std::fs::write(&file, p.to_toml()).unwrap();
-        let out = dir.path().join(name);
-        let args = RunArgs { pipeline: Some(file), out: Some(out.clone()), ..Default::default() };
-        run_with(&args, &root, &bins).unwrap();
-        let path = out.join("path.exr");
-        let o = std::process::Command::new(bins.path("photon-render"))
-            .args(["--scene", p.scene.to_str().unwrap(), "--mode", "path", "--spp", "512"])
-            .args(["--width", "64", "--height", "64", "--out", path.to_str().unwrap()])
-            .args(p.scene_options.to_args())
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let (ours, reference) =
-            (pm_image::read_exr(&out.join("image.exr")).unwrap(), pm_image::read_exr(&path).unwrap());
-        let layer = |img: &pm_image::Layers, l: Option<Layer>| -> Vec<Vec3> {
-            let want = pm_color::layer_name(l);
-            img.layers.iter().find(|(n, _)| n == want).map_or_else(|| vec![Vec3::ZERO; 64 * 64], |(_, px)| px.clone())
-        };
-        let keep = pm_image::accuracy::keep_mask(&layer(&reference, None), 64, 64, None);
+        let edit = |p: &mut pm_pipeline::Pipeline| p.scene_options.medium.extend(medium);
+        let (_, ours, reference) =
+            pm_tests::defaults_and_path_tracer(dir.path(), &format!("{name}.gltf"), 64, 512, edit);
+        let keep = pm_image::accuracy::keep_mask(&reference.pixels(None), 64, 64, None);
         for (l, bound) in [(None, bounds[0]), (Some(Layer::Indirect), bounds[1]), (Some(Layer::Volume), bounds[2])] {
-            let a = pm_image::accuracy::agreement(&layer(&ours, l), &layer(&reference, l), 64, &keep, 8);
+            let a = pm_image::accuracy::agreement(&ours.pixels(l), &reference.pixels(l), 64, &keep, 8);
             let what = format!(
                 "{name} {}: mean {:+.4}, worst block {:.3} at {:?}",
                 pm_color::layer_name(l),

@@ -147,11 +147,6 @@ fn reference_halves(
     Ok([pm_image::read_exr(a)?, pm_image::read_exr(b)?])
 }
 
-/// The total (`None`) or a layer of `i`; zero where the file has none.
-fn layer(i: &pm_image::Layers, l: Option<Layer>) -> Vec<Vec3> {
-    i.total_or_layer(l).map(<[_]>::to_vec).unwrap_or_else(|| vec![Vec3::ZERO; (i.width * i.height) as usize])
-}
-
 /// What every row is measured with: the scene, its options, the stage binaries,
 /// the output folder, the reference and the pixels compared.
 struct Study {
@@ -187,7 +182,7 @@ pub fn run(args: &Args, root: &Path) -> Result<()> {
     }
     let (rows, default_image) = if args.replot {
         let rows = results::read_rows(&study.out.join("results.json"), &settings)?;
-        (rows, layer(&pm_image::read_exr(&study.out.join("defaults-s1.exr"))?, None))
+        (rows, pm_image::read_exr(&study.out.join("defaults-s1.exr"))?.pixels(None))
     } else {
         let mut rows = Vec::new();
         let mut default_image = Vec::new();
@@ -239,11 +234,11 @@ fn prepare(args: &Args, root: &Path, base: &pm_pipeline::Pipeline) -> Result<(St
     };
     let size = args.size;
     let [half_a, half_b] = reference_halves(&bins, base, (&scene, &scene_args), &out, size, args.reference_spp)?;
-    let (a, b) = (layer(&half_a, None), layer(&half_b, None));
+    let (a, b) = (half_a.pixels(None), half_b.pixels(None));
     let keep = accuracy::keep_mask_of_halves(&a, &b, size as usize, size as usize, args.mask_above_mean);
     let references: Vec<(Vec<Vec3>, f64)> = COMPARED
         .iter()
-        .map(|l| accuracy::reference_from_halves(&layer(&half_a, *l), &layer(&half_b, *l), &keep))
+        .map(|l| accuracy::reference_from_halves(&half_a.pixels(*l), &half_b.pixels(*l), &keep))
         .collect();
     println!(
         "reference: {} spp in two halves; {} of {} pixels compared; its own noise {:.2}% (relative RMS)",
@@ -289,12 +284,12 @@ fn measure(study: &mut Study, args: &Args, st: Setting) -> Result<(Row, Vec<Vec3
             return accuracy::Split::default(); // Mitsuba writes no layers; no volume without media
         }
         let k = COMPARED.iter().position(|c| *c == l).expect("every compared layer");
-        let layers: Vec<Vec<Vec3>> = images.iter().map(|i| layer(i, l)).collect();
+        let layers: Vec<Vec<Vec3>> = images.iter().map(|i| i.pixels(l)).collect();
         let refs: Vec<&[Vec3]> = layers.iter().map(Vec::as_slice).collect();
         accuracy::split(&refs, &study.references[k].0, study.references[k].1, &study.keep)
     });
     let size = args.size as usize;
-    let first = layer(&images[0], None);
+    let first = images[0].pixels(None);
     let ssim = pm_image::ssim(&first, &study.references[0].0, size, size);
     let row = Row { setting: st, times, layers, ssim };
     let t = row.image();
