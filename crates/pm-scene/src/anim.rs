@@ -35,12 +35,43 @@ pub(crate) struct Channel {
 }
 
 /// An object below an animated node: its index in `Scene::objects`, the node,
-/// and its triangles in the node's own space (in the object's triangle order).
+/// its triangles in the node's own space (in the object's triangle order), and
+/// the transform that places them where the scene's triangles are now.
 #[derive(Clone, Debug)]
 pub(crate) struct AnimatedMesh {
     pub object: usize,
     pub node: usize,
     pub local: Vec<crate::Triangle>,
+    /// Node space to the scene's (camera-relative) space at the current pose: the
+    /// rest pose as loaded, then the last [`Scene::set_time`]'s.
+    pub pose: Mat4,
+}
+
+/// `local` (a triangle in its node's space) placed by `world`, with its normals and
+/// tangents, its corners swapped when `world` mirrors (counter-clockwise stays the
+/// front); `None` when the transform flattens it.
+pub(crate) fn pose(local: &Triangle, world: Mat4) -> Option<Triangle> {
+    let linear = glam::Mat3::from_mat4(world);
+    let normal_m = linear.inverse().transpose();
+    let flip = linear.determinant() < 0.0;
+    let mut p = local.p.map(|q| world.transform_point3(q));
+    let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
+    let mut attrs = local.clone();
+    if let Some(t) = local.tangent() {
+        attrs.extras_mut().tangent = Some(t.map(|t| {
+            let w = if flip { -t.w } else { t.w };
+            (linear * t.truncate()).normalize_or_zero().extend(w)
+        }));
+    }
+    if flip {
+        p.swap(1, 2);
+        if let Some(n) = n.as_mut() {
+            n.swap(1, 2);
+        }
+        attrs.swap_corners();
+    }
+    let moved = Triangle::new(p, local.material)?;
+    Some(Triangle { n, p: moved.p, ..attrs })
 }
 
 /// A node's rest pose and parent.
@@ -202,32 +233,14 @@ impl Scene {
             }
         }
         if !anim.meshes.is_empty() {
-            for m in &anim.meshes {
-                let world = anim.world(m.node, t);
-                let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
-                let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+            let poses: Vec<Mat4> = anim.meshes.iter().map(|m| anim.world(m.node, t)).collect();
+            for (m, &world) in self.animation.meshes.iter_mut().zip(&poses) {
+                m.pose = world;
                 let range = self.objects[m.object].tris.clone();
                 for (local, out) in m.local.iter().zip(&mut self.triangles[range.start as usize..range.end as usize]) {
-                    let mut p = local.p.map(|q| world.transform_point3(q));
-                    let mut n = local.n.map(|n| n.map(|v| (normal_m * v).normalize_or_zero()));
-                    let mut attrs = local.clone();
-                    let linear = glam::Mat3::from_mat4(world);
-                    if let Some(t) = local.tangent() {
-                        attrs.extras_mut().tangent = Some(t.map(|t| {
-                            let w = if flip { -t.w } else { t.w };
-                            (linear * t.truncate()).normalize_or_zero().extend(w)
-                        }));
-                    }
-                    if flip {
-                        p.swap(1, 2);
-                        if let Some(n) = n.as_mut() {
-                            n.swap(1, 2);
-                        }
-                        attrs.swap_corners();
-                    }
                     // A transform that flattens a triangle keeps its last good pose.
-                    if let Some(moved) = Triangle::new(p, local.material) {
-                        *out = Triangle { n, p: moved.p, ..attrs };
+                    if let Some(moved) = pose(local, world) {
+                        *out = moved;
                     }
                 }
             }

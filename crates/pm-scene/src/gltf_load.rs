@@ -529,7 +529,12 @@ impl NodeWalk {
                     instance_primitive(&local, Mat4::IDENTITY, Mat3::IDENTITY, material, &mut rest)
                         .map_err(|m| format!("{what}: {m}"))?;
                     if rest.len() == self.triangles.len() - first {
-                        animation.meshes.push(AnimatedMesh { object: self.objects.len(), node: index, local: rest });
+                        animation.meshes.push(AnimatedMesh {
+                            object: self.objects.len(),
+                            node: index,
+                            local: rest,
+                            pose: world,
+                        });
                     } else {
                         warnings.push(format!(
                             "node '{node_name}': its triangles degenerate differently at rest; not animated"

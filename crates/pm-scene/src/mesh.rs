@@ -104,6 +104,26 @@ impl Triangle {
 
     /// Swap corners 1 and 2 of the per-vertex attributes (a mirroring transform
     /// reverses the winding).
+    /// The piece of this triangle with corners `p` at barycentrics `b` (one per
+    /// corner) of it, its shading normals, texture coordinates, colours and tangents
+    /// interpolated; `None` when the piece is degenerate.
+    pub(crate) fn piece(&self, p: [Vec3; 3], b: [[f32; 3]; 3]) -> Option<Triangle> {
+        let mut sub = Triangle::new(p, self.material)?;
+        let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
+        sub.n = self.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(self.ng())));
+        if let Some(e) = &self.extras {
+            let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
+            let lerp4 = |c: &[glam::Vec4; 3]| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]);
+            sub.set_extras(TriangleExtras {
+                uv: e.uv.as_ref().map(lerp2),
+                uv1: e.uv1.as_ref().map(lerp2),
+                color: e.color.as_ref().map(lerp4),
+                tangent: e.tangent.as_ref().map(lerp4),
+            });
+        }
+        Some(sub)
+    }
+
     pub(crate) fn swap_corners(&mut self) {
         let Some(e) = self.extras.as_mut() else { return };
         if let Some(uv) = e.uv.as_mut() {
@@ -245,26 +265,19 @@ impl Scene {
         }
         let limit = max_triangles.max(self.triangles.len());
         let rounds = counts.iter().rposition(|&c| c <= limit && c < usize::MAX).unwrap_or(0);
-        let scene = self.map_objects(|_, tris| {
+        // An animated mesh splits in the scene's space (edge lengths as seen) and
+        // the same pieces of its node-space triangles are what is kept and posed.
+        let scene = self.map_objects(|_, tris, local| {
             let mut out = Vec::new();
-            for t in tris {
+            for (i, t) in tris.iter().enumerate() {
+                let parent = local.map_or(t, |l| &l[i]);
                 for corners in split(t.p, max_edge, rounds, |_| true) {
                     let b = corners.map(|c| c.1.to_array());
-                    if let Some(mut sub) = Triangle::new(corners.map(|c| c.0), t.material) {
-                        let lerp3 = |q: &[Vec3; 3], w: [f32; 3]| q[0] * w[0] + q[1] * w[1] + q[2] * w[2];
-                        sub.n = t.n.map(|n| b.map(|w| lerp3(&n, w).normalize_or(t.ng())));
-                        if let Some(e) = &t.extras {
-                            let lerp2 = |q: &[Vec2; 3]| b.map(|w| q[0] * w[0] + q[1] * w[1] + q[2] * w[2]);
-                            let lerp4 = |c: &[glam::Vec4; 3]| b.map(|w| c[0] * w[0] + c[1] * w[1] + c[2] * w[2]);
-                            sub.set_extras(TriangleExtras {
-                                uv: e.uv.as_ref().map(lerp2),
-                                uv1: e.uv1.as_ref().map(lerp2),
-                                color: e.color.as_ref().map(lerp4),
-                                tangent: e.tangent.as_ref().map(lerp4),
-                            });
-                        }
-                        out.push(sub);
-                    }
+                    let p = match local {
+                        None => corners.map(|c| c.0),
+                        Some(_) => b.map(|w| parent.p[0] * w[0] + parent.p[1] * w[1] + parent.p[2] * w[2]),
+                    };
+                    out.extend(parent.piece(p, b));
                 }
             }
             out
@@ -278,7 +291,9 @@ impl Scene {
     /// axis-aligned bounding box (12 triangles of the object's material, facing out);
     /// emitting objects, punctual lights, the camera and the animation are kept.
     pub fn bounding_box_proxy(&self) -> Scene {
-        self.map_objects(|o, tris| {
+        // An animated mesh's box is its node-space box, posed with it.
+        self.map_objects(|o, tris, local| {
+            let tris = local.unwrap_or(tris);
             if self.materials[o.material as usize].emission.max_element() > 0.0 {
                 return tris.to_vec();
             }
@@ -312,16 +327,31 @@ impl Scene {
     }
 
     /// The scene with each object's triangles replaced by `f(object, its
-    /// triangles)`; materials, textures, punctual lights, camera, identity and
+    /// triangles, None)`; materials, textures, punctual lights, camera, identity and
     /// animation are kept, and each area light covers its object's new triangles.
-    fn map_objects(&self, f: impl Fn(&Object, &[Triangle]) -> Vec<Triangle>) -> Scene {
+    /// An animated mesh's object is replaced by `f(object, its triangles, Some(the
+    /// same in its node's space))`, which returns node-space triangles: they become
+    /// the mesh's rest triangles and, posed where the mesh is now, its triangles (so
+    /// that the new scene moves as the old one does).
+    fn map_objects(&self, f: impl Fn(&Object, &[Triangle], Option<&[Triangle]>) -> Vec<Triangle>) -> Scene {
         let mut triangles = Vec::new();
         let mut objects = Vec::with_capacity(self.objects.len());
+        let mut animation = self.animation.clone();
         // New range of every old triangle's object, for area lights.
         let mut object_range = vec![0u32..0u32; self.triangles.len()];
-        for o in &self.objects {
+        for (index, o) in self.objects.iter().enumerate() {
             let start = triangles.len() as u32;
-            triangles.extend(f(o, &self.triangles[o.tris.start as usize..o.tris.end as usize]));
+            let tris = &self.triangles[o.tris.start as usize..o.tris.end as usize];
+            match animation.meshes.iter_mut().find(|m| m.object == index) {
+                Some(m) => {
+                    let local = f(o, tris, Some(&m.local));
+                    let posed: Vec<(Triangle, Triangle)> =
+                        local.into_iter().filter_map(|l| crate::anim::pose(&l, m.pose).map(|w| (l, w))).collect();
+                    m.local = posed.iter().map(|(l, _)| l.clone()).collect();
+                    triangles.extend(posed.into_iter().map(|(_, w)| w));
+                }
+                None => triangles.extend(f(o, tris, None)),
+            }
             let range = start..triangles.len() as u32;
             for t in o.tris.clone() {
                 object_range[t as usize] = range.clone();
@@ -353,7 +383,7 @@ impl Scene {
         // every relative radius means the same length; lights keep their indices, so
         // the animation carries over.
         scene.bounds = self.bounds;
-        scene.animation = self.animation.clone();
+        scene.animation = animation;
         scene.origin = self.origin;
         // The same media, in the same places (objects keep their indices).
         scene.media = self.media.clone();

@@ -261,18 +261,8 @@ fn the_bounding_box_proxy_bounds_every_object_and_keeps_the_lights() {
 #[test]
 fn animated_meshes_move_and_are_hit_where_they_are() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(scene_path("jozwowski_room_16.gltf")).unwrap();
-    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
-    // Move node 3 ("boxes") along the light's path: the same sampler's keys.
-    assert_eq!(doc["nodes"][3]["name"], "boxes");
-    doc["animations"][0]["channels"]
-        .as_array_mut()
-        .unwrap()
-        .push(serde_json::json!({"sampler": 0, "target": {"node": 3, "path": "translation"}}));
-    std::fs::write(dir.path().join("moving.gltf"), doc.to_string()).unwrap();
-    std::fs::copy(scene_path("jozwowski_room_16.bin"), dir.path().join("jozwowski_room_16.bin")).unwrap();
     let rest = load_scene("jozwowski_room_16.gltf");
-    let mut s = load(&dir.path().join("moving.gltf")).unwrap();
+    let mut s = moving_boxes_room(dir.path());
     assert!(s.has_moving_meshes() && !rest.has_moving_meshes());
     let boxes = s.objects.iter().position(|o| o.name.starts_with("boxes")).unwrap();
     for (t, offset) in [(0.0f32, Vec3::new(1.2, 2.0, 0.0)), (2.0, Vec3::new(0.0, 2.0, 1.2))] {
@@ -290,6 +280,62 @@ fn animated_meshes_move_and_are_hit_where_they_are() {
         let d = Vec3::new(0.01, -1.0, 0.02).normalize();
         let hit = s.intersect(top - d * 0.5, d, f32::INFINITY).expect("the moved box is hit");
         assert!((hit.p.y - top.y).abs() < 1e-4, "t {t}: hit at {}", hit.p);
+    }
+}
+
+/// jozwowski_room_16 with its boxes (node 3) moving along the light's path (the
+/// same sampler's keys), written to `dir` and loaded.
+fn moving_boxes_room(dir: &std::path::Path) -> Scene {
+    let text = std::fs::read_to_string(scene_path("jozwowski_room_16.gltf")).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(doc["nodes"][3]["name"], "boxes");
+    doc["animations"][0]["channels"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"sampler": 0, "target": {"node": 3, "path": "translation"}}));
+    std::fs::write(dir.join("moving.gltf"), doc.to_string()).unwrap();
+    std::fs::copy(scene_path("jozwowski_room_16.bin"), dir.join("jozwowski_room_16.bin")).unwrap();
+    load(&dir.join("moving.gltf")).unwrap()
+}
+
+/// Regression (issue 53, the vertex method drew a sliding box twice): a split
+/// scene and a bounding-box proxy of an animated scene move as it does. Each kept
+/// the unsplit mesh's rest triangles, so only as many triangles as the mesh had
+/// before splitting moved, and those with the unsplit shapes: the rest stayed
+/// where the box started.
+#[test]
+fn split_and_proxy_scenes_of_an_animated_mesh_move_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = moving_boxes_room(dir.path());
+    let boxes = s.objects.iter().position(|o| o.name.starts_with("boxes")).unwrap();
+    let of = |scene: &Scene| {
+        let tris = &scene.triangles[scene.objects[boxes].tris.start as usize..scene.objects[boxes].tris.end as usize];
+        let area: f32 = tris.iter().map(|t| t.area()).sum();
+        (bounds_of(tris), area)
+    };
+    let split = s.subdivided(0.1);
+    let proxy = s.bounding_box_proxy();
+    assert!(split.objects[boxes].tris.len() > 8 * s.objects[boxes].tris.len());
+    for t in [0.0f32, 1.0, 2.0, 5.0] {
+        let (mut a, mut b, mut c) = (s.clone(), split.clone(), proxy.clone());
+        for x in [&mut a, &mut b, &mut c] {
+            x.set_time(t);
+        }
+        let ((bounds, area), (split_bounds, split_area)) = (of(&a), of(&b));
+        assert!((split_area - area).abs() < 1e-4 * area, "t {t}: split area {split_area} against {area}");
+        for (got, want) in [(split_bounds, bounds), (of(&c).0, bounds)] {
+            assert!(
+                (got.min - want.min).abs().max_element() < 1e-4 && (got.max - want.max).abs().max_element() < 1e-4,
+                "t {t}: moved to {got:?}, the object is at {want:?}"
+            );
+        }
+        // And the BVH finds the split mesh where it is: the same first hits.
+        let cam = a.camera.clone().unwrap();
+        for i in 0..100u32 {
+            let d = cam.ray_direction((i % 10) as f32 / 10.0 + 0.03, (i / 10) as f32 / 10.0 + 0.05, 1.0);
+            let (ha, hb) = (a.intersect(cam.position, d, f32::INFINITY), b.intersect(cam.position, d, f32::INFINITY));
+            assert_eq!(ha.map(|h| (h.t * 1e3).round()), hb.map(|h| (h.t * 1e3).round()), "t {t}, ray {i}");
+        }
     }
 }
 
