@@ -66,10 +66,6 @@ pub struct Cli {
     /// photon-inspect reads.
     #[arg(long)]
     pub dump_frame: Option<u64>,
-    /// Show every frame at this animation time [s] (a static scene) instead of
-    /// frame / fps.
-    #[arg(long)]
-    pub time: Option<f32>,
     /// Random seed; equal seeds give identical frames for any thread count.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -195,7 +191,7 @@ fn run_frames<M: pm_live::FrameMethod>(
     let mut apng = Vec::new();
     for i in 0..frames.end {
         // Frame i shows time i / fps: animated lights and camera move there.
-        live.set_time(cli.time.unwrap_or(i as f32 / f.fps));
+        live.set_time(cli.scene_options.time.unwrap_or(i as f32 / f.fps));
         if i < frames.start {
             // Another task draws it; this one needs only the state it leaves.
             live.skip().map_err(|e| anyhow::anyhow!(e))?;

@@ -80,12 +80,16 @@ pub fn thread_count() -> usize {
     rayon::current_num_threads()
 }
 
-/// Light `scene` (read from `path`) as `how` says: the environment (the command
-/// line's, else the one the glTF file's scene extras name) and sun sizes. Every
+/// Pose and light `scene` (read from `path`) as `how` says: its animation at the
+/// time given, the environment (the command line's, else the one the glTF file's
+/// scene extras name), sun sizes, portals and media. Every
 /// error names the file at fault.
 pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneOptions) -> Result<()> {
     how.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let in_file = |e: String| anyhow::anyhow!("{}: {e}", path.display());
+    if let Some(t) = how.time {
+        scene.set_time(t);
+    }
     let spec = match &how.environment {
         Some(e) => Some(pm_scene::EnvironmentSpec {
             source: match e {

@@ -1,6 +1,6 @@
 //! How a program reads its scene file and lights it, declared once
 //! ([`SceneOptions`]): the options of every stage that loads a scene, the
-//! top-level keys of pipeline.toml (`light_units`, `environment`, `portals`,
+//! top-level keys of pipeline.toml (`light_units`, `time`, `environment`, `portals`,
 //! `sun_angle_deg`, `[media.NAME]`) and the arguments the runner passes on.
 //! Each value is typed: it parses from its option (`FromStr`), reads from its key
 //! (serde), prints back as the option (`Display`) and says what is wrong with it
@@ -23,6 +23,13 @@ pm_params::params! {
         /// radiometric (already W/sr and W/m^2; Blender's "Unitless" export).
         /// Emissive materials are radiance either way.
         light_units: pm_scene::LightUnits = pm_scene::LightUnits::Photometric => Any;
+        /// Pose the glTF file's animations at this time [s] (animations loop over
+        /// their length): lights, meshes and camera where they are then; without it,
+        /// the file's rest pose. Blender frame F at R fps is time F / R. The
+        /// real-time methods show every frame at this time instead of frame / fps.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        #[arg(value_name = "SECONDS")]
+        time: Option<f32> => finite();
         /// Light from infinitely far away, FILE or R,G,B: an equirectangular image
         /// (.exr or Radiance .hdr, twice as wide as high, oriented as Blender's
         /// Environment Texture: the image's centre faces +X, its top row the zenith)
