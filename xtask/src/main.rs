@@ -118,7 +118,8 @@ struct CompareArgs {
     layer: Option<pm_color::Layer>,
     /// Also print, for blocks of N x N pixels, the image's mean over the
     /// reference's in percent (channel means; "  -" where the reference is black):
-    /// where in the picture a bias lives.
+    /// where in the picture a bias lives; then the root mean square and the worst
+    /// of the blocks' relative errors.
     #[arg(long, value_name = "N")]
     blocks: Option<usize>,
 }
@@ -224,6 +225,17 @@ fn compare(a: &CompareArgs) -> Result<()> {
                 .collect();
             println!("{}", row.join(""));
         }
+        // The blocks that count, as the differential checks count them (at least
+        // half their pixels kept, not black next to the image).
+        let keep: Vec<bool> = lb.iter().map(|p| p.max_element() <= a.mask_above).collect();
+        let g = pm_image::accuracy::agreement(&la, &lb, w, &keep, n);
+        println!(
+            "{n} x {n} blocks: RMS {:.2}%, worst {:.1}% at column {}, row {}",
+            100.0 * g.block_rms,
+            100.0 * g.worst_block,
+            g.worst_at.0,
+            g.worst_at.1
+        );
     }
     Ok(())
 }

@@ -49,10 +49,13 @@ fn frames_preview_and_timings_are_written_and_identical_for_any_thread_count() {
     let apng = std::fs::read(a.join("live.apng")).unwrap();
     let actl = apng.windows(4).position(|w| w == b"acTL").expect("an animation control chunk");
     assert_eq!(u32::from_be_bytes(apng[actl + 4..actl + 8].try_into().unwrap()), 4);
-    // One CSV row per frame; the buffer holds 500, 1000, 1500, 1500 paths.
+    // One CSV row per frame; the first frame fills the buffer (1,500 paths), the
+    // others re-shoot 500 (nothing moves).
     let csv = std::fs::read_to_string(a.join("frames.csv")).unwrap();
-    let held: Vec<&str> = csv.lines().skip(1).map(|l| l.split(',').nth(8).unwrap()).collect();
-    assert_eq!(held, ["500", "1000", "1500", "1500"]);
+    let column =
+        |k: usize| -> Vec<String> { csv.lines().skip(1).map(|l| l.split(',').nth(k).unwrap().to_string()).collect() };
+    assert_eq!(column(8), ["1500", "1500", "1500", "1500"]);
+    assert_eq!(column(6), ["1500", "500", "500", "500"]);
     // The dumped buffer is a photon map the reader accepts, with the photons of the
     // 1,500 paths held.
     let map = pm_format::read(&a.join("buffer-2.pmap"), &pm_format::ReadExpect::default()).unwrap();

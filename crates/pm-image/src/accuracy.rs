@@ -165,6 +165,9 @@ pub struct Agreement {
     pub worst_block: f64,
     /// That block's column and row.
     pub worst_at: (usize, usize),
+    /// The root mean square of the same blocks' relative errors (0 when no block
+    /// counts): what a viewer sees as blotches, where `worst_block` is one blotch.
+    pub block_rms: f64,
 }
 
 /// [`Agreement`] of `image` with `reference` (both `width` wide) over the pixels
@@ -192,6 +195,7 @@ pub fn agreement(image: &[Vec3], reference: &[Vec3], width: usize, keep: &[bool]
         }
     }
     let mut worst = (0.0f64, (0, 0));
+    let (mut squares, mut counted) = (0.0f64, 0usize);
     for (k, &(a, r, kept, all)) in blocks.iter().enumerate() {
         let reference_mean = r / (3 * kept.max(1)) as f64;
         if 2 * kept < all || kept == 0 || reference_mean < 0.1 * mr {
@@ -201,8 +205,11 @@ pub fn agreement(image: &[Vec3], reference: &[Vec3], width: usize, keep: &[bool]
         if e > worst.0 || e.is_nan() {
             worst = (if e.is_nan() { f64::INFINITY } else { e }, (k % cols, k / cols));
         }
+        squares += if e.is_nan() { f64::INFINITY } else { e * e };
+        counted += 1;
     }
-    Agreement { mean, worst_block: worst.0, worst_at: worst.1 }
+    let block_rms = if counted > 0 { (squares / counted as f64).sqrt() } else { 0.0 };
+    Agreement { mean, worst_block: worst.0, worst_at: worst.1, block_rms }
 }
 
 #[cfg(test)]
@@ -288,7 +295,9 @@ mod tests {
         assert_eq!(a.worst_at, (2, 1));
         assert!((a.worst_block - 0.1).abs() < 1e-5, "{a:?}");
         assert!(a.mean > -0.01 && a.mean < 0.02, "{a:?}");
+        // Eight blocks: seven 1% dark, one 10% bright.
+        assert!((a.block_rms - ((7.0 * 0.01f64.powi(2) + 0.1f64.powi(2)) / 8.0).sqrt()).abs() < 1e-5, "{a:?}");
         let same = agreement(&reference, &reference, w, &vec![true; w * h], 8);
-        assert_eq!((same.mean, same.worst_block), (0.0, 0.0));
+        assert_eq!((same.mean, same.worst_block, same.block_rms), (0.0, 0.0, 0.0));
     }
 }

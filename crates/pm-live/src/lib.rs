@@ -111,6 +111,68 @@ pub struct World {
     /// Added to every point and spot light's position after the animation (the
     /// interactive window moves lights with it) [m].
     light_offset: glam::Vec3,
+    /// Where the photon scene's lights and moving meshes are now ([`World::photon_pose`]).
+    photon_pose: PhotonPose,
+}
+
+/// Where a scene's lights and moving meshes are and what the lights emit: photons
+/// traced under one pose show the scene under another as far as
+/// [`PhotonPose::distance`] says.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhotonPose {
+    /// Per light: position \[m\], unit direction (zero where a kind has neither) and
+    /// power \[W per channel\].
+    lights: Vec<[glam::Vec3; 3]>,
+    /// The triangles' corners when the animation moves meshes (else none) \[m\].
+    triangles: Vec<[glam::Vec3; 3]>,
+    /// The scene's bounding-box diagonal \[m\]: how far a turn of a light's
+    /// direction or a change of its power counts.
+    diagonal: f32,
+}
+
+impl PhotonPose {
+    fn of(scene: &Scene) -> PhotonPose {
+        let zero = glam::Vec3::ZERO;
+        let lights = scene
+            .lights
+            .iter()
+            .map(|l| {
+                let (p, d) = match &l.kind {
+                    LightKind::Point { position, .. } => (*position, zero),
+                    LightKind::Spot { position, direction, .. } => (*position, *direction),
+                    LightKind::Directional { direction, .. } => (zero, *direction),
+                    LightKind::Area { .. } | LightKind::Environment { .. } => (zero, zero),
+                };
+                [p, d, l.power]
+            })
+            .collect();
+        let triangles =
+            if scene.has_moving_meshes() { scene.triangles.iter().map(|t| t.p).collect() } else { Vec::new() };
+        PhotonPose { lights, triangles, diagonal: scene.bounds.diagonal() }
+    }
+
+    /// How far apart two poses are \[m\]: the farthest any light or mesh corner
+    /// moved, a light's turn counted as the chord its direction sweeps at the
+    /// scene's diagonal and a change of its power as that fraction of the diagonal;
+    /// infinite between poses of scenes with other lights or meshes. (A replaced
+    /// photon scene with the same lights and meshes, where a light jumped, is
+    /// as far as the jump.)
+    pub fn distance(&self, other: &PhotonPose) -> f32 {
+        if self.lights.len() != other.lights.len() || self.triangles.len() != other.triangles.len() {
+            return f32::INFINITY;
+        }
+        let mut d = 0.0f32;
+        for (a, b) in self.lights.iter().zip(&other.lights) {
+            let power = (a[2] - b[2]).abs().max_element() / a[2].max(b[2]).max_element().max(f32::MIN_POSITIVE);
+            d = d.max((a[0] - b[0]).length()).max((a[1] - b[1]).length() * self.diagonal).max(power * self.diagonal);
+        }
+        for (a, b) in self.triangles.iter().zip(&other.triangles) {
+            for k in 0..3 {
+                d = d.max((a[k] - b[k]).length());
+            }
+        }
+        if d.is_nan() { f32::INFINITY } else { d }
+    }
 }
 
 impl World {
@@ -119,7 +181,14 @@ impl World {
     pub fn new(scene: Scene, photon_scene: Option<Scene>) -> Result<World, String> {
         let camera = scene.camera.clone().ok_or("the scene has no perspective camera")?;
         let rest_lights = (scene.lights.clone(), photon_scene.as_ref().map(|p| p.lights.clone()));
-        Ok(World { scene, photon_scene, camera, rest_lights, light_offset: glam::Vec3::ZERO })
+        let photon_pose = PhotonPose::of(photon_scene.as_ref().unwrap_or(&scene));
+        Ok(World { scene, photon_scene, camera, rest_lights, light_offset: glam::Vec3::ZERO, photon_pose })
+    }
+
+    /// Where the photon scene's lights and moving meshes are now. (The camera
+    /// moving changes nothing photons see.)
+    pub fn photon_pose(&self) -> &PhotonPose {
+        &self.photon_pose
     }
 
     /// The scene drawn.
@@ -141,6 +210,7 @@ impl World {
     fn set_photon_scene(&mut self, photon_scene: Scene) {
         self.rest_lights.1 = Some(photon_scene.lights.clone());
         self.photon_scene = Some(photon_scene);
+        self.photon_pose = PhotonPose::of(self.photon_scene());
     }
 
     /// Move the animated lights, meshes and camera of both scenes to time `t` \[s\],
@@ -165,6 +235,7 @@ impl World {
         if let Some(c) = &self.scene.camera {
             self.camera = c.clone();
         }
+        self.photon_pose = PhotonPose::of(self.photon_scene());
     }
 }
 
@@ -183,8 +254,8 @@ pub trait FrameMethod {
     /// What one frame did.
     type Row: FrameRow;
 
-    /// Frames before the frame time settles (the vertex method's ring buffer fills
-    /// over total / per_frame frames; the image-space method needs none).
+    /// Frames before the frame time settles (the vertex method's first frame fills
+    /// its ring buffer; the image-space method needs none).
     fn warm_up(&self) -> u64;
 
     /// The world moved to another time, or its photon scene was replaced: lights,

@@ -413,7 +413,7 @@ fn judge(
             continue;
         }
         let ours = img.pixels(l);
-        let Agreement { mean, worst_block, worst_at } = agreement(&ours, &reference, size, keep, 8);
+        let Agreement { mean, worst_block, worst_at, .. } = agreement(&ours, &reference, size, keep, 8);
         // The average of two halves has half the noise their difference shows.
         let halves = agreement(&la, &lb, size, keep, 8);
         let noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);

@@ -27,7 +27,7 @@ use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_light::LightSelector;
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
-use pm_params::{Any, above, between};
+use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
 use pm_render::{FrameBuffers, Visibility};
 use pm_scene::{Hit, Scene, Target};
@@ -79,10 +79,28 @@ pm_params::params! {
         /// 16 took cornell_boxes' bias from 11.6% to 11.0% at no measurable frame
         /// time, and 32 bought nothing more (`cargo xtask tradeoff`, issue 36).
         max_level: u32 = 16 => between(1, 64);
+        /// How far lights and meshes may have moved since a photon path was shot, in
+        /// expected photon search radii ([`expected_radius`]), before the path is
+        /// re-shot ahead of its turn. The thesis's buffer lets photons lag up to
+        /// total / per_frame frames behind a moving light: on Blender's animated room
+        /// at 24 fps (the lamp 13 cm a frame) that put the image 5-9% off in mean and
+        /// its 8 x 8 blocks 8.5-13.7% RMS (with k = 200), against 0-1.2% and 3.7-5.8%
+        /// with 0.5. 0: any move re-shoots every path; 1e9: the thesis's buffer. Where
+        /// things move slowly (the thesis's room at 60 fps: 1.6 cm a frame) no path
+        /// is re-shot early and frames keep their speed. The first frame fills the
+        /// buffer (the thesis fills it over total / per_frame frames).
+        max_lag_rel_radius: f32 = 0.5 => at_least(0.0);
         /// Which paths re-shot slots get: random, same-per-frame or same-over-total.
         distribution: Distribution = Distribution::SameOverTotal => Any;
-        /// Photons per corner estimate.
-        k: usize = 50 => between(1, 1 << 16);
+        /// Photons per corner estimate. Each estimate's noise is about 1/sqrt(k), and
+        /// neighbouring corners' noise shows as coloured blotches: on Blender's
+        /// animated room (tests/scenes/blender_room, walls of two triangles) the 8 x 8
+        /// blocks of frames 0, 12, 24 and 36 were 6.6-9.7% RMS off the path tracer
+        /// with the thesis's 50 and 3.7-5.8% with 200. The automatic split makes fewer
+        /// corners for the larger radius, so the estimates take less time (9 against
+        /// 5 ms a frame there); the indirect light's mean bias grows by about 1%
+        /// (cornell_boxes +1.8% at 100, +2.9% at 200; BENCHMARKS.md, issue 53).
+        k: usize = 200 => between(1, 1 << 16);
         /// Divide each corner estimate by the part of its disc that lies on the
         /// surface (probed with rays once per corner and radius step), not the whole
         /// disc: corners on an edge of a surface otherwise read half the light, and
@@ -248,6 +266,11 @@ pub struct Vertex {
     subdivision: Option<Subdivision>,
     /// The corners' disc coverages probed so far (`coverage`).
     coverage: CoverageCache,
+    /// The buffer's paths in the order they were shot, oldest first, as runs of
+    /// paths shot under one pose of the photons' world.
+    shot_under: std::collections::VecDeque<(usize, pm_live::PhotonPose)>,
+    /// How far things may move before a path is re-shot early \[m\] (`max_lag_rel_radius`).
+    max_lag: f32,
 }
 
 impl Vertex {
@@ -261,6 +284,7 @@ impl Vertex {
         let trace = TraceConfig { pass: MapPass::Global, budget: Budget::Emitted(params.total as u64), seed, selector };
         let ring = RingBuffer::new(params.total as usize, params.max_level as usize);
         let corners = Corners::new(world.scene(), params.cornering);
+        let max_lag = params.max_lag_rel_radius * expected_radius(world.photon_scene(), &params);
         Ok(Vertex {
             frame_params,
             params,
@@ -274,6 +298,8 @@ impl Vertex {
             fragments: Vec::new(),
             subdivision: None,
             coverage: CoverageCache::default(),
+            shot_under: std::collections::VecDeque::new(),
+            max_lag,
         })
     }
 
@@ -318,10 +344,10 @@ impl Vertex {
         frame: u64,
         draw: bool,
     ) -> (ShootStats, Vec<FullIrrPhoton>, pm_kdtree::Buckets, [f64; 3]) {
-        let (p, f) = (&self.params, &self.frame_params);
         let t = Instant::now();
-        let shot =
-            self.ring.shoot(world.photon_scene(), &self.trace, &self.targets, p.per_frame as usize, p.distribution);
+        let paths = self.paths_to_shoot(world);
+        let (p, f) = (&self.params, &self.frame_params);
+        let shot = self.ring.shoot(world.photon_scene(), &self.trace, &self.targets, paths, p.distribution);
         let shoot = t.elapsed().as_secs_f64();
         let (max_radius, film) = (self.max_radius(world), self.film(frame));
         // The search structure (a kd-tree rebuilt over the used slots, or the grid
@@ -358,6 +384,35 @@ impl Vertex {
         };
         let ((records, buckets, balance), raster) = rayon::join(update, raster);
         (shot, records, buckets, [shoot, balance, raster])
+    }
+
+    /// How many of the oldest paths this frame re-shoots: per_frame, or every path
+    /// up to the newest shot where lights or meshes were farther than `max_lag`
+    /// from where they are now, or the whole buffer while it is not yet full;
+    /// the runs of paths shot under each pose are updated to match.
+    fn paths_to_shoot(&mut self, world: &World) -> usize {
+        let total = self.ring.total();
+        let now = world.photon_pose();
+        let mut paths = if self.ring.filled() < total { total } else { (self.params.per_frame as usize).min(total) };
+        let mut older = 0;
+        for (n, pose) in &self.shot_under {
+            older += n;
+            if pose.distance(now) > self.max_lag {
+                paths = paths.max(older);
+            }
+        }
+        let mut left = paths;
+        while left > 0 {
+            let Some(front) = self.shot_under.front_mut() else { break };
+            let take = front.0.min(left);
+            front.0 -= take;
+            left -= take;
+            if front.0 == 0 {
+                self.shot_under.pop_front();
+            }
+        }
+        self.shot_under.push_back((paths, now.clone()));
+        paths
     }
 
     /// Irradiance at the active corners from the photon search, through the
@@ -404,7 +459,7 @@ impl pm_live::FrameMethod for Vertex {
     type Row = VertexFrame;
 
     fn warm_up(&self) -> u64 {
-        (self.params.total / self.params.per_frame) as u64
+        1
     }
 
     fn moved(&mut self, world: &World) {

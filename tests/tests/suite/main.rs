@@ -14,6 +14,7 @@ mod media;
 mod plan;
 mod quality;
 mod raster;
+mod realtime;
 mod regions;
 mod render;
 mod runner;
