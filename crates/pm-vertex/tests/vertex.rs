@@ -122,8 +122,8 @@ fn after_a_light_jumps_no_photon_from_its_old_position_remains() {
     let LightKind::Point { position: a, .. } = s.lights[0].kind else { panic!("plane_point has a point light") };
     let b = a + Vec3::new(0.6, -0.3, 0.4);
     let moved = point_light_at(&s, b);
-    for reshoot_moved in [false, true] {
-        let max_lag_rel_radius = if reshoot_moved { VertexParams::default().max_lag_rel_radius } else { 1e9 };
+    for thesis in [true, false] {
+        let max_lag_rel_radius = if thesis { 1e9 } else { VertexParams::default().max_lag_rel_radius };
         let params = Params(
             FrameParams { width: 8, height: 8, ..Default::default() },
             VertexParams {
@@ -147,10 +147,10 @@ fn after_a_light_jumps_no_photon_from_its_old_position_remains() {
             let old = direct.iter().filter(|p| from(p, a)).count();
             let new = direct.iter().filter(|p| from(p, b)).count();
             eprintln!(
-                "reshoot_moved {reshoot_moved}, frame {frame} after the jump: {old} direct photons from the old position, {new} from the new"
+                "thesis's buffer {thesis}, frame {frame} after the jump: {old} direct photons from the old position, {new} from the new"
             );
             assert_eq!(old + new, direct.len());
-            if reshoot_moved {
+            if !thesis {
                 assert_eq!(old, 0, "the frame after a jump re-shoots every path");
                 assert_eq!(row.paths_shot, if frame == 0 { 1_000 } else { 300 }, "frame {frame}");
             } else if frame < 3 {
@@ -253,7 +253,7 @@ fn an_animated_light_moves_and_its_photons_follow() {
     // move re-shoots every path), or from the last total / per_frame = 2 frames'
     // (the thesis's buffer; and the default's, as the light moves 0.24 m a frame,
     // less than half the expected search radius of 800 paths).
-    for (reshoot_moved, max_lag_rel_radius) in [(true, 0.0), (false, 1e9), (false, 0.5)] {
+    for (only_this_frame, max_lag_rel_radius) in [(true, 0.0), (false, 1e9), (false, 0.5)] {
         let params = Params(
             FrameParams { width: 8, height: 8, fps: 4.0, ..Default::default() },
             VertexParams { per_frame: 400, total: 800, max_lag_rel_radius, ..Default::default() },
@@ -276,7 +276,7 @@ fn an_animated_light_moves_and_its_photons_follow() {
         assert!(direct.iter().all(|p| from(p, lights[3]) || from(p, lights[2])), "a photon from an older position");
         let now = direct.iter().filter(|p| from(p, lights[3])).count();
         let before = direct.len() - now;
-        match reshoot_moved {
+        match only_this_frame {
             true => assert_eq!(before, 0, "the frame's light only"),
             false => assert!(before > 0 && now > 0, "frames 2 and 3: {before} and {now}"),
         }
