@@ -123,7 +123,7 @@ pub struct PhotonPose {
     /// Per light: position \[m\], unit direction (zero where a kind has neither) and
     /// power \[W per channel\].
     lights: Vec<[glam::Vec3; 3]>,
-    /// The triangles' corners when the animation moves meshes (else none) \[m\].
+    /// The corners of the triangles the animation moves \[m\].
     triangles: Vec<[glam::Vec3; 3]>,
     /// The scene's bounding-box diagonal \[m\]: how far a turn of a light's
     /// direction or a change of its power counts.
@@ -146,8 +146,7 @@ impl PhotonPose {
                 [p, d, l.power]
             })
             .collect();
-        let triangles =
-            if scene.has_moving_meshes() { scene.triangles.iter().map(|t| t.p).collect() } else { Vec::new() };
+        let triangles = scene.moving_triangles().map(|t| t.p).collect();
         PhotonPose { lights, triangles, diagonal: scene.bounds.diagonal() }
     }
 

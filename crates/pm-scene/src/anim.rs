@@ -207,6 +207,14 @@ impl Scene {
         !self.animation.meshes.is_empty()
     }
 
+    /// The triangles the animation moves (those of meshes below animated nodes).
+    pub fn moving_triangles(&self) -> impl Iterator<Item = &Triangle> {
+        self.animation.meshes.iter().flat_map(|m| {
+            let r = &self.objects[m.object].tris;
+            &self.triangles[r.start as usize..r.end as usize]
+        })
+    }
+
     /// Move the animated lights, camera and meshes to time `t` \[s\] (animations loop
     /// over their length). Lights and the camera move without rebuilding anything;
     /// moved meshes are re-transformed from their rest pose and the BVH is rebuilt.
