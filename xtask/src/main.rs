@@ -122,6 +122,11 @@ struct CompareArgs {
     /// of the blocks' relative errors.
     #[arg(long, value_name = "N")]
     blocks: Option<usize>,
+    /// Also write a PNG of the layer: the image, the reference (both scaled so the
+    /// reference's mean is mid-grey) and their ratio (red brighter, blue darker;
+    /// full colour at a factor of 2), side by side.
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -237,5 +242,35 @@ fn compare(a: &CompareArgs) -> Result<()> {
             g.worst_at.1
         );
     }
+    if let Some(png) = &a.png {
+        let (w, h) = (ia.width as usize, ia.height as usize);
+        pm_image::write_png(png, 3 * w as u32, h as u32, &side_by_side(&la, &lb, w, h), 0.0)?;
+    }
     Ok(())
+}
+
+/// `image | reference | ratio` for `cargo xtask compare --png`: the two scaled so
+/// the reference's mean is 0.18, the ratio of their channel means as red (image
+/// brighter) or blue (darker), saturating at a factor of 2; grey where both are black.
+fn side_by_side(image: &[glam::Vec3], reference: &[glam::Vec3], w: usize, h: usize) -> Vec<glam::Vec3> {
+    use glam::Vec3;
+    let mean = reference.iter().map(|p| pm_color::mean(*p) as f64).sum::<f64>() / reference.len().max(1) as f64;
+    let gain = if mean > 0.0 { (0.18 / mean) as f32 } else { 1.0 };
+    let mut out = vec![Vec3::ZERO; 3 * w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (i, r) = (image[y * w + x], reference[y * w + x]);
+            let row = &mut out[y * 3 * w..(y + 1) * 3 * w];
+            row[x] = i * gain;
+            row[w + x] = r * gain;
+            let (mi, mr) = (pm_color::mean(i), pm_color::mean(r));
+            row[2 * w + x] = if mi <= 0.0 && mr <= 0.0 {
+                Vec3::splat(0.2)
+            } else {
+                let t = ((mi.max(1e-12) / mr.max(1e-12)).log2()).clamp(-1.0, 1.0);
+                if t > 0.0 { Vec3::new(0.2 + 0.8 * t, 0.2, 0.2) } else { Vec3::new(0.2, 0.2, 0.2 - 0.8 * t) }
+            };
+        }
+    }
+    out
 }
