@@ -21,7 +21,9 @@ use std::path::PathBuf;
 the irradiance E [W m^-2 per RGB channel] at a spatially uniform fraction of the photons from their k nearest \
 neighbours on the same side of the surface (E = sum of photon power / (pi r^2)), and writes the same tree with the \
 irradiance stored in the selected photons (global.irr.pmap). The final gather then looks up the nearest photon \
-with a similar normal instead of estimating."
+with a similar normal instead of estimating. With --scene (as `cargo xtask run` gives it), each estimate leaves out \
+the photons of a surface a gap behind or in front of the photon's own (a ceiling just above a light's back, the \
+floor around a box's top)."
 )]
 pub struct Cli {
     /// Sorted global photon map (global.kd.pmap).
@@ -29,6 +31,14 @@ pub struct Cli {
     /// Output map (global.irr.pmap).
     #[arg(long)]
     pub out: PathBuf,
+    /// The scene the map was traced in (glTF 2.0). Without it, estimates count the
+    /// photons of nearby parallel surfaces too: a ceiling 3 mm above a light's back
+    /// lights the light's underside.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// How the scene file is read (as photon-trace read it).
+    #[command(flatten)]
+    pub scene_options: pm_stage::SceneOptions,
     /// The precompute settings (pipeline.toml's \[irradiance\] section).
     #[command(flatten)]
     pub params: IrradianceParams,
@@ -62,10 +72,17 @@ pub fn run(cli: &Cli) -> Result<IrradianceReport> {
     let max_radius_m = (p.max_radius_rel_diag * diag).max(f32::MIN_POSITIVE);
     let filter = p.filter.filter();
     let params = KnnParams { k: p.k, max_d2: max_radius_m * max_radius_m, filter };
+    let scene = match &cli.scene {
+        Some(path) => Some(pm_stage::load_scene("photon-irradiance", path, &cli.scene_options)?),
+        None => None,
+    };
+    // Each estimate bounded by the gaps to the surfaces around its photon.
+    let gaps = |x, n| scene.as_ref()?.surface_gaps(x, n, max_radius_m).map(Into::into);
+    let around: Option<&(dyn Fn(_, _) -> _ + Sync)> = scene.is_some().then_some(&gaps);
     let n = map.len();
     let progress = Progress::new("irradiance", n as u64);
     let stats = with_map!(&mut map, m => {
-        let stats = pm_estimate::precompute(&mut m.records, &params, p.fraction, &|d| progress.set(d));
+        let stats = pm_estimate::precompute(&mut m.records, &params, p.fraction, around, &|d| progress.set(d));
         m.header.has_irradiance = true;
         let mut p: serde_json::Value = serde_json::from_str(&m.header.params).unwrap_or(json!({}));
         p["irradiance"] = json!({"params": cli.params, "max_radius_m": max_radius_m});

@@ -1,6 +1,6 @@
 //! Irradiance precomputed at photon positions (Christensen 1999 section 2.1).
 
-use crate::{Irradiance, KnnParams, irradiance};
+use crate::{Irradiance, KnnParams, Surroundings, irradiance, irradiance_on};
 use pm_format::{PhotonRecord, flags};
 use pm_kdtree::{KdTree, KnnScratch};
 use rayon::prelude::*;
@@ -35,12 +35,15 @@ pub struct PrecomputeStats {
 
 /// Estimate the irradiance at the selected photons of a kd-tree map (`nodes` in heap
 /// order, with surface normals) and store it in them, flagging them
-/// [`flags::HAS_IRRADIANCE`]. Parallel and deterministic. `progress` gets the number
-/// of photons examined so far.
+/// [`flags::HAS_IRRADIANCE`]. With `surroundings` (the scene's, for a photon's
+/// position and stored normal), each estimate leaves out the photons of the
+/// surfaces next to the photon's ([`irradiance_on`]).
+/// Parallel and deterministic. `progress` gets the number of photons examined so far.
 pub fn precompute<R: PhotonRecord>(
     nodes: &mut [R],
     p: &KnnParams,
     fraction: f64,
+    surroundings: Option<&(dyn Fn(glam::Vec3, glam::Vec3) -> Option<Surroundings> + Sync)>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
     let buckets = pm_kdtree::Buckets::new(&*nodes);
@@ -60,7 +63,12 @@ pub fn precompute<R: PhotonRecord>(
                 })
                 .map(|i| {
                     let r = &tree.nodes()[i];
-                    (i as u32, irradiance(&tree, r.position(), r.normal(), p, &mut scratch))
+                    let (x, n) = (r.position(), r.normal());
+                    let est = match surroundings.and_then(|f| f(x, n)) {
+                        Some(s) => irradiance_on(&tree, x, n, &s, p, &mut scratch),
+                        None => irradiance(&tree, x, n, p, &mut scratch),
+                    };
+                    (i as u32, est)
                 })
                 .collect();
             let n = done.fetch_add((end - start) as u64, std::sync::atomic::Ordering::Relaxed);

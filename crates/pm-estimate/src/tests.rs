@@ -147,3 +147,28 @@ fn precomputed_lookup_needs_a_similar_normal_and_an_irradiance() {
     assert_eq!(e, Rgb::splat(7.0));
     assert_eq!(hit.rank, 3, "the wall photon and the photon without irradiance were nearer");
 }
+
+/// Photons of 1 mW on a 1 mm grid on the plane y = 0 (1000 W/m^2), and 100 times
+/// brighter ones on a parallel plane 0.5 mm behind it with the same normal (a
+/// ceiling above a light's back): [`irradiance`] reads both planes, while
+/// [`irradiance_on`], told the gap behind, reads only the query's own plane.
+#[test]
+fn estimates_leave_out_a_parallel_surface_a_gap_behind() {
+    let mut ps = Vec::new();
+    for i in -40..=40 {
+        for j in -40..=40 {
+            let (x, z) = (i as f32 * 1e-3, j as f32 * 1e-3);
+            ps.push(FullIrrPhoton::encode(&photon(Vec3::new(x, 0.0, z), 1e-3, Vec3::Y, Vec3::Y)));
+            ps.push(FullIrrPhoton::encode(&photon(Vec3::new(x + 5e-4, -5e-4, z), 0.1, Vec3::Y, Vec3::Y)));
+        }
+    }
+    let nodes = pm_kdtree::balance(&ps);
+    let tree = KdTree::new(&nodes);
+    let mut s = KnnScratch::default();
+    let p = KnnParams { k: 200, max_d2: f32::INFINITY, filter: Filter::None };
+    let both = irradiance(&tree, Vec3::ZERO, Vec3::Y, &p, &mut s);
+    assert!(both.e.x > 20_000.0, "{}", both.e.x);
+    let around = Surroundings { normal: Vec3::Y, behind: 5e-4, front: f32::INFINITY };
+    let own = irradiance_on(&tree, Vec3::ZERO, Vec3::Y, &around, &p, &mut s);
+    assert!((own.e.x / 1000.0 - 1.0).abs() < 0.1, "{}", own.e.x);
+}

@@ -212,9 +212,11 @@ impl Run<'_> {
         }
     }
 
-    /// Stage 3: irradiance at a subset of the global photons.
+    /// Stage 3: irradiance at a subset of the global photons, with the scene (the
+    /// gaps between its surfaces bound each estimate).
     fn irradiance(&self) -> Step {
         let mut args = vec![self.o("global.kd.pmap").display().to_string()];
+        args.extend(self.scene_args());
         args.extend(self.cfg.irradiance.to_args());
         Step {
             name: "photon-irradiance".into(),
@@ -222,7 +224,7 @@ impl Run<'_> {
             args,
             writes: vec![("--out", self.o("global.irr.pmap"))],
             stats: self.o("irradiance.stats.json"),
-            inputs: vec![self.o("global.kd.pmap")],
+            inputs: [self.scene_files.clone(), vec![self.o("global.kd.pmap")]].concat(),
             outputs: vec![self.o("global.irr.pmap"), self.o("irradiance.stats.json")],
             needs: Some(self.o("global.kd.pmap")),
             optional: vec![],

@@ -69,6 +69,25 @@ impl Scene {
         offset_ray_origin(p, ng, w, 1.0 / self.bvh_inv_scale)
     }
 
+    /// The surface through `x` (a point on it, as a photon records it; `n` its
+    /// normal roughly, within tens of degrees) and its neighbours along its normal:
+    /// the surface's unit geometric normal on `n`'s side, and the distances to the
+    /// nearest other surface behind it and in front of it \[m\], each at most
+    /// `reach`; index-matched boundaries (a fog box's walls, which light passes
+    /// straight through) do not count. Three rays: one from just above `x` down
+    /// onto the surface, one on from there behind it, one out in front. `None` when
+    /// no surface lies within a hair (1e-5 of the scene's diagonal, or a few ulps of
+    /// `x`) of `x`.
+    pub fn surface_gaps(&self, x: Vec3, n: Vec3, reach: f32) -> Option<(Vec3, f32, f32)> {
+        let hair = (1e-5 * self.bounds.diagonal()).max(4.0 * f32::EPSILON * x.abs().max_element());
+        let start = x + n * hair;
+        let here = self.intersect_through(start, -n, None);
+        let here = here.hit.filter(|_| here.t <= 3.0 * hair)?;
+        let ng = geometry::facing(here.ng, n);
+        let gap = |w: Vec3| self.intersect_through(self.offset_origin(here.p, ng, w), w, None).t.min(reach);
+        Some((ng, gap(-ng), gap(ng)))
+    }
+
     /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let mut best_b = [0.0; 3];

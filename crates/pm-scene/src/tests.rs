@@ -535,3 +535,31 @@ fn four_lane_triangle_test_matches_lanes_one_by_one() {
     // The cases reach the re-check: many report more than one lane.
     assert!(reported > 10_000 && cases_with_two > 1_000, "{reported} hits, {cases_with_two} cases with two or more");
 }
+
+/// A floor (y = 0), a ceiling (y = 2) and a panel 2 mm below the ceiling: the gaps
+/// `surface_gaps` reports from a point on the panel's underside are the panel's
+/// distance to the ceiling behind it and to the floor in front, found from a
+/// stored normal 15 degrees off; a point on no surface has none.
+#[test]
+fn surface_gaps_measure_the_distance_to_the_surfaces_around() {
+    let quad = |y: f32, s: f32, up: bool| {
+        let (a, b, c, d) =
+            (Vec3::new(-s, y, -s), Vec3::new(s, y, -s), Vec3::new(s, y, s), Vec3::new(-s, y, s));
+        let t = if up { [[a, c, b], [a, d, c]] } else { [[a, b, c], [a, c, d]] };
+        t.map(|p| Triangle::new(p, 0).unwrap())
+    };
+    let mut tris = Vec::new();
+    tris.extend(quad(0.0, 1.0, true));
+    tris.extend(quad(2.0, 1.0, false));
+    tris.extend(quad(1.998, 0.2, false));
+    let grey = Material::new("grey", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO);
+    let scene = Scene::from_parts(tris, vec![grey], Vec::new(), None);
+    let tilted = Vec3::new(0.26, -0.966, 0.0).normalize();
+    let (n, behind, front) = scene.surface_gaps(Vec3::new(0.05, 1.998, 0.1), tilted, 3.0).unwrap();
+    assert!(n.abs_diff_eq(-Vec3::Y, 1e-6), "{n}");
+    assert!((behind - 0.002).abs() < 1e-5 && (front - 1.998).abs() < 1e-4, "{behind} {front}");
+    // The floor, out to the reach of 0.5 m: nothing behind, nothing in reach in front.
+    let (n, behind, front) = scene.surface_gaps(Vec3::new(0.5, 0.0, 0.5), Vec3::Y, 0.5).unwrap();
+    assert!(n.abs_diff_eq(Vec3::Y, 1e-6) && behind == 0.5 && front == 0.5, "{n} {behind} {front}");
+    assert_eq!(scene.surface_gaps(Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 3.0), None);
+}

@@ -156,3 +156,38 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
     assert!(auto_rms < 0.25, "block RMS {auto_rms}");
     assert!(raw_rms > 0.25, "the mesh as exported is already fine: {raw_rms}");
 }
+
+/// `cargo xtask run` on defaults (48 x 48) against the path tracer (1024 a pixel)
+/// on two scenes of the differential checker's generator (issue 53) whose area
+/// lights sit a few millimetres below the ceiling: seed 5092 scene 32 (one
+/// two-sided light 2.6 mm below it) and scene 14 (two lights 2.3 and 2.1 mm below
+/// it, overlapping, so one's back faces the other 0.25 mm away). The ceiling above
+/// a light and the back of a light are brighter than the room (the light's own
+/// emission is trapped there), and a final gather that hits a light's underside
+/// read them: the precomputed lookup took a ceiling photon within 3.5 mm without
+/// a visibility test, and the precompute's kd-tree search found photons on the
+/// parallel surface a gap behind and took them for its own (same normal, nearly in
+/// the tangent plane when the gap is small against the search radius). The
+/// indirect layer was +162% (scene 32) and +15% (scene 14, worst 8 x 8 block +51%)
+/// at 48 x 48; measured now -3.0% and +1.4% (every lookup tests visibility,
+/// `pm_estimate::irradiance_on` bounds the precompute's estimates). Asserted: the
+/// indirect layer's mean within 8% (the reference holds fireflies from the trapped
+/// light: its own noise is a few percent).
+#[test]
+fn lights_just_below_the_ceiling_do_not_light_the_room_through_the_gap() {
+    use pm_color::Layer;
+    let dir = tempfile::tempdir().unwrap();
+    for index in [32, 14] {
+        let (doc, recipe) = pm_scenegen::random::scene(5092, index);
+        let name = format!("scene-{index:03}");
+        doc.write(dir.path(), &name, false).unwrap();
+        let scene = dir.path().join(format!("{name}.gltf"));
+        let (_, ours, reference) =
+            pm_tests::defaults_and_path_tracer(dir.path(), scene.to_str().unwrap(), 48, 1024, |_| {});
+        let keep = pm_image::accuracy::keep_mask(&reference.pixels(None), 48, 48, None);
+        let l = Some(Layer::Indirect);
+        let a = pm_image::accuracy::agreement(&ours.pixels(l), &reference.pixels(l), 48, &keep, 8);
+        eprintln!("{name} indirect: {a} ({:?})", recipe.lights);
+        assert!(a.mean.abs() < 0.08, "{name} indirect: {a} ({:?})", recipe.lights);
+    }
+}

@@ -40,7 +40,9 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
     let scene = Scene::from_parts(tris, mats, vec![sun], None);
     let mut nodes = global_tree(&scene, 100_000, 3);
     assert!(nodes.iter().all(|r| r.flags() & flags::DIRECT != 0), "only direct light reaches a lone plane");
-    precompute(&mut nodes, &all_irradiance_params(50), 1.0, &|_| {});
+    let params = all_irradiance_params(50);
+    let gaps = |x, n| scene.surface_gaps(x, n, params.max_d2.sqrt()).map(Into::into);
+    precompute(&mut nodes, &params, 1.0, Some(&gaps), &|_| {});
     // Away from the edges, where the disk of 50 photons lies on the plane.
     let inner: Vec<f32> =
         nodes.iter().filter(|r| r.position().abs().max_element() < 3.0).map(|r| r.irradiance().x).collect();
@@ -62,7 +64,9 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
 fn furnace_irradiance_is_five_pi_at_every_photon() {
     let scene = load_scene("furnace.gltf");
     let mut nodes = global_tree(&scene, 200_000, 4);
-    precompute(&mut nodes, &all_irradiance_params(50), 1.0, &|_| {});
+    let params = all_irradiance_params(50);
+    let gaps = |x, n| scene.surface_gaps(x, n, params.max_d2.sqrt()).map(Into::into);
+    precompute(&mut nodes, &params, 1.0, Some(&gaps), &|_| {});
     let want = 5.0 * PI;
     let e: Vec<f32> = nodes.iter().map(|r| r.irradiance().x).collect();
     let mean = e.iter().sum::<f32>() / e.len() as f32;

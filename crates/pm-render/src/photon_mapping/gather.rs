@@ -20,6 +20,10 @@ use std::sync::atomic::Ordering::Relaxed;
 /// Most hidden photons one precomputed lookup tries before it misses.
 const VISIBILITY_TESTS: u32 = 16;
 
+/// How far a visibility test lifts the query point and the photon off their
+/// surfaces, as a fraction of their distance.
+const LIFT: f32 = 0.125;
+
 /// Irradiance at a final-gather ray's hit point from the global map: the
 /// precomputed irradiance of the nearest similar photon, or a k-nearest estimate.
 pub(crate) fn lookup_irradiance<G: PhotonRecord>(
@@ -34,21 +38,42 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
         Lookup::Precomputed => match &ctx.maps.irradiance {
             Some(tree) => {
                 let max_d2 = cfg.max_radius_global * cfg.max_radius_global;
-                // A photon more than a hair away must be visible from the query point:
-                // otherwise, near a thin wall, a room with no photons of its own would
-                // borrow the irradiance of the room next door (a coplanar floor passes
-                // the normal test). Measured in tests/tests/suite/hard_scenes.rs.
+                // The photon must be visible from the query point: otherwise, near a
+                // thin wall, a room with no photons of its own would borrow the
+                // irradiance of the room next door (a coplanar floor passes the
+                // normal test; tests/tests/suite/hard_scenes.rs), and the underside of
+                // a light 2.6 mm below the ceiling would read the ceiling above it
+                // (+150% indirect light; the differential checker's scene, issue 53).
+                // The path runs from each point along its own normal, lifted by an
+                // eighth of their distance, and across between the lifted points:
+                // the lift clears the chord of a curved surface (the chord between
+                // normals 43 degrees apart, the lookup's normal test with a stored
+                // normal's error, sags a tenth of its length), and the legs along
+                // the normals catch a parallel surface closer than the lift. A
+                // photon in the query's plane needs no legs (a surface a gap away
+                // is out of it), and none within a hair of the query a ray: most
+                // lookups in a room of flat walls (one ray, not three: the cache
+                // prepass 18% faster on cornell_spheres; BENCHMARKS.md).
                 let near = 1e-3 * ctx.scene.bounds.diagonal();
-                // The nearest similar photon is tested first, then the next; after
-                // VISIBILITY_TESTS hidden ones the lookup misses, as when no candidate
-                // is visible: among many curved objects, a lookup could try hundreds
-                // (62% of a 1.46M-triangle scene's prepass; BENCHMARKS.md).
                 let visible = |r: &G| {
-                    let q = r.position() + r.normal() * near * 0.5;
-                    let o = p + n * near * 0.5;
-                    let d = q - o;
-                    let len = d.length();
-                    len < near || !ctx.scene.occluded(o, d / len, len)
+                    let (q, nq) = (r.position(), r.normal());
+                    let len = (q - p).length();
+                    let in_plane = n.dot(q - p).abs() <= 1e-4 * len + 1e-6 * p.abs().max(q.abs()).max_element();
+                    if len == 0.0 || (in_plane && len < near) {
+                        return true;
+                    }
+                    let lift = LIFT * len;
+                    let (o, q_up) = (p + n * lift, q + nq * lift);
+                    let d = q_up - o;
+                    let across = d.length();
+                    let scene = &ctx.scene;
+                    // Index-matched boundaries (a fog box's walls, 1 mm off the
+                    // floor) do not block: light passes them.
+                    let open = |o, d, t| scene.transmittance_along(o, d, t, None) != Rgb::ZERO;
+                    (in_plane
+                        || open(scene.offset_origin(p, n, n), n, lift)
+                            && open(scene.offset_origin(q, nq, nq), nq, lift))
+                        && (across == 0.0 || open(o, d / across, across))
                 };
                 let found = pm_estimate::precomputed_irradiance_where(
                     tree,
