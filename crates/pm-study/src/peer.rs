@@ -171,8 +171,10 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
 }
 
 /// A binary little-endian PLY of triangles `tris` of `scene` (three vertices each,
-/// with their normals when every triangle has them).
-fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>) -> Result<()> {
+/// with their normals when every triangle has them); with `behind` > 0, the
+/// triangles turned over (winding and normals) and moved that far \[m\] behind
+/// themselves: the back face of a two-sided emitter, as its own one-sided shape.
+fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>, behind: f32) -> Result<()> {
     let list = &scene.triangles[tris.start as usize..tris.end as usize];
     let normals = list.iter().all(|t| t.n.is_some());
     let mut out = Vec::new();
@@ -185,11 +187,13 @@ fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>) -> Result<(
     }
     let _ = write!(header, "element face {}\nproperty list uchar int vertex_indices\nend_header\n", list.len());
     out.extend_from_slice(header.as_bytes());
+    let order: [usize; 3] = if behind > 0.0 { [0, 2, 1] } else { [0, 1, 2] };
     for t in list {
-        for k in 0..3 {
-            let mut v = t.p[k].to_array().to_vec();
+        let (shift, turn) = if behind > 0.0 { (-t.ng() * behind, -1.0) } else { (Vec3::ZERO, 1.0) };
+        for k in order {
+            let mut v = (t.p[k] + shift).to_array().to_vec();
             if let Some(n) = t.n.filter(|_| normals) {
-                v.extend(n[k].to_array());
+                v.extend((n[k] * turn).to_array());
             }
             for x in v {
                 out.extend_from_slice(&x.to_le_bytes());
@@ -238,19 +242,26 @@ pub(crate) fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u
         let m = &scene.materials[o.material as usize];
         let bsdf = bsdf_xml(scene, m).map_err(refuse)?;
         let ply = format!("mesh_{i}.ply");
-        write_ply(&dir.join(&ply), scene, o.tris.clone())?;
+        write_ply(&dir.join(&ply), scene, o.tris.clone(), 0.0)?;
         let mut emitter = String::new();
+        let face_normals = scene.triangles[o.tris.start as usize].n.is_none();
         if m.emission.max_element() > 0.0 {
-            if m.double_sided {
-                return Err(refuse(format!("material {}: two-sided emitters are not translated", m.name)));
-            }
             emitter =
                 format!("<emitter type=\"area\"><rgb name=\"radiance\" value=\"{}\"/></emitter>", rgb(m.emission));
+            if m.double_sided {
+                // Mitsuba's area emitters are one-sided: the back face is a second
+                // shape, turned over, 1e-5 of the diagonal behind the first.
+                let back = format!("mesh_{i}_back.ply");
+                write_ply(&dir.join(&back), scene, o.tris.clone(), 1e-5 * scene.bounds.diagonal())?;
+                let _ = writeln!(
+                    xml,
+                    "  <shape type=\"ply\"><string name=\"filename\" value=\"{back}\"/><boolean name=\"face_normals\" value=\"{face_normals}\"/>{bsdf}{emitter}</shape>"
+                );
+            }
         }
         let _ = writeln!(
             xml,
-            "  <shape type=\"ply\"><string name=\"filename\" value=\"{ply}\"/><boolean name=\"face_normals\" value=\"{}\"/>{bsdf}{emitter}</shape>",
-            scene.triangles[o.tris.start as usize].n.is_none()
+            "  <shape type=\"ply\"><string name=\"filename\" value=\"{ply}\"/><boolean name=\"face_normals\" value=\"{face_normals}\"/>{bsdf}{emitter}</shape>"
         );
     }
     for l in &scene.lights {
