@@ -16,7 +16,9 @@ fn main() {
     let p = KnnParams { k: 50, max_d2: 0.3464f32.powi(2), filter: Filter::None };
     let around = |x, n| scene.surface_gaps(x, n, p.max_d2.sqrt()).map(Into::into);
     println!("threads: {}, photons: {}", rayon::current_num_threads(), nodes.len());
-    println!("| fraction | estimates | time [s] | per estimate [us] | time / time at fraction 1 | with the scene's gaps [s] | gaps / none |");
+    println!(
+        "| fraction | estimates | time [s] | per estimate [us] | time / time at fraction 1 | with the scene's gaps [s] | gaps / none |"
+    );
     println!("|---|---|---|---|---|---|---|");
     let mut base = 0.0;
     for f in [1.0, 0.25, 1.0 / 16.0] {

@@ -422,11 +422,24 @@ const SOLID_ANGLE_NEAR: f32 = 0.5;
 /// near enough for solid-angle sampling (see
 /// [`SOLID_ANGLE_NEAR`]) and the solid angle is not degenerate; `None` otherwise.
 /// Sampling and its density both decide by this, so they agree.
+///
+/// A point in the triangle's plane (a path's vertex on the light itself) sees it
+/// edge-on, a solid angle of zero; computed from the corners' directions, which
+/// then surround the point, it came out as a hemisphere (2 pi), and a two-sided
+/// light lit every point of itself with its own emission: a reflecting
+/// two-sided panel sent 1.8 times its light on into the room, and the path
+/// tracer's image was 2.6% bright against Mitsuba 3 (the differential checker's
+/// scene 23 of seed 5092; tests/tests/suite/hard_scenes.rs).
 fn near_solid_angle(tri: &crate::Triangle, sphere: [f32; 4], p: Vec3) -> Option<(f32, [Vec3; 3])> {
     let (c, r2) = (Vec3::new(sphere[0], sphere[1], sphere[2]), sphere[3]);
     // Cheap first: beyond (1 + NEAR) r of the centroid the triangle is beyond NEAR r.
     let (near2, far) = (SOLID_ANGLE_NEAR * SOLID_ANGLE_NEAR * r2, 1.0 + SOLID_ANGLE_NEAR);
     if (p - c).length_squared() >= far * far * r2 || (closest_point(tri, p) - p).length_squared() >= near2 {
+        return None;
+    }
+    // In the plane, to the rounding of a hit point's coordinates.
+    let height = (p - tri.p[0]).dot(tri.ng()).abs();
+    if height <= 4.0 * f32::EPSILON * p.abs().max(c.abs()).max_element() + 1e-6 * r2.sqrt() {
         return None;
     }
     let v = tri.p.map(|q| (q - p).normalize_or_zero());

@@ -158,7 +158,7 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
 }
 
 /// `cargo xtask run` on defaults (48 x 48) against the path tracer (1024 a pixel)
-/// on two scenes of the differential checker's generator (issue 53) whose area
+/// on three scenes of the differential checker's generator (issue 53) whose area
 /// lights sit a few millimetres below the ceiling: seed 5092 scene 32 (one
 /// two-sided light 2.6 mm below it) and scene 14 (two lights 2.3 and 2.1 mm below
 /// it, overlapping, so one's back faces the other 0.25 mm away). The ceiling above
@@ -169,15 +169,19 @@ fn the_vertex_method_on_its_defaults_draws_a_coarse_room_like_the_batch_pipeline
 /// parallel surface a gap behind and took them for its own (same normal, nearly in
 /// the tangent plane when the gap is small against the search radius). The
 /// indirect layer was +162% (scene 32) and +15% (scene 14, worst 8 x 8 block +51%)
-/// at 48 x 48; measured now -3.0% and +1.4% (every lookup tests visibility,
-/// `pm_estimate::irradiance_on` bounds the precompute's estimates). Asserted: the
-/// indirect layer's mean within 8% (the reference holds fireflies from the trapped
-/// light: its own noise is a few percent).
+/// at 48 x 48; measured now +4.1% and +1.4% (every lookup tests visibility,
+/// `pm_estimate::irradiance_on` bounds the precompute's estimates). Scene 23 (a
+/// two-sided light 21 mm below the ceiling, base colour 0.8) was the reference's
+/// fault: the path tracer lit the panel with its own emission (a point on a light
+/// sampled the light's triangle as a hemisphere) and read -10% here; Mitsuba 3
+/// agreed with the pipeline; measured now -1.2%. Asserted: the indirect layer's
+/// mean within 8% (the reference holds fireflies from the trapped light: its own
+/// noise is a few percent).
 #[test]
 fn lights_just_below_the_ceiling_do_not_light_the_room_through_the_gap() {
     use pm_color::Layer;
     let dir = tempfile::tempdir().unwrap();
-    for index in [32, 14] {
+    for index in [32, 14, 23] {
         let (doc, recipe) = pm_scenegen::random::scene(5092, index);
         let name = format!("scene-{index:03}");
         doc.write(dir.path(), &name, false).unwrap();
