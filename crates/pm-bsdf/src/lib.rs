@@ -92,6 +92,25 @@ pub struct BsdfSample {
     pub transmitted: bool,
     /// The kind of lobe that was sampled.
     pub lobe: Lobe,
+    /// Index of refraction on `wi`'s side over that on `wo`'s: the refraction's
+    /// relative index (1.5 entering glass, 1 / 1.5 leaving it), 1 for every
+    /// reflection and a thin slab's straight-through transmission.
+    pub eta: f32,
+}
+
+impl BsdfSample {
+    /// [`Self::weight`] for radiance traced from the eye (pbrt-v4's
+    /// TransportMode::Radiance): radiance crossing a refracting interface from
+    /// `wi`'s side to `wo`'s is scaled by 1 / eta^2 (Veach 1997, section 5.2),
+    /// photon power is not. Along a path that enters and leaves a glass object the
+    /// factors cancel; a path ending on a surface immersed in it (a pool's floor,
+    /// a glass block's open base on the floor) does not, and a photon estimate
+    /// there, of the radiance inside, reached the eye eta^2 = 2.25 times too
+    /// bright (the differential checker's glass box on the floor: +120%).
+    #[inline]
+    pub fn radiance_weight(&self) -> Rgb {
+        self.weight / (self.eta * self.eta)
+    }
 }
 
 /// The kind of lobe a direction was sampled from (image-space photon mapping sizes
@@ -208,6 +227,7 @@ impl Bsdf {
                     specular: false,
                     transmitted: false,
                     lobe: Lobe::Diffuse,
+                    eta: 1.0,
                 }
             }
             Bsdf::Mirror { r } => {
@@ -219,6 +239,7 @@ impl Bsdf {
                     specular: true,
                     transmitted: false,
                     lobe: Lobe::Specular,
+                    eta: 1.0,
                 }
             }
             Bsdf::Glass { eta, tint, thin } => sample_glass(lo_raw, eta, tint, thin, uc, |l| to_world(l, t, b, n))?,
@@ -238,6 +259,7 @@ impl Bsdf {
                     specular: false,
                     transmitted: false,
                     lobe: Lobe::Glossy,
+                    eta: 1.0,
                 }
             }
             Bsdf::Plastic { rho, alpha, f0, weight } => {
@@ -252,7 +274,15 @@ impl Bsdf {
                 }
                 let f = plastic_f(rho, alpha, f0, weight, lo, li);
                 let lobe = if uc < ps { Lobe::Glossy } else { Lobe::Diffuse };
-                BsdfSample { wi: world(li), weight: f * li.z / pdf, pdf, specular: false, transmitted: false, lobe }
+                BsdfSample {
+                    wi: world(li),
+                    weight: f * li.z / pdf,
+                    pdf,
+                    specular: false,
+                    transmitted: false,
+                    lobe,
+                    eta: 1.0,
+                }
             }
         };
         (s.wi.is_finite() && s.weight.is_finite()).then_some(s)
@@ -316,6 +346,7 @@ fn sample_glass(
             specular: true,
             transmitted: false,
             lobe: Lobe::Specular,
+            eta: 1.0,
         });
     }
     let li = if thin {
@@ -331,10 +362,8 @@ fn sample_glass(
         let cos_t = (1.0 - sin2_t).sqrt();
         -lo / eta_rel + (cos_i / eta_rel - cos_t) * n_side
     };
-    // Radiance is scaled by 1/eta^2 across a refracting interface, but photon power
-    // and importance are not; this crate returns the power (adjoint) weight, which is
-    // also what the renderer needs for radiance when it traces from the eye with
-    // symmetric throughput (both ends of a closed glass object cancel).
+    // The power (photon) weight; radiance traced from the eye takes
+    // BsdfSample::radiance_weight, 1 / eta^2 of it.
     Some(BsdfSample {
         wi: world(li),
         weight: tint,
@@ -342,6 +371,7 @@ fn sample_glass(
         specular: true,
         transmitted: true,
         lobe: Lobe::Specular,
+        eta: if thin { 1.0 } else { eta_rel },
     })
 }
 

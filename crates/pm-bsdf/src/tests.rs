@@ -158,3 +158,26 @@ fn gltf_dielectric_keeps_its_specular_layer_and_conserves_energy() {
     let Bsdf::Plastic { f0, .. } = tinted else { panic!("{tinted:?}") };
     assert!((f0 - Rgb::new(2.0 / 9.0, 1.0 / 9.0, 0.0)).length() < 1e-6, "{f0}");
 }
+
+/// Refraction into a slab of glass and out of its far face: the sample's
+/// relative index is 1.5 going in and 1 / 1.5 coming out, so the radiance weights' factors 1 / eta^2 cancel
+/// over the round trip; the power weights carry none; reflections and a thin
+/// slab's transmission have eta 1.
+#[test]
+fn radiance_weights_scale_by_the_relative_index_and_cancel_in_and_out() {
+    let glass = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false };
+    let n = Vec3::Z;
+    let wo = Vec3::new(0.3, 0.0, 1.0).normalize();
+    let into = glass.sample(wo, n, glam::Vec2::splat(0.5), 1.0 - f32::EPSILON).unwrap();
+    assert!(into.transmitted && (into.eta - 1.5).abs() < 1e-6, "{into:?}");
+    assert!((into.radiance_weight().x - into.weight.x / 2.25).abs() < 1e-6);
+    // The slab's far face, whose outward normal points down.
+    let out = glass.sample(-into.wi, -n, glam::Vec2::splat(0.5), 1.0 - f32::EPSILON).unwrap();
+    assert!(out.transmitted && (out.eta - 1.0 / 1.5).abs() < 1e-6, "{out:?}");
+    let round = into.radiance_weight() * out.radiance_weight();
+    assert!((round.x - into.weight.x * out.weight.x).abs() < 1e-5, "{round} against {}", into.weight * out.weight);
+    let reflected = glass.sample(wo, n, glam::Vec2::splat(0.5), 0.0).unwrap();
+    assert!(!reflected.transmitted && reflected.eta == 1.0);
+    let thin = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: true };
+    assert_eq!(thin.sample(wo, n, glam::Vec2::splat(0.5), 1.0 - f32::EPSILON).unwrap().eta, 1.0);
+}

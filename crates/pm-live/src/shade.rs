@@ -180,12 +180,12 @@ impl<I: IndirectLight> LiveShading<'_, I> {
             let [reflected, transmitted] = bsdf.specular_branches(wo, hit.ns, u);
             let mut l = Rgb::ZERO;
             for b in [reflected, transmitted].into_iter().flatten() {
-                l += b.weight * b.pdf * follow(s, b.wi);
+                l += b.radiance_weight() * b.pdf * follow(s, b.wi);
             }
             l
         } else {
             match bsdf.sample(wo, hit.ns, u, s.next_1d()) {
-                Some(b) => b.weight * follow(s, b.wi),
+                Some(b) => b.radiance_weight() * follow(s, b.wi),
                 None => Rgb::ZERO,
             }
         }
@@ -324,7 +324,7 @@ mod tests {
                     return beta * (le + shading.direct_at(&hit, &bsdf, -d, None, s) + Rgb::splat(0.1));
                 }
                 let Some(b) = bsdf.sample(-d, hit.ns, s.next_2d(), s.next_1d()) else { break };
-                beta *= b.weight;
+                beta *= b.radiance_weight();
                 d = b.wi;
                 let Some(next) = scene.intersect(scene.offset_origin(hit.p, hit.ng, d), d, f32::INFINITY) else {
                     break;

@@ -159,6 +159,10 @@ struct Path {
     /// every contribution and the roulette weigh by (one without media).
     flights: Flights,
     w: f32,
+    /// The product of eta^2 over the refractions so far: Russian roulette weighs
+    /// `beta` times it, so that radiance's 1 / eta^2 inside glass does not end
+    /// paths there (pbrt-v4's etaScale).
+    eta_scale: f32,
     /// Still on the eye ray (the visible surface is recorded there).
     eye_ray: bool,
 }
@@ -181,6 +185,7 @@ impl Path {
             medium: scene.eye_medium(o),
             flights: Flights::new(if scene.has_media() { s.next_1d() } else { 0.0 }),
             w: 1.0,
+            eta_scale: 1.0,
             eye_ray: true,
         }
     }
@@ -218,7 +223,7 @@ impl Path {
         self.prev_pdf = ps.pdf;
         self.prev_specular = false;
         (self.prev_p, self.prev_n, self.travelled) = (p, Vec3::ZERO, 0.0);
-        roulette(&mut self.beta, self.w, depth, s).then_some(ps.wi)
+        roulette(&mut self.beta, self.w * self.eta_scale, depth, s).then_some(ps.wi)
     }
 
     /// The path left the scene along `d`: the environment and sun discs, weighed
@@ -288,10 +293,11 @@ impl Path {
         }
         let sampled = layer_of_sampled(self.specular_before_d1, self.n_diffuse, specular);
         self.emission_layer = volume_or(self.d1_in_medium, self.specular_before_d1, sampled);
-        self.beta *= bs.weight;
+        self.beta *= bs.radiance_weight();
+        self.eta_scale *= bs.eta * bs.eta;
         self.prev_pdf = bs.pdf;
         self.prev_specular = bs.specular;
-        if !roulette(&mut self.beta, self.w, depth, s) {
+        if !roulette(&mut self.beta, self.w * self.eta_scale, depth, s) {
             return None;
         }
         (self.prev_p, self.prev_n, self.travelled) = (hit.p, pm_scene::facing(hit.ng, wo), 0.0);

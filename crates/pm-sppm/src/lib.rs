@@ -500,7 +500,7 @@ impl<'a> Sppm<'a> {
                 return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 }), ld);
             }
             let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return (None, ld) };
-            beta *= bs.weight;
+            beta *= bs.radiance_weight();
             if !beta.is_finite() || beta == Rgb::ZERO {
                 return (None, ld);
             }

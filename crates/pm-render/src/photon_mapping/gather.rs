@@ -175,7 +175,7 @@ fn gather_radiance<G: PhotonRecord>(
             let u = s.next_2d();
             let uc = s.next_1d();
             let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (l, first_t) };
-            beta *= bs.weight;
+            beta *= bs.radiance_weight();
             if media {
                 medium = scene.medium_after(&hit, bs.wi, medium);
             }

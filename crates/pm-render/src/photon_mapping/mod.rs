@@ -348,13 +348,13 @@ fn trace_hit<G: PhotonRecord>(
     if depth < SPLIT_DEPTH {
         // Both Fresnel branches (without a reflection, nothing).
         if let [Some(a), b] = bsdf.specular_branches(wo, hit.ns, u) {
-            l += follow(s, scratch, a.wi, a.weight * a.pdf);
+            l += follow(s, scratch, a.wi, a.radiance_weight() * a.pdf);
             if let Some(b) = b {
-                l += follow(s, scratch, b.wi, b.weight * b.pdf);
+                l += follow(s, scratch, b.wi, b.radiance_weight() * b.pdf);
             }
         }
     } else if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) {
-        l += follow(s, scratch, bs.wi, bs.weight);
+        l += follow(s, scratch, bs.wi, bs.radiance_weight());
     }
     scratch::add_time(&ctx.counters.ns_specular, t0);
     Components { specular: l, ..Default::default() }
