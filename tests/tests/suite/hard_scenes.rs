@@ -49,24 +49,36 @@ fn no_light_leaks_into_a_closed_dark_room() {
 }
 
 /// Energy is not created by glass: inside a furnace (albedo 0.8, L_e = 1, radiance
-/// 5 everywhere) a lossless glass sphere, with a second one nested inside it and the
-/// camera inside both (total internal reflection, rays at silhouettes) only
-/// redirects light, so every pixel is 5. Asserted: path mode mean within 2% and no
-/// pixel above 5 by more than its noise (10%); full mode no pixel above 6 and mean
-/// within 5% (its glass paths stop at the depth limit and are counted). Measured:
-/// path 4.995 (brightest 5.42), full 4.935 (brightest 5.29).
+/// 5 everywhere in its air) a lossless glass sphere with a second one nested inside
+/// it (total internal reflection, rays at silhouettes), seen from the air between
+/// them and the furnace wall, only redirects light, so every pixel is 5. Asserted:
+/// path mode mean within 2% and no pixel above 5 by more than its noise (15%);
+/// full mode no pixel above 6 and mean within 5% (its glass paths stop at the
+/// depth limit and are counted). Measured: path 5.004 (brightest 5.50), full 4.884
+/// (brightest 5.24).
+///
+/// And the n^2 law: in equilibrium the radiance inside a dielectric of index n is
+/// n^2 times the radiance outside (radiance over n^2 is what a refraction keeps;
+/// Veach 1997, section 5.2), so a camera inside one glass sphere (n = 1.5) sees
+/// 5 x 2.25 = 11.25 everywhere. Eye paths that carried power weights, as photons
+/// do, saw 5 (and this test once asserted 5 there). Measured 11.24. Asserted:
+/// path mode mean within 2% of 11.25.
 #[test]
 fn nested_glass_in_a_furnace_creates_no_energy() {
-    let mut tris = Vec::new();
-    sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
-    sphere(&mut tris, Vec3::ZERO, 1.0, false, 1);
-    sphere(&mut tris, Vec3::ZERO, 0.6, false, 1);
     let mats = vec![
         material("furnace", Bsdf::Lambert { rho: Rgb::splat(0.8) }, 1.0),
         material("glass", Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: false }, 0.0),
     ];
-    let scene =
-        Scene::from_parts(tris, mats, vec![], Some(camera(Vec3::new(0.1, 0.05, 0.2), Vec3::new(1.0, 0.3, -2.0))));
+    let mut tris = Vec::new();
+    sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
+    sphere(&mut tris, Vec3::ZERO, 1.0, false, 1);
+    sphere(&mut tris, Vec3::ZERO, 0.6, false, 1);
+    let scene = Scene::from_parts(
+        tris,
+        mats.clone(),
+        vec![],
+        Some(camera(Vec3::new(0.1, 0.05, 1.7), Vec3::new(0.0, 0.0, -1.0))),
+    );
     let maps = photon_maps(&scene, 100_000, 10_000, 0.25);
     let mut cfg = render_params(Method::Path, 16, 16);
     cfg.render.spp = 512;
@@ -74,11 +86,13 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
     cfg.mode = Method::Full;
     cfg.render.spp = 4;
     cfg.render.light_samples = 8;
-    // At the default depth limit (12) about 3,900 paths are cut between the nested
-    // spheres (counted in the stats), costing 1.3% here; final-gather rays used to
-    // stop after 4 specular bounces and lost 12%.
+    // At the default depth limit (12) eye paths trapped between the nested spheres
+    // are cut (counted in the stats): -4.8% from outside them; at 32, what is
+    // asserted is the glass alone. Final-gather rays once stopped after 4 specular
+    // bounces and lost 12%.
+    cfg.render.max_depth = 32;
     let (full, fs) = render(&scene, &maps, &cfg);
-    for (name, img, max, tol) in [("path", &path, 5.5, 0.02), ("full", &full, 6.0, 0.05)] {
+    for (name, img, max, tol) in [("path", &path, 5.75, 0.02), ("full", &full, 6.0, 0.05)] {
         let px = img.total();
         let (mean, _, _) = pm_tests::against_constant(px, 5.0);
         let brightest = px.iter().map(|p| p.max_element()).fold(0.0, f32::max);
@@ -87,6 +101,19 @@ fn nested_glass_in_a_furnace_creates_no_energy() {
         assert!((mean / 5.0 - 1.0).abs() < tol, "{name}: mean {mean}");
     }
     eprintln!("paths cut by the depth limit: path {}, full {}", ps.terminated_paths, fs.terminated_paths);
+    // The camera inside one glass sphere.
+    let mut tris = Vec::new();
+    sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
+    sphere(&mut tris, Vec3::ZERO, 1.0, false, 1);
+    let inside =
+        Scene::from_parts(tris, mats, vec![], Some(camera(Vec3::new(0.1, 0.05, 0.2), Vec3::new(1.0, 0.3, -2.0))));
+    let maps = photon_maps(&inside, 100_000, 10_000, 0.25);
+    let mut cfg = render_params(Method::Path, 16, 16);
+    cfg.render.spp = 512;
+    let (img, _) = render(&inside, &maps, &cfg);
+    let (mean, _, _) = pm_tests::against_constant(img.total(), 11.25);
+    eprintln!("inside one glass sphere: path mean {mean:.3} (n^2 x 5 = 11.25)");
+    assert!((mean / 11.25 - 1.0).abs() < 0.02, "inside glass: mean {mean}, n^2 x 5 = 11.25");
 }
 
 /// A global map with no photons: the render still completes, finite, with direct
