@@ -254,8 +254,7 @@ fn compare(a: &CompareArgs) -> Result<()> {
 /// brighter) or blue (darker), saturating at a factor of 2; grey where both are black.
 fn side_by_side(image: &[glam::Vec3], reference: &[glam::Vec3], w: usize, h: usize) -> Vec<glam::Vec3> {
     use glam::Vec3;
-    let mean = reference.iter().map(|p| pm_color::mean(*p) as f64).sum::<f64>() / reference.len().max(1) as f64;
-    let gain = if mean > 0.0 { (0.18 / mean) as f32 } else { 1.0 };
+    let gain = pm_image::mid_grey_gain(reference);
     let mut out = vec![Vec3::ZERO; 3 * w * h];
     for y in 0..h {
         for x in 0..w {

@@ -417,6 +417,14 @@ pub struct ImageError {
     pub pixels: usize,
 }
 
+/// The factor that puts `reference`'s mean over its pixels and channels at 0.18
+/// (mid-grey): how the contact sheets and `xtask compare --png` show an image and
+/// its reference at one exposure. 1 for a black reference.
+pub fn mid_grey_gain(reference: &[Vec3]) -> f32 {
+    let mean = reference.iter().map(|p| p.element_sum() as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
+    if mean > 0.0 { (0.18 / mean) as f32 } else { 1.0 }
+}
+
 /// The means of the `n` x `n` blocks of a `width`-wide image, row by row (`width /
 /// n` rounded up to a row); a partial block at the right or bottom edge is the mean
 /// of the pixels it has. Where in a picture a difference lives, and the unit the

@@ -243,8 +243,7 @@ fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
             continue;
         };
         let reference: Vec<Vec3> = a.iter().zip(&b).map(|(x, y)| (*x + *y) * 0.5).collect();
-        let mean = reference.iter().map(|p| p.element_sum() as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
-        let gain = if mean > 0.0 { (0.18 / mean) as f32 } else { 1.0 };
+        let gain = pm_image::mid_grey_gain(&reference);
         let y0 = k as u32 * cell_h;
         for (col, px) in [&ours, &reference].into_iter().enumerate() {
             let x0 = col as u32 * (tile + 10);
