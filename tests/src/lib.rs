@@ -137,8 +137,8 @@ pub fn photon_maps_seeded(
         max_d2: (0.1 * scene.bounds.diagonal()).powi(2),
         filter: pm_estimate::Filter::None,
     };
-    let gaps = |x, n| scene.surface_gaps(x, n, params.max_d2.sqrt()).map(Into::into);
-    pm_estimate::precompute(&mut g, &params, fraction, Some(&gaps), &|_| {});
+    let surfaces = pm_render::SceneSurfaces { scene, reach: params.max_d2.sqrt() };
+    pm_estimate::precompute(&mut g, &params, fraction, Some(&surfaces), &|_| {});
     let cfg = TraceConfig {
         pass: MapPass::Caustic,
         budget: Budget::Stored { target: caustic, cap: caustic * 1000 },

@@ -76,9 +76,10 @@ pub fn run(cli: &Cli) -> Result<IrradianceReport> {
         Some(path) => Some(pm_stage::load_scene("photon-irradiance", path, &cli.scene_options)?),
         None => None,
     };
-    // Each estimate bounded by the gaps to the surfaces around its photon.
-    let gaps = |x, n| scene.as_ref()?.surface_gaps(x, n, max_radius_m).map(Into::into);
-    let around: Option<&(dyn Fn(_, _) -> _ + Sync)> = scene.is_some().then_some(&gaps);
+    // Each estimate bounded by the gaps to the surfaces around its photon, over
+    // the share of its disc on the photon's surface.
+    let surfaces = scene.as_ref().map(|scene| pm_render::SceneSurfaces { scene, reach: max_radius_m });
+    let around = surfaces.as_ref().map(|s| s as &dyn pm_estimate::SurfaceQuery);
     let n = map.len();
     let progress = Progress::new("irradiance", n as u64);
     let stats = with_map!(&mut map, m => {

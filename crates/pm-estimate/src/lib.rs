@@ -190,6 +190,47 @@ impl From<(Vec3, f32, f32)> for Surroundings {
     }
 }
 
+/// What an estimate asks of the scene around a query point on a surface
+/// (pm-render's `SceneSurfaces` answers from a scene; this crate knows none).
+pub trait SurfaceQuery: Sync {
+    /// The surroundings of the surface through `x` (stored normal `n`, roughly):
+    /// its exact normal and the gaps to the surfaces behind and in front of it,
+    /// or none when no surface lies at `x`.
+    fn surroundings(&self, x: Vec3, n: Vec3) -> Option<Surroundings>;
+    /// Whether the point `off` from `x` in its tangent plane (unit normal `n`)
+    /// lies on `x`'s surface or one that continues it within radius `r` \[m\]
+    /// (a photon there would count in an estimate of that radius).
+    fn continues(&self, x: Vec3, n: Vec3, off: Vec3, r: f32) -> bool;
+}
+
+/// Points of the disc [`disc_share`] probes.
+pub const DISC_PROBES: u32 = 12;
+/// The smallest share of a disc an estimate divides by: a query point lies on its
+/// surface, so its disc keeps about a quarter even at a box's corner, and a lower
+/// count is the probes' noise.
+pub const SHARE_FLOOR: f32 = 0.125;
+
+/// The share of the disc of radius `r` \[m\] about `x` in its tangent plane
+/// (unit normal `n`) that lies on `x`'s surface ([`SurfaceQuery::continues`]),
+/// from [`DISC_PROBES`] points spread evenly over its area (a sunflower
+/// pattern, turned by `turn` in [0, 1) of a revolution so that neighbouring
+/// estimates do not probe alike), at least [`SHARE_FLOOR`]. Where a wall or an
+/// edge cuts the disc, dividing its photons by pi r^2 undercounts their density:
+/// a bias first order in r along every edge of a room, -2.3% of a closed room's
+/// indirect light on the differential checker's scene 30 (seed 16654).
+pub fn disc_share(q: &dyn SurfaceQuery, x: Vec3, n: Vec3, r: f32, turn: f32) -> f32 {
+    let (t, b) = pm_sampling::basis(n);
+    let golden = PI * (3.0 - 5f32.sqrt());
+    let on = (0..DISC_PROBES)
+        .filter(|&i| {
+            let rho = r * ((i as f32 + 0.5) / DISC_PROBES as f32).sqrt();
+            let phi = golden * i as f32 + 2.0 * PI * turn;
+            q.continues(x, n, (t * phi.cos() + b * phi.sin()) * rho, r)
+        })
+        .count();
+    (on as f32 / DISC_PROBES as f32).max(SHARE_FLOOR)
+}
+
 /// [`irradiance`] counting only photons nearer the query's tangent plane than
 /// half the gap to the next surface behind or in front of it (`s`). A kd-tree
 /// search reaches across gaps much narrower than its radius: the back of a light

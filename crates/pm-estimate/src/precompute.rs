@@ -1,6 +1,6 @@
 //! Irradiance precomputed at photon positions (Christensen 1999 section 2.1).
 
-use crate::{Irradiance, KnnParams, Surroundings, irradiance, irradiance_on};
+use crate::{Irradiance, KnnParams, SurfaceQuery, disc_share, irradiance, irradiance_on};
 use pm_format::{PhotonRecord, flags};
 use pm_kdtree::{KdTree, KnnScratch};
 use rayon::prelude::*;
@@ -35,15 +35,16 @@ pub struct PrecomputeStats {
 
 /// Estimate the irradiance at the selected photons of a kd-tree map (`nodes` in heap
 /// order, with surface normals) and store it in them, flagging them
-/// [`flags::HAS_IRRADIANCE`]. With `surroundings` (the scene's, for a photon's
-/// position and stored normal), each estimate leaves out the photons of the
-/// surfaces next to the photon's ([`irradiance_on`]).
+/// [`flags::HAS_IRRADIANCE`]. With the `scene`, each estimate leaves out the
+/// photons of the surfaces next to the photon's ([`irradiance_on`]) and divides
+/// by the area of its disc that lies on the photon's surface ([`disc_share`]),
+/// not pi r^2, so that estimates at a room's edges and corners are not dark.
 /// Parallel and deterministic. `progress` gets the number of photons examined so far.
 pub fn precompute<R: PhotonRecord>(
     nodes: &mut [R],
     p: &KnnParams,
     fraction: f64,
-    surroundings: Option<&(dyn Fn(glam::Vec3, glam::Vec3) -> Option<Surroundings> + Sync)>,
+    scene: Option<&dyn SurfaceQuery>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
     let buckets = pm_kdtree::Buckets::new(&*nodes);
@@ -64,8 +65,16 @@ pub fn precompute<R: PhotonRecord>(
                 .map(|i| {
                     let r = &tree.nodes()[i];
                     let (x, n) = (r.position(), r.normal());
-                    let est = match surroundings.and_then(|f| f(x, n)) {
-                        Some(s) => irradiance_on(&tree, x, n, &s, p, &mut scratch),
+                    let est = match scene.and_then(|q| Some((q, q.surroundings(x, n)?))) {
+                        Some((q, s)) => {
+                            let mut est = irradiance_on(&tree, x, n, &s, p, &mut scratch);
+                            if est.count > 0 && est.r2 > 0.0 {
+                                // A fixed turn per photon (deterministic), spread by a hash.
+                                let turn = (pm_sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32;
+                                est.e /= disc_share(q, x, s.normal, est.r2.sqrt(), turn);
+                            }
+                            est
+                        }
                         None => irradiance(&tree, x, n, p, &mut scratch),
                     };
                     (i as u32, est)

@@ -32,8 +32,8 @@ fn main() {
     let params = RenderParams::default();
     let max_r = params.max_radius_rel_diag * scene.bounds.diagonal();
     let knn = KnnParams { k: params.k, max_d2: max_r * max_r, filter: Filter::None };
-    let gaps = |x, n| scene.surface_gaps(x, n, max_r).map(Into::into);
-    precompute(&mut nodes, &knn, 0.25, Some(&gaps), &|_| {});
+    let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: max_r };
+    precompute(&mut nodes, &knn, 0.25, Some(&surfaces), &|_| {});
     let irr = pm_render::irradiance_subset(&nodes);
     let buckets = Buckets::new(&nodes);
     let integrator = |lookup: Lookup| {

@@ -166,8 +166,9 @@ pub trait Integrator: Sync {
         vs: Option<&mut VisibleSurface>,
     ) -> Components;
 
-    /// True: the image loop takes one sample at each pixel centre and supersamples
-    /// where neighbours differ. False: every pixel takes all samples, jittered.
+    /// True: the image loop takes one sample a pixel (jittered; at its centre when
+    /// the first hits are rasterised) and supersamples where neighbours differ.
+    /// False: every pixel takes all samples, jittered.
     /// Integrators of scenes with stochastic surfaces (blended alpha, partial
     /// transmission: [`pm_scene::Scene::has_stochastic_surfaces`]) say false: a pixel
     /// whose first sample and neighbours happened to choose alike would keep that one

@@ -33,7 +33,7 @@ pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderSta
 pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
-pub use render::{FrameBuffers, Image, Shot, Visibility, render_into, render_region, render_region_with};
+pub use render::{FrameBuffers, Image, Shot, Visibility, pixel_sampler, render_into, render_region, render_region_with};
 
 use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};
@@ -341,7 +341,8 @@ impl<'a> VolumeMap<'a> {
             let r = multiple.spheres.sphere(i).1;
             if correct_all { r.max(all.spheres.sphere(i).1) } else { r }
         };
-        let free = free_distances(scene, nodes, reach);
+        let positions: Vec<Vec3> = nodes.iter().map(|r| r.position()).collect();
+        let free = free_distances(scene, &positions, reach);
         let inside = |i: usize, r: f32| inside_fraction(&free[i], r);
         let multiple = multiple.with_inside_fractions(inside);
         let all = if correct_all { all.with_inside_fractions(inside) } else { all };
@@ -356,7 +357,7 @@ const PROBES: usize = 32;
 /// For each photon, the distance from it to the first surface (a wall, a medium's
 /// boundary, an object) in each of [`PROBES`] fixed directions, up to `reach(i)`
 /// \[m\]. In parallel, each photon on its own (independent of the thread count).
-fn free_distances(scene: &Scene, nodes: &[FullPhoton], reach: impl Fn(usize) -> f32 + Sync) -> Vec<[f32; PROBES]> {
+fn free_distances(scene: &Scene, positions: &[Vec3], reach: impl Fn(usize) -> f32 + Sync) -> Vec<[f32; PROBES]> {
     use rayon::prelude::*;
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let dirs: [Vec3; PROBES] = std::array::from_fn(|j| {
@@ -365,14 +366,22 @@ fn free_distances(scene: &Scene, nodes: &[FullPhoton], reach: impl Fn(usize) -> 
         let phi = golden * j as f32;
         Vec3::new(s * phi.cos(), s * phi.sin(), z)
     });
-    nodes
+    positions
         .par_iter()
         .enumerate()
-        .map(|(i, r)| {
-            let (p, far) = (r.position(), reach(i));
+        .map(|(i, &p)| {
+            let far = reach(i);
             std::array::from_fn(|j| if far > 0.0 { scene.intersect(p, dirs[j], far).map_or(far, |h| h.t) } else { 0.0 })
         })
         .collect()
+}
+
+/// `beams` (of photons at `positions`, in the same order) with their kernels
+/// corrected for the media's boundaries, as [`VolumeMap::new`] corrects its own:
+/// for maps built elsewhere (progressive photon mapping's passes).
+pub fn boundary_corrected(scene: &Scene, positions: &[Vec3], beams: pm_estimate::Beams) -> pm_estimate::Beams {
+    let free = free_distances(scene, positions, |i| beams.spheres.sphere(i).1);
+    beams.with_inside_fractions(|i, r| inside_fraction(&free[i], r))
 }
 
 /// The fraction of a sphere of radius `r` around a photon that lies in its
@@ -380,6 +389,27 @@ fn free_distances(scene: &Scene, nodes: &[FullPhoton], reach: impl Fn(usize) -> 
 /// of the free part of the radius (each direction's cone of the sphere).
 fn inside_fraction(free: &[f32; PROBES], r: f32) -> f32 {
     free.iter().map(|&s| (s.min(r) / r).powi(3)).sum::<f32>() / PROBES as f32
+}
+
+/// A scene as density estimates ask about it ([`pm_estimate::SurfaceQuery`]): the
+/// gaps around a surface, up to `reach` \[m\] (the estimate's largest radius),
+/// and which points of a disc lie on it. What the irradiance precompute
+/// (photon-irradiance) is given.
+pub struct SceneSurfaces<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// How far the gaps are looked for \[m\].
+    pub reach: f32,
+}
+
+impl pm_estimate::SurfaceQuery for SceneSurfaces<'_> {
+    fn surroundings(&self, x: Vec3, n: Vec3) -> Option<pm_estimate::Surroundings> {
+        self.scene.surface_gaps(x, n, self.reach).map(Into::into)
+    }
+
+    fn continues(&self, x: Vec3, n: Vec3, off: Vec3, r: f32) -> bool {
+        self.scene.continues_surface(x, n, off, r, pm_estimate::SAME_SURFACE_COS)
+    }
 }
 
 /// The photons of a kd-tree map that carry a precomputed irradiance, as their own

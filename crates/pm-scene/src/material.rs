@@ -233,7 +233,7 @@ impl Scene {
         if self.materials[tr.material as usize].normal_texture.is_some() && tr.tangent().is_some() {
             return None;
         }
-        let (p, ns) = tr.point_normal(b);
+        let (p, ns) = tr.point_normal(crate::accel::off_the_boundary(b));
         Some((p, facing(ns, tr.ng()), rho))
     }
 

@@ -369,7 +369,14 @@ impl Scene {
     /// multiplied in, the medium changing at each) to the first other surface within
     /// `t_max` (infinite: to the world sphere's end). A walk whose transmittance
     /// falls to zero stops there without a hit.
-    fn walk_from(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>, mut hit: Option<Hit>) -> Passage {
+    pub(crate) fn walk_from(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        medium: Option<MediumId>,
+        mut hit: Option<Hit>,
+    ) -> Passage {
         let (mut o, mut left, mut cur, mut tr, mut travelled) = (o, t_max, medium, Rgb::ONE, 0.0f32);
         let lost = |medium| Passage { hit: None, tr: Rgb::ZERO, t: f32::INFINITY, medium };
         for _ in 0..WALK_HITS {

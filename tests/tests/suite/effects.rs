@@ -96,15 +96,18 @@ fn a_lone_plane_needs_no_photon_map_and_matches_the_analytic_direct_light() {
         serde_json::from_slice(&std::fs::read(out.join("render.stats.json")).unwrap()).unwrap();
     assert_eq!(stats["final_gathers"], 0);
     assert_eq!(stats["gather_rays"], 0);
-    // Every pixel centre (1 sample per pixel is at the centre): L = rho/pi I cos / d^2
-    // with the point light 1 m above the floor's centre; the file gives 6830 cd, read
-    // (glTF light units, the default) as I = 6830 / 683 = 10 W/sr.
+    // Every pixel's one sample (where the image loop's sampler puts it in the
+    // pixel): L = rho/pi I cos / d^2 with the point light 1 m above the floor's
+    // centre; the file gives 6830 cd, read (glTF light units, the default) as
+    // I = 6830 / 683 = 10 W/sr.
     let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
     let scene = load_scene("plane_point.gltf");
     let cam = scene.camera.as_ref().unwrap();
+    let film = pm_render::Film { width: 24, height: 24, spp: 1, contrast: 0.1, seed: 1 };
     let mut worst = 0f32;
     for (i, px) in img.total().unwrap().iter().enumerate() {
-        let (x, y) = ((i % 24) as f32 + 0.5, (i / 24) as f32 + 0.5);
+        let j = pm_render::pixel_sampler(&film, i, 0).next_2d();
+        let (x, y) = ((i % 24) as f32 + j.x, (i / 24) as f32 + j.y);
         let d = cam.ray_direction(x / 24.0, y / 24.0, 1.0);
         let Some(h) = scene.intersect(cam.position, d, f32::INFINITY) else {
             assert_eq!(*px, Vec3::ZERO);

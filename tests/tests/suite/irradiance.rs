@@ -41,8 +41,8 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
     let mut nodes = global_tree(&scene, 100_000, 3);
     assert!(nodes.iter().all(|r| r.flags() & flags::DIRECT != 0), "only direct light reaches a lone plane");
     let params = all_irradiance_params(50);
-    let gaps = |x, n| scene.surface_gaps(x, n, params.max_d2.sqrt()).map(Into::into);
-    precompute(&mut nodes, &params, 1.0, Some(&gaps), &|_| {});
+    let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: params.max_d2.sqrt() };
+    precompute(&mut nodes, &params, 1.0, Some(&surfaces), &|_| {});
     // Away from the edges, where the disk of 50 photons lies on the plane.
     let inner: Vec<f32> =
         nodes.iter().filter(|r| r.position().abs().max_element() < 3.0).map(|r| r.irradiance().x).collect();
@@ -65,8 +65,8 @@ fn furnace_irradiance_is_five_pi_at_every_photon() {
     let scene = load_scene("furnace.gltf");
     let mut nodes = global_tree(&scene, 200_000, 4);
     let params = all_irradiance_params(50);
-    let gaps = |x, n| scene.surface_gaps(x, n, params.max_d2.sqrt()).map(Into::into);
-    precompute(&mut nodes, &params, 1.0, Some(&gaps), &|_| {});
+    let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: params.max_d2.sqrt() };
+    precompute(&mut nodes, &params, 1.0, Some(&surfaces), &|_| {});
     let want = 5.0 * PI;
     let e: Vec<f32> = nodes.iter().map(|r| r.irradiance().x).collect();
     let mean = e.iter().sum::<f32>() / e.len() as f32;

@@ -123,10 +123,11 @@ fn vertex_colours_multiply_the_base_colour() {
         extra: json!({}),
     };
     let (_d, s) = loaded(&doc, "vc");
-    // (0.25, 0.25) lies in triangle (0, 1, 2), with weights (1 - x, x - y, y) =
-    // (0.75, 0, 0.25): corner 2's red 0 weighs a quarter.
-    let red = 0.8 * (0.75 * 1.0 + 0.25 * 0.0);
-    match bsdf_at(&s, 0.25, 0.25) {
+    // (0.25, 0.125) lies in triangle (0, 1, 2), with weights (1 - x, x - y, y) =
+    // (0.75, 0.125, 0.125): corner 2's red 0 weighs an eighth. (Off the triangle's
+    // edge: a hit on it moves inside by `EDGE_INSET`.)
+    let red = 0.8 * (0.75 * 1.0 + 0.125 * 1.0 + 0.125 * 0.0);
+    match bsdf_at(&s, 0.25, 0.125) {
         Bsdf::Plastic { rho, .. } => assert_eq!(rho, Rgb::new(red, 0.4, 0.2)),
         other => panic!("{other:?}"),
     }

@@ -74,7 +74,7 @@ fn tiles_equal_the_whole_image_for_every_integrator() {
     assert_tiles_equal_whole("path", &camera, &Film { spp: 2, ..film }, &pt);
 }
 
-/// Each pixel's G-buffer entry is the first hit of its first (centre) sample:
+/// Each pixel's G-buffer entry is the first hit of its first sample:
 /// checked against an eye ray traced here, with depth, normals facing the camera,
 /// the object's index and a direct-light term only where the surface is not specular.
 #[test]
@@ -94,7 +94,8 @@ fn the_g_buffer_holds_each_pixels_first_hit() {
     let (mut specular, mut lit) = (0, 0);
     for (j, vs) in gb.iter().enumerate() {
         let (x, y) = (rect.x0 + j as u32 % 18, rect.y0 + j as u32 / 18);
-        let d = camera.ray_direction((x as f32 + 0.5) / 24.0, (y as f32 + 0.5) / 20.0, aspect);
+        let j = pm_render::pixel_sampler(&film, (y * 24 + x) as usize, 0).next_2d();
+        let d = camera.ray_direction((x as f32 + j.x) / 24.0, (y as f32 + j.y) / 20.0, aspect);
         let hit =
             scene.intersect(camera.position, d, f32::INFINITY).expect("the box is closed around the camera's view");
         assert!(vs.hit && vs.tri == hit.tri && (vs.depth - hit.t).abs() <= 1e-6 * hit.t, "pixel {x},{y}");

@@ -1,7 +1,8 @@
 //! Irradiance precompute on cornell_spheres' 400k-photon global map, k = 50, at
 //! fraction 1 and 1/4 (Christensen 1999 section 3.1: 58 s and 15 s), 2 threads.
 //!
-//! Run: `cargo bench -p pm-estimate --bench precompute`
+//! Run: `cargo bench -p pm-render --bench precompute` (with the scene, pm-render's
+//! `SceneSurfaces`: the gaps' three rays and the disc's probes an estimate).
 
 use pm_estimate::{Filter, KnnParams, precompute};
 use pm_format::{CompactIrrPhoton, PhotonRecord};
@@ -14,22 +15,23 @@ fn main() {
     let recs: Vec<CompactIrrPhoton> = photons.iter().map(CompactIrrPhoton::encode).collect();
     let nodes = pm_kdtree::balance(&recs);
     let p = KnnParams { k: 50, max_d2: 0.3464f32.powi(2), filter: Filter::None };
-    let around = |x, n| scene.surface_gaps(x, n, p.max_d2.sqrt()).map(Into::into);
+    let around = pm_render::SceneSurfaces { scene: &scene, reach: p.max_d2.sqrt() };
     println!("threads: {}, photons: {}", rayon::current_num_threads(), nodes.len());
     println!(
-        "| fraction | estimates | time [s] | per estimate [us] | time / time at fraction 1 | with the scene's gaps [s] | gaps / none |"
+        "| fraction | estimates | time [s] | per estimate [us] | time / time at fraction 1 | with the scene [s] | scene / none |"
     );
     println!("|---|---|---|---|---|---|---|");
     let mut base = 0.0;
     for f in [1.0, 0.25, 1.0 / 16.0] {
         // Alternated, without and with the scene (three rays an estimate for
-        // the gaps to the neighbouring surfaces), best of three each.
+        // the gaps to the neighbouring surfaces, up to two a disc probe), best
+        // of three each.
         let (mut best, mut gaps) = ((f64::INFINITY, 0), f64::INFINITY);
         for _ in 0..3 {
             for with_scene in [false, true] {
                 let mut n = nodes.clone();
                 let t = Instant::now();
-                let with: Option<&(dyn Fn(_, _) -> _ + Sync)> = with_scene.then_some(&around);
+                let with: Option<&dyn pm_estimate::SurfaceQuery> = with_scene.then_some(&around);
                 let s = precompute(&mut n, &p, f, with, &|_| {});
                 let secs = t.elapsed().as_secs_f64();
                 if with_scene {
