@@ -206,9 +206,7 @@ pub fn run(cli: &Cli) -> Result<RenderReport> {
     let caustic = full_map(&cli.caustic, MapKind::Caustic, needs.caustic)?;
     let volume = full_map(&cli.volume, MapKind::Volume, needs.volume)?;
     let mut notes = Vec::new();
-    if let Some(note) = mode.leaves_out(&scene) {
-        notes.push(note);
-    } else if needs.volume && scene.has_scattering_media() && volume.is_none() {
+    if needs.volume && scene.has_scattering_media() && volume.is_none() {
         notes.push("no volume map (--volume): light scattered more than once in media is left out".to_string());
     }
     let global = match (&cli.global, needs_global) {

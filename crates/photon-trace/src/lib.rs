@@ -166,24 +166,24 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
     };
     let lights: Vec<String> = scene.lights.iter().map(|l| l.name.clone()).collect();
     for (pass, kind, name) in MAPS {
-        let budget = match pass {
-            MapPass::Global => budget(args.emit_global, args.params.global_photons),
-            MapPass::Caustic => budget(args.emit_caustic, args.params.caustic_photons),
-            MapPass::Volume => budget(args.emit_volume, args.params.volume_photons),
+        let budget = match kind {
+            MapKind::Global => budget(args.emit_global, args.params.global_photons),
+            MapKind::Caustic => budget(args.emit_caustic, args.params.caustic_photons),
+            MapKind::Volume => budget(args.emit_volume, args.params.volume_photons),
         };
         let path = out.join(format!("{name}.pmap"));
         let wanted = !matches!(budget, Budget::Stored { target: 0, .. } | Budget::Emitted(0));
-        let cannot = match pass {
-            MapPass::Caustic if pm_photon::specular_targets(&scene).is_empty() => {
+        let cannot = match kind {
+            MapKind::Caustic if pm_photon::specular_targets(&scene).is_empty() => {
                 Some("the scene has no mirror or glass surface")
             }
-            MapPass::Volume if !scene.has_scattering_media() => Some("the scene has no scattering medium"),
+            MapKind::Volume if !scene.has_scattering_media() => Some("the scene has no scattering medium"),
             _ => None,
         };
         if !wanted || cannot.is_some() {
             let why = cannot.filter(|_| wanted).unwrap_or("no photons requested");
             remove_stale(&path)?;
-            *map_slot(&mut report, pass) = MapReport { skipped: Some(why.into()), ..Default::default() };
+            *map_slot(&mut report, kind) = MapReport { skipped: Some(why.into()), ..Default::default() };
             eprintln!("photon-trace: no {name} map: {why}");
             continue;
         }
@@ -205,7 +205,7 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
         if args.slice.is_some() {
             // A slice keeps full precision and unscaled power: the merge scales and
             // encodes, as the single run does.
-            let layout = if pass == MapPass::Global { Layout::FullIrradiance } else { Layout::Full };
+            let layout = if kind == MapKind::Global { Layout::FullIrradiance } else { Layout::Full };
             let meta = SliceParams {
                 map: params.json(),
                 slice,
@@ -218,10 +218,10 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
                 header(Order::Slice, layout, 0, serde_json::to_string(&meta)?),
                 &traced.photons,
                 true,
-                pass,
+                kind,
             )?;
             // Unscaled power is no power: the slice reports none.
-            *map_slot(&mut report, pass) = map_report(&traced.totals(), [0.0; 3], &lights, secs);
+            *map_slot(&mut report, kind) = map_report(&traced.totals(), [0.0; 3], &lights, secs);
             continue;
         }
         let traced = pm_photon::merge_slices(vec![traced]).map_err(|e| anyhow::anyhow!("internal error: {e}"))?;
@@ -232,9 +232,9 @@ pub fn trace(args: &TraceArgs) -> Result<Option<TraceReport>> {
             );
         }
         let h = header(Order::Unsorted, Layout::Compact, traced.stats.emitted, params.json().to_string());
-        write_map(&path, h, &traced.photons, full, pass)?;
+        write_map(&path, h, &traced.photons, full, kind)?;
         let power = pm_photon::total_power(&traced.photons).to_array();
-        *map_slot(&mut report, pass) = map_report(&traced.stats, power, &lights, secs);
+        *map_slot(&mut report, kind) = map_report(&traced.stats, power, &lights, secs);
     }
     report.seconds = start.elapsed().as_secs_f64();
     if let Some(p) = &args.stats_json {
@@ -250,27 +250,27 @@ const MAPS: [(MapPass, MapKind, &str); 3] = [
     (MapPass::Volume, MapKind::Volume, "volume"),
 ];
 
-fn map_slot(report: &mut TraceReport, pass: MapPass) -> &mut MapReport {
-    match pass {
-        MapPass::Global => &mut report.global,
-        MapPass::Caustic => &mut report.caustic,
-        MapPass::Volume => &mut report.volume,
+fn map_slot(report: &mut TraceReport, kind: MapKind) -> &mut MapReport {
+    match kind {
+        MapKind::Global => &mut report.global,
+        MapKind::Caustic => &mut report.caustic,
+        MapKind::Volume => &mut report.volume,
     }
 }
 
 /// The global map carries the surface normal (23/64-byte layouts) so the irradiance
 /// precompute and the renderer's leak tests need no scene lookups; the caustic map
 /// uses the paper's 18-byte record (40 bytes full).
-fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, pass: MapPass) -> Result<()> {
+fn write_map(path: &Path, header: Header, photons: &[Photon], full: bool, kind: MapKind) -> Result<()> {
     fn write<R: pm_format::PhotonRecord>(path: &Path, header: Header, photons: &[Photon]) -> Result<()> {
         PhotonMap::new(header, photons.iter().map(R::encode).collect::<Vec<R>>()).write(path)?;
         Ok(())
     }
-    match (pass, full) {
-        (MapPass::Global, false) => write::<CompactIrrPhoton>(path, header, photons),
-        (MapPass::Global, true) => write::<FullIrrPhoton>(path, header, photons),
-        (MapPass::Caustic | MapPass::Volume, false) => write::<CompactPhoton>(path, header, photons),
-        (MapPass::Caustic | MapPass::Volume, true) => write::<FullPhoton>(path, header, photons),
+    match (kind, full) {
+        (MapKind::Global, false) => write::<CompactIrrPhoton>(path, header, photons),
+        (MapKind::Global, true) => write::<FullIrrPhoton>(path, header, photons),
+        (MapKind::Caustic | MapKind::Volume, false) => write::<CompactPhoton>(path, header, photons),
+        (MapKind::Caustic | MapKind::Volume, true) => write::<FullPhoton>(path, header, photons),
     }
 }
 
@@ -343,13 +343,13 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<TraceReport> {
     let start = Instant::now();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
     let mut report = TraceReport { scene: format!("{} slices", inputs.len()), threads: 1, ..Default::default() };
-    for (pass, kind, name) in MAPS {
+    for (_, kind, name) in MAPS {
         let file = format!("{name}.pmap");
         let present: Vec<&PathBuf> = inputs.iter().filter(|d| d.join(&file).exists()).collect();
         let target = out.join(&file);
         if present.is_empty() {
             remove_stale(&target)?;
-            *map_slot(&mut report, pass) =
+            *map_slot(&mut report, kind) =
                 MapReport { skipped: Some("no slice holds this map".into()), ..Default::default() };
             continue;
         }
@@ -405,9 +405,9 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<TraceReport> {
             map0.to_string(),
         )
         .with_origin(h0.origin);
-        write_map(&target, header, &traced.photons, layout == RecordLayout::Full, pass)?;
+        write_map(&target, header, &traced.photons, layout == RecordLayout::Full, kind)?;
         let power = pm_photon::total_power(&traced.photons).to_array();
-        *map_slot(&mut report, pass) = map_report(&traced.stats, power, &lights, 0.0);
+        *map_slot(&mut report, kind) = map_report(&traced.stats, power, &lights, 0.0);
     }
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)

@@ -2,8 +2,8 @@
 //! (Hachisuka and Jensen 2009) keeps per pixel between passes, so that a long
 //! render can stop and continue (a stop and a resume equal one run bit for bit).
 //!
-//! The file is [`crate::framed`]'s frame (magic `b"PMSPPMST"`, version 1, records
-//! of 108 bytes, count the passes the records hold, source hash zero, params the
+//! The file is [`crate::framed`]'s frame (magic `b"PMSPPMST"`, version 2, records
+//! of 120 bytes, count the passes the records hold, source hash zero, params the
 //! settings that shaped the state as "name=value" words: a reader refuses a
 //! state made with other settings). Records are [`StateRecord`]s, one a pixel,
 //! row by row.
@@ -16,7 +16,8 @@ use std::path::Path;
 /// File signature.
 pub const STATE_MAGIC: [u8; 8] = *b"PMSPPMST";
 /// The only version this build reads and writes.
-pub const STATE_VERSION: u32 = 1;
+/// Version 2 keeps a volume layer beside the surface layers (version 1 had none).
+pub const STATE_VERSION: u32 = 2;
 const KIND: Kind = Kind {
     magic: STATE_MAGIC,
     version: STATE_VERSION,
@@ -24,7 +25,7 @@ const KIND: Kind = Kind {
     name: "progressive state",
 };
 
-/// One pixel's progressive state (108 bytes).
+/// One pixel's progressive state (120 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct StateRecord {
@@ -35,9 +36,10 @@ pub struct StateRecord {
     /// Accumulated photon flux tau [W per channel]: caustic RGB, indirect RGB,
     /// through mirrors and glass RGB.
     pub tau: [[f32; 3]; 3],
-    /// Sum over the passes of emission and direct light [W sr^-1 m^-2 per
-    /// channel]: the direct, caustic, indirect and specular layers' RGB.
-    pub ld: [[f32; 3]; 4],
+    /// Sum over the passes of emission, direct light and light scattered in
+    /// media toward the eye [W sr^-1 m^-2 per channel]: the direct, caustic,
+    /// indirect, specular and volume layers' RGB.
+    pub ld: [[f32; 3]; 5],
     /// Sum over the passes of each pass's own estimate of the pixel (the mean of
     /// its channels) [W sr^-1 m^-2], and of its square, for the noise estimate.
     pub l_sum: f32,

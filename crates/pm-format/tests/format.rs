@@ -261,7 +261,7 @@ fn state_file(w: u32, h: u32) -> crate::StateFile {
                 radius: 0.01 + f,
                 n: 2.0 * f,
                 tau: [[f * 0.5; 3]; 3],
-                ld: [[f * 0.25; 3]; 4],
+                ld: [[f * 0.25; 3]; 5],
                 l_sum: f,
                 l_sq: f * f,
                 share: 0.5,
@@ -298,7 +298,7 @@ fn progressive_state_files_round_trip_and_every_bad_one_is_refused() {
     };
     assert!(mutate(&|b| b.truncate(20)).contains("only 20 bytes"));
     assert!(mutate(&|b| b[0] = b'X').contains("magic"));
-    assert!(mutate(&|b| b[8] = 2).contains("progressive state format version 2"));
+    assert!(mutate(&|b| b[8] = 1).contains("progressive state format version 1"));
     assert!(mutate(&|b| b[28] ^= 1).contains("checksum"));
     assert!(mutate(&|b| b.truncate(b.len() - 1)).contains("truncated"));
     assert!(mutate(&|b| b[header_len + 5] ^= 0x40).contains("corrupted"));

@@ -108,15 +108,6 @@ impl Method {
         }
     }
 
-    /// What the method leaves out of `scene`'s light, as a note for the user.
-    pub fn leaves_out(self, scene: &pm_scene::Scene) -> Option<String> {
-        (self == Method::Sppm && scene.has_scattering_media()).then(|| {
-            format!(
-                "--mode {self}: media attenuate the eye paths but their in-scattered light is left out (no volume layer); light they scatter onto surfaces is counted"
-            )
-        })
-    }
-
     /// True when the method with final-gather lookups `lookup` makes k-nearest
     /// estimates from the global map (Figure 1b's radiance at the eye hit, or exact
     /// lookups at gather-ray hits); otherwise the global map is only searched

@@ -155,6 +155,11 @@ pub enum MapPass {
     /// the lights instead) and [`flags::CAUSTIC`] after specular bounces only
     /// (L S+ V: volumetric caustics).
     Volume,
+    /// What progressive photon mapping gathers each pass: the global map's
+    /// photons and the volume map's together, from one path each, drawn from the
+    /// global map's stream (so a scene without media gets the global pass's
+    /// photons exactly).
+    Progressive,
 }
 
 /// Inputs of a tracing pass.
@@ -255,7 +260,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     out.truncated = false;
     out.reached = false;
     let stream = match cfg.pass {
-        MapPass::Global => 0x676c_6f62_616c,
+        MapPass::Global | MapPass::Progressive => 0x676c_6f62_616c,
         MapPass::Caustic => 0x6361_7573_7469,
         MapPass::Volume => 0x766f_6c75_6d65,
     };
@@ -264,7 +269,7 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     out.light = li;
     let light = &scene.lights[li];
     let emitted = match cfg.pass {
-        MapPass::Global | MapPass::Volume => light.sample_emission(scene, &mut s),
+        MapPass::Global | MapPass::Volume | MapPass::Progressive => light.sample_emission(scene, &mut s),
         MapPass::Caustic => light.sample_emission_toward(scene, &mut s, targets),
     };
     let Some(ray) = emitted else { return };
@@ -356,7 +361,7 @@ impl PhotonPath {
         if pass == MapPass::Caustic {
             return None;
         }
-        if pass == MapPass::Volume {
+        if matches!(pass, MapPass::Volume | MapPass::Progressive) {
             let mut f = flags::AXIS_LEAF | flags::VOLUME;
             if self.events == 0 {
                 f |= flags::DIRECT;
@@ -402,7 +407,7 @@ impl PhotonPath {
             let side_n = if wo.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
             let caustic = self.events > 0 && self.specular_chain;
             let store = match pass {
-                MapPass::Global => true,
+                MapPass::Global | MapPass::Progressive => true,
                 MapPass::Caustic => caustic,
                 MapPass::Volume => false,
             };

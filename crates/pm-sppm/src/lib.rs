@@ -17,7 +17,21 @@
 //! L = L_d / P + tau / (P N_p pi r^2) [W sr^-1 m^-2].
 //!
 //! Photons only carry indirect and caustic light: a photon's first hit (direct
-//! light) is left to next-event estimation, as in pbrt-v4. Deterministic: pass k's
+//! light) is left to next-event estimation, as in pbrt-v4.
+//!
+//! In participating media the eye path's segments gather the light scattered
+//! toward the eye: single scattering from the lights (pm-light's equiangular
+//! estimate, the batch pipeline's), and the pass's volume photons (all but the
+//! first event of paths straight from a light) by the beam radiance estimate
+//! (Jarosz, Zwicker and Jensen 2008), each photon's sphere the distance to its
+//! k-th nearest photon of the pass times a factor that shrinks pass by pass as
+//! the surface radius does, s_k^2 = prod_{j=1..k} (j + alpha) / (j + 1) (the
+//! radius sequence of Knaus and Zwicker 2011, "Progressive photon mapping: a
+//! probabilistic approach", eq. 15, for the beam estimate's 2D kernel): each
+//! pass's estimate is kept and the passes averaged, so the bias goes to zero
+//! with s_k while the average's variance still falls as k^-alpha.
+//!
+//! Deterministic: pass k's
 //! eye sample of a pixel is point k of the pixel's stream, its photons the photon
 //! tracer's paths keyed by (seed, pass, index), and each visible point sums its
 //! photons in a fixed order (pm-kdtree's `RadiusGrid`: cell by cell, by index
@@ -26,12 +40,14 @@
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::{Layer, Rgb};
-use pm_kdtree::RadiusGrid;
+use pm_estimate::{Beams, Segment};
+use pm_format::{FullPhoton, PhotonRecord};
+use pm_kdtree::{KdTree, RadiusGrid};
 use pm_light::DirectLighting;
 use pm_photon::{Budget, MapPass, PathOut, TraceConfig};
 use pm_render::{Image, View, pixel_salt};
 use pm_sampling::{Sampler, mix64};
-use pm_scene::{Camera, Scene};
+use pm_scene::{Camera, MediumId, Scene};
 use rayon::prelude::*;
 
 use pm_params::{above, between};
@@ -97,8 +113,7 @@ pub fn render_with(
 ) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
     let (p, film) = (*params, view.film);
-    let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, shared.light_samples, shared.max_depth)
-        .map_err(|e| e.to_string())?;
+    let mut s = Sppm::new(scene, film.width, film.height, p, film.seed, shared).map_err(|e| e.to_string())?;
     if let Some((path, file)) = start {
         s.resume(file).map_err(|e| format!("{}: {e}", path.display()))?;
     }
@@ -130,9 +145,10 @@ pub struct PixelState {
     pub tau: [Rgb; 2],
     /// tau of visible points reached through mirrors and glass (the specular layer).
     pub tau_specular: Rgb,
-    /// Sum over the passes of the pixel's emission and direct light, by layer
-    /// ([`Layer::SURFACE`] order) [W sr^-1 m^-2].
-    pub ld: [Rgb; 4],
+    /// Sum over the passes of the pixel's emission, direct light and each pass's
+    /// estimate of the light media scatter toward the eye, by layer
+    /// ([`Layer::ALL`] order) [W sr^-1 m^-2].
+    pub ld: [Rgb; 5],
     /// Sum over the passes of each pass's own estimate of the pixel, the mean of
     /// its channels [W sr^-1 m^-2]: the image is their mean (tau / r^2 sums each
     /// pass's flux over that pass's radius squared), so their spread measures its
@@ -155,7 +171,7 @@ impl PixelState {
             n: 0.0,
             tau: [Rgb::ZERO; 2],
             tau_specular: Rgb::ZERO,
-            ld: [Rgb::ZERO; 4],
+            ld: [Rgb::ZERO; 5],
             l_sum: 0.0,
             l_sq: 0.0,
             share: 1.0,
@@ -207,9 +223,7 @@ impl PixelState {
 /// Passes over which a pixel's share of the gather disc on its surface is
 /// averaged (an exponential mean after the first ones).
 pub const SHARE_MEMORY: f32 = 16.0;
-/// The smallest share divided by (a visible point lies on its surface, so its
-/// disc keeps about a quarter even at a box's corner; a lower probe count is noise).
-pub const SHARE_FLOOR: f32 = 0.125;
+pub use pm_estimate::SHARE_FLOOR;
 
 /// A pass's visible point: the first non-specular surface of the pixel's eye path.
 struct VisiblePoint {
@@ -226,6 +240,50 @@ struct VisiblePoint {
     specular: bool,
     /// The share of the gather disc on the surface its probes found.
     share: f32,
+}
+
+/// A stretch of a pass's eye path inside a scattering medium, where the pass's
+/// volume photons are gathered.
+struct EyeSegment {
+    seg: Segment,
+    medium: Option<MediumId>,
+    /// The eye path's throughput to the segment's start.
+    beta: Rgb,
+    /// The layer what it gathers goes to (volume, or specular behind a mirror or glass).
+    layer: usize,
+}
+
+/// What a pass's eye path through a pixel found: its visible point, its
+/// emission and direct light along the way by layer, and its stretches in media.
+struct EyePath {
+    vp: Option<VisiblePoint>,
+    ld: [Rgb; 5],
+    segments: Vec<EyeSegment>,
+}
+
+/// The volume settings progressive photon mapping shares with the batch
+/// pipeline (`[render]`'s `volume_*`), for a scene whose media scatter.
+#[derive(Clone, Copy, Debug)]
+struct VolumeSettings {
+    /// Photons of the pass whose distance sets a volume photon's radius.
+    k: usize,
+    /// The largest such radius \[m\].
+    max_radius: f32,
+    /// Single-scattering light samples per eye segment.
+    light_samples: u32,
+}
+
+/// A pass's volume photons as spheres for the beam estimate: the records (kd-tree
+/// heap order) and their spheres, boundary-corrected.
+struct VolumePass {
+    records: Vec<FullPhoton>,
+    beams: Beams,
+}
+
+/// Knaus and Zwicker's radius factor after `k` passes: s_k with s_k^2 =
+/// prod_{j=1..k} (j + alpha) / (j + 1) (1 at the first pass).
+fn radius_factor(k: u32, alpha: f32) -> f32 {
+    (1..=k).map(|j| (j as f64 + alpha as f64) / (j as f64 + 1.0)).product::<f64>().sqrt() as f32
 }
 
 /// A stored photon of a pass: where, from where, with what power, and whether it
@@ -247,6 +305,7 @@ pub struct Sppm<'a> {
     seed: u64,
     light_samples: u32,
     max_depth: u32,
+    volume: Option<VolumeSettings>,
     pixels: Vec<PixelState>,
     passes: u32,
 }
@@ -264,26 +323,33 @@ pub struct PassStats {
 
 impl<'a> Sppm<'a> {
     /// Start an image of `width` x `height` of `scene`: every pixel at the initial
-    /// radius, nothing accumulated. Fails when nothing emits.
+    /// radius, nothing accumulated. The light samples, specular depth and volume
+    /// settings are `shared`'s (`[render]`'s). Fails when nothing emits.
     pub fn new(
         scene: &'a Scene,
         width: u32,
         height: u32,
         params: SppmParams,
         seed: u64,
-        light_samples: u32,
-        max_depth: u32,
+        shared: &pm_render::RenderParams,
     ) -> Result<Self, pm_light::LightSelectError> {
-        let r0 = params.sppm_radius_rel_diag * scene.bounds.diagonal();
+        let diag = scene.bounds.diagonal();
+        let r0 = params.sppm_radius_rel_diag * diag;
         let empty = PixelState::new(r0);
+        let volume = scene.has_scattering_media().then_some(VolumeSettings {
+            k: shared.volume_k,
+            max_radius: shared.volume_radius_rel_diag * diag,
+            light_samples: shared.volume_light_samples,
+        });
         Ok(Sppm {
             light: DirectLighting::new(scene)?,
             params,
             width,
             height,
             seed,
-            light_samples,
-            max_depth,
+            light_samples: shared.light_samples,
+            max_depth: shared.max_depth,
+            volume,
             pixels: vec![empty; (width * height) as usize],
             passes: 0,
         })
@@ -321,7 +387,7 @@ impl<'a> Sppm<'a> {
     /// key: a state made with other settings is refused).
     pub fn key(&self) -> String {
         let p = &self.params;
-        format!(
+        let mut key = format!(
             "width={} height={} photons_per_pass={} sppm_alpha={} sppm_radius_rel_diag={} sppm_boundary_probes={} seed={} light_samples={} max_depth={}",
             self.width,
             self.height,
@@ -332,7 +398,11 @@ impl<'a> Sppm<'a> {
             self.seed,
             self.light_samples,
             self.max_depth
-        )
+        );
+        if let Some(v) = &self.volume {
+            key += &format!(" volume_k={} volume_radius_m={} volume_light_samples={}", v.k, v.max_radius, v.light_samples);
+        }
+        key
     }
 
     /// The state as its file holds it.
@@ -404,16 +474,17 @@ impl<'a> Sppm<'a> {
         let k = self.passes;
         let (w, h) = (self.width as usize, self.height as usize);
         let rays = camera.rays(w as f32 / h as f32);
-        // Eye paths: each pixel's visible point and its direct light.
-        let points: Vec<(Option<VisiblePoint>, [Rgb; 4])> = (0..w * h)
+        // Eye paths: each pixel's visible point, its direct light and its
+        // stretches in media.
+        let paths: Vec<EyePath> = (0..w * h)
             .into_par_iter()
             .with_min_len(64)
             .map(|i| {
                 let mut s = Sampler::salted(self.seed, pixel_salt(i), k as u64);
                 let j = s.next_2d();
                 let d = rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
-                let (mut vp, ld) = self.eye_path(camera.position, d, &mut s);
-                if let Some(vp) = &mut vp {
+                let mut path = self.eye_path(camera.position, d, &mut s);
+                if let Some(vp) = &mut path.vp {
                     vp.share = surface_share(
                         self.light.scene,
                         vp,
@@ -422,27 +493,35 @@ impl<'a> Sppm<'a> {
                         &mut s,
                     );
                 }
-                (vp, ld)
+                path
             })
             .collect();
         // The pass's photons after their first bounce, in index order.
-        let photons = self.photons(k);
+        let (photons, volume) = self.photons(k);
+        let volume = self.volume_pass(volume, k);
         let max_r = self.pixels.iter().map(|p| p.radius).fold(0.0f32, f32::max);
         let positions: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
         let grid = RadiusGrid::new(&positions, max_r);
         let alpha = self.params.sppm_alpha;
         let np = self.params.photons_per_pass as f32;
+        let scene = self.light.scene;
         let found: Vec<u64> = self
             .pixels
             .par_iter_mut()
-            .zip(points.par_iter())
+            .zip(paths.par_iter())
             .with_min_len(64)
-            .map(|(px, (vp, ld))| {
-                for (a, b) in px.ld.iter_mut().zip(ld) {
+            .map_init(Vec::new, |stack, (px, path)| {
+                let mut ld = path.ld;
+                if let Some(v) = &volume {
+                    for e in &path.segments {
+                        ld[e.layer] += e.beta * gather_volume(scene, v, e, stack) / np;
+                    }
+                }
+                for (a, b) in px.ld.iter_mut().zip(&ld) {
                     *a += *b;
                 }
                 let direct = ld.iter().copied().sum::<Rgb>().element_sum() / 3.0;
-                let Some(vp) = vp else {
+                let Some(vp) = &path.vp else {
                     px.add_estimate(direct);
                     return 0;
                 };
@@ -472,69 +551,127 @@ impl<'a> Sppm<'a> {
     }
 
     /// The eye path of one pass through a pixel: emission and direct light along it
-    /// by layer, and its visible point (none when it leaves the scene, is absorbed
-    /// or reaches the depth limit). Media attenuate it (through index-matched
-    /// boundaries, [`Scene::intersect_through`]); light they scatter toward the
-    /// eye is left out (no volume layer). The photons fly through the media
-    /// (`pm_photon::trace_path`), so what media scatter onto surfaces is counted.
-    fn eye_path(&self, o: Vec3, d: Vec3, s: &mut Sampler) -> (Option<VisiblePoint>, [Rgb; 4]) {
+    /// by layer, its visible point (none when it leaves the scene, is absorbed or
+    /// reaches the depth limit) and its stretches in scattering media. Media
+    /// attenuate it, through index-matched boundaries; along each stretch in a
+    /// medium that scatters it takes single scattering from the lights (the
+    /// volume layer, or the specular layer behind a mirror or glass) and keeps the
+    /// stretch for the pass's volume photons ([`gather_volume`]). The
+    /// photons fly through the media (`pm_photon::trace_path`), so what media
+    /// scatter onto surfaces is counted too.
+    fn eye_path(&self, o: Vec3, d: Vec3, s: &mut Sampler) -> EyePath {
         let scene = self.light.scene;
-        let mut ld = [Rgb::ZERO; 4];
+        let mut path = EyePath { vp: None, ld: [Rgb::ZERO; 5], segments: Vec::new() };
         let (mut o, mut d, mut beta, mut specular) = (o, d, Rgb::ONE, false);
         let mut medium = scene.eye_medium(o);
         let layer = |specular: bool| if specular { Layer::Specular } else { Layer::Direct }.index();
-        for _ in 0..=self.max_depth {
-            let pass = scene.intersect_through(o, d, medium);
-            beta *= pass.tr;
-            let Some(hit) = pass.hit else {
-                ld[layer(specular)] += beta * scene.escaped(d);
-                return (None, ld);
+        let volume_layer = |specular: bool| if specular { Layer::Specular } else { Layer::Volume }.index();
+        let (mut depth, mut crossings) = (0, 0);
+        while depth <= self.max_depth && crossings < MAX_CROSSINGS {
+            let hit = scene.intersect(o, d, f32::INFINITY);
+            if let Some(m) = scene.medium(medium).filter(|m| !m.is_clear()) {
+                let t_max = scene.segment_length(o, d, hit.as_ref());
+                if let Some(v) = self.volume.filter(|_| m.scatters()) {
+                    let layer = volume_layer(specular);
+                    let single = self.light.single_scattering(o, d, t_max, medium, s, v.light_samples);
+                    path.ld[layer] += beta * single;
+                    let seg = Segment { o, d, t_max, sigma_t: m.sigma_t() };
+                    path.segments.push(EyeSegment { seg, medium, beta, layer });
+                }
+                beta *= m.transmittance(t_max);
+            }
+            let Some(hit) = hit else {
+                path.ld[layer(specular)] += beta * scene.escaped(d);
+                return path;
             };
-            medium = pass.medium;
+            if let Some(tint) = scene.index_matched(&hit) {
+                // Straight through, into the medium beyond: no event.
+                beta *= tint;
+                if beta.max_element() <= 0.0 {
+                    return path;
+                }
+                medium = scene.medium_after(&hit, d, medium);
+                o = scene.offset_origin(hit.p, hit.ng, d);
+                crossings += 1;
+                continue;
+            }
             let wo = -d;
-            ld[layer(specular)] += beta * scene.emitted(&hit, wo);
+            path.ld[layer(specular)] += beta * scene.emitted(&hit, wo);
             let bsdf = scene.bsdf(&hit);
             if !bsdf.is_specular() {
-                ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples, medium);
+                path.ld[layer(specular)] += beta * self.light.direct(&hit, &bsdf, wo, s, self.light_samples, medium);
                 let n = pm_scene::facing(hit.ng, wo);
-                return (Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 }), ld);
+                path.vp = Some(VisiblePoint { p: hit.p, n, ns: hit.ns, wo, bsdf, beta, specular, share: 1.0 });
+                return path;
             }
-            let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return (None, ld) };
+            let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return path };
             beta *= bs.radiance_weight();
             if !beta.is_finite() || beta == Rgb::ZERO {
-                return (None, ld);
+                return path;
             }
             specular = true;
+            depth += 1;
             medium = scene.medium_after(&hit, bs.wi, medium);
             o = scene.offset_origin(hit.p, hit.ng, bs.wi);
             d = bs.wi;
         }
-        (None, ld)
+        path
     }
 
-    /// Pass `k`'s photons that have bounced at least once (direct light is the eye
-    /// paths'), in path-index order: the photon tracer's global-map paths with the
-    /// pass's own seed, power Phi-hat / p_select (not yet divided by the count).
-    fn photons(&self, k: u32) -> Vec<PassPhoton> {
+    /// Pass `k`'s volume photons as spheres: each photon's radius the distance
+    /// to its k-th nearest (at most the volume radius) times [`radius_factor`],
+    /// the kernels corrected for the media's boundaries as the batch pipeline's
+    /// are ([`pm_render::boundary_corrected`]). None without scattering media or
+    /// photons in them.
+    fn volume_pass(&self, photons: Vec<FullPhoton>, k: u32) -> Option<VolumePass> {
+        let v = self.volume?;
+        if photons.is_empty() {
+            return None;
+        }
+        let records = pm_kdtree::balance(&photons);
+        // Leaf buckets: the k-nearest searches for the radii were most of a pass.
+        let buckets = pm_kdtree::Buckets::new(&records);
+        let tree = KdTree::with_buckets(&records, &buckets);
+        let shrink = radius_factor(k, self.params.sppm_alpha);
+        let mut radii = pm_estimate::beam_radii(&tree, v.k, v.max_radius * v.max_radius, false);
+        for r in &mut radii {
+            *r *= shrink;
+        }
+        let positions: Vec<Vec3> = records.iter().map(|r| r.position()).collect();
+        let beams = pm_render::boundary_corrected(self.light.scene, &positions, Beams::new(&tree, &radii));
+        Some(VolumePass { records, beams })
+    }
+
+    /// Pass `k`'s photons that have scattered at least once (direct light is the
+    /// eye paths'), in path-index order: the photon tracer's global-map paths with
+    /// the pass's own seed, power Phi-hat / p_select (not yet divided by the
+    /// count); those on surfaces, then those in media (all but the first event of
+    /// paths straight from a light, which single scattering takes from the lights).
+    fn photons(&self, k: u32) -> (Vec<PassPhoton>, Vec<FullPhoton>) {
         let scene = self.light.scene;
         let cfg = TraceConfig {
-            pass: MapPass::Global,
+            pass: MapPass::Progressive,
             budget: Budget::Emitted(self.params.photons_per_pass),
             seed: mix64(self.seed ^ 0x7370_706d ^ (k as u64) << 32),
             selector: self.light.lights.clone(),
         };
         let n = self.params.photons_per_pass;
         let chunk = 1024u64;
-        (0..n.div_ceil(chunk))
+        let chunks: Vec<(Vec<PassPhoton>, Vec<FullPhoton>)> = (0..n.div_ceil(chunk))
             .into_par_iter()
             .map(|c| {
                 let mut out = PathOut::default();
-                let mut v = Vec::new();
+                let (mut surface, mut volume) = (Vec::new(), Vec::new());
                 for i in c * chunk..((c + 1) * chunk).min(n) {
                     pm_photon::trace_path(scene, &cfg, &[], i, &mut out);
                     for (ph, bounce) in &out.photons {
-                        if *bounce > 0 {
-                            v.push(PassPhoton {
+                        if *bounce == 0 {
+                            continue;
+                        }
+                        if ph.flags & pm_format::flags::VOLUME != 0 {
+                            volume.push(FullPhoton::encode(ph));
+                        } else {
+                            surface.push(PassPhoton {
                                 p: ph.position,
                                 wi: ph.wi,
                                 n: ph.normal,
@@ -544,10 +681,15 @@ impl<'a> Sppm<'a> {
                         }
                     }
                 }
-                v
+                (surface, volume)
             })
-            .flatten()
-            .collect()
+            .collect();
+        let (mut surface, mut volume) = (Vec::new(), Vec::new());
+        for (a, b) in chunks {
+            surface.extend(a);
+            volume.extend(b);
+        }
+        (surface, volume)
     }
 
     /// [`Self::image`]'s pixels of `rect`.
@@ -575,7 +717,7 @@ impl<'a> Sppm<'a> {
     pub fn image(&self) -> Image {
         let p = self.passes.max(1) as f32;
         let np = self.params.photons_per_pass as f32;
-        let mut layers: [Vec<Rgb>; 4] = std::array::from_fn(|_| Vec::with_capacity(self.pixels.len()));
+        let mut layers: [Vec<Rgb>; 5] = std::array::from_fn(|_| Vec::with_capacity(self.pixels.len()));
         for px in &self.pixels {
             let area = p * np * std::f32::consts::PI * px.radius * px.radius;
             let photon = |t: Rgb| if area > 0.0 { t / area } else { Rgb::ZERO };
@@ -587,54 +729,53 @@ impl<'a> Sppm<'a> {
                 layer.push(if v.is_finite() { v.max(Rgb::ZERO) } else { Rgb::ZERO });
             }
         }
-        let total = (0..self.pixels.len()).map(|i| layers.iter().map(|l| l[i]).sum()).collect();
-        let [direct, caustic, indirect, specular] = layers;
+        if self.volume.is_none() {
+            // An absent layer is empty.
+            layers[Layer::Volume.index()].clear();
+        }
+        let total = (0..self.pixels.len()).map(|i| layers.iter().filter(|l| !l.is_empty()).map(|l| l[i]).sum()).collect();
+        let [direct, caustic, indirect, specular, volume] = layers;
         Image {
             rect: pm_raster::Rect { x0: 0, y0: 0, x1: self.width, y1: self.height },
             width: self.width,
             height: self.height,
             total,
-            // No volume layer: progressive photon mapping does not simulate media.
-            layers: [direct, caustic, indirect, specular, Vec::new()],
+            layers: [direct, caustic, indirect, specular, volume],
             gbuffer: None,
         }
     }
 }
 
+/// The light [W sr^-1 m^-2 per channel, times the photons per pass] the pass's
+/// volume photons `v` scatter toward the start of eye segment `e` (before its
+/// throughput): the beam estimate ([`pm_estimate::beam`]) with the medium's phase
+/// function. `stack` is scratch.
+fn gather_volume(scene: &Scene, v: &VolumePass, e: &EyeSegment, stack: &mut Vec<u32>) -> Rgb {
+    let Some(m) = scene.medium(e.medium) else { return Rgb::ZERO };
+    pm_estimate::beam(&v.records, &v.beams, &e.seg, stack, |wi| m.phase.p(-e.seg.d, wi))
+}
+
+/// The most index-matched boundaries an eye path passes (a walk that meets more
+/// ends there, as pm-scene's walks do).
+const MAX_CROSSINGS: u32 = 64;
+
 /// The share of the gather disc of radius `r` around visible point `vp` that lies
 /// on its surface, from `probes` points q drawn uniformly on the disc in its
 /// tangent plane, each asking what the gather asks of a photon: is there a
 /// surface point within r of the visible point whose normal is alike
-/// ([`pm_estimate::SAME_SURFACE_COS`])? The segment to q, lifted off the surface
-/// by r / 10, either meets a surface (a gently curved, concave continuation
-/// counts; a wall of a concave corner does not) or runs clear, and then a ray
-/// down from the lifted q finds the surface within 2r (a convex bend of up to 60
-/// degrees counts; past a box's edge there is nothing, or only the floor farther
-/// than r). The photons found over the disc's area on the surface estimate the
-/// density without the disc's missing part: the boundary bias, first order in r
-/// at every edge, goes. 1 without probes.
+/// ([`pm_estimate::SAME_SURFACE_COS`]; [`Scene::continues_surface`])? The photons
+/// found over the disc's area on the surface estimate the density without the
+/// disc's missing part: the boundary bias, first order in r at every edge,
+/// goes. 1 without probes.
 fn surface_share(scene: &Scene, vp: &VisiblePoint, r: f32, probes: u32, s: &mut Sampler) -> f32 {
     if probes == 0 {
         return 1.0;
     }
     let (t, b) = pm_sampling::basis(vp.n);
-    let lift = 0.1 * r;
-    let o = vp.p + lift * vp.n;
-    let alike = |hit: &pm_scene::Hit| {
-        pm_scene::facing(hit.ng, vp.n).dot(vp.n) > pm_estimate::SAME_SURFACE_COS
-            && hit.p.distance_squared(vp.p) <= r * r
-    };
     let inside = (0..probes)
         .filter(|_| {
             let u = pm_sampling::concentric_disk(s.next_2d()) * r;
-            let off = t * u.x + b * u.y;
-            let dist = off.length();
-            if dist > 0.0
-                && let Some(hit) = scene.intersect(o, off / dist, dist)
-            {
-                return alike(&hit);
-            }
-            scene.intersect(o + off, -vp.n, lift + 2.0 * r).is_some_and(|hit| alike(&hit))
+            scene.continues_surface(vp.p, vp.n, t * u.x + b * u.y, r, pm_estimate::SAME_SURFACE_COS)
         })
         .count();
     inside as f32 / probes as f32

@@ -4,12 +4,17 @@
 use pm_sppm::{Sppm, SppmParams};
 use pm_tests::load_scene;
 
+/// The shared render settings these tests use: one light sample a visible point.
+fn one_light_sample() -> pm_render::RenderParams {
+    pm_render::RenderParams { light_samples: 1, ..Default::default() }
+}
+
 /// `passes` passes of SPPM over `scene` at `w` x `h` with `photons` photon paths a
 /// pass and `seed`: the image's pixels.
 fn sppm(scene: &pm_scene::Scene, w: u32, h: u32, passes: u32, photons: u64, seed: u64) -> pm_render::Image {
     let params = SppmParams { passes, photons_per_pass: photons, ..Default::default() };
     let camera = scene.camera.clone().unwrap();
-    let mut s = Sppm::new(scene, w, h, params, seed, 1, 12).unwrap();
+    let mut s = Sppm::new(scene, w, h, params, seed, &one_light_sample()).unwrap();
     for _ in 0..passes {
         s.pass(&camera);
     }
@@ -81,7 +86,7 @@ fn sppm_error_and_bias_fall_with_passes() {
         let params =
             SppmParams { passes: 256, photons_per_pass: 20_000, sppm_boundary_probes: probes, ..Default::default() };
         let mut runs: Vec<Sppm> =
-            (1..=seeds).map(|seed| Sppm::new(&scene, w, h, params, seed, 1, 12).unwrap()).collect();
+            (1..=seeds).map(|seed| Sppm::new(&scene, w, h, params, seed, &one_light_sample()).unwrap()).collect();
         let mut out = Vec::new();
         for passes in 1..=256u32 {
             for r in &mut runs {
