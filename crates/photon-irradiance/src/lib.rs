@@ -100,6 +100,7 @@ pub fn run(cli: &Cli) -> Result<IrradianceReport> {
         photons: n,
         computed: stats.computed as u64,
         empty_estimates: stats.empty as u64,
+        covered: stats.covered,
         params: cli.params.clone(),
         max_radius_m,
         scene_diagonal_m: diag,

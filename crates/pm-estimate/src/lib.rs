@@ -201,6 +201,10 @@ pub trait SurfaceQuery: Sync {
     /// lies on `x`'s surface or one that continues it within radius `r` \[m\]
     /// (a photon there would count in an estimate of that radius).
     fn continues(&self, x: Vec3, n: Vec3, off: Vec3, r: f32) -> bool;
+    /// Whether another surface faces `x` (a surface point, unit normal `n`) from
+    /// closer than the cover distance: the point lies in a gap under a cover
+    /// ([`flags::COVERED`]).
+    fn covered(&self, x: Vec3, n: Vec3) -> bool;
 }
 
 /// Points of the disc [`disc_share`] probes.
@@ -214,18 +218,21 @@ pub const SHARE_FLOOR: f32 = 0.125;
 /// (unit normal `n`) that lies on `x`'s surface ([`SurfaceQuery::continues`]),
 /// from [`DISC_PROBES`] points spread evenly over its area (a sunflower
 /// pattern, turned by `turn` in [0, 1) of a revolution so that neighbouring
-/// estimates do not probe alike), at least [`SHARE_FLOOR`]. Where a wall or an
+/// estimates do not probe alike), at least [`SHARE_FLOOR`]; with `cover`, only the
+/// points covered so ([`SurfaceQuery::covered`]: an estimate that keeps covered and
+/// open photons apart). Where a wall or an
 /// edge cuts the disc, dividing its photons by pi r^2 undercounts their density:
 /// a bias first order in r along every edge of a room, -2.3% of a closed room's
 /// indirect light on the differential checker's scene 30 (seed 16654).
-pub fn disc_share(q: &dyn SurfaceQuery, x: Vec3, n: Vec3, r: f32, turn: f32) -> f32 {
+pub fn disc_share(q: &dyn SurfaceQuery, x: Vec3, n: Vec3, r: f32, turn: f32, cover: Option<bool>) -> f32 {
     let (t, b) = pm_sampling::basis(n);
     let golden = PI * (3.0 - 5f32.sqrt());
     let on = (0..DISC_PROBES)
         .filter(|&i| {
             let rho = r * ((i as f32 + 0.5) / DISC_PROBES as f32).sqrt();
             let phi = golden * i as f32 + 2.0 * PI * turn;
-            q.continues(x, n, (t * phi.cos() + b * phi.sin()) * rho, r)
+            let off = (t * phi.cos() + b * phi.sin()) * rho;
+            q.continues(x, n, off, r) && cover.is_none_or(|c| q.covered(x + off, n) == c)
         })
         .count();
     (on as f32 / DISC_PROBES as f32).max(SHARE_FLOOR)
@@ -241,21 +248,30 @@ pub fn disc_share(q: &dyn SurfaceQuery, x: Vec3, n: Vec3, r: f32, turn: f32) -> 
 /// floor's photons around it. On one smooth surface a neighbour's height over the
 /// tangent plane is -|d|^2 / 2R, far inside the half gap (a sphere's back lies 2R
 /// behind).
+/// Of those, only photons covered as the query is (`covered`, [`flags::COVERED`]):
+/// on the ceiling around a two-sided light 1.2 mm below it, estimates outside the
+/// panel's footprint took in the bright photons of the gap above it. Also returns
+/// whether the search met photons covered otherwise (then the disc's share on the
+/// query's surface leaves out the other side: [`disc_share`]'s `cover`).
 pub fn irradiance_on<R: PhotonRecord>(
     tree: &impl Neighbours<R>,
     x: Vec3,
     n: Vec3,
     s: &Surroundings,
+    covered: bool,
     p: &KnnParams,
     scratch: &mut KnnScratch,
-) -> Irradiance {
+) -> (Irradiance, bool) {
     let (below, above) = (-0.5 * s.behind, 0.5 * s.front);
+    let other_cover = std::cell::Cell::new(false);
     let between = |r: &R| {
         let h = s.normal.dot(r.position() - x);
-        h > below && h < above
+        let alike = (r.flags() & flags::COVERED != 0) == covered;
+        other_cover.set(other_cover.get() || !alike);
+        h > below && h < above && alike
     };
     let (e, r2, count) = gather(tree, x, n, p, scratch, between, |_| Rgb::ONE);
-    Irradiance { e, r2, count }
+    (Irradiance { e, r2, count }, other_cover.get())
 }
 
 /// sum_p weight(wi_p) w_p Phi_p / (pi r^2) over the k nearest photons on the query's

@@ -29,6 +29,8 @@ pub struct PrecomputeStats {
     pub computed: u64,
     /// Of those, estimates that found no photon on their side (irradiance 0).
     pub empty: u64,
+    /// Photons under a cover ([`flags::COVERED`]; none without the scene).
+    pub covered: u64,
     /// Radius of each estimate \[m\], sorted ascending.
     pub radii: Vec<f32>,
 }
@@ -47,6 +49,18 @@ pub fn precompute<R: PhotonRecord>(
     scene: Option<&dyn SurfaceQuery>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> PrecomputeStats {
+    // Which photons lie under a cover, before any estimate reads the flags.
+    let mut covered = 0;
+    if let Some(q) = scene {
+        nodes.par_iter_mut().for_each(|r| {
+            let mut f = r.flags() & !flags::COVERED;
+            if f & flags::UNUSED == 0 && q.covered(r.position(), r.normal()) {
+                f |= flags::COVERED;
+            }
+            r.set_flags(f);
+        });
+        covered = nodes.iter().filter(|r| r.flags() & flags::COVERED != 0).count() as u64;
+    }
     let buckets = pm_kdtree::Buckets::new(&*nodes);
     let tree = KdTree::with_buckets(&*nodes, &buckets);
     let done = std::sync::atomic::AtomicU64::new(0);
@@ -67,11 +81,13 @@ pub fn precompute<R: PhotonRecord>(
                     let (x, n) = (r.position(), r.normal());
                     let est = match scene.and_then(|q| Some((q, q.surroundings(x, n)?))) {
                         Some((q, s)) => {
-                            let mut est = irradiance_on(&tree, x, n, &s, p, &mut scratch);
+                            let under = r.flags() & flags::COVERED != 0;
+                            let (mut est, mixed) = irradiance_on(&tree, x, n, &s, under, p, &mut scratch);
                             if est.count > 0 && est.r2 > 0.0 {
                                 // A fixed turn per photon (deterministic), spread by a hash.
                                 let turn = (pm_sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32;
-                                est.e /= disc_share(q, x, s.normal, est.r2.sqrt(), turn);
+                                let cover = mixed.then_some(under);
+                                est.e /= disc_share(q, x, s.normal, est.r2.sqrt(), turn, cover);
                             }
                             est
                         }
@@ -85,7 +101,7 @@ pub fn precompute<R: PhotonRecord>(
             out
         })
         .collect();
-    let mut stats = PrecomputeStats::default();
+    let mut stats = PrecomputeStats { covered, ..Default::default() };
     for (i, est) in results.into_iter().flatten() {
         let r = &mut nodes[i as usize];
         r.set_irradiance(est.e);

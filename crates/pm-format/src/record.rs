@@ -27,8 +27,15 @@ pub mod flags {
     /// of a path straight from the light; with [`CAUSTIC`], after specular bounces
     /// only (L S+ V).
     pub const VOLUME: u8 = 1 << 6;
+    /// Lies under a cover: another surface faces it from closer than the cover
+    /// distance the irradiance precompute was given (a light's panel millimetres
+    /// below the ceiling, an object a millimetre from a wall). The light in such a
+    /// gap is the gap's own (bright with light trapped over a two-sided panel, dark
+    /// behind an object), not the open surface's around it, so estimates and
+    /// lookups keep covered and open photons apart. Set by the precompute.
+    pub const COVERED: u8 = 1 << 7;
     /// Every bit with a meaning; the rest must be zero in a valid file.
-    pub const KNOWN: u8 = AXIS_MASK | DIRECT | CAUSTIC | UNUSED | HAS_IRRADIANCE | VOLUME;
+    pub const KNOWN: u8 = AXIS_MASK | DIRECT | CAUSTIC | UNUSED | HAS_IRRADIANCE | VOLUME | COVERED;
 }
 
 /// A photon with every field decoded.

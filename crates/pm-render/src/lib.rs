@@ -410,7 +410,17 @@ impl pm_estimate::SurfaceQuery for SceneSurfaces<'_> {
     fn continues(&self, x: Vec3, n: Vec3, off: Vec3, r: f32) -> bool {
         self.scene.continues_surface(x, n, off, r, pm_estimate::SAME_SURFACE_COS)
     }
+
+    fn covered(&self, x: Vec3, n: Vec3) -> bool {
+        self.scene.covered(x, n, COVER_REL_DIAG * self.scene.bounds.diagonal())
+    }
 }
+
+/// The cover distance, as a fraction of the scene diagonal: a surface point with
+/// another surface facing it from closer than this lies in a gap, whose light is
+/// its own ([`pm_format::flags::COVERED`]; the precompute flags its photons, the
+/// final gather's lookup asks the same of its query point).
+pub const COVER_REL_DIAG: f32 = 0.01;
 
 /// The photons of a kd-tree map that carry a precomputed irradiance, as their own
 /// balanced tree (empty when none do).

@@ -115,6 +115,14 @@ impl Scene {
         self.solid_hit(o + off, -n, lift + 2.0 * r).is_some_and(|hit| alike(&hit))
     }
 
+    /// True when a surface other than an index-matched boundary faces the point
+    /// `x` of a surface (unit normal `n` on the side asked about) from closer than
+    /// `within` \[m\] along its normal: the point lies in a gap under a cover. One
+    /// ray.
+    pub fn covered(&self, x: Vec3, n: Vec3, within: f32) -> bool {
+        self.solid_hit(self.offset_origin(x, n, n), n, within).is_some()
+    }
+
     /// The first hit within `t_max` along the ray from `o` in unit direction `d`
     /// that is not an index-matched boundary.
     fn solid_hit(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {

@@ -101,6 +101,10 @@ pub struct IrradianceReport {
     pub computed: u64,
     /// Estimates that found no photon.
     pub empty_estimates: u64,
+    /// Photons under a cover (`flags::COVERED`: another surface faces them from
+    /// closer than the cover distance; none without `--scene`).
+    #[serde(default)]
+    pub covered: u64,
     /// The parameters.
     pub params: IrradianceParams,
     /// Largest search radius used \[m\].
