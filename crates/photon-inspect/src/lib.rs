@@ -59,7 +59,7 @@ pub fn summary(map: &AnyMap) -> serde_json::Value {
     with_map!(map, m => {
         let recs = &m.records;
         let n = recs.len().max(1) as f64;
-        let mut by_flag = [0u64; 5];
+        let mut by_flag = [0u64; 6];
         let mut with_irr = 0u64;
         let (mut e_min, mut e_max) = (f32::INFINITY, 0f32);
         for r in recs {
@@ -69,6 +69,7 @@ pub fn summary(map: &AnyMap) -> serde_json::Value {
             by_flag[2] += (f & flags::CAUSTIC != 0) as u64;
             by_flag[3] += (f & flags::UNUSED != 0) as u64;
             by_flag[4] += (f & flags::VOLUME != 0) as u64;
+            by_flag[5] += (f & flags::COVERED != 0) as u64;
             if f & flags::HAS_IRRADIANCE != 0 {
                 with_irr += 1;
                 let e = pm_color::mean(r.irradiance());
@@ -101,6 +102,9 @@ pub fn summary(map: &AnyMap) -> serde_json::Value {
             // Photons stored where light scattered in a medium (a volume map's;
             // there "direct" is single scattering and "caustic_path" L S+ V).
             "in_medium": by_flag[4],
+            // Photons the irradiance precompute found under a cover (a surface
+            // facing them from closer than 1% of the diagonal).
+            "covered": by_flag[5],
             "kd_tree": tree,
             "irradiance": if h.has_irradiance { json!({"photons": with_irr, "min_w_m2": e_min.min(e_max), "max_w_m2": e_max}) } else { serde_json::Value::Null },
             "scene_hash": h.scene_hash.iter().take(8).map(|b| format!("{b:02x}")).collect::<String>(),

@@ -25,7 +25,10 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
                 position: Vec3::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32),
                 power: Vec3::splat(0.5),
                 wi: Vec3::Y,
-                flags: f | flags::AXIS_LEAF | if i % 10 == 0 { flags::HAS_IRRADIANCE } else { 0 },
+                flags: f
+                    | flags::AXIS_LEAF
+                    | if i % 10 == 0 { flags::HAS_IRRADIANCE } else { 0 }
+                    | if i % 20 == 3 { flags::COVERED } else { 0 },
                 normal: Vec3::Y,
                 irradiance: Vec3::splat(if i % 10 == 0 { 2.0 } else { 0.0 }),
             })
@@ -53,6 +56,7 @@ fn summary_counts_flags_verifies_the_tree_and_ply_has_every_photon() {
     );
     assert_eq!(s["kd_tree"]["valid"], true);
     assert_eq!(s["in_medium"], 0);
+    assert_eq!(s["covered"], 50);
     assert_eq!(s["irradiance"]["photons"], 100);
     assert_eq!(s["total_power_w"][0].as_f64(), Some(500.0));
     assert_eq!(s["origin_m"][0].as_f64(), Some(1e6));
