@@ -33,7 +33,9 @@ pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderSta
 pub use path::PathTracer;
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
-pub use render::{FrameBuffers, Image, Shot, Visibility, pixel_sampler, render_into, render_region, render_region_with};
+pub use render::{
+    FrameBuffers, Image, Shot, Visibility, pixel_sampler, render_into, render_region, render_region_with,
+};
 
 use glam::Vec3;
 use pm_format::{FullPhoton, PhotonRecord, flags};
@@ -376,11 +378,12 @@ fn free_distances(scene: &Scene, positions: &[Vec3], reach: impl Fn(usize) -> f3
         .collect()
 }
 
-/// `beams` (of photons at `positions`, in the same order) with their kernels
-/// corrected for the media's boundaries, as [`VolumeMap::new`] corrects its own:
-/// for maps built elsewhere (progressive photon mapping's passes).
-pub fn boundary_corrected(scene: &Scene, positions: &[Vec3], beams: pm_estimate::Beams) -> pm_estimate::Beams {
-    let free = free_distances(scene, positions, |i| beams.spheres.sphere(i).1);
+/// `beams` with their kernels corrected for the media's boundaries, as
+/// [`VolumeMap::new`] corrects its own: for maps built elsewhere (progressive
+/// photon mapping's passes).
+pub fn boundary_corrected(scene: &Scene, beams: pm_estimate::Beams) -> pm_estimate::Beams {
+    let positions: Vec<Vec3> = (0..beams.weights.len()).map(|i| beams.spheres.sphere(i).0).collect();
+    let free = free_distances(scene, &positions, |i| beams.spheres.sphere(i).1);
     beams.with_inside_fractions(|i, r| inside_fraction(&free[i], r))
 }
 
@@ -412,8 +415,16 @@ impl pm_estimate::SurfaceQuery for SceneSurfaces<'_> {
     }
 
     fn covered(&self, x: Vec3, n: Vec3) -> bool {
-        self.scene.covered(x, n, COVER_REL_DIAG * self.scene.bounds.diagonal())
+        covered(self.scene, x, n)
     }
+}
+
+/// True when surface point `x` (unit normal `n`) of `scene` lies under a cover:
+/// another surface faces it from closer than [`COVER_REL_DIAG`] of the diagonal.
+/// What the precompute flags photons by and the final gather's lookup asks of
+/// its query point.
+pub fn covered(scene: &Scene, x: Vec3, n: Vec3) -> bool {
+    scene.covered(x, n, COVER_REL_DIAG * scene.bounds.diagonal())
 }
 
 /// The cover distance, as a fraction of the scene diagonal: a surface point with

@@ -400,7 +400,8 @@ impl<'a> Sppm<'a> {
             self.max_depth
         );
         if let Some(v) = &self.volume {
-            key += &format!(" volume_k={} volume_radius_m={} volume_light_samples={}", v.k, v.max_radius, v.light_samples);
+            key +=
+                &format!(" volume_k={} volume_radius_m={} volume_light_samples={}", v.k, v.max_radius, v.light_samples);
         }
         key
     }
@@ -637,8 +638,7 @@ impl<'a> Sppm<'a> {
         for r in &mut radii {
             *r *= shrink;
         }
-        let positions: Vec<Vec3> = records.iter().map(|r| r.position()).collect();
-        let beams = pm_render::boundary_corrected(self.light.scene, &positions, Beams::new(&tree, &radii));
+        let beams = pm_render::boundary_corrected(self.light.scene, Beams::new(&tree, &radii));
         Some(VolumePass { records, beams })
     }
 
@@ -733,7 +733,8 @@ impl<'a> Sppm<'a> {
             // An absent layer is empty.
             layers[Layer::Volume.index()].clear();
         }
-        let total = (0..self.pixels.len()).map(|i| layers.iter().filter(|l| !l.is_empty()).map(|l| l[i]).sum()).collect();
+        let total =
+            (0..self.pixels.len()).map(|i| layers.iter().filter(|l| !l.is_empty()).map(|l| l[i]).sum()).collect();
         let [direct, caustic, indirect, specular, volume] = layers;
         Image {
             rect: pm_raster::Rect { x0: 0, y0: 0, x1: self.width, y1: self.height },

@@ -59,7 +59,6 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                 // VISIBILITY_TESTS hidden ones the lookup misses, as when no candidate
                 // is visible: among many curved objects, a lookup could try hundreds
                 // (62% of a 1.46M-triangle scene's prepass; BENCHMARKS.md).
-                let cover = crate::COVER_REL_DIAG * ctx.scene.bounds.diagonal();
                 let visible = |r: &G| {
                     let (q, nq) = (r.position(), r.normal());
                     // A photon under a cover (in the gap above a light panel a few
@@ -68,7 +67,7 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                     // the panel saw the gap's irradiance through the lift below
                     // (+5% indirect light on the differential checker's scene 7 of
                     // seed 3, issue 53). One ray, only for covered photons.
-                    if r.flags() & pm_format::flags::COVERED != 0 && !ctx.scene.covered(p, n, cover) {
+                    if r.flags() & pm_format::flags::COVERED != 0 && !crate::covered(ctx.scene, p, n) {
                         return false;
                     }
                     let to_q = q - p;
