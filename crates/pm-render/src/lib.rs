@@ -84,6 +84,10 @@ pm_params::params! {
         contrast: f32 = 0.1 => at_least(0.0);
         /// Final-gather rays per gather (stratified, cosine-weighted; the paper: several hundred).
         gather_rays: u32 = 400 => between(1, 1 << 20);
+        /// Rays per eye sample that gather the indirect light a glossy surface (a rough
+        /// metal) reflects: sampled by its BSDF, each hit read from the photon maps as a
+        /// final-gather ray's is (no cache: what such a surface reflects depends on the view).
+        glossy_rays: u32 = 16 => between(1, 1 << 16);
         /// How gather rays read the global map (and, in media, the volume map:
         /// precomputed in-scattering at the nearest photon, or the eye rays'
         /// estimate).
@@ -162,6 +166,7 @@ impl RenderParams {
             caustic_k: d.caustic_k,
             caustic_radius_rel_diag: d.caustic_radius_rel_diag,
             volume_light_samples: d.volume_light_samples,
+            glossy_rays: d.glossy_rays,
             ..self.clone()
         })
     }
@@ -171,7 +176,7 @@ impl RenderParams {
 /// every value that cannot shape a cache at its default (how the image is sampled
 /// and shown: spp, contrast, exposure; the caustic estimate: caustic_k,
 /// caustic_radius_rel_diag; the single-scattering samples of eye rays,
-/// volume_light_samples). What remains is
+/// volume_light_samples; glossy surfaces' own gathers, glossy_rays). What remains is
 /// the image size (the prepass samples the image), the final gather's settings,
 /// the global map's estimate, the volume map's (gather rays read it), the cache's
 /// accuracy and spacing, direct light and the specular depth. The runner's cache
@@ -226,6 +231,7 @@ pub(crate) struct Settings {
     pub indirect: bool,
     pub indirect_threshold: f32,
     pub gather_rays: u32,
+    pub glossy_rays: u32,
     pub secondary_rays: u32,
     /// [m]
     pub secondary_distance: f32,
@@ -256,6 +262,7 @@ impl Settings {
             indirect,
             indirect_threshold: p.indirect_threshold,
             gather_rays: p.gather_rays,
+            glossy_rays: p.glossy_rays,
             secondary_rays: p.secondary_rays,
             secondary_distance: p.secondary_distance_rel_diag * diag,
             lookup: p.gather_lookup,

@@ -406,6 +406,9 @@ fn shade_indirect<G: PhotonRecord>(
     _: Option<&mut VisibleSurface>,
 ) -> Components {
     let At { hit, bsdf, wo, medium, .. } = *at;
+    if bsdf.is_glossy() {
+        return Components { indirect: gather::glossy_gather(ctx, hit, bsdf, wo, medium, s, scratch), ..Default::default() };
+    }
     let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), medium, s, scratch);
     Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
 }
@@ -444,19 +447,25 @@ fn shade_full<G: PhotonRecord>(
         None => Rgb::ZERO,
     };
     scratch::add_time(&ctx.counters.ns_caustic, t);
-    let e = if !cfg.indirect {
+    let indirect = if !cfg.indirect {
         Rgb::ZERO
+    } else if bsdf.is_glossy() {
+        let t = scratch.clock();
+        let l = gather::glossy_gather(ctx, hit, bsdf, wo, medium, s, scratch);
+        scratch::add_time(&ctx.counters.ns_gather, t);
+        l
     } else if let Some(e) = cheap_indirect(ctx, hit.p, n, albedo, direct - le, scratch) {
-        e
+        albedo * e / PI
     } else {
-        indirect_irradiance(ctx, hit.p, ns, n, medium, s, scratch)
+        albedo * indirect_irradiance(ctx, hit.p, ns, n, medium, s, scratch) / PI
     };
-    Components { direct, caustic, indirect: albedo * e / PI, ..Default::default() }
+    Components { direct, caustic, indirect, ..Default::default() }
 }
 
 /// The non-specular hits an eye ray reaches, following specular bounces exactly as
 /// [`trace_from`] does (both Fresnel branches up to `SPLIT_DEPTH`, the more likely one
-/// after): where the irradiance-cache prepass puts records. Each is the hit, the
+/// after): where the irradiance-cache prepass puts records (not on glossy
+/// surfaces, which gather along their lobes). Each is the hit, the
 /// direction toward the viewer and the medium it is in (the ray starts in
 /// `medium`; index-matched boundaries are passed).
 pub(crate) fn diffuse_points<G: PhotonRecord>(
@@ -474,6 +483,10 @@ pub(crate) fn diffuse_points<G: PhotonRecord>(
         return diffuse_points(ctx, scene.offset_origin(hit.p, hit.ng, d), d, depth, m2, out);
     }
     let bsdf = scene.bsdf(&hit);
+    if bsdf.is_glossy() {
+        // Its indirect light is gathered along its lobe: no record.
+        return;
+    }
     if !bsdf.is_specular() {
         out.push((hit, -d, medium));
         return;
