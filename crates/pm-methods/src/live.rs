@@ -19,6 +19,26 @@ pm_params::value_enum! {
     }
 }
 
+impl LiveMethod {
+    /// How closely a still scene's settled frame ([`LiveParams::settled_frames`])
+    /// agrees with the path tracer on defaults (the one statement of it; `cargo
+    /// xtask differential` judges by it), the light's pixels left out: the image's
+    /// mean and every 8 x 8 block's. Looser than the batch methods' bound: both
+    /// draw one sample at each pixel's centre and estimate indirect light from a
+    /// few thousand photons a frame.
+    pub fn agreement(self) -> crate::Agreement {
+        match self {
+            LiveMethod::Vertex => crate::Agreement { mean: VERTEX_MEAN, worst_block: VERTEX_BLOCK },
+            LiveMethod::Ispm => crate::Agreement { mean: ISPM_MEAN, worst_block: ISPM_BLOCK },
+        }
+    }
+}
+
+const VERTEX_MEAN: f64 = 0.10;
+const VERTEX_BLOCK: f64 = 0.40;
+const ISPM_MEAN: f64 = 0.10;
+const ISPM_BLOCK: f64 = 0.40;
+
 /// The real-time settings: the method, what every method's frames share, and
 /// each method's own parameters. One flat set of options (`--per-frame`,
 /// `--bounce-res`, ...: their names are unique across the groups); in
@@ -95,6 +115,19 @@ impl LiveParams {
         v.extend(self.vertex.to_args());
         v.extend(self.ispm.to_args());
         v
+    }
+}
+
+impl LiveParams {
+    /// Frames after which a still scene's frame stops improving by what the method
+    /// accumulates: the vertex method's ring buffer full (total / per_frame
+    /// frames), one frame for the image-space method (each frame shoots its own
+    /// photons).
+    pub fn settled_frames(&self) -> u32 {
+        match self.method {
+            LiveMethod::Vertex => self.vertex.total.div_ceil(self.vertex.per_frame).max(1),
+            LiveMethod::Ispm => 1,
+        }
     }
 }
 

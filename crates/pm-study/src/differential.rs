@@ -18,6 +18,7 @@ use glam::Vec3;
 use pm_color::Layer;
 use pm_image::accuracy::{Agreement, agreement};
 use pm_methods::Method;
+use pm_methods::live::LiveMethod;
 use pm_runner::bins::{self, Bins};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -35,9 +36,10 @@ pub struct Args {
     /// Image width and height [pixels].
     #[arg(long, default_value_t = 48)]
     pub size: u32,
-    /// Methods to check (those with a stated bound: full, sppm).
-    #[arg(long, value_delimiter = ',', default_value = "full,sppm")]
-    pub methods: Vec<Method>,
+    /// Methods to check (those with a stated bound: full, sppm, and the real-time
+    /// vertex and ispm, each on the frame it settles at).
+    #[arg(long, value_delimiter = ',', default_value = "full,sppm,vertex,ispm", value_parser = Checked::parse)]
+    pub methods: Vec<Checked>,
     /// Path-traced samples per pixel of each of the reference's two halves.
     #[arg(long, default_value_t = 512)]
     pub reference_spp: u32,
@@ -48,6 +50,45 @@ pub struct Args {
     /// stopped and the method counted as hung.
     #[arg(long, default_value_t = 300.0)]
     pub time_limit_s: f64,
+}
+
+/// A method the checker runs: the batch renderer's (`cargo xtask run`) or a
+/// real-time one's (`cargo xtask live`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Checked {
+    /// A `[render] mode`.
+    Batch(Method),
+    /// A `[live] method`.
+    Live(LiveMethod),
+}
+
+impl Checked {
+    /// A method by its name in pipeline.toml.
+    pub fn parse(s: &str) -> Result<Checked, String> {
+        use clap::ValueEnum;
+        match (Method::from_str(s, false), LiveMethod::from_str(s, false)) {
+            (Ok(m), _) => Ok(Checked::Batch(m)),
+            (_, Ok(m)) => Ok(Checked::Live(m)),
+            _ => Err(format!("'{s}' is neither a render mode nor a real-time method")),
+        }
+    }
+
+    /// The bound its documentation states, if any.
+    pub fn agreement(self) -> Option<pm_methods::Agreement> {
+        match self {
+            Checked::Batch(m) => m.agreement(),
+            Checked::Live(m) => Some(m.agreement()),
+        }
+    }
+}
+
+impl std::fmt::Display for Checked {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Checked::Batch(m) => m.fmt(f),
+            Checked::Live(m) => m.fmt(f),
+        }
+    }
 }
 
 /// How one method did on one scene.
@@ -127,7 +168,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
     anyhow::ensure!(args.time_limit_s > 0.0, "--time-limit-s {}: give a positive number of seconds", args.time_limit_s);
     let limited = Bins { time_limit: Some(std::time::Duration::from_secs_f64(args.time_limit_s)), ..bins.clone() };
     let bins = &limited;
-    let methods: Vec<(Method, pm_methods::Agreement)> = args
+    let methods: Vec<(Checked, pm_methods::Agreement)> = args
         .methods
         .iter()
         .map(|m| m.agreement().map(|a| (*m, a)).with_context(|| format!("--methods {m}: it states no bound")))
@@ -178,7 +219,12 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             }
         };
         for &(m, bound) in &methods {
-            let outcome = match run_method(root, bins, &base, scene, m, args.size, &dir.join(m.to_string())) {
+            let out = dir.join(m.to_string());
+            let image = match m {
+                Checked::Batch(m) => run_method(root, bins, &base, scene, m, args.size, &out),
+                Checked::Live(m) => run_live(bins, &base, scene, m, args.size, &out),
+            };
+            let outcome = match image {
                 Ok(img) => judge(&name, m, bound, &img, (&a, &b), &keep),
                 Err(e) => crashed(&name, m, &format!("{e:#}")),
             };
@@ -327,7 +373,7 @@ pub fn reference_blind_spot(s: &pm_scene::Scene) -> Option<String> {
 
 /// A method's run that failed: "hung" when a stage ran past the time limit,
 /// else "crashed".
-fn crashed(scene: &str, m: Method, e: &str) -> Outcome {
+fn crashed(scene: &str, m: Checked, e: &str) -> Outcome {
     let verdict = if e.contains("timed out") { "hung" } else { "crashed" }.to_string();
     Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()) }
 }
@@ -381,10 +427,33 @@ fn run_method(
     pm_image::read_exr(&out.join("image.exr"))
 }
 
+/// Real-time method `m`'s settled frame of the still `scene`
+/// ([`pm_methods::live::LiveParams::settled_frames`]) as `cargo xtask live` draws
+/// it: the repository's settings with the scene, the frame size and the method
+/// changed.
+fn run_live(
+    bins: &Bins,
+    base: &pm_pipeline::Pipeline,
+    scene: &Path,
+    m: LiveMethod,
+    size: u32,
+    out: &Path,
+) -> Result<pm_image::Layers> {
+    let mut p = base.clone();
+    p.live.method = m;
+    (p.live.frame.width, p.live.frame.height) = (size, size);
+    let frames = p.live.settled_frames();
+    std::fs::create_dir_all(out)?;
+    let mut args = p.live_args(scene, out, frames);
+    args.push("--exr".into());
+    bins::run(bins, "photon-live", &args, "photon-live", true)?;
+    pm_image::read_exr(&out.join("frames").join(format!("{:04}.exr", frames - 1)))
+}
+
 /// Judge method `m`'s image against the reference's halves `a` and `b`.
 fn judge(
     scene: &str,
-    m: Method,
+    m: Checked,
     bound: pm_methods::Agreement,
     img: &pm_image::Layers,
     (a, b): (&pm_image::Layers, &pm_image::Layers),

@@ -3,7 +3,7 @@
 //! tracer at 128 + 128 samples a pixel, the batch renderer and SPPM on the
 //! repository's settings.
 
-use pm_methods::Method;
+use pm_study::differential::Checked;
 
 /// No method crashes, runs a stage past two minutes or writes a non-finite or
 /// negative pixel on any scene,
@@ -20,7 +20,7 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
         scenes: 20,
         seed: 3,
         size: 24,
-        methods: vec![Method::Full, Method::Sppm],
+        methods: ["full", "sppm", "vertex", "ispm"].map(|m| Checked::parse(m).unwrap()).to_vec(),
         reference_spp: 128,
         out: Some(dir.path().to_path_buf()),
         time_limit_s: 120.0,
@@ -33,7 +33,7 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
         assert_eq!((c.crashed, c.hung, c.nonfinite), (0, 0, 0), "{m}: {summary}: {:?}", report.worst);
         assert_eq!(c.passed + c.failed + c.unjudged, 20, "{m}: {summary}");
     }
-    assert_eq!(report.methods.len(), 2);
+    assert_eq!(report.methods.len(), 4);
     let on_disk: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
     let written: serde_json::Value = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
