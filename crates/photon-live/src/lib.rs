@@ -144,7 +144,7 @@ pub fn run(cli: &Cli) -> Result<()> {
     }
     if scene.has_scattering_media() {
         eprintln!(
-            "photon-live: note: media attenuate what the eye and the photons see, but the light they scatter toward the eye is left out (no volume layer)"
+            "photon-live: note: media attenuate what the eye and the photons see; the volume layer is the light they scatter toward the eye straight from the lights (single scattering), light scattered more than once is left out"
         );
     }
     let at_scene = |e: String| anyhow::anyhow!("{}: {e}", scene_path.display());

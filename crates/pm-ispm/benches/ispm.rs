@@ -165,7 +165,7 @@ fn splat_against_gather(s: &Scene) {
         let (b, _) = pm_ispm::bounce_maps(s, res, 1, true);
         let photons = pm_ispm::trace(s, &b, 1, &KernelShape::new(&p.1, s.bounds.diagonal()), 1);
         let camera = s.camera.clone().unwrap();
-        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
+        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
         let gb = pm_ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera);
         let packed = splat::GBuffer::from_surfaces(&gb);
         let t = Instant::now();
@@ -257,7 +257,7 @@ struct Reference {
 impl Reference {
     fn new(s: &Scene) -> Reference {
         let camera = s.camera.clone().unwrap();
-        let film = Film { width: SIZE, height: SIZE, spp: 64, contrast: 0.0, seed: 11 };
+        let film = Film { width: SIZE, height: SIZE, spp: 64, contrast: 0.0, seed: 11, pixel_centres: false };
         let t = Instant::now();
         let pt = pm_render::PathTracer::new(s).unwrap();
         let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();

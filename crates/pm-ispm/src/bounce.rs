@@ -160,7 +160,7 @@ fn cube_arrivals(
     res: u32,
     intensity: impl Fn(Vec3) -> Rgb + Sync,
 ) -> Vec<Arrival> {
-    let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0 };
+    let film = Film { width: res, height: res, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
     let mut frags: Vec<Option<Fragment>> = Vec::new();
     let mut out = Vec::with_capacity(6 * (res * res) as usize);
     let step = 2.0 / res as f32;

@@ -120,7 +120,8 @@ impl IndirectLight for SplatLight<'_> {
 
 /// The surface the splat sees at each pixel of the rasterised first hits: none
 /// where nothing is seen or a mirror or glass is (photons cannot be splatted there;
-/// the paper's section 2.1).
+/// the paper's section 2.1), nor on a glossy surface, whose indirect light the
+/// shading takes along its lobe (`pm_live::LiveShading`).
 pub fn surfaces(scene: &Scene, fragments: &[Option<Fragment>], camera: &Camera) -> Vec<Option<Surface>> {
     fragments.par_iter().with_min_len(1024).map(|f| surface_at(scene, f, camera)).collect()
 }
@@ -139,7 +140,7 @@ pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Came
             let wo = (camera.position - p).normalize_or(ns);
             return Seen::Lambert { p, n: pm_render::facing(ns, wo), albedo_pi: rho / PI };
         }
-        if scene.uniform_bsdf(f.tri).is_some_and(|b| b.is_specular()) {
+        if scene.uniform_bsdf(f.tri).is_some_and(|b| b.is_specular() || b.is_glossy()) {
             return Seen::Nothing;
         }
         surface_at(scene, &fragments[j], camera).into()
@@ -149,7 +150,7 @@ pub fn gbuffer_into(scene: &Scene, fragments: &[Option<Fragment>], camera: &Came
 fn surface_at(scene: &Scene, fragment: &Option<Fragment>, camera: &Camera) -> Option<Surface> {
     let hit = fragment.as_ref()?.hit(scene);
     let bsdf = scene.bsdf(&hit);
-    if bsdf.is_specular() {
+    if bsdf.is_specular() || bsdf.is_glossy() {
         return None;
     }
     let wo = (camera.position - hit.p).normalize_or(hit.ns);

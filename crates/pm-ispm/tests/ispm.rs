@@ -27,7 +27,7 @@ fn scene(name: &str) -> Scene {
 /// The G-buffer the splat reads, drawn by the rasteriser.
 fn gbuffer(s: &Scene, w: u32, h: u32) -> Vec<Option<Surface>> {
     let camera = s.camera.clone().unwrap();
-    let film = Film { width: w, height: h, spp: 1, contrast: 0.0, seed: 0 };
+    let film = Film { width: w, height: h, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
     pm_ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera)
 }
 
@@ -197,7 +197,7 @@ fn layers_agree_with_the_path_tracer() {
         live.step().unwrap();
         let ispm = live.frame_layers();
         let camera = s.camera.clone().unwrap();
-        let film = Film { width: w, height: h, spp: 1024, contrast: 0.0, seed: 7 };
+        let film = Film { width: w, height: h, spp: 1024, contrast: 0.0, seed: 7, pixel_centres: false };
         let pt = pm_render::PathTracer::new(&s).unwrap();
         let (path, _) = pm_render::render_region(&camera, &film, film.rect(), &pt, false, &|_, _| {}).unwrap();
         let (it, pt_total) = (ispm.total(), path.total());
@@ -299,7 +299,7 @@ fn area_light_shadow_maps_agree_with_shadow_rays() {
         };
         let (mapped, rays) = (frame(pm_live::DirectMode::ShadowMap, 1), frame(pm_live::DirectMode::Rays, 1024));
         // The pixels that see the floor (its two triangles come first).
-        let film = Film { width: 48, height: 48, spp: 1, contrast: 0.0, seed: 0 };
+        let film = Film { width: 48, height: 48, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
         let hits = raster::first_hits(&s, s.camera.as_ref().unwrap(), film.size(), film.rect());
         let floor: Vec<(Rgb, Rgb)> =
             (0..hits.len()).filter(|&j| hits[j].is_some_and(|f| f.tri < 2)).map(|j| (mapped[j], rays[j])).collect();

@@ -67,7 +67,7 @@ pm_params::params! {
 impl FrameParams {
     /// The film of a frame: one sample a pixel at its centre, streams from `seed`.
     pub fn film(&self, seed: u64) -> Film {
-        Film { width: self.width, height: self.height, spp: 1, contrast: 0.0, seed }
+        Film { width: self.width, height: self.height, spp: 1, contrast: 0.0, seed, pixel_centres: false }
     }
 
     /// The shadow maps of `scene`'s lights when direct light comes from shadow maps

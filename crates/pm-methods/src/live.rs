@@ -34,6 +34,16 @@ impl LiveMethod {
     }
 }
 
+impl LiveMethod {
+    /// True when its frames keep caustics (light that reached a surface through
+    /// mirrors and glass only) in a layer of their own, as the batch methods do;
+    /// the vertex method's corner estimates take every photon, so its caustics
+    /// are part of its indirect layer.
+    pub fn separates_caustics(self) -> bool {
+        matches!(self, LiveMethod::Ispm)
+    }
+}
+
 const VERTEX_MEAN: f64 = 0.10;
 const VERTEX_BLOCK: f64 = 0.40;
 const ISPM_MEAN: f64 = 0.10;

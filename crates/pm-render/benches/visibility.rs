@@ -32,7 +32,7 @@ fn main() {
     for name in ["jozwowski_room_1024", "cornell_spheres", "cornell_dense", "instanced"] {
         let scene = pm_scene::load(&dir.join(format!("{name}.gltf"))).unwrap();
         let camera = scene.camera.clone().unwrap();
-        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0 };
+        let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
         let rect = film.rect();
         let light = match scene.lights[0].kind {
             pm_scene::LightKind::Point { position, .. } | pm_scene::LightKind::Spot { position, .. } => position,

@@ -235,6 +235,11 @@ pub struct Film {
     pub contrast: f32,
     /// Random seed.
     pub seed: u64,
+    /// Every sample's eye ray through its pixel's centre, no pixel filter: the
+    /// reference for the methods that draw one sample there (the real-time ones),
+    /// whose images alias at every edge; judged against a filtered image, an edge
+    /// between a mirror and the floor took a block of their indirect light 40% off.
+    pub pixel_centres: bool,
 }
 
 impl Film {

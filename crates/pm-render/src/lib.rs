@@ -80,6 +80,9 @@ pm_params::params! {
         height: u32 = 512 => between(1, 16384);
         /// Most samples per pixel (adaptive; the paper: 16). In path mode, samples per pixel.
         spp: u32 = 16 => between(1, 1 << 20);
+        /// Every eye ray through its pixel's centre (no pixel filter): a reference for the real-time
+        /// methods, which draw one sample there.
+        pixel_centres: bool = false => Any;
         /// Luminance contrast |a - b| / (a + b) between neighbouring pixels that triggers supersampling.
         contrast: f32 = 0.1 => at_least(0.0);
         /// Final-gather rays per gather (stratified, cosine-weighted; the paper: several hundred).
@@ -153,7 +156,14 @@ impl RenderParams {
 
     /// The image these parameters describe, with `seed`.
     pub fn film(&self, seed: u64) -> Film {
-        Film { width: self.width, height: self.height, spp: self.spp, contrast: self.contrast, seed }
+        Film {
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            contrast: self.contrast,
+            seed,
+            pixel_centres: self.pixel_centres,
+        }
     }
 
     /// What of these parameters shapes an irradiance cache.

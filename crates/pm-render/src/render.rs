@@ -408,7 +408,8 @@ impl<I: Integrator> RegionLoop<'_, I> {
         // took the same side of the edge (one side's light in 8% of the pixels of a
         // 24 x 24 image: +2.5-3.6% in the direct layer against the path tracer on
         // the differential checker's scenes, issue 53).
-        let j = if k == 0 && self.adaptive && self.first.is_some() { Vec2::splat(0.5) } else { s.next_2d() };
+        let centre = self.film.pixel_centres || k == 0 && self.adaptive && self.first.is_some();
+        let j = if centre { Vec2::splat(0.5) } else { s.next_2d() };
         let d = self.rays.direction((x as f32 + j.x) / w as f32, (y as f32 + j.y) / h as f32);
         let known = match self.first {
             Some((scene, hits)) if k == 0 => {

@@ -666,13 +666,15 @@ impl<'a> Sppm<'a> {
                 if seen == Seen::Directly {
                     seen = Seen::Specular;
                 }
-                emission = Some(match (seen, glossy_vertices) {
-                    (Seen::Specular, _) => Layer::Specular,
-                    (_, 0) => Layer::Direct,
-                    (_, 1) => Layer::Caustic,
-                    _ => Layer::Indirect,
-                }
-                .index());
+                emission = Some(
+                    match (seen, glossy_vertices) {
+                        (Seen::Specular, _) => Layer::Specular,
+                        (_, 0) => Layer::Direct,
+                        (_, 1) => Layer::Caustic,
+                        _ => Layer::Indirect,
+                    }
+                    .index(),
+                );
             } else {
                 glossy_vertices += 1;
                 if seen == Seen::Directly {

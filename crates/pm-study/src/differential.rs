@@ -73,6 +73,12 @@ impl Checked {
         }
     }
 
+    /// True when its images carry caustics in the indirect layer
+    /// ([`LiveMethod::separates_caustics`]).
+    pub fn caustics_in_indirect(self) -> bool {
+        matches!(self, Checked::Live(m) if !m.separates_caustics())
+    }
+
     /// The bound its documentation states, if any.
     pub fn agreement(self) -> Option<pm_methods::Agreement> {
         match self {
@@ -118,7 +124,8 @@ pub struct LayerOutcome {
     pub worst_block: f64,
     /// That block (column, row).
     pub worst_at: (usize, usize),
-    /// The reference's noise in the same two figures.
+    /// The noise in the same two figures: the reference's, plus the method's own
+    /// for a method judged on two seeds (the real-time ones).
     pub noise: (f64, f64),
     /// Whether it is within the bound (plus the noise).
     pub within: bool,
@@ -206,26 +213,32 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             eprintln!("differential: {name}: unjudged: {why}");
             continue;
         }
-        let halves = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, &dir));
         let keep = emitters_left_out(&loaded, args.size as usize)?;
-        let (a, b) = match halves {
-            [Ok(a), Ok(b)] => (a, b),
-            [Err(e), _] | [_, Err(e)] => {
-                // No reference: every method's outcome says so.
-                for (m, _) in &methods {
-                    outcomes.push(crashed(&name, *m, &format!("the path tracer failed: {e:#}")));
-                }
-                continue;
-            }
-        };
+        // The references each kind of method needs: the batch methods filter
+        // their pixels, the real-time ones draw one sample at each pixel's centre.
+        let mut references: BTreeMap<bool, Result<(pm_image::Layers, pm_image::Layers)>> = BTreeMap::new();
+        for &(m, _) in &methods {
+            let centres = matches!(m, Checked::Live(_));
+            references.entry(centres).or_insert_with(|| {
+                let [a, b] = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, centres, &dir));
+                Ok((a?, b?))
+            });
+        }
         for &(m, bound) in &methods {
+            let (a, b) = match &references[&matches!(m, Checked::Live(_))] {
+                Ok(halves) => halves,
+                Err(e) => {
+                    outcomes.push(crashed(&name, m, &format!("the path tracer failed: {e:#}")));
+                    continue;
+                }
+            };
             let out = dir.join(m.to_string());
-            let image = match m {
-                Checked::Batch(m) => run_method(root, bins, &base, scene, m, args.size, &out),
+            let images = match m {
+                Checked::Batch(m) => run_method(root, bins, &base, scene, m, args.size, &out).map(|i| vec![i]),
                 Checked::Live(m) => run_live(bins, &base, scene, m, args.size, &out),
             };
-            let outcome = match image {
-                Ok(img) => judge(&name, m, bound, &img, (&a, &b), &keep),
+            let outcome = match images {
+                Ok(images) => judge(&name, m, bound, &images, (a, b), &keep),
                 Err(e) => crashed(&name, m, &format!("{e:#}")),
             };
             eprintln!("differential: {name} {m}: {}", outcome.verdict);
@@ -283,8 +296,10 @@ fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
     for (k, o) in rows.iter().enumerate() {
         let dir = out.join(&o.scene);
         let read = |f: PathBuf| pm_image::read_exr(&f).map(|img| img.pixels(None));
+        let centres = matches!(Checked::parse(&o.method), Ok(Checked::Live(_)));
+        let half = |seed: u32| if centres { format!("path-centres-{seed}.exr") } else { format!("path-{seed}.exr") };
         let (Ok(ours), Ok(a), Ok(b)) =
-            (read(dir.join(&o.method).join("image.exr")), read(dir.join("path-1.exr")), read(dir.join("path-2.exr")))
+            (read(dir.join(&o.method).join("image.exr")), read(dir.join(half(1))), read(dir.join(half(2))))
         else {
             continue;
         };
@@ -378,11 +393,19 @@ fn crashed(scene: &str, m: Checked, e: &str) -> Outcome {
     Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()) }
 }
 
-/// The path tracer's image of `scene` with seed `seed`.
-fn path_traced(bins: &Bins, scene: &Path, args: &Args, seed: u64, dir: &Path) -> Result<pm_image::Layers> {
-    let file = dir.join(format!("path-{seed}.exr"));
+/// The path tracer's image of `scene` with seed `seed` (in DIR/SCENE/path-SEED.exr),
+/// or with every sample through its pixel's centre (`centres`: path-centres-SEED.exr).
+fn path_traced(
+    bins: &Bins,
+    scene: &Path,
+    args: &Args,
+    seed: u64,
+    centres: bool,
+    dir: &Path,
+) -> Result<pm_image::Layers> {
+    let file = dir.join(if centres { format!("path-centres-{seed}.exr") } else { format!("path-{seed}.exr") });
     let size = args.size.to_string();
-    let a: Vec<String> = [
+    let mut a: Vec<String> = [
         "--scene",
         &scene.display().to_string(),
         "--mode",
@@ -400,6 +423,9 @@ fn path_traced(bins: &Bins, scene: &Path, args: &Args, seed: u64, dir: &Path) ->
     ]
     .map(String::from)
     .to_vec();
+    if centres {
+        a.extend(["--pixel-centres".into(), "true".into()]);
+    }
     bins::run(bins, "photon-render", &a, "path tracer", true)?;
     pm_image::read_exr(&file)
 }
@@ -429,8 +455,11 @@ fn run_method(
 
 /// Real-time method `m`'s settled frame of the still `scene`
 /// ([`pm_methods::live::LiveParams::settled_frames`]) as `cargo xtask live` draws
-/// it: the repository's settings with the scene, the frame size and the method
-/// changed.
+/// it, with the repository's seed and the next (in OUT/seed-1 and OUT/seed-2):
+/// the repository's settings with the scene, the frame size and the method
+/// changed. A frame takes one sample a pixel, so its own noise is much of its
+/// blocks' error; the two frames' mean is judged (OUT/image.exr), their
+/// difference gives its noise.
 fn run_live(
     bins: &Bins,
     base: &pm_pipeline::Pipeline,
@@ -438,53 +467,93 @@ fn run_live(
     m: LiveMethod,
     size: u32,
     out: &Path,
-) -> Result<pm_image::Layers> {
-    let mut p = base.clone();
-    p.live.method = m;
-    (p.live.frame.width, p.live.frame.height) = (size, size);
-    let frames = p.live.settled_frames();
-    std::fs::create_dir_all(out)?;
-    let mut args = p.live_args(scene, out, frames);
-    args.push("--exr".into());
-    bins::run(bins, "photon-live", &args, "photon-live", true)?;
-    pm_image::read_exr(&out.join("frames").join(format!("{:04}.exr", frames - 1)))
+) -> Result<Vec<pm_image::Layers>> {
+    let mut images = Vec::new();
+    for k in 0..2u64 {
+        let mut p = base.clone();
+        p.live.method = m;
+        p.seed = base.seed.wrapping_add(k);
+        (p.live.frame.width, p.live.frame.height) = (size, size);
+        let frames = p.live.settled_frames();
+        let dir = out.join(format!("seed-{}", k + 1));
+        std::fs::create_dir_all(&dir)?;
+        let mut args = p.live_args(scene, &dir, frames);
+        args.push("--exr".into());
+        bins::run(bins, "photon-live", &args, "photon-live", true)?;
+        images.push(pm_image::read_exr(&dir.join("frames").join(format!("{:04}.exr", frames - 1)))?);
+    }
+    let mean = mean_image(&images);
+    pm_image::write_exr(&out.join("image.exr"), &mean)?;
+    Ok(images)
 }
 
-/// Judge method `m`'s image against the reference's halves `a` and `b`.
+/// The pixel-by-pixel mean of `images` (equal sizes and layers).
+fn mean_image(images: &[pm_image::Layers]) -> pm_image::Layers {
+    let mut mean = images[0].clone();
+    let k = images.len() as f32;
+    for (name, px) in &mut mean.layers {
+        for (j, p) in px.iter_mut().enumerate() {
+            *p = images.iter().map(|img| img.by_name(name).map_or(Vec3::ZERO, |l| l[j])).sum::<Vec3>() / k;
+        }
+    }
+    mean
+}
+
+/// Judge method `m`'s image against the reference's halves `a` and `b`: its one
+/// image, or the mean of its two (seeds), whose difference is its own noise,
+/// allowed on top of the bound as the reference's is.
 fn judge(
     scene: &str,
     m: Checked,
     bound: pm_methods::Agreement,
-    img: &pm_image::Layers,
+    images: &[pm_image::Layers],
     (a, b): (&pm_image::Layers, &pm_image::Layers),
     keep: &[bool],
 ) -> Outcome {
     let size = (keep.len() as f64).sqrt() as usize;
     let mut o =
         Outcome { scene: scene.into(), method: m.to_string(), verdict: "passed".into(), layers: vec![], error: None };
+    let img = &mean_image(images);
     let total = img.pixels(None);
     if total.len() != size * size || total.iter().any(|p| !p.is_finite() || p.min_element() < 0.0) {
         o.verdict = "nonfinite".into();
         return o;
     }
+    // A method without a caustic map draws its caustics into its indirect layer:
+    // judged there, against the reference's two layers together.
+    let merged = |img: &pm_image::Layers, l: Option<Layer>| -> Vec<Vec3> {
+        let px = img.pixels(l);
+        if m.caustics_in_indirect() && l == Some(Layer::Indirect) {
+            px.iter().zip(img.pixels(Some(Layer::Caustic))).map(|(x, c)| *x + c).collect()
+        } else {
+            px
+        }
+    };
     let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
-        let (la, lb) = (a.pixels(l), b.pixels(l));
+        let (la, lb) = (merged(a, l), merged(b, l));
         let reference = la.iter().zip(&lb).map(|(x, y)| (*x + *y) * 0.5).collect();
         (reference, la, lb)
     };
     let (reference, _, _) = mean_of(None);
     let whole = pm_image::accuracy::kept_mean(&reference, keep);
     for l in crate::tradeoff::results::COMPARED {
+        if m.caustics_in_indirect() && l == Some(Layer::Caustic) {
+            continue;
+        }
         let (reference, la, lb) = mean_of(l);
         // Layers that hold less than a twentieth of the light are not judged.
         if l.is_some() && pm_image::accuracy::kept_mean(&reference, keep) < 0.05 * whole {
             continue;
         }
-        let ours = img.pixels(l);
+        let ours = merged(img, l);
         let Agreement { mean, worst_block, worst_at, .. } = agreement(&ours, &reference, size, keep, 8);
         // The average of two halves has half the noise their difference shows.
         let halves = agreement(&la, &lb, size, keep, 8);
-        let noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);
+        let mut noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);
+        if let [x, y] = images {
+            let own = agreement(&merged(x, l), &merged(y, l), size, keep, 8);
+            noise = (noise.0 + own.mean.abs() / 2.0, noise.1 + own.worst_block / 2.0);
+        }
         let within = mean.abs() <= bound.mean + noise.0 && worst_block <= bound.worst_block + noise.1;
         if !within {
             o.verdict = "failed".into();

@@ -103,7 +103,7 @@ fn a_lone_plane_needs_no_photon_map_and_matches_the_analytic_direct_light() {
     let img = pm_image::read_exr(&out.join("image.exr")).unwrap();
     let scene = load_scene("plane_point.gltf");
     let cam = scene.camera.as_ref().unwrap();
-    let film = pm_render::Film { width: 24, height: 24, spp: 1, contrast: 0.1, seed: 1 };
+    let film = pm_render::Film { width: 24, height: 24, spp: 1, contrast: 0.1, seed: 1, pixel_centres: false };
     let mut worst = 0f32;
     for (i, px) in img.total().unwrap().iter().enumerate() {
         let j = pm_render::pixel_sampler(&film, i, 0).next_2d();

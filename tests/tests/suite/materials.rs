@@ -185,7 +185,7 @@ fn masked_alpha_lets_rays_through_in_every_query() {
         yfov: 0.6,
         aspect: Some(1.0),
     };
-    let film = pm_render::Film { width: 32, height: 32, spp: 1, contrast: 0.0, seed: 0 };
+    let film = pm_render::Film { width: 32, height: 32, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
     let frags = pm_raster::first_hits(&s, &camera, film.size(), film.rect());
     let (mut seen, mut checked) = (0, 0);
     for (i, f) in frags.iter().enumerate() {

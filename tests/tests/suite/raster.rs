@@ -9,7 +9,7 @@ fn rasterised_first_hits_equal_eye_rays_except_at_silhouettes() {
     for name in ["cornell_spheres.gltf", "cornell_boxes.gltf", "furnace.gltf"] {
         let scene = load_scene(name);
         let camera = scene.camera.clone().unwrap();
-        let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 1 };
+        let film = Film { width: 96, height: 72, spp: 1, contrast: 0.0, seed: 1, pixel_centres: false };
         let (w, h) = (96usize, 72usize);
         let aspect = w as f32 / h as f32;
         let raster = pm_raster::first_hits(&scene, &camera, film.size(), film.rect());
@@ -89,7 +89,7 @@ fn reused_fragment_buffers_equal_fresh_ones() {
     let mut turned = camera.clone();
     turned.forward = (camera.forward + camera.right).normalize();
     turned.right = turned.forward.cross(camera.up).normalize();
-    let film = Film { width: 64, height: 48, spp: 1, contrast: 0.0, seed: 1 };
+    let film = Film { width: 64, height: 48, spp: 1, contrast: 0.0, seed: 1, pixel_centres: false };
     let mut buffer = Vec::new();
     for (k, view) in [&camera, &turned, &camera, &turned].into_iter().enumerate() {
         pm_raster::first_hits_into(&scene, view, film.size(), film.rect(), &mut buffer);

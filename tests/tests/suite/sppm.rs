@@ -74,7 +74,7 @@ fn sppm_error_and_bias_fall_with_passes() {
     let (w, h) = (64u32, 64u32);
     let path = pm_render::PathTracer::new(&scene).unwrap();
     let half = |seed: u64| {
-        let film = pm_render::Film { width: w, height: h, spp: 2048, contrast: 0.0, seed };
+        let film = pm_render::Film { width: w, height: h, spp: 2048, contrast: 0.0, seed, pixel_centres: false };
         pm_render::render_region(&camera, &film, film.rect(), &path, false, &|_, _| {}).unwrap().0.total().to_vec()
     };
     let (a, b) = (half(101), half(102));

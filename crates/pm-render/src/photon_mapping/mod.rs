@@ -407,7 +407,10 @@ fn shade_indirect<G: PhotonRecord>(
 ) -> Components {
     let At { hit, bsdf, wo, medium, .. } = *at;
     if bsdf.is_glossy() {
-        return Components { indirect: gather::glossy_gather(ctx, hit, bsdf, wo, medium, s, scratch), ..Default::default() };
+        return Components {
+            indirect: gather::glossy_gather(ctx, hit, bsdf, wo, medium, s, scratch),
+            ..Default::default()
+        };
     }
     let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), medium, s, scratch);
     Components { indirect: bsdf.diffuse_albedo() * e / PI, ..Default::default() }
