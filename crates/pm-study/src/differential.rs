@@ -3,11 +3,14 @@
 //! ([`pm_scenegen::random`]), renders each with the path tracer twice (two seeds:
 //! their difference is the reference's own noise), then runs each method as a
 //! user does (`cargo xtask run` on the repository's pipeline.toml, only the scene,
-//! the image size and the method changed) and judges it by the bound its own
-//! documentation states ([`pm_methods::Method::agreement`]): the image's mean and
-//! its worst 8 x 8 block, and each layer that holds at least a twentieth of the
-//! light, the pixels that see a light left out, with the reference's noise
-//! allowed on top.
+//! the image size and the method changed; the real-time methods as `cargo xtask
+//! live` draws them, their settled frame with two seeds, against a reference
+//! whose samples all pass through the pixels' centres as theirs do) and judges it
+//! by the bound its own documentation states ([`pm_methods::Method::agreement`],
+//! [`pm_methods::live::LiveMethod::agreement`]): the image's mean and its worst 8
+//! x 8 block, and each layer that holds at least a twentieth of the light, the
+//! pixels that see a light left out, with the reference's noise (and a
+//! real-time method's own) allowed on top.
 //! A method that fails to run is `crashed`, one with a stage past the time limit
 //! `hung`; one that writes a NaN, infinite or negative pixel is `nonfinite`. Writes DIR/report.json, DIR/worst.png (a
 //! contact sheet of the worst failures, ours beside the path tracer's, their

@@ -42,7 +42,7 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
     let (_, h, _) = pm_image::read_png_rgb8(&dir.path().join("worst.png")).unwrap();
     let failed: u32 = report.methods.values().map(|c| c.failed).sum();
     assert_eq!(h, failed.clamp(1, 8) * (24 * 5 + 34));
-    let at_least = [("full", 7), ("sppm", 13)];
+    let at_least = [("full", 9), ("sppm", 13), ("vertex", 9), ("ispm", 12)];
     for (m, n) in at_least {
         assert!(report.methods[m].passed >= n, "{m}: {summary}");
     }
