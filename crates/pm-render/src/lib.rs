@@ -177,6 +177,7 @@ impl RenderParams {
             caustic_radius_rel_diag: d.caustic_radius_rel_diag,
             volume_light_samples: d.volume_light_samples,
             glossy_rays: d.glossy_rays,
+            pixel_centres: d.pixel_centres,
             ..self.clone()
         })
     }
@@ -186,7 +187,8 @@ impl RenderParams {
 /// every value that cannot shape a cache at its default (how the image is sampled
 /// and shown: spp, contrast, exposure; the caustic estimate: caustic_k,
 /// caustic_radius_rel_diag; the single-scattering samples of eye rays,
-/// volume_light_samples; glossy surfaces' own gathers, glossy_rays). What remains is
+/// volume_light_samples; glossy surfaces' own gathers, glossy_rays; where in its
+/// pixel an eye sample goes, pixel_centres: the prepass takes the centres). What remains is
 /// the image size (the prepass samples the image), the final gather's settings,
 /// the global map's estimate, the volume map's (gather rays read it), the cache's
 /// accuracy and spacing, direct light and the specular depth. The runner's cache
@@ -477,6 +479,7 @@ mod tests {
         let text = &args[at];
         let mut candidates: Vec<String> = Lookup::value_variants().iter().map(|v| v.to_string()).collect();
         candidates.extend(VolumeEstimate::value_variants().iter().map(|v| v.to_string()));
+        candidates.extend(["true", "false"].map(String::from));
         if let Ok(i) = text.parse::<u64>() {
             candidates.insert(0, (i + 1).to_string());
         } else if let Ok(f) = text.parse::<f64>() {
@@ -515,7 +518,7 @@ mod tests {
             assert_eq!(p.cache_settings().render_params().cache_settings(), p.cache_settings(), "{field}");
             if resolved(&p) != resolved(&base) && !in_settings {
                 assert!(
-                    ["caustic_k", "caustic_radius_rel_diag", "volume_light_samples"].contains(field),
+                    ["caustic_k", "caustic_radius_rel_diag", "volume_light_samples", "glossy_rays"].contains(field),
                     "{field} changes what the integrator resolves but not the cache settings"
                 );
             }
@@ -523,8 +526,9 @@ mod tests {
         }
         assert_eq!(
             shaping,
-            RenderParams::FIELDS.len() - 6,
-            "spp, contrast, exposure, the caustic two and single scattering's light samples"
+            RenderParams::FIELDS.len() - 8,
+            "spp, contrast, exposure, pixel_centres, the caustic two, single scattering's light samples and \
+             glossy_rays"
         );
     }
 }
