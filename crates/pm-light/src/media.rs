@@ -9,11 +9,6 @@ use pm_color::Rgb;
 use pm_sampling::Sampler;
 use pm_scene::{Hit, LightKind, MediumId, Passage};
 
-/// Most index-matched boundaries [`DirectLighting::single_scattering_through`]
-/// passes (nested fog boxes have a few; a ray trapped between coincident
-/// boundaries ends).
-const WALK_BOUNDARIES: u32 = 64;
-
 impl DirectLighting<'_> {
     /// Radiance [W sr^-1 m^-2 per channel] arriving at `o` along the ray from `o` in
     /// unit direction `d`, scattered once toward `o` inside medium `medium` over the
@@ -78,7 +73,7 @@ impl DirectLighting<'_> {
     /// What the eye sees along the ray from `o` in unit direction `d` (first hit
     /// `first`, started in `medium`) up to its first surface that is not an
     /// index-matched boundary: the passage (that surface, the transmittance to it,
-    /// the medium there; [`pm_scene::Scene::pass_from`]'s walk) and the light the
+    /// the medium there; [`pm_scene::Scene::pass_from_visiting`]) and the light the
     /// media on the way scatter toward `o` straight from the lights
     /// ([`Self::single_scattering`] on each segment, `n` samples each, attenuated
     /// by what lies before it). Light scattered more than once is left out: the
@@ -92,32 +87,11 @@ impl DirectLighting<'_> {
         s: &mut Sampler,
         n: u32,
     ) -> (Passage, Rgb) {
-        let scene = self.scene;
-        let (mut o, mut cur, mut tr, mut l, mut travelled) = (o, medium, Rgb::ONE, Rgb::ZERO, 0.0f32);
-        let mut hit = first;
-        for _ in 0..WALK_BOUNDARIES {
-            let seg = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
-            if let Some(m) = scene.medium(cur) {
-                l += tr * self.single_scattering(o, d, seg, cur, s, n);
-                let len = if seg.is_finite() { seg } else { scene.segment_length(o, d, None) };
-                tr *= m.transmittance(len);
-            }
-            let Some(h) = hit else { return (Passage { hit: None, tr, t: f32::INFINITY, medium: cur }, l) };
-            let Some(tint) = scene.index_matched(&h) else {
-                let t = travelled + h.t;
-                return (Passage { hit: Some(h), tr, t, medium: cur }, l);
-            };
-            tr *= tint;
-            if tr.max_element() <= 0.0 {
-                break;
-            }
-            cur = scene.medium_after(&h, d, cur);
-            let next = scene.offset_origin(h.p, h.ng, d);
-            travelled += (next - o).dot(d);
-            o = next;
-            hit = scene.intersect(o, d, f32::INFINITY);
-        }
-        (Passage { hit: None, tr: Rgb::ZERO, t: f32::INFINITY, medium: cur }, l)
+        let mut l = Rgb::ZERO;
+        let pass = self.scene.pass_from_visiting(o, d, first, medium, |o, t, m, tr| {
+            l += tr * self.single_scattering(o, d, t, m, s, n);
+        });
+        (pass, l)
     }
 
     /// Where along the segment (0, t_max) of the ray from `o` in direction `d` to

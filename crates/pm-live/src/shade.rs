@@ -116,11 +116,8 @@ impl<I: IndirectLight> LiveShading<'_, I> {
         mut vs: Option<&mut VisibleSurface>,
     ) -> Components {
         let scene = self.light.scene;
-        let (pass, volume) = if scene.has_scattering_media() {
-            self.light.single_scattering_through(o, d, first, scene.eye_medium(o), s, self.light_samples)
-        } else {
-            (scene.pass_from(o, d, first, scene.eye_medium(o)), Rgb::ZERO)
-        };
+        let (pass, volume) =
+            self.light.single_scattering_through(o, d, first, scene.eye_medium(o), s, self.light_samples);
         let tr = pass.tr;
         // Nothing hit: the environment and sun discs (the background).
         let Some(hit) = pass.hit else {

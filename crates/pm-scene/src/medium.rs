@@ -357,11 +357,28 @@ impl Scene {
     /// [`Self::intersect_through`] for a ray whose first hit `first` is already
     /// known (a rasterised fragment, or a shadow map's first surface).
     pub fn pass_from(&self, o: Vec3, d: Vec3, first: Option<Hit>, medium: Option<MediumId>) -> Passage {
+        self.pass_from_visiting(o, d, first, medium, |_, _, _, _| {})
+    }
+
+    /// [`Self::pass_from`], calling `visit(o, t, medium, tr)` for each stretch of
+    /// the walk in a medium: from `o`, `t` \[m\] long (infinite: to the world
+    /// sphere's end), in `medium`, behind transmittance `tr` (what the media and
+    /// boundaries before it let through). What the eye sees scattered along the
+    /// way is summed over these (`pm_light`'s single scattering of the real-time
+    /// methods).
+    pub fn pass_from_visiting(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        first: Option<Hit>,
+        medium: Option<MediumId>,
+        visit: impl FnMut(Vec3, f32, Option<MediumId>, Rgb),
+    ) -> Passage {
         if !self.has_media() && !self.layout.index_matched {
             let t = first.as_ref().map_or(f32::INFINITY, |h| h.t);
             return Passage { hit: first, tr: Rgb::ONE, t, medium };
         }
-        self.walk_from(o, d, f32::INFINITY, medium, first)
+        self.walk_visiting(o, d, f32::INFINITY, medium, first, visit)
     }
 
     /// The walk the above take, from the ray's first hit `hit` within `t_max`:
@@ -375,19 +392,35 @@ impl Scene {
         d: Vec3,
         t_max: f32,
         medium: Option<MediumId>,
+        hit: Option<Hit>,
+    ) -> Passage {
+        self.walk_visiting(o, d, t_max, medium, hit, |_, _, _, _| {})
+    }
+
+    /// [`Self::walk_from`], calling `visit` for each stretch in a medium as
+    /// [`Self::pass_from_visiting`] says.
+    fn walk_visiting(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        medium: Option<MediumId>,
         mut hit: Option<Hit>,
+        mut visit: impl FnMut(Vec3, f32, Option<MediumId>, Rgb),
     ) -> Passage {
         let (mut o, mut left, mut cur, mut tr, mut travelled) = (o, t_max, medium, Rgb::ONE, 0.0f32);
         let lost = |medium| Passage { hit: None, tr: Rgb::ZERO, t: f32::INFINITY, medium };
         for _ in 0..WALK_HITS {
             let Some(h) = hit else {
                 if let Some(m) = self.medium(cur) {
+                    visit(o, left, cur, tr);
                     let seg = if left.is_finite() { left } else { self.segment_length(o, d, None) };
                     tr *= m.transmittance(seg);
                 }
                 return Passage { hit: None, tr, t: f32::INFINITY, medium: cur };
             };
             if let Some(m) = self.medium(cur) {
+                visit(o, h.t, cur, tr);
                 tr *= m.transmittance(h.t);
             }
             let Some(tint) = self.index_matched(&h) else {

@@ -666,15 +666,13 @@ impl<'a> Sppm<'a> {
                 if seen == Seen::Directly {
                     seen = Seen::Specular;
                 }
-                emission = Some(
-                    match (seen, glossy_vertices) {
-                        (Seen::Specular, _) => Layer::Specular,
-                        (_, 0) => Layer::Direct,
-                        (_, 1) => Layer::Caustic,
-                        _ => Layer::Indirect,
-                    }
-                    .index(),
-                );
+                // (Past this point `seen` is never `Directly`.)
+                let layer = match seen {
+                    Seen::Glossy if glossy_vertices == 1 => Layer::Caustic,
+                    Seen::Glossy => Layer::Indirect,
+                    _ => Layer::Specular,
+                };
+                emission = Some(layer.index());
             } else {
                 glossy_vertices += 1;
                 if seen == Seen::Directly {

@@ -82,6 +82,12 @@ impl Checked {
         matches!(self, Checked::Live(m) if !m.separates_caustics())
     }
 
+    /// True when it is judged against a reference whose samples all pass through
+    /// the pixels' centres: the real-time methods draw one sample there.
+    pub fn pixel_centres(self) -> bool {
+        matches!(self, Checked::Live(_))
+    }
+
     /// The bound its documentation states, if any.
     pub fn agreement(self) -> Option<pm_methods::Agreement> {
         match self {
@@ -221,14 +227,14 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
         // their pixels, the real-time ones draw one sample at each pixel's centre.
         let mut references: BTreeMap<bool, Result<(pm_image::Layers, pm_image::Layers)>> = BTreeMap::new();
         for &(m, _) in &methods {
-            let centres = matches!(m, Checked::Live(_));
+            let centres = m.pixel_centres();
             references.entry(centres).or_insert_with(|| {
                 let [a, b] = [1u64, 2].map(|seed| path_traced(bins, scene, args, seed, centres, &dir));
                 Ok((a?, b?))
             });
         }
         for &(m, bound) in &methods {
-            let (a, b) = match &references[&matches!(m, Checked::Live(_))] {
+            let (a, b) = match &references[&m.pixel_centres()] {
                 Ok(halves) => halves,
                 Err(e) => {
                     outcomes.push(crashed(&name, m, &format!("the path tracer failed: {e:#}")));
@@ -299,8 +305,8 @@ fn contact_sheet(out: &Path, worst: &[Outcome], size: usize) -> Result<()> {
     for (k, o) in rows.iter().enumerate() {
         let dir = out.join(&o.scene);
         let read = |f: PathBuf| pm_image::read_exr(&f).map(|img| img.pixels(None));
-        let centres = matches!(Checked::parse(&o.method), Ok(Checked::Live(_)));
-        let half = |seed: u32| if centres { format!("path-centres-{seed}.exr") } else { format!("path-{seed}.exr") };
+        let centres = Checked::parse(&o.method).is_ok_and(Checked::pixel_centres);
+        let half = |seed| reference_file(centres, seed);
         let (Ok(ours), Ok(a), Ok(b)) =
             (read(dir.join(&o.method).join("image.exr")), read(dir.join(half(1))), read(dir.join(half(2))))
         else {
@@ -419,6 +425,12 @@ fn crashed(scene: &str, m: Checked, e: &str) -> Outcome {
     Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()) }
 }
 
+/// The name of the path tracer's image with seed `seed`, with every sample through
+/// its pixel's centre or not (`centres`), in DIR/SCENE.
+fn reference_file(centres: bool, seed: u64) -> String {
+    if centres { format!("path-centres-{seed}.exr") } else { format!("path-{seed}.exr") }
+}
+
 /// The path tracer's image of `scene` with seed `seed` (in DIR/SCENE/path-SEED.exr),
 /// or with every sample through its pixel's centre (`centres`: path-centres-SEED.exr).
 fn path_traced(
@@ -429,7 +441,7 @@ fn path_traced(
     centres: bool,
     dir: &Path,
 ) -> Result<pm_image::Layers> {
-    let file = dir.join(if centres { format!("path-centres-{seed}.exr") } else { format!("path-{seed}.exr") });
+    let file = dir.join(reference_file(centres, seed));
     let size = args.size.to_string();
     let mut a: Vec<String> = [
         "--scene",

@@ -186,33 +186,24 @@ fn gather_radiance<G: PhotonRecord>(
             first_t = run + hit.t;
         }
         let bsdf = scene.bsdf(&hit);
-        if bsdf.is_specular() {
-            let u = s.next_2d();
-            let uc = s.next_1d();
-            let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (l, first_t) };
-            beta *= bs.radiance_weight();
-            if media {
-                medium = scene.medium_after(&hit, bs.wi, medium);
+        let glossy = bsdf.is_glossy();
+        if bsdf.is_specular() || glossy {
+            if glossy {
+                // The light a glossy surface sends along the ray depends on where
+                // it comes from: its direct light by light sampling (with the
+                // BSDF's own samples weighed against them, which is why emission
+                // is not counted further on), then one sample of its lobe,
+                // followed on as a mirror's is. Read as albedo / pi x irradiance,
+                // a rough metal slab on the floor sent the ceiling a tenth of the
+                // light it reflects up from the lamp above it (the ceiling's
+                // indirect light 35% dark in 8 x 8 blocks around the lamp: the
+                // differential checker's seed 16654, scene 3).
+                l += beta * ctx.light.direct(&hit, &bsdf, -d, s, 1, medium);
             }
-            o = ctx.scene.offset_origin(hit.p, hit.ng, bs.wi);
-            d = bs.wi;
-            bounce += 1;
-            continue;
-        }
-        if bsdf.is_glossy() {
-            // The light a glossy surface sends along the ray depends on where it
-            // comes from: its direct light by light sampling (with the BSDF's own
-            // samples weighed against them, which is why emission is not counted
-            // further on), then one sample of its lobe, followed on. Read as
-            // albedo / pi x irradiance, a rough metal slab on the floor sent the
-            // ceiling a tenth of the light it reflects up from the lamp above it
-            // (the ceiling's indirect light 35% dark in 8 x 8 blocks around the
-            // lamp: the differential checker's seed 16654, scene 3).
-            l += beta * ctx.light.direct(&hit, &bsdf, -d, s, 1, medium);
             let u = s.next_2d();
             let uc = s.next_1d();
             let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (l, first_t) };
-            if bs.wi.dot(hit.ng) * (-d).dot(hit.ng) <= 0.0 {
+            if glossy && bs.wi.dot(hit.ng) * (-d).dot(hit.ng) <= 0.0 {
                 return (l, first_t);
             }
             beta *= bs.radiance_weight();
