@@ -17,7 +17,7 @@ pub use bounce::{BouncePhoton, BounceStats, KernelShape, bounce_maps, trace};
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
-use pm_params::{above, above_up_to, between};
+use pm_params::{Any, above, above_up_to, between};
 use pm_raster::Fragment;
 use pm_render::{FrameBuffers, Visibility};
 use pm_scene::{Camera, Hit, Scene};
@@ -32,8 +32,10 @@ pm_params::params! {
     pub struct IspmParams {
         /// Texels per side of each face of a light's bounce map (6 x res^2 directions
         /// for a point light; directional and area lights shoot as many samples;
-        /// lights share texels by power).
-        bounce_res: u32 = 48 => between(1, 4096);
+        /// lights share texels by power). 64 rather than 48: with the volumes below,
+        /// Blender's animated room's frames are 6.6-8.2% block RMS off the path
+        /// tracer at 64 and 8.5-11.6% at 48 (BENCHMARKS.md, issue 53).
+        bounce_res: u32 = 64 => between(1, 4096);
         /// Photons stored per path after the bounce map (1: one indirect bounce). The
         /// default traces until more stop paying: on cornell_spheres the image's mean
         /// bias against the path tracer is -14.9% at 2, -6.4% at 4, -4.3% at 6 and
@@ -41,12 +43,16 @@ pm_params::params! {
         bounces: u32 = 8 => between(1, 64);
         /// Kernel radius of a path of density 1, as a fraction of the scene diagonal;
         /// a path of density ρ gets radius r / sqrt(ρ) (one Lambertian bounce:
-        /// ρ ≈ albedo / 1000).
-        kernel_radius_rel_diag: f32 = 0.001 => above(0.0);
+        /// ρ ≈ albedo / 1000, so a radius of about 0.07 to 0.09 of the diagonal,
+        /// clamped to the largest). Larger volumes hold more photons: at 0.001 and
+        /// at most 0.03, the volumes of Blender's room held about 30 photons each
+        /// and its frames were splotched (two seeds 25% block RMS apart).
+        kernel_radius_rel_diag: f32 = 0.002 => above(0.0);
         /// Smallest kernel radius, fraction of the diagonal.
         kernel_min_rel_diag: f32 = 0.01 => above(0.0);
-        /// Largest kernel radius, fraction of the diagonal.
-        kernel_max_rel_diag: f32 = 0.03 => above(0.0);
+        /// Largest kernel radius, fraction of the diagonal (most indirect photons
+        /// have it).
+        kernel_max_rel_diag: f32 = 0.06 => above(0.0);
         /// Kernel thickness along the photon's surface normal over its radius in the
         /// surface plane (r_z / r_xy, section 5.1).
         kernel_minor: f32 = 0.25 => above_up_to(0.0, 1.0);
@@ -54,6 +60,10 @@ pm_params::params! {
         /// with the joint bilateral filter (section 5.2; 1: off, the consistent
         /// estimate; the paper uses 2 to 16).
         subsample: u32 = 1 => between(1, 16);
+        /// Divide each photon's power by the part of its kernel's disc that lies on
+        /// the surface it hit (probed with rays, weighted by the kernel), so a
+        /// volume at a wall's edge does not lose the part that runs off the wall.
+        volume_coverage: bool = true => Any;
     }
 }
 

@@ -22,12 +22,14 @@
 //! Radiance everywhere is W sr^-1 m^-2 per RGB channel. This crate does no I/O: it
 //! returns in-memory images with component layers, statistics, and cache records.
 
+mod coverage;
 mod icache;
 mod integrator;
 mod path;
 mod photon_mapping;
 mod render;
 
+pub use coverage::{MIN_COVERAGE, Probe, SAME_SURFACE_COS, disc_coverage};
 pub use icache::IrradianceCache;
 pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt};
 pub use path::PathTracer;

@@ -12,14 +12,10 @@
 //! (Silverman 1986, section 2.10); the batch pipeline's final gather hides it, the
 //! vertex method shows it directly.
 //!
-//! The part covered is probed with rays in the photon scene: sample points on
-//! rings of the disc in the corner's tangent plane, each covered when a ray at a
-//! quarter of the radius above the surface reaches the point's position above
-//! it unblocked from above the corner, and a ray down from there meets a surface
-//! facing the corner's way ([`pm_estimate::SAME_SURFACE_COS`], the photons' own
-//! test) within half the radius. The fractions are cached per corner and radius
-//! step (a quarter octave), so a still scene probes each corner a few times, not
-//! every frame.
+//! The part covered is probed with rays in the photon scene
+//! ([`pm_render::disc_coverage`], which image-space photon volumes share). The
+//! fractions are cached per corner and radius step (a quarter octave), so a still
+//! scene probes each corner a few times, not every frame.
 
 use crate::Corners;
 use glam::Vec3;
@@ -27,43 +23,19 @@ use pm_color::Rgb;
 use pm_scene::Scene;
 use rayon::prelude::*;
 
-/// Rings and spokes of the sample pattern (equal-area rings; each sample has its
-/// opposite, so an edge through the corner covers exactly half).
-const RINGS: usize = 4;
-const SPOKES: usize = 8;
-
 /// Radius steps per octave of the cache.
 const STEPS_PER_OCTAVE: f32 = 4.0;
 
 /// The least fraction divided by: a corner whose disc is almost all off the
 /// surface gains at most this much (a corner of a thin sliver, a probe lost).
-pub const MIN_COVERAGE: f32 = 0.125;
+pub const MIN_COVERAGE: f32 = pm_render::MIN_COVERAGE;
 
 /// The fraction (0 to 1) of the disc of radius `r` \[m\] about corner `p` (unit
 /// normal `n`) in its tangent plane that lies on surfaces of `scene` facing `n`'s
-/// way and in view of the corner.
+/// way and in view of the corner: [`pm_render::disc_coverage`] with every part of
+/// the disc weighted alike (the estimate's disc kernel).
 pub fn coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32) -> f32 {
-    let (t, b) = n.any_orthonormal_pair();
-    let h = 0.25 * r;
-    let above = p + n * h;
-    let mut covered = 0;
-    for ring in 0..RINGS {
-        let rho = r * ((ring as f32 + 0.5) / RINGS as f32).sqrt();
-        for spoke in 0..SPOKES {
-            // The rings turn by irrational steps so that no sample lies on an axis.
-            let a = std::f32::consts::TAU * (spoke as f32 + 0.5 + 0.382 * ring as f32) / SPOKES as f32;
-            let o = above + (t * a.cos() + b * a.sin()) * rho;
-            let d = o - above;
-            let len = d.length();
-            if len > 0.0 && scene.occluded(above, d / len, len) {
-                continue;
-            }
-            if scene.intersect(o, -n, 2.0 * h).is_some_and(|hit| hit.ng.dot(n) > pm_estimate::SAME_SURFACE_COS) {
-                covered += 1;
-            }
-        }
-    }
-    covered as f32 / (RINGS * SPOKES) as f32
+    pm_render::disc_coverage(scene, p, n, r, pm_render::Probe::InView, |_| 1.0)
 }
 
 /// Corner coverages already probed: per corner, the radius step and the fraction.
