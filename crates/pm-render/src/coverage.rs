@@ -75,10 +75,10 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
             // The rings turn by irrational steps so that no sample lies on an axis.
             let a = std::f32::consts::TAU * (spoke as f32 + 0.5 + 0.382 * ring as f32) / SPOKES as f32;
             let o = above + (t * a.cos() + b * a.sin()) * (r * s);
-            let d = o - above;
-            let len = d.length();
             let on_surface = match probe {
                 Probe::InView => {
+                    let d = o - above;
+                    let len = d.length();
                     !(len > 0.0 && scene.occluded(above, d / len, len))
                         && scene.intersect(o, -n, 2.0 * h).is_some_and(|hit| hit.ng.dot(n) > SAME_SURFACE_COS)
                 }
@@ -99,8 +99,8 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
 
 /// Whether a ray down (along -`n`) from `o` meets a surface facing `n`'s way (either
 /// side of it, [`SAME_SURFACE_COS`]) within `depth` \[m\], passing through the
-/// surfaces that do not (the inside of a sphere standing on the floor); at most
-/// four surfaces are passed.
+/// steeper ones (the side of a sphere standing on the floor, seen from inside);
+/// at most four surfaces are passed.
 fn surface_below(scene: &Scene, mut o: Vec3, n: Vec3, mut depth: f32) -> bool {
     for _ in 0..4 {
         let Some(hit) = scene.intersect(o, -n, depth) else { return false };
@@ -114,4 +114,86 @@ fn surface_below(scene: &Scene, mut o: Vec3, n: Vec3, mut depth: f32) -> bool {
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pm_color::Rgb;
+    use pm_scene::{Material, Triangle};
+
+    /// A unit square floor (y = 0, facing up), a wall at x = 0.3 standing on it,
+    /// and a sawtooth of steep strips (70 degrees, 2 cm wide, 5.5 cm high, every
+    /// 3 cm from x = 0.5 to 0.76) over the floor's corner z < 0.25.
+    fn floor_wall_and_strips() -> Scene {
+        let v = |x, y, z| Vec3::new(x, y, z);
+        let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
+            [Triangle::new([a, b, c], 0).unwrap(), Triangle::new([a, c, d], 0).unwrap()]
+        };
+        let mut tris = Vec::new();
+        tris.extend(quad(v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, 0.0)));
+        tris.extend(quad(v(0.3, 0.0, 0.0), v(0.3, 1.0, 0.0), v(0.3, 1.0, 1.0), v(0.3, 0.0, 1.0)));
+        let top = 0.02 * 70f32.to_radians().tan();
+        for k in 0..9 {
+            let x = 0.5 + 0.03 * k as f32;
+            tris.extend(quad(v(x, 0.0, 0.0), v(x, 0.0, 0.25), v(x + 0.02, top, 0.25), v(x + 0.02, top, 0.0)));
+        }
+        let grey = Material::new("grey", pm_bsdf::Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO);
+        Scene::from_parts(tris, vec![grey], Vec::new(), None)
+    }
+
+    /// 1 - (acos(1/2) - sqrt(3)/4) / pi: a disc's part on the near side of a chord
+    /// at half its radius.
+    fn chord_at_half() -> f32 {
+        1.0 - ((0.5f32).acos() - 3f32.sqrt() / 4.0) / std::f32::consts::PI
+    }
+
+    /// Against the disc's area on the floor, computed by hand: all of it in the open,
+    /// half at the floor's open edge, a quarter at the floor's corner, and with the
+    /// wall a chord at half the radius away on either side (within the 32 samples'
+    /// resolution) for the vertex method's probe, which counts only what the centre
+    /// sees. (A corner exactly at the wall's foot sees the floor on both sides: its
+    /// probes start in the wall's plane.)
+    #[test]
+    fn in_view_coverage_is_the_part_of_the_disc_on_the_surface_in_view() {
+        let s = floor_wall_and_strips();
+        let cases = [
+            (Vec3::new(0.8, 0.0, 0.5), 1.0, 0.0),
+            (Vec3::new(1.0, 0.0, 0.5), 0.5, 0.0),
+            (Vec3::new(1.0, 0.0, 1.0), 0.25, 0.0),
+            (Vec3::new(0.2, 0.0, 0.5), chord_at_half(), 0.04),
+            (Vec3::new(0.4, 0.0, 0.5), chord_at_half(), 0.04),
+        ];
+        for (p, want, tol) in cases {
+            let got = disc_coverage(&s, p, Vec3::Y, 0.2, Probe::InView, |_| 1.0);
+            assert!((got - want).abs() <= tol + 1e-6, "at {p}: {got} against {want}");
+        }
+    }
+
+    /// A photon volume's support has no view test: the floor behind the wall
+    /// counts (the volume lights it), and rays down pass the steep strips to the
+    /// floor below them; the open edge and corner still cover a half and a quarter
+    /// with the cone kernel's weights (each ring is cut in half alike).
+    #[test]
+    fn slab_coverage_counts_the_surface_within_the_slab_seen_or_not() {
+        let s = floor_wall_and_strips();
+        let cone = |t: f32| 1.0 - t;
+        let cases = [
+            (Vec3::new(0.2, 0.0, 0.5), 1.0, 0.0),
+            (Vec3::new(0.4, 0.0, 0.5), 1.0, 0.0),
+            (Vec3::new(1.0, 0.0, 0.5), 0.5, 1e-6),
+            (Vec3::new(1.0, 0.0, 1.0), 0.25, 0.04),
+        ];
+        for (p, want, tol) in cases {
+            let got = disc_coverage(&s, p, Vec3::Y, 0.2, Probe::Slab(0.05), cone);
+            assert!((got - want).abs() <= tol + 1e-6, "at {p}: {got} against {want}");
+        }
+        // Over the strips: all the floor below them counts, where the vertex
+        // method's probe stops at them.
+        let strips = Vec3::new(0.63, 0.0, 0.1);
+        let got = disc_coverage(&s, strips, Vec3::Y, 0.1, Probe::Slab(0.05), cone);
+        assert_eq!(got, 1.0, "over the strips");
+        let in_view = disc_coverage(&s, strips, Vec3::Y, 0.1, Probe::InView, |_| 1.0);
+        assert!(in_view < 0.9, "over the strips, in view: {in_view}");
+    }
 }

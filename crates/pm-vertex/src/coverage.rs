@@ -26,9 +26,7 @@ use rayon::prelude::*;
 /// Radius steps per octave of the cache.
 const STEPS_PER_OCTAVE: f32 = 4.0;
 
-/// The least fraction divided by: a corner whose disc is almost all off the
-/// surface gains at most this much (a corner of a thin sliver, a probe lost).
-pub const MIN_COVERAGE: f32 = pm_render::MIN_COVERAGE;
+pub use pm_render::MIN_COVERAGE;
 
 /// The fraction (0 to 1) of the disc of radius `r` \[m\] about corner `p` (unit
 /// normal `n`) in its tangent plane that lies on surfaces of `scene` facing `n`'s
@@ -71,48 +69,6 @@ impl CoverageCache {
             if let Some((_, f)) = self.probed[c] {
                 e[c] /= f.max(MIN_COVERAGE);
             }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use pm_scene::{Material, Triangle};
-
-    /// A unit square floor (y = 0, facing up) and a wall at x = 0.3 standing on it.
-    fn floor_and_wall() -> Scene {
-        let v = |x, y, z| Vec3::new(x, y, z);
-        let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
-            [Triangle::new([a, b, c], 0).unwrap(), Triangle::new([a, c, d], 0).unwrap()]
-        };
-        let mut tris = Vec::new();
-        tris.extend(quad(v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, 0.0)));
-        tris.extend(quad(v(0.3, 0.0, 0.0), v(0.3, 1.0, 0.0), v(0.3, 1.0, 1.0), v(0.3, 0.0, 1.0)));
-        let grey = Material::new("grey", pm_bsdf::Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO);
-        Scene::from_parts(tris, vec![grey], Vec::new(), None)
-    }
-
-    /// Against the disc's area on the floor, computed by hand: all of it in the open,
-    /// half at the floor's open edge, a quarter at the floor's corner, and with the
-    /// wall a chord at half the radius away on either side, 1 - (acos(1/2) -
-    /// sqrt(3)/4) / pi = 0.804 (within the 32 samples' resolution). (A corner
-    /// exactly at the wall's foot sees the floor on both sides: its probes start in
-    /// the wall's plane.)
-    #[test]
-    fn coverage_is_the_part_of_the_disc_on_the_surface() {
-        let s = floor_and_wall();
-        let up = Vec3::Y;
-        let cases = [
-            (Vec3::new(0.65, 0.0, 0.5), 1.0, 0.0),
-            (Vec3::new(1.0, 0.0, 0.5), 0.5, 0.0),
-            (Vec3::new(1.0, 0.0, 1.0), 0.25, 0.0),
-            (Vec3::new(0.2, 0.0, 0.5), 1.0 - ((0.5f32).acos() - 3f32.sqrt() / 4.0) / std::f32::consts::PI, 0.04),
-            (Vec3::new(0.4, 0.0, 0.5), 1.0 - ((0.5f32).acos() - 3f32.sqrt() / 4.0) / std::f32::consts::PI, 0.04),
-        ];
-        for (p, want, tol) in cases {
-            let got = coverage(&s, p, up, 0.2);
-            assert!((got - want).abs() <= tol + 1e-6, "at {p}: {got} against {want}");
         }
     }
 }
