@@ -169,7 +169,7 @@ impl<'a> DirectLighting<'a> {
         let scene = self.scene;
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
         let ls = scene.lights[li].sample_li(scene, hit.p, pm_scene::facing(hit.ng, wo), u_tri, u)?;
-        if ls.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+        if !pm_scene::same_side(hit.ng, ls.wi, wo) {
             return None;
         }
         let f = bsdf.f(wo, ls.wi, hit.ns) * ls.wi.dot(hit.ns).abs();
@@ -355,7 +355,6 @@ impl DirectLighting<'_> {
                 Rgb::ZERO
             };
         }
-        let side_o = wo.dot(hit.ng);
         let mut sum = Rgb::ZERO;
         // The n light samples stratified among themselves: on a Cornell box's area
         // light, n independent points left direct light the largest part of the
@@ -374,7 +373,7 @@ impl DirectLighting<'_> {
                 let uc = s.next_1d();
                 if let Some(bs) = bsdf.sample(wo, hit.ns, u, uc)
                     && !bs.specular
-                    && bs.wi.dot(hit.ng) * side_o > 0.0
+                    && pm_scene::same_side(hit.ng, bs.wi, wo)
                 {
                     let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                     let pm_scene::Passage { hit: found, tr, t, .. } = scene.intersect_through(o, bs.wi, medium);

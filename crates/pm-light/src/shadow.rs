@@ -142,7 +142,7 @@ impl ShadowMaps {
                 (0.5, glam::Vec2::splat(0.5))
             };
             let Some(ls) = light.sample_li(scene, at.p, pm_scene::facing(at.ng, wo), u_sel, u) else { continue };
-            if ls.wi.dot(at.ng) * wo.dot(at.ng) <= 0.0 {
+            if !pm_scene::same_side(at.ng, ls.wi, wo) {
                 continue;
             }
             if map.sees(at) {

@@ -175,7 +175,7 @@ impl<I: IndirectLight> LiveShading<'_, I> {
     fn glossy(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, medium: Option<MediumId>, s: &mut Sampler) -> Rgb {
         let scene = self.light.scene;
         let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return Rgb::ZERO };
-        if bs.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+        if !pm_scene::same_side(hit.ng, bs.wi, wo) {
             return Rgb::ZERO;
         }
         let o = scene.offset_origin(hit.p, hit.ng, bs.wi);

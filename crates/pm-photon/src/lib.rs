@@ -458,7 +458,7 @@ pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Samp
     let u = s.next_2d();
     let uc = s.next_1d();
     let bs = bsdf.sample(wo, hit.ns, u, uc)?;
-    let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
+    let same_side = pm_scene::same_side(hit.ng, bs.wi, wo);
     if same_side == bs.transmitted {
         return None;
     }

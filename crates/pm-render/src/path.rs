@@ -287,7 +287,7 @@ impl Path {
         let u = s.next_2d();
         let uc = s.next_1d();
         let bs = bsdf.sample(wo, hit.ns, u, uc)?;
-        let same_side = bs.wi.dot(hit.ng) * wo.dot(hit.ng) > 0.0;
+        let same_side = pm_scene::same_side(hit.ng, bs.wi, wo);
         if same_side == bs.transmitted {
             return None;
         }

@@ -60,6 +60,15 @@ pub fn facing(n: Vec3, w: Vec3) -> Vec3 {
     if n.dot(w) < 0.0 { -n } else { n }
 }
 
+/// Whether directions `a` and `b` lie on the same side of the surface whose
+/// geometric normal is `ng` (strictly: neither grazes it). A direction sampled
+/// about a shading normal can point through the geometric surface: light does
+/// not pass that way, so every scattering and light sample is checked with this.
+#[inline]
+pub fn same_side(ng: Vec3, a: Vec3, b: Vec3) -> bool {
+    a.dot(ng) * b.dot(ng) > 0.0
+}
+
 /// A ray prepared for many triangle tests: the axis permutation that makes the
 /// direction's largest component z, and the shear that maps the direction onto +z,
 /// computed once per ray as Woop, Benthin and Wald (2013, section 3) intend rather

@@ -33,7 +33,7 @@ pub use camera::{Camera, CameraRays};
 pub use environment::{
     Environment, EnvironmentSample, EnvironmentSource, EnvironmentSpec, direction_to_uv, uv_to_direction,
 };
-pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin};
+pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin, same_side};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{
     AreaPoint, EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff,

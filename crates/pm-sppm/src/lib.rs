@@ -653,7 +653,7 @@ impl<'a> Sppm<'a> {
                 }
             }
             let Some(bs) = bsdf.sample(wo, hit.ns, s.next_2d(), s.next_1d()) else { return path };
-            if !specular && bs.wi.dot(hit.ng) * wo.dot(hit.ng) <= 0.0 {
+            if !specular && !pm_scene::same_side(hit.ng, bs.wi, wo) {
                 return path;
             }
             beta *= bs.radiance_weight();

@@ -203,7 +203,7 @@ fn gather_radiance<G: PhotonRecord>(
             let u = s.next_2d();
             let uc = s.next_1d();
             let Some(bs) = bsdf.sample(-d, hit.ns, u, uc) else { return (l, first_t) };
-            if glossy && bs.wi.dot(hit.ng) * (-d).dot(hit.ng) <= 0.0 {
+            if glossy && !pm_scene::same_side(hit.ng, bs.wi, -d) {
                 return (l, first_t);
             }
             beta *= bs.radiance_weight();
@@ -249,7 +249,6 @@ pub(crate) fn glossy_gather<G: PhotonRecord>(
     let scene = ctx.scene;
     let rays = ctx.cfg.glossy_rays;
     ctx.counters.gather_rays.fetch_add(rays as u64, Relaxed);
-    let side = wo.dot(hit.ng);
     let mut sum = Rgb::ZERO;
     for _ in 0..rays {
         let u = s.next_2d();
@@ -257,7 +256,7 @@ pub(crate) fn glossy_gather<G: PhotonRecord>(
         let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { continue };
         // A direction through the geometric surface (a shading normal's artefact)
         // finds nothing.
-        if bs.wi.dot(hit.ng) * side <= 0.0 {
+        if !pm_scene::same_side(hit.ng, bs.wi, wo) {
             continue;
         }
         let o = scene.offset_origin(hit.p, hit.ng, bs.wi);
