@@ -36,9 +36,7 @@ impl LiveMethod {
             LiveMethod::Ispm => crate::Agreement { mean: ISPM_MEAN, worst_block: ISPM_BLOCK },
         }
     }
-}
 
-impl LiveMethod {
     /// True when its frames keep caustics (light that reached a surface through
     /// mirrors and glass only) in a layer of their own, as the batch methods do;
     /// the vertex method's corner estimates take every photon, so its caustics
@@ -130,9 +128,7 @@ impl LiveParams {
         v.extend(self.ispm.to_args());
         v
     }
-}
 
-impl LiveParams {
     /// Frames after which a still scene's frame stops improving by what the method
     /// accumulates: the vertex method's ring buffer full (total / per_frame
     /// frames), one frame for the image-space method (each frame shoots its own
