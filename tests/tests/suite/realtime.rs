@@ -104,6 +104,20 @@ fn ispm_follows_an_animated_blender_room() {
     }
 }
 
+/// The Blender room's frames that are judged, and their size [pixels].
+const JUDGED: [u32; 4] = [0, 12, 24, 36];
+const SIZE: u32 = 128;
+
+/// The path tracer's images of the Blender room at the judged frames' times,
+/// rendered once for both methods' tests.
+fn blender_room_references() -> &'static [pm_image::Layers] {
+    static REFERENCES: std::sync::OnceLock<Vec<pm_image::Layers>> = std::sync::OnceLock::new();
+    REFERENCES.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        JUDGED.map(|frame| path_traced_at(dir.path(), &blender_room(), frame as f32 / 24.0, SIZE, 256)).to_vec()
+    })
+}
+
 /// Frames 0, 12, 24 and 36 of the Blender room drawn by `method` at 128 x 128, each
 /// with its agreement (8 x 8 blocks) against the path tracer at that frame's time,
 /// leaving out the lamp's pixels and the image's edges (`edges`).
@@ -111,13 +125,12 @@ fn against_the_path_tracer_on_the_blender_room(
     method: pm_methods::live::LiveMethod,
 ) -> Vec<(u32, pm_image::accuracy::Agreement)> {
     let dir = tempfile::tempdir().unwrap();
-    let (scene, size) = (blender_room(), 128);
-    live_frames(dir.path(), &scene, method, size, 37);
-    [0u32, 12, 24, 36]
+    let size = SIZE;
+    live_frames(dir.path(), &blender_room(), method, size, JUDGED[3] + 1);
+    JUDGED
         .into_iter()
-        .map(|frame| {
-            let t = frame as f32 / 24.0;
-            let reference = path_traced_at(dir.path(), &scene, t, size, 256);
+        .zip(blender_room_references())
+        .map(|(frame, reference)| {
             let ours = pm_image::read_exr(&dir.path().join(format!("frames/{frame:04}.exr"))).unwrap();
             let (a, b) = (ours.pixels(None), reference.pixels(None));
             let keep: Vec<bool> = keep_mask(&b, size as usize, size as usize, Some(5.0))
