@@ -33,8 +33,9 @@ pm_params::params! {
         /// Texels per side of each face of a light's bounce map (6 x res^2 directions
         /// for a point light; directional and area lights shoot as many samples;
         /// lights share texels by power). 64 rather than 48: with the volumes below,
-        /// Blender's animated room's frames are 6.6-8.2% block RMS off the path
-        /// tracer at 64 and 8.5-11.6% at 48 (BENCHMARKS.md, issue 53).
+        /// Blender's animated room's frames are 7.3-8.7% block RMS off the path
+        /// tracer at 64; 80 takes them to 6.5-8.1% for 1.5 times the frame time
+        /// (BENCHMARKS.md, issue 53).
         bounce_res: u32 = 64 => between(1, 4096);
         /// Photons stored per path after the bounce map (1: one indirect bounce). The
         /// default traces until more stop paying: on cornell_spheres the image's mean
@@ -43,16 +44,19 @@ pm_params::params! {
         bounces: u32 = 8 => between(1, 64);
         /// Kernel radius of a path of density 1, as a fraction of the scene diagonal;
         /// a path of density ρ gets radius r / sqrt(ρ) (one Lambertian bounce:
-        /// ρ ≈ albedo / 1000, so a radius of about 0.07 to 0.09 of the diagonal,
-        /// clamped to the largest). Larger volumes hold more photons: at 0.001 and
-        /// at most 0.03, the volumes of Blender's room held about 30 photons each
-        /// and its frames were splotched (two seeds 25% block RMS apart).
-        kernel_radius_rel_diag: f32 = 0.002 => above(0.0);
-        /// Smallest kernel radius, fraction of the diagonal.
+        /// ρ ≈ albedo / 1000, so about 0.05 to 0.07 of the diagonal, clamped to
+        /// the largest). Larger volumes hold more photons: at 0.001 and at most
+        /// 0.03, the volumes of Blender's room held about 30 photons each and its
+        /// frames were splotched (two seeds 25% block RMS apart). At 0.002 and at
+        /// most 0.06 they were smoother still, but the ceiling around a lamp 2 mm
+        /// below it glowed (the differential checker's seed 23897, scene 9).
+        kernel_radius_rel_diag: f32 = 0.0015 => above(0.0);
+        /// Smallest kernel radius, fraction of the diagonal (also every photon's
+        /// under a cover: [`KernelShape::radii`]).
         kernel_min_rel_diag: f32 = 0.01 => above(0.0);
         /// Largest kernel radius, fraction of the diagonal (most indirect photons
         /// have it).
-        kernel_max_rel_diag: f32 = 0.06 => above(0.0);
+        kernel_max_rel_diag: f32 = 0.05 => above(0.0);
         /// Kernel thickness along the photon's surface normal over its radius in the
         /// surface plane (r_z / r_xy, section 5.1).
         kernel_minor: f32 = 0.25 => above_up_to(0.0, 1.0);
