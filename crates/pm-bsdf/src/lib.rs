@@ -75,6 +75,21 @@ pub enum Bsdf {
     },
 }
 
+/// The glTF dielectric's two parts seen from one direction ([`Bsdf::layers`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Layers {
+    /// What the diffuse base reflects of evenly arriving light, per channel:
+    /// rho (1 - E_o).
+    pub base_albedo: Rgb,
+    /// The GGX layer alone, as a conductor of the layer's f0 and alpha.
+    pub layer: Bsdf,
+    /// The layer's weight (specularFactor) multiplying `layer`'s f.
+    pub layer_weight: f32,
+    /// E_o: the share of evenly arriving light the layer reflects toward the
+    /// direction (its weight included).
+    pub layer_albedo: f32,
+}
+
 /// A sampled scattering direction.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
@@ -138,7 +153,7 @@ impl Bsdf {
     /// renderers sample the lobe for it (Jensen 2001, section 9.2: glossy
     /// reflection by sampling the BSDF, the photon map read at the rays' hits)
     /// instead of reading an irradiance. Treated as diffuse with
-    /// [`Self::diffuse_albedo`] it took a rough metal box's indirect light 30% off
+    /// [`Self::albedo`] it took a rough metal box's indirect light 30% off
     /// in 8 x 8 blocks (the differential checker's scenes, issue 53). The glTF
     /// dielectric's lobe over its diffuse base is not glossy in this sense: the
     /// base reflects most of the light.
@@ -146,15 +161,49 @@ impl Bsdf {
         matches!(self, Bsdf::Conductor { .. })
     }
 
-    /// Diffuse-like albedo used to turn irradiance E into outgoing radiance
-    /// L = albedo / pi * E where a full BSDF evaluation is not wanted (Christensen
-    /// 1999 section 2.2; the "radiance estimate" of final-gather ray hits). Exact for
-    /// Lambert; for glossy surfaces it is the directional albedo at normal incidence,
-    /// an approximation that ignores the lobe's shape.
-    pub fn diffuse_albedo(&self) -> Rgb {
+    /// The glTF dielectric ([`Bsdf::Plastic`]) seen from `wo` as its two parts, for
+    /// renderers that read an irradiance for diffuse light: its base, which sends
+    /// `base_albedo` / pi x E toward `wo` under irradiance E arriving evenly
+    /// (rho (1 - E_o), E_o the layer's directional albedo at `wo`), and its GGX
+    /// layer, whose reflection depends on where the light comes from and is to be
+    /// sampled: `layer` x `layer_weight` is exactly the layer's term of
+    /// [`Self::f`]. None for every other model.
+    ///
+    /// Read whole as [`Self::albedo`] / pi x E at the eye, a room of Blender's default
+    /// materials came out 3% too bright in its indirect light: at grazing views
+    /// the layer reflects the dim light near the horizon, not the hemisphere's
+    /// mean (issue 53's material room; BENCHMARKS.md).
+    pub fn layers(&self, wo: Vec3, n: Vec3) -> Option<Layers> {
+        let Bsdf::Plastic { rho, alpha, f0, weight } = *self else { return None };
+        let cos_o = wo.dot(n).abs().min(1.0);
+        let layer_albedo = weight * albedo::layer_albedo(f0.max_element(), cos_o, alpha);
+        Some(Layers {
+            base_albedo: rho * (1.0 - layer_albedo),
+            layer: Bsdf::Conductor { f0, alpha },
+            layer_weight: weight,
+            layer_albedo,
+        })
+    }
+
+    /// Directional albedo toward `wo` under evenly arriving light (normal `n`): the
+    /// factor that turns irradiance E into outgoing radiance L = albedo / pi x E
+    /// where a full BSDF evaluation is not wanted (Christensen 1999 section 2.2: the
+    /// "radiance estimate" of final-gather ray hits). Exact for Lambert, and for the
+    /// glTF dielectric under even light: rho (1 - E_o) + E_o, E_o its layer's
+    /// directional albedo at `wo` ([`Self::layers`]; tinted by the layer's f0). A
+    /// conductor's is f0, which ignores its lobe's shape ([`Self::is_glossy`]
+    /// surfaces are sampled instead). Read with E_o = f0 at every angle, the
+    /// dielectric's took the batch pipeline's gather hits 1.6% bright on a room of
+    /// Blender's default materials (issue 53; BENCHMARKS.md).
+    pub fn albedo(&self, wo: Vec3, n: Vec3) -> Rgb {
         match *self {
             Bsdf::Lambert { rho } => rho,
-            Bsdf::Plastic { rho, f0, weight, .. } => rho * (1.0 - weight * f0.max_element()) + f0 * weight,
+            Bsdf::Plastic { f0, .. } => {
+                let Some(l) = self.layers(wo, n) else { return Rgb::ZERO };
+                let m = f0.max_element();
+                let tint = if m > 0.0 { f0 / m } else { Rgb::ONE };
+                l.base_albedo + tint * l.layer_albedo
+            }
             Bsdf::Conductor { f0, .. } => f0,
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
         }

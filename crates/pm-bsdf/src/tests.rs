@@ -181,3 +181,33 @@ fn radiance_weights_scale_by_the_relative_index_and_cancel_in_and_out() {
     let thin = Bsdf::Glass { eta: 1.5, tint: Rgb::ONE, thin: true };
     assert_eq!(thin.sample(wo, n, glam::Vec2::splat(0.5), 1.0 - f32::EPSILON).unwrap().eta, 1.0);
 }
+
+#[test]
+fn the_dielectric_splits_into_its_base_and_its_layer_without_losing_light() {
+    // Under evenly arriving light the two parts reflect what the whole does, and
+    // so does `albedo`: base_albedo + layer_weight x the layer's albedo = the
+    // dielectric's albedo,
+    // at every view, grazing ones included (where the layer takes the most).
+    for bsdf in [
+        Bsdf::Plastic { rho: Rgb::new(0.75, 0.4, 0.1), alpha: 1.0, f0: Rgb::splat(0.04), weight: 1.0 },
+        Bsdf::Plastic { rho: Rgb::new(0.75, 0.4, 0.1), alpha: 0.09, f0: Rgb::splat(0.04), weight: 1.0 },
+        Bsdf::Plastic { rho: Rgb::splat(0.3), alpha: 0.36, f0: Rgb::splat(0.08), weight: 0.5 },
+    ] {
+        for wo in [Vec3::Z, Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.97, 0.0, 0.243).normalize()] {
+            let whole = albedo_quadrature(&bsdf, wo, 1 << 18);
+            let l = bsdf.layers(wo, n_up()).unwrap();
+            let layer = albedo_quadrature(&l.layer, wo, 1 << 18) * l.layer_weight;
+            let parts = l.base_albedo + layer;
+            assert!((parts - whole).abs().max_element() < 0.01, "{bsdf:?} wo={wo}: {parts} against {whole}");
+            let albedo = bsdf.albedo(wo, n_up());
+            assert!((albedo - whole).abs().max_element() < 0.01, "{bsdf:?} wo={wo}: albedo {albedo} against {whole}");
+            // E_o is what the layer reflects.
+            assert!(
+                (layer.max_element() - l.layer_albedo).abs() < 0.01,
+                "{bsdf:?} wo={wo}: {layer} against {}",
+                l.layer_albedo
+            );
+        }
+    }
+    assert!(Bsdf::Lambert { rho: Rgb::ONE }.layers(Vec3::Z, n_up()).is_none());
+}

@@ -145,7 +145,7 @@ impl Pixel {
             Seen::Surface(s) => Pixel {
                 p: s.p,
                 n: s.n,
-                albedo_pi: s.lambert.unwrap_or_else(|| s.bsdf.diffuse_albedo() / PI),
+                albedo_pi: s.lambert.unwrap_or_else(|| s.bsdf.albedo(s.wo, s.n) / PI),
                 kind: if s.lambert.is_some() { LAMBERT } else { 0 },
             },
         }

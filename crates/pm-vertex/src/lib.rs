@@ -220,8 +220,8 @@ impl CornerLight<'_> {
 impl IndirectLight for CornerLight<'_> {
     const SPLATTED: bool = false;
 
-    fn radiance(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, _: glam::Vec3) -> Rgb {
-        bsdf.diffuse_albedo() * self.irradiance_at(hit.tri, hit.b) / PI
+    fn radiance(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: glam::Vec3) -> Rgb {
+        bsdf.albedo(wo, hit.ns) * self.irradiance_at(hit.tri, hit.b) / PI
     }
 }
 

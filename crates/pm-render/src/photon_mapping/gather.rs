@@ -222,14 +222,15 @@ fn gather_radiance<G: PhotonRecord>(
         } else {
             lookup_irradiance(ctx, hit.p, n, scratch)
         };
-        return (l + beta * bsdf.diffuse_albedo() * e / PI, first_t);
+        return (l + beta * bsdf.albedo(-d, hit.ns) * e / PI, first_t);
     }
     ctx.counters.terminated_paths.fetch_add(1, Relaxed);
     (l, first_t)
 }
 
-/// Indirect radiance a glossy surface ([`Bsdf::is_glossy`]) reflects toward `wo`
-/// [W sr^-1 m^-2]: `rays` directions sampled from its BSDF, each weighted by
+/// Indirect radiance a glossy surface ([`Bsdf::is_glossy`], or a dielectric's GGX
+/// layer: [`Bsdf::layers`]) reflects toward `wo` [W sr^-1 m^-2]: `rays` directions
+/// sampled from its BSDF, each weighted by
 /// f cos / pdf and carrying what a final-gather ray along it finds
 /// ([`gather_radiance`]: the photon maps at its first non-specular hit, emission
 /// left out). Jensen's glossy term (2001, section 9.2): the irradiance cache and the
@@ -242,12 +243,13 @@ pub(crate) fn glossy_gather<G: PhotonRecord>(
     hit: &Hit,
     bsdf: &Bsdf,
     wo: Vec3,
+    rays: u32,
     medium: Option<MediumId>,
     s: &mut Sampler,
     scratch: &mut Scratch,
 ) -> Rgb {
     let scene = ctx.scene;
-    let rays = ctx.cfg.glossy_rays;
+    let rays = rays.max(1);
     ctx.counters.gather_rays.fetch_add(rays as u64, Relaxed);
     let mut sum = Rgb::ZERO;
     for _ in 0..rays {

@@ -51,7 +51,7 @@ impl IrradianceCache {
                         if cfg.indirect_threshold > 0.0 {
                             let bsdf = pm.scene.bsdf(&hit);
                             let direct = pm.light.direct(&hit, &bsdf, wo, &mut s, cfg.light_samples, medium);
-                            if cheap_indirect(pm, hit.p, ng, bsdf.diffuse_albedo(), direct, &mut scratch).is_some() {
+                            if cheap_indirect(pm, hit.p, ng, bsdf.albedo(wo, hit.ns), direct, &mut scratch).is_some() {
                                 return None;
                             }
                         }
