@@ -6,7 +6,7 @@ use pm_methods::{Input, Method, Settings};
 use pm_photon::{Budget, LightSelector, MapPass, TraceConfig};
 use pm_render::RenderParams;
 use pm_scene::Scene;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Path of a scene in the repository's `scenes/` folder.
 pub fn scene_path(name: &str) -> PathBuf {
@@ -47,7 +47,8 @@ pub fn bin_dir() -> PathBuf {
 }
 
 /// What a user runs against the independent estimator: `cargo xtask run` on the
-/// repository's pipeline.toml with only the scene (from `scenes/`), the image
+/// repository's pipeline.toml with only the scene (from `scenes/`, or a path
+/// relative to it), the image
 /// size (`size` x `size`) and what `edit` changes, into `dir/NAME`; and
 /// `photon-render --mode path` at `spp` a pixel with the same scene options.
 /// Returns the pipeline's output folder, its image and the path tracer's.
@@ -59,7 +60,7 @@ pub fn defaults_and_path_tracer(
     edit: impl FnOnce(&mut pm_pipeline::Pipeline),
 ) -> (PathBuf, pm_image::Layers, pm_image::Layers) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let name = scene.trim_end_matches(".gltf");
+    let name = Path::new(scene).file_stem().unwrap().to_str().unwrap();
     let mut p = pm_pipeline::Pipeline::load(&root.join("pipeline.toml")).unwrap();
     p.scene = scene_path(scene);
     (p.render.width, p.render.height) = (size, size);

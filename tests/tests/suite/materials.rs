@@ -664,3 +664,39 @@ fn every_material_feature_agrees_with_the_path_tracer() {
     let (path, _) = pm_tests::render(&scene, &maps, &cfg);
     pm_tests::assert_components_agree("materials", &full, &path);
 }
+
+/// Blender's material model as a user exports it (tests/scenes/blender_materials,
+/// made by tests/blender/material_room.py with Blender's own glTF exporter): a
+/// room of Principled BSDFs (glTF's dielectric with its specular layer) lit by
+/// an emissive quad, an emissive panel whose Emission Color is an image texture
+/// with a dark border texel, a base-colour-textured sphere, a rough metal one
+/// and a (thin-walled: no KHR_materials_volume) glass one. `cargo xtask run` on
+/// defaults at 64 x 64 against the path tracer (512 a pixel), the light's pixels
+/// left out: the worst 8 x 8 block within the batch pipeline's 15%, and the mean
+/// within 1.2%, tighter than its 2% because this is the case that found a bias.
+///
+/// The pipeline read the dielectric as (rho (1 - f0) + f0) / pi x irradiance, at
+/// the eye and at gather rays' hits: this room came out +2.1% at 64 x 64 (+1.9%
+/// at 128 x 128, its indirect layer +5%; with the spheres taken out +2.1%, and
+/// +0.3% with the walls Lambertian), the checker's "+3% indirect on rooms"
+/// failure class. At the eye its GGX layer is now sampled
+/// ([`pm_bsdf::Bsdf::layers`]), and irradiance is read with the directional
+/// albedo at the actual view ([`pm_bsdf::Bsdf::albedo`]): +0.64% (worst block
+/// 4.6%).
+/// Against Cycles, the panel's edge was 26% off in 8 x 8 blocks (issue 53):
+/// Cycles filters 8-bit sRGB texels before decoding them, we (and glTF viewers)
+/// after; given decoded float texels, Cycles agrees with our path tracer within
+/// 2% in every block of the panel (BENCHMARKS.md).
+#[test]
+fn the_pipeline_on_defaults_agrees_with_the_path_tracer_on_blenders_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = "../tests/scenes/blender_materials/blender_materials.gltf";
+    let (_, ours, reference) = pm_tests::defaults_and_path_tracer(dir.path(), scene, 64, 512, |_| {});
+    // The ceiling light's pixels (radiance 12) left out, the panel's (6 at most) kept.
+    let bright: Vec<bool> = reference.pixels(None).iter().map(|p| p.max_element() > 8.0).collect();
+    let keep = pm_image::accuracy::left_out_with_neighbours(&bright, 64, 64);
+    let a = pm_image::accuracy::agreement(&ours.pixels(None), &reference.pixels(None), 64, &keep, 8);
+    eprintln!("blender_materials full: {a}");
+    assert!(a.mean.abs() < 0.012, "{a}");
+    assert!(a.worst_block < 0.15, "{a}");
+}
