@@ -2,15 +2,17 @@
 Blender's own glTF exporter (issue 53's "materials from Blender" case).
 
 A 4 x 2.6 x 4 m room (faces wound inward), red left and green right walls, an
-emissive quad under the ceiling for its light, and on the floor and walls what a Blender user's Principled
-BSDF materials export to:
+emissive quad under the ceiling for its light, and on the floor and walls what a
+Blender user's Principled BSDF materials export to:
 
 - an emissive panel on the back wall whose Emission Color is an image texture
   (a 16 x 8 texel pattern, linear interpolation; Emission Strength 6), exported as
   emissiveTexture with KHR_materials_emissive_strength;
 - a sphere with a base-colour image texture (roughness 0.6);
 - a rough metal sphere (metallic 1, roughness 0.3);
-- a clear glass sphere (transmission 1, roughness 0, IOR 1.5).
+- a clear glass sphere (transmission 1, roughness 0, IOR 1.5). The exporter writes
+  no KHR_materials_volume for it, so glTF makes it thin-walled (a bubble), while
+  Cycles renders a solid ball: compare the rest of the image with Cycles.
 
 Run with Blender as a Python module (../shared/CRATES.md):
 
