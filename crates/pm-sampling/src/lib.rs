@@ -903,6 +903,13 @@ mod tests {
             [Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.5, -0.5, 2.5), Vec3::new(0.0, 1.0, 1.5)],
             [Vec3::new(-0.05, 0.01, 0.02), Vec3::new(1.0, 0.0, 0.5), Vec3::new(0.3, 1.0, 0.05)],
             [Vec3::new(0.2, -0.3, 0.01), Vec3::new(2.0, 0.1, 0.05), Vec3::new(0.5, 1.5, 0.3)],
+            // Half of a 0.24 m light seen from 13 mm and 2 mm away (nearly half the
+            // hemisphere, angles near pi: where Arvo's map is worst conditioned;
+            // the differential checker's lights just under a ceiling, issue 53).
+            [Vec3::new(-0.12, -0.12, 0.013), Vec3::new(0.12, -0.12, 0.013), Vec3::new(0.12, 0.12, 0.013)],
+            [Vec3::new(-0.1, -0.14, 0.013), Vec3::new(0.14, -0.14, 0.013), Vec3::new(0.14, 0.1, 0.013)],
+            [Vec3::new(-0.2, -0.01, 0.013), Vec3::new(0.04, -0.01, 0.013), Vec3::new(0.04, 0.23, 0.013)],
+            [Vec3::new(-0.12, -0.12, 0.002), Vec3::new(0.12, -0.12, 0.002), Vec3::new(0.12, 0.12, 0.002)],
         ];
         for t in tris {
             let (a, b, c) = (t[0].normalize(), t[1].normalize(), t[2].normalize());
