@@ -596,7 +596,7 @@ impl Light {
         if cos_l <= 0.0 {
             return None;
         }
-        Some(LightSample { wi, dist, li: q.le, pdf: dist2 / (cos_l * q.area), delta: false })
+        Some(LightSample { wi, dist, li: q.le, pdf: dist2 / (cos_l * q.area), delta: false, normal: q.ng })
     }
 
     /// Pick a point on an area light: a triangle from the light's cdf (by area, or by
@@ -775,6 +775,10 @@ pub struct LightSample {
     /// True for point, spot and parallel directional lights (no MIS with BSDF
     /// sampling).
     pub delta: bool,
+    /// Geometric normal of the light's surface at the sampled point (either side):
+    /// where a shadow ray leaving from an offset origin meets it; zero for lights
+    /// without a surface.
+    pub normal: Vec3,
 }
 
 impl Light {
@@ -817,6 +821,7 @@ impl Light {
                     li: le,
                     pdf: tri.area() / (per_pick * omega),
                     delta: false,
+                    normal: ng,
                 })
             }
             LightKind::Point { position, intensity } => {
@@ -824,7 +829,14 @@ impl Light {
                 let dist2 = d.length_squared();
                 (dist2 > 0.0).then(|| {
                     let dist = dist2.sqrt();
-                    LightSample { wi: d / dist, dist, li: *intensity / dist2, pdf: 1.0, delta: true }
+                    LightSample {
+                        wi: d / dist,
+                        dist,
+                        li: *intensity / dist2,
+                        pdf: 1.0,
+                        delta: true,
+                        normal: Vec3::ZERO,
+                    }
                 })
             }
             LightKind::Spot { position, direction, intensity, cos_inner, cos_outer } => {
@@ -836,15 +848,36 @@ impl Light {
                 let dist = dist2.sqrt();
                 let wi = d / dist;
                 let f = spot_falloff((-wi).dot(*direction), *cos_inner, *cos_outer);
-                (f > 0.0).then(|| LightSample { wi, dist, li: *intensity * (f / dist2), pdf: 1.0, delta: true })
+                (f > 0.0).then(|| LightSample {
+                    wi,
+                    dist,
+                    li: *intensity * (f / dist2),
+                    pdf: 1.0,
+                    delta: true,
+                    normal: Vec3::ZERO,
+                })
             }
             LightKind::Directional { direction, irradiance, cap, .. } => {
                 if *cap > 0.0 {
                     let wi = to_world(uniform_cap(u, *cap), -*direction);
                     let li = sun_radiance(*irradiance, *cap);
-                    Some(LightSample { wi, dist: f32::INFINITY, li, pdf: uniform_cap_pdf(*cap), delta: false })
+                    Some(LightSample {
+                        wi,
+                        dist: f32::INFINITY,
+                        li,
+                        pdf: uniform_cap_pdf(*cap),
+                        delta: false,
+                        normal: Vec3::ZERO,
+                    })
                 } else {
-                    Some(LightSample { wi: -*direction, dist: f32::INFINITY, li: *irradiance, pdf: 1.0, delta: true })
+                    Some(LightSample {
+                        wi: -*direction,
+                        dist: f32::INFINITY,
+                        li: *irradiance,
+                        pdf: 1.0,
+                        delta: true,
+                        normal: Vec3::ZERO,
+                    })
                 }
             }
             LightKind::Environment { env, portals, .. } if !portals.is_empty() => {
@@ -861,7 +894,14 @@ impl Light {
                     (portal.point(u) - p).normalize_or_zero()
                 };
                 let pdf = self.pdf_escaped(p, n, wi);
-                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: env.radiance(wi), pdf, delta: false })
+                (pdf > 0.0).then(|| LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    li: env.radiance(wi),
+                    pdf,
+                    delta: false,
+                    normal: Vec3::ZERO,
+                })
             }
             LightKind::Environment { env, .. } => {
                 let (wi, li, pdf) = if env.is_constant() && n == Vec3::ZERO {
@@ -875,7 +915,14 @@ impl Light {
                     let es = env.sample(u)?;
                     (es.wi, es.l, es.pdf)
                 };
-                (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li, pdf, delta: false })
+                (pdf > 0.0).then_some(LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    li,
+                    pdf,
+                    delta: false,
+                    normal: Vec3::ZERO,
+                })
             }
         }
     }
