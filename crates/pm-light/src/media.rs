@@ -63,7 +63,7 @@ impl DirectLighting<'_> {
             if !(f > 0.0 && p_l > 0.0) {
                 continue;
             }
-            let shadow = crate::direct::shadow_length(x, x, &ls);
+            let shadow = crate::direct::shadow_length(scene, x, x, &ls);
             let tr = scene.transmittance_along(x, ls.wi, shadow, medium);
             sum += m.transmittance(t) * m.sigma_s * ls.li * tr * (f / p_l);
         }
