@@ -1,9 +1,9 @@
 """Make tests/scenes/blender_room: a room as a Blender user builds one, exported by
 Blender's own glTF exporter (issue 53's animated room).
 
-A 4 x 2.6 x 4 m room (a cube seen from inside: its faces' normals flipped), a red
-left and a green right wall, a point lamp circling under the ceiling and a box
-sliding across the floor (LINEAR keys, 24 fps, 2 s), a camera in the front wall.
+The room of room.py (a red left and a green right wall, a camera in the front
+wall), a point lamp circling under the ceiling and a box sliding across the floor
+(LINEAR keys, 24 fps, 2 s).
 Run with Blender as a Python module (../shared/CRATES.md):
 
     target/bpy/bin/python tests/blender/animated_room.py tests/scenes/blender_room
@@ -17,24 +17,7 @@ import os
 import sys
 
 import bpy
-
-
-def material(name, rgb):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*rgb, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    return m
-
-
-def quad(name, corners, mat):
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
-    mesh.materials.append(mat)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.collection.objects.link(obj)
-    return obj
+import room
 
 
 def main(out, cycles_frames):
@@ -43,18 +26,7 @@ def main(out, cycles_frames):
     scene.render.fps = 24
     scene.frame_start, scene.frame_end = 0, 48
 
-    white = material("white", (0.75, 0.75, 0.75))
-    red = material("red", (0.7, 0.08, 0.06))
-    green = material("green", (0.1, 0.6, 0.1))
-    # Blender is Z-up; the exporter turns it into glTF's Y-up.
-    x, y, z = 2.0, 2.0, 2.6
-    # Faces wound to face into the room (what "flip normals" on a cube gives).
-    quad("floor", [(-x, -y, 0), (x, -y, 0), (x, y, 0), (-x, y, 0)], white)
-    quad("ceiling", [(-x, -y, z), (-x, y, z), (x, y, z), (x, -y, z)], white)
-    quad("back", [(-x, y, 0), (x, y, 0), (x, y, z), (-x, y, z)], white)
-    quad("front", [(-x, -y, 0), (-x, -y, z), (x, -y, z), (x, -y, 0)], white)
-    quad("left", [(-x, -y, 0), (-x, y, 0), (-x, y, z), (-x, -y, z)], red)
-    quad("right", [(x, -y, 0), (x, -y, z), (x, y, z), (x, y, 0)], green)
+    white = room.walls()
 
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-1.0, 0.6, 0.4))
     box = bpy.context.active_object
@@ -80,14 +52,7 @@ def main(out, cycles_frames):
             for k in fc.keyframe_points:
                 k.interpolation = "LINEAR"
 
-    cam_data = bpy.data.cameras.new("camera")
-    cam_data.lens_unit = "FOV"
-    cam_data.angle = math.radians(70.0)
-    cam = bpy.data.objects.new("camera", cam_data)
-    bpy.context.collection.objects.link(cam)
-    cam.location = (0.0, -1.95, 1.3)
-    cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)
-    scene.camera = cam
+    room.camera(scene)
 
     os.makedirs(out, exist_ok=True)
     bpy.ops.export_scene.gltf(
@@ -100,18 +65,8 @@ def main(out, cycles_frames):
     )
 
     if cycles_frames:
-        world = bpy.data.worlds.new("black")
-        world.use_nodes = True
-        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-        scene.world = world
-        scene.render.engine = "CYCLES"
-        scene.cycles.device = "CPU"
-        scene.cycles.samples = 512
-        scene.cycles.max_bounces = 16
-        scene.cycles.diffuse_bounces = 16
-        scene.view_settings.view_transform = "Standard"
+        room.cycles(scene, 512)
         scene.render.resolution_x = scene.render.resolution_y = 128
-        scene.render.image_settings.file_format = "OPEN_EXR"
         for f in cycles_frames:
             scene.frame_set(f)
             scene.render.filepath = os.path.join(out, f"cycles_{f}.exr")

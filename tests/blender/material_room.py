@@ -1,9 +1,9 @@
 """Make tests/scenes/blender_materials: Blender's material model in a room, exported by
 Blender's own glTF exporter (issue 53's "materials from Blender" case).
 
-A 4 x 2.6 x 4 m room (faces wound inward), red left and green right walls, an
-emissive quad under the ceiling for its light, and on the floor and walls what a
-Blender user's Principled BSDF materials export to:
+The room of room.py (red left and green right walls), an emissive quad under the
+ceiling for its light, and on the floor and walls what a Blender user's Principled
+BSDF materials export to:
 
 - an emissive panel on the back wall whose Emission Color is an image texture
   (a 16 x 8 texel pattern, linear interpolation; Emission Strength 6), exported as
@@ -27,16 +27,8 @@ import os
 import sys
 
 import bpy
-
-
-def principled(name, rgb, roughness=1.0, metallic=0.0):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*rgb, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    bsdf.inputs["Metallic"].default_value = metallic
-    return m, bsdf
+import room
+from room import principled, quad
 
 
 def image(name, w, h, texel, out):
@@ -68,15 +60,6 @@ def textured(m, bsdf, img, socket):
     m.node_tree.links.new(tex.outputs["Color"], bsdf.inputs[socket])
 
 
-def quad(name, corners, mat):
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
-    mesh.materials.append(mat)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.collection.objects.link(obj)
-    return obj
-
-
 def sphere(name, loc, radius, mat):
     bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=radius, location=loc)
     obj = bpy.context.active_object
@@ -91,16 +74,8 @@ def main(out, cycles_px):
     os.makedirs(out, exist_ok=True)
     scene = bpy.context.scene
 
-    white, _ = principled("white", (0.75, 0.75, 0.75))
-    red, _ = principled("red", (0.7, 0.08, 0.06))
-    green, _ = principled("green", (0.1, 0.6, 0.1))
-    x, y, z = 2.0, 2.0, 2.6
-    quad("floor", [(-x, -y, 0), (x, -y, 0), (x, y, 0), (-x, y, 0)], white)
-    quad("ceiling", [(-x, -y, z), (-x, y, z), (x, y, z), (x, -y, z)], white)
-    quad("back", [(-x, y, 0), (x, y, 0), (x, y, z), (-x, y, z)], white)
-    quad("front", [(-x, -y, 0), (-x, -y, z), (x, -y, z), (x, -y, 0)], white)
-    quad("left", [(-x, -y, 0), (-x, y, 0), (-x, y, z), (-x, -y, z)], red)
-    quad("right", [(x, -y, 0), (x, -y, z), (x, y, z), (x, y, 0)], green)
+    room.walls()
+    x, y, z = room.X, room.Y, room.Z
 
     # The emissive panel: 1.6 x 0.8 m, 1 cm in front of the back wall, facing the room.
     # Warm and cool stripes with a dark border texel, so its edge is textured.
@@ -143,14 +118,7 @@ def main(out, cycles_px):
     lz = z - 0.01
     quad("ceiling_light", [(-0.5, -0.5, lz), (-0.5, 0.5, lz), (0.5, 0.5, lz), (0.5, -0.5, lz)], light_mat)
 
-    cam_data = bpy.data.cameras.new("camera")
-    cam_data.lens_unit = "FOV"
-    cam_data.angle = math.radians(70.0)
-    cam = bpy.data.objects.new("camera", cam_data)
-    bpy.context.collection.objects.link(cam)
-    cam.location = (0.0, -1.95, 1.3)
-    cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)
-    scene.camera = cam
+    room.camera(scene)
     # The exporter derives yfov from the render's aspect ratio: square, as ours renders.
     scene.render.resolution_x = scene.render.resolution_y = max(cycles_px, 128)
 
@@ -175,23 +143,7 @@ def main(out, cycles_px):
                 for node in m.node_tree.nodes if m.node_tree else []:
                     if node.type == "TEX_IMAGE" and node.image == img:
                         node.image = decoded
-        world = bpy.data.worlds.new("black")
-        world.use_nodes = True
-        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-        scene.world = world
-        scene.render.engine = "CYCLES"
-        scene.cycles.device = "CPU"
-        scene.cycles.samples = 1024
-        scene.cycles.max_bounces = 16
-        scene.cycles.diffuse_bounces = 16
-        scene.cycles.glossy_bounces = 16
-        scene.cycles.transmission_bounces = 16
-        scene.cycles.caustics_reflective = True
-        scene.cycles.caustics_refractive = True
-        scene.cycles.blur_glossy = 0.0
-        scene.cycles.sample_clamp_indirect = 0.0
-        scene.view_settings.view_transform = "Standard"
-        scene.render.image_settings.file_format = "OPEN_EXR"
+        room.cycles(scene, 1024)
         scene.render.filepath = os.path.join(out, "cycles.exr")
         bpy.ops.render.render(write_still=True)
 
