@@ -291,11 +291,12 @@ pub(crate) fn shadow_length(scene: &pm_scene::Scene, p: Vec3, o: Vec3, ls: &pm_s
     // them on the differential checker's scene 25 of seed 23897 (12% with the
     // scene at the file's origin), and the path tracer, the checks' reference,
     // lost a fifth of the light in the gap (issue 53; BENCHMARKS.md).
+    let along = (o - p).dot(ls.wi);
     let cos = ls.wi.dot(ls.normal);
-    let ahead = if cos.abs() > 1e-6 { (o - p).dot(ls.normal) / cos } else { (o - p).dot(ls.wi) };
+    let ahead = if cos.abs() > 1e-6 { ((o - p).dot(ls.normal) / cos).max(along) } else { along };
     let ulps = far * (16.0 * f32::EPSILON);
-    let end = ls.dist - ahead.max((o - p).dot(ls.wi));
-    if ls.normal == Vec3::ZERO || scene.has_media() || scene.has_index_matched() {
+    let end = ls.dist - ahead;
+    if ls.normal == Vec3::ZERO || scene.rays_walk() {
         return end * (1.0 - 1e-4) - ulps;
     }
     // On a light's surface the end is known to the rounding of its coordinates,

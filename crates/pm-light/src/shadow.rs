@@ -101,7 +101,7 @@ impl ShadowMaps {
     /// length in each medium, which a shadow ray's walk finds
     /// ([`Scene::transmittance_along`]).
     pub fn scene_supports(scene: &Scene) -> bool {
-        !scene.has_media() && !scene.has_index_matched()
+        !scene.rays_walk()
     }
 
     /// True when `light` can have a shadow map: point and spot lights, and area

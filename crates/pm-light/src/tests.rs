@@ -6,14 +6,16 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_scene::{Light, LightKind, Material, Scene, Triangle};
 
+/// The two triangles of quad `q` (corners in order) with material `m`, onto `out`.
+fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32) {
+    out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
+    out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
+}
+
 /// A 4 m floor (y = 0, facing up, reflectance 0.5), a 0.6 m square panel at
 /// y = 1.5 facing down with radiance 3, and `extra` lights.
 fn floor_and_panel(extra: Vec<Light>) -> Scene {
     let v = Vec3::new;
-    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
-        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
-        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
-    };
     let mut tris = Vec::new();
     quad(&mut tris, [v(-2., 0., -2.), v(-2., 0., 2.), v(2., 0., 2.), v(2., 0., -2.)], 0);
     quad(&mut tris, [v(-0.3, 1.5, -0.3), v(0.3, 1.5, -0.3), v(0.3, 1.5, 0.3), v(-0.3, 1.5, 0.3)], 1);
@@ -118,24 +120,15 @@ fn the_power_heuristic_weights_sum_to_one() {
 fn shadow_rays_reach_a_light_just_under_a_ceiling() {
     let v = Vec3::new;
     for shift in [Vec3::ZERO, v(1.4, -6.1, 3.0), v(300.0, 20.0, -200.0)] {
-        let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
-            let q = q.map(|c| c + shift);
-            out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
-            out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
-        };
         let (y_ceiling, y_light, l_e) = (2.0, 2.0 - 0.013245, 19.1);
+        let light_corners =
+            [v(-0.24, y_light, -0.24), v(0.24, y_light, -0.24), v(0.24, y_light, 0.24), v(-0.24, y_light, 0.24)]
+                .map(|c| c + shift);
         let mut tris = Vec::new();
         // Wound to face down.
-        quad(
-            &mut tris,
-            [v(-2., y_ceiling, -2.), v(2., y_ceiling, -2.), v(2., y_ceiling, 2.), v(-2., y_ceiling, 2.)],
-            0,
-        );
-        quad(
-            &mut tris,
-            [v(-0.24, y_light, -0.24), v(0.24, y_light, -0.24), v(0.24, y_light, 0.24), v(-0.24, y_light, 0.24)],
-            1,
-        );
+        let ceiling = [v(-2., y_ceiling, -2.), v(2., y_ceiling, -2.), v(2., y_ceiling, 2.), v(-2., y_ceiling, 2.)];
+        quad(&mut tris, ceiling.map(|c| c + shift), 0);
+        quad(&mut tris, light_corners, 1);
         let mut light = Material::new("light", Bsdf::Lambert { rho: Rgb::ZERO }, Rgb::splat(l_e));
         light.double_sided = true;
         let mats = vec![Material::new("ceiling", Bsdf::Lambert { rho: Rgb::splat(0.5) }, Rgb::ZERO), light];
@@ -146,9 +139,7 @@ fn shadow_rays_reach_a_light_just_under_a_ceiling() {
         for (x, z) in [(0.0, 0.0), (0.2, 0.05)] {
             let start = shift + v(x, y_light + 0.001, z);
             let hit = scene.intersect(start, Vec3::Y, f32::INFINITY).unwrap();
-            let corners =
-                [v(-0.24, y_light, -0.24), v(0.24, y_light, -0.24), v(0.24, y_light, 0.24), v(-0.24, y_light, 0.24)]
-                    .map(|c| c + shift - hit.p);
+            let corners = light_corners.map(|c| c - hit.p);
             let exact = l_e * pm_sampling::polygon_cos_integral(&corners, -Vec3::Y);
             let m = 100_000;
             let mut sum = 0.0f64;
@@ -170,10 +161,6 @@ fn shadow_rays_reach_a_light_just_under_a_ceiling() {
 #[test]
 fn a_cover_just_in_front_of_a_light_blocks_it() {
     let v = Vec3::new;
-    let quad = |out: &mut Vec<Triangle>, q: [Vec3; 4], m: u32| {
-        out.push(Triangle::new([q[0], q[1], q[2]], m).unwrap());
-        out.push(Triangle::new([q[0], q[2], q[3]], m).unwrap());
-    };
     let mut tris = Vec::new();
     quad(&mut tris, [v(-4., 0., -4.), v(-4., 0., 4.), v(4., 0., 4.), v(4., 0., -4.)], 0);
     // The light faces down at y = 5; the cover 0.3 mm below it, a little wider.

@@ -293,6 +293,14 @@ impl Scene {
         self.layout.index_matched
     }
 
+    /// True when a ray's way through the scene is walked: through media that
+    /// attenuate it and index-matched boundaries it passes ([`Self::transmittance_along`],
+    /// [`Self::pass_from_visiting`]). Otherwise its first hit is all there is.
+    #[inline]
+    pub fn rays_walk(&self) -> bool {
+        self.has_media() || self.layout.index_matched
+    }
+
     /// The medium filling the scene, if any.
     pub fn scene_medium(&self) -> Option<MediumId> {
         self.layout.scene
@@ -334,7 +342,7 @@ impl Scene {
     /// boundary it passes (changing medium there). In a scene without media or
     /// index-matched boundaries, [`Self::occluded`]'s answer as zero or one.
     pub fn transmittance_along(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>) -> Rgb {
-        if !self.has_media() && !self.layout.index_matched {
+        if !self.rays_walk() {
             return if self.occluded(o, d, t_max) { Rgb::ZERO } else { Rgb::ONE };
         }
         let first = self.intersect(o, d, t_max);
@@ -374,7 +382,7 @@ impl Scene {
         medium: Option<MediumId>,
         visit: impl FnMut(Vec3, f32, Option<MediumId>, Rgb),
     ) -> Passage {
-        if !self.has_media() && !self.layout.index_matched {
+        if !self.rays_walk() {
             let t = first.as_ref().map_or(f32::INFINITY, |h| h.t);
             return Passage { hit: first, tr: Rgb::ONE, t, medium };
         }

@@ -413,7 +413,7 @@ fn shade_indirect<G: PhotonRecord>(
         };
     }
     let e = indirect_irradiance(ctx, hit.p, facing(hit.ns, wo), facing(hit.ng, wo), medium, s, scratch);
-    Components { indirect: reflected_indirect(ctx, at, e, s, scratch), ..Default::default() }
+    Components { indirect: reflected_indirect(ctx, at, bsdf.albedo(wo, hit.ns), e, s, scratch), ..Default::default() }
 }
 
 /// The broadest GGX layer (alpha; roughness 0.5) of a glTF dielectric whose
@@ -425,8 +425,8 @@ fn shade_indirect<G: PhotonRecord>(
 const SAMPLED_LAYER_ALPHA: f32 = 0.25;
 
 /// Indirect radiance a surface that is not glossy reflects toward the eye
-/// [W sr^-1 m^-2], its indirect irradiance being `e` [W m^-2]: albedo / pi x E
-/// (Christensen 1999, section 1.3) with the albedo toward `wo`
+/// [W sr^-1 m^-2], its indirect irradiance being `e` [W m^-2]: `albedo` / pi x E
+/// (Christensen 1999, section 1.3), `albedo` being its albedo toward `wo`
 /// ([`Bsdf::albedo`]); a glTF dielectric with a sharp GGX layer
 /// ([`SAMPLED_LAYER_ALPHA`]) has the layer's share sampled as a glossy surface's
 /// is ([`Bsdf::layers`]), with the layer's share of `glossy_rays` (at least one
@@ -434,14 +434,15 @@ const SAMPLED_LAYER_ALPHA: f32 = 0.25;
 fn reflected_indirect<G: PhotonRecord>(
     ctx: &PhotonMapping<G>,
     at: &At,
+    albedo: Rgb,
     e: Rgb,
     s: &mut Sampler,
     scratch: &mut Scratch,
 ) -> Rgb {
     let At { hit, bsdf, wo, medium, .. } = *at;
     let sharp = matches!(*bsdf, Bsdf::Plastic { alpha, .. } if alpha < SAMPLED_LAYER_ALPHA);
-    match bsdf.layers(wo, hit.ns).filter(|_| sharp) {
-        None => bsdf.albedo(wo, hit.ns) * e / PI,
+    match sharp.then(|| bsdf.layers(wo, hit.ns)).flatten() {
+        None => albedo * e / PI,
         Some(layers) => {
             let rays = (ctx.cfg.glossy_rays as f32 * layers.layer_albedo).ceil() as u32;
             let layer = gather::glossy_gather(ctx, hit, &layers.layer, wo, rays, medium, s, scratch);
@@ -495,7 +496,7 @@ fn shade_full<G: PhotonRecord>(
         albedo * e / PI
     } else {
         let e = indirect_irradiance(ctx, hit.p, ns, n, medium, s, scratch);
-        reflected_indirect(ctx, at, e, s, scratch)
+        reflected_indirect(ctx, at, albedo, e, s, scratch)
     };
     Components { direct, caustic, indirect, ..Default::default() }
 }
