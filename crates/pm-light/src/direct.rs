@@ -12,14 +12,29 @@ use pm_sampling::Sampler;
 use pm_scene::{Hit, MediumId, Scene};
 use std::f32::consts::PI;
 
-/// Direct light from the scene's lights, chosen by power: what every integrator
-/// that samples lights shares (the photon-map renderer, its secondary gathers and
-/// the path tracer). Knows nothing about photons.
+/// Direct light from the scene's lights: what every integrator that samples
+/// lights shares (the photon-map renderer, its secondary gathers and the path
+/// tracer). Knows nothing about photons.
+///
+/// A scene's few delta lights (point, spot, a sun without a size: at most
+/// [`EVERY_DELTA_LIGHT`]) are each taken once at every estimate, with one shadow
+/// ray and no noise but their shadow's edge; the light samples choose among the
+/// other lights by power. Chosen by power among all, a sun took nearly every
+/// sample of an open room's, since its power counts the whole scene's disc, and
+/// left the ceiling light a sample in 30: the walls' direct light 55% off in 8 x 8
+/// blocks at the pipeline's four samples a pixel (issue 53's checker, scene 35 of
+/// seed 23897; BENCHMARKS.md).
 pub struct DirectLighting<'a> {
     /// The scene.
     pub scene: &'a Scene,
-    /// Light choice by power (the same as the photon tracer's).
+    /// Light choice by power among all lights (the same as the photon tracer's):
+    /// for single scattering in media.
     pub lights: LightSelector,
+    /// The delta lights taken at every estimate (empty when the scene has more than
+    /// [`EVERY_DELTA_LIGHT`]).
+    every: Vec<usize>,
+    /// Light choice by power among the other lights; `None` when there are none.
+    sampled: Option<LightSelector>,
     /// The net a shading point's light samples are scrambled copies of.
     nets: pm_sampling::NetTable,
     /// Bounding boxes [m] of the area lights that enclose space (positive extent on
@@ -36,6 +51,10 @@ pub struct DirectLighting<'a> {
 /// closed form (each costs Lambert's formula at every shading point; a scene with
 /// more keeps plain light samples).
 pub const CLOSED_FORM_LIGHTS: usize = 4;
+
+/// Most delta lights of a scene that [`DirectLighting`] takes at every estimate
+/// (each costs a shadow ray there; a scene with more chooses among them by power).
+pub const EVERY_DELTA_LIGHT: usize = 4;
 
 /// Light samples per shading point that [`DirectLighting::direct`] takes from its
 /// precomputed net; more take an Owen-scrambled net each (slower, equally good).
@@ -56,9 +75,14 @@ impl<'a> DirectLighting<'a> {
                 _ => None,
             })
             .collect();
+        let lights = LightSelector::new(scene, &[])?;
+        let delta: Vec<usize> = (0..scene.lights.len()).filter(|&i| scene.lights[i].is_delta()).collect();
+        let every = if delta.len() <= EVERY_DELTA_LIGHT { delta } else { Vec::new() };
         Ok(DirectLighting {
             scene,
-            lights: LightSelector::new(scene, &[])?,
+            sampled: lights.excluding(&every),
+            every,
+            lights,
             nets: pm_sampling::NetTable::new(NET_POINTS),
             enclosing,
             closed_form: false,
@@ -73,8 +97,9 @@ impl<'a> DirectLighting<'a> {
         Ok(DirectLighting { closed_form, ..Self::new(scene)? })
     }
 
-    /// One light-sampling estimate of reflected direct radiance: pick a light by power,
-    /// sample a point or direction on it, trace a shadow ray, which starts in
+    /// One light-sampling estimate of reflected direct radiance: every delta light
+    /// taken once (see [`DirectLighting`]), and of the others one picked by power, a
+    /// point or direction sampled on it; a shadow ray to each, which starts in
     /// `medium` (attenuated by media and passing index-matched boundaries:
     /// [`Scene::transmittance_along`]). With `mis`, non-delta lights are weighted by
     /// the power heuristic against BSDF sampling (the caller then also samples the
@@ -102,7 +127,24 @@ impl<'a> DirectLighting<'a> {
         mis: bool,
         medium: Option<MediumId>,
     ) -> Rgb {
-        match self.unshadowed(hit, bsdf, wo, u, mis) {
+        let at = Lit { hit, bsdf, wo };
+        self.every_delta(&at, medium) + self.sampled_light(&at, u, mis, medium)
+    }
+
+    /// Reflected radiance from the delta lights taken at every estimate.
+    fn every_delta(&self, at: &Lit, medium: Option<MediumId>) -> Rgb {
+        let mut sum = Rgb::ZERO;
+        for &li in &self.every {
+            if let Some((c, o, wi, t_max)) = self.unshadowed_on((li, 1.0), at, [0.5; 4], false) {
+                sum += c * self.scene.transmittance_along(o, wi, t_max, medium);
+            }
+        }
+        sum
+    }
+
+    /// One sample of reflected radiance from a light picked among the others.
+    fn sampled_light(&self, at: &Lit, u: [f32; 4], mis: bool, medium: Option<MediumId>) -> Rgb {
+        match self.unshadowed(at.hit, at.bsdf, at.wo, u, mis) {
             Some((_, c, o, wi, t_max)) => c * self.scene.transmittance_along(o, wi, t_max, medium),
             None => Rgb::ZERO,
         }
@@ -110,11 +152,13 @@ impl<'a> DirectLighting<'a> {
 
     /// One light-sampling estimate of the radiance [W sr^-1 m^-2] scattered toward
     /// `wo` at point `p` inside medium `medium` by its phase function, per unit
-    /// sigma_s (the caller's free-flight weight holds sigma_s): pick a light, sample
-    /// it from `p` over the whole sphere, p(wo, wi) L_i T / pdf with the shadow ray's
-    /// transmittance T. With `mis`, non-delta lights are weighted by the power
-    /// heuristic against phase-function sampling (the caller then samples the
-    /// phase function and weighs the emission it finds).
+    /// sigma_s (the caller's free-flight weight holds sigma_s): the delta lights
+    /// taken every time and one light picked among the others (as
+    /// [`Self::light_sample`]), each sampled from `p` over the whole sphere,
+    /// p(wo, wi) L_i T / pdf with the shadow ray's transmittance T. With `mis`,
+    /// non-delta lights are weighted by the power heuristic against phase-function
+    /// sampling (the caller then samples the phase function and weighs the
+    /// emission it finds).
     pub fn medium_sample(
         &self,
         p: Vec3,
@@ -125,13 +169,34 @@ impl<'a> DirectLighting<'a> {
         mis: bool,
     ) -> Rgb {
         let u = light_numbers(s);
-        let (li, p_sel) = self.lights.pick(u[3]);
+        let mut sum = Rgb::ZERO;
+        for &li in &self.every {
+            sum += self.medium_sample_on((li, 1.0), (p, wo), phase, medium, [0.5; 4], false);
+        }
+        if let Some(sampled) = &self.sampled {
+            let (li, p_sel) = sampled.pick(u[3]);
+            sum += self.medium_sample_on((li, p_sel as f32), (p, wo), phase, medium, u, mis);
+        }
+        sum
+    }
+
+    /// [`Self::medium_sample`] on light `li`, chosen with probability `p_sel`, at
+    /// point `p` toward `wo`.
+    fn medium_sample_on(
+        &self,
+        (li, p_sel): (usize, f32),
+        (p, wo): (Vec3, Vec3),
+        phase: &pm_bsdf::HenyeyGreenstein,
+        medium: Option<MediumId>,
+        u: [f32; 4],
+        mis: bool,
+    ) -> Rgb {
         let scene = self.scene;
         let Some(ls) = scene.lights[li].sample_li(scene, p, Vec3::ZERO, u[2], glam::Vec2::new(u[0], u[1])) else {
             return Rgb::ZERO;
         };
         let f = phase.p(wo, ls.wi);
-        let p_l = ls.pdf * p_sel as f32;
+        let p_l = ls.pdf * p_sel;
         if !(f > 0.0 && p_l > 0.0) {
             return Rgb::ZERO;
         }
@@ -151,7 +216,7 @@ impl<'a> DirectLighting<'a> {
         u: [f32; 4],
         mis: bool,
     ) -> Option<(usize, Rgb, Vec3, Vec3, f32)> {
-        let (li, p_sel) = self.lights.pick(u[3]);
+        let (li, p_sel) = self.sampled.as_ref()?.pick(u[3]);
         let (c, o, wi, t_max) = self.unshadowed_on((li, p_sel as f32), &Lit { hit, bsdf, wo }, u, mis)?;
         Some((li, c, o, wi, t_max))
     }
@@ -322,9 +387,8 @@ impl DirectLighting<'_> {
     /// when the triangle belongs to no light. For MIS weights of BSDF-sampled emission.
     pub fn pdf_emitter(&self, p: Vec3, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
         let li = self.scene.light_of_triangle[tri as usize];
-        (li != u32::MAX).then(|| {
-            self.scene.lights[li as usize].pdf_li(self.scene, p, wi, t, tri) * self.lights.probs[li as usize] as f32
-        })
+        (li != u32::MAX)
+            .then(|| self.scene.lights[li as usize].pdf_li(self.scene, p, wi, t, tri) * self.sampled_prob(li as usize))
     }
 
     /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p`
@@ -334,12 +398,19 @@ impl DirectLighting<'_> {
     pub fn pdf_escaped(&self, p: Vec3, n: Vec3, wi: Vec3) -> f32 {
         let mut pdf = 0.0;
         for &i in &self.scene.infinite_lights {
-            pdf += self.scene.lights[i as usize].pdf_escaped(p, n, wi) * self.lights.probs[i as usize] as f32;
+            pdf += self.scene.lights[i as usize].pdf_escaped(p, n, wi) * self.sampled_prob(i as usize);
         }
         pdf
     }
 
-    /// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit,
+    /// The probability that a light sample picks light `li` (0 for the delta
+    /// lights taken every time).
+    fn sampled_prob(&self, li: usize) -> f32 {
+        self.sampled.as_ref().map_or(0.0, |s| s.probs[li] as f32)
+    }
+
+    /// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit:
+    /// the delta lights taken once each (see [`DirectLighting`]), the others
     /// averaged over `n` light samples. Glossy surfaces, and every surface inside an
     /// area light that encloses space, also sample the BSDF and weigh the two by the
     /// power heuristic, and so does every surface of a scene with lights at
@@ -379,6 +450,11 @@ impl DirectLighting<'_> {
                 Rgb::ZERO
             };
         }
+        let at = Lit { hit, bsdf, wo };
+        let delta = self.every_delta(&at, medium);
+        if self.sampled.is_none() {
+            return delta;
+        }
         let mut sum = Rgb::ZERO;
         // The n light samples stratified among themselves: on a Cornell box's area
         // light, n independent points left direct light the largest part of the
@@ -390,7 +466,7 @@ impl DirectLighting<'_> {
                 Some(net) => net.point(&self.nets, n, k),
                 None => light_numbers(s),
             };
-            sum += self.light_sample_at(hit, bsdf, wo, u, mis, medium);
+            sum += self.sampled_light(&at, u, mis, medium);
             if mis {
                 // BSDF sampling, weighted against light sampling.
                 let u = s.next_2d();
@@ -421,7 +497,7 @@ impl DirectLighting<'_> {
                 }
             }
         }
-        sum / n.max(1) as f32
+        delta + sum / n.max(1) as f32
     }
 }
 

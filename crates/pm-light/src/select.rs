@@ -64,7 +64,11 @@ impl LightSelector {
         if !(sum > 0.0) {
             return Err(LightSelectError::BadShares("every light with power has a zero share".into()));
         }
-        let probs: Vec<f64> = probs.iter().map(|p| p / sum).collect();
+        Ok(Self::of(probs.iter().map(|p| p / sum).collect()))
+    }
+
+    /// The choice from probabilities that sum to 1.
+    fn of(probs: Vec<f64>) -> LightSelector {
         let mut acc = 0.0;
         let cdf = probs
             .iter()
@@ -73,7 +77,16 @@ impl LightSelector {
                 acc
             })
             .collect();
-        Ok(LightSelector { probs, cdf })
+        LightSelector { probs, cdf }
+    }
+
+    /// This choice with the lights `out` never chosen (the rest in the same
+    /// proportions); `None` when nothing is left to choose.
+    pub fn excluding(&self, out: &[usize]) -> Option<LightSelector> {
+        let probs: Vec<f64> =
+            self.probs.iter().enumerate().map(|(i, &p)| if out.contains(&i) { 0.0 } else { p }).collect();
+        let sum: f64 = probs.iter().sum();
+        (sum > 0.0).then(|| Self::of(probs.iter().map(|p| p / sum).collect()))
     }
 
     /// Choose a light for sample `u`; returns (index, probability).

@@ -525,6 +525,17 @@ impl Light {
         self.uniform_outline().is_some()
     }
 
+    /// True for a light that reaches a point along one direction only: point and
+    /// spot lights, and a sun without a size. Its sample never varies, and no
+    /// sampled ray finds it.
+    pub fn is_delta(&self) -> bool {
+        match self.kind {
+            LightKind::Point { .. } | LightKind::Spot { .. } => true,
+            LightKind::Directional { cap, .. } => cap == 0.0,
+            LightKind::Area { .. } | LightKind::Environment { .. } => false,
+        }
+    }
+
     /// The outline and uniform radiance of a light with a closed form: an area
     /// light with an [`Outline`] that no emissive texture varies.
     fn uniform_outline(&self) -> Option<(&Outline, Rgb)> {

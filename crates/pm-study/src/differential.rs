@@ -402,11 +402,7 @@ fn sees_emitter(s: &pm_scene::Scene, o: Vec3, d: Vec3, depth: u32) -> bool {
 /// images with such scenes, every photon method alike. Bidirectional path
 /// tracing (issue 56) will judge them.
 pub fn reference_blind_spot(s: &pm_scene::Scene) -> Option<String> {
-    let delta = s.lights.iter().find(|l| match l.kind {
-        pm_scene::LightKind::Point { .. } | pm_scene::LightKind::Spot { .. } => true,
-        pm_scene::LightKind::Directional { cap, .. } => cap == 0.0,
-        _ => false,
-    })?;
+    let delta = s.lights.iter().find(|l| l.is_delta())?;
     let specular = s.materials.iter().enumerate().find(|(i, m)| {
         m.bsdf.is_specular()
             && !matches!(m.bsdf, pm_bsdf::Bsdf::Glass { eta: 1.0, .. })
