@@ -6,7 +6,7 @@
 //! survives. Power is scaled by the number of paths held, so the buffer carries the
 //! lights' power while it fills (Figure 18) and after.
 
-use pm_format::Photon;
+use pm_format::{Photon, flags};
 use pm_photon::{PathOut, TraceConfig};
 use pm_scene::{Scene, Target};
 use rayon::prelude::*;
@@ -41,6 +41,9 @@ pub struct RingBuffer {
     shot: u64,
     /// The paths the last [`RingBuffer::shoot`] re-shot.
     last: Vec<usize>,
+    /// The cover distance \[m\]: photons with another surface facing them from
+    /// closer are flagged [`flags::COVERED`] as they are stored (0: none is).
+    pub cover: f32,
 }
 
 /// What one call to [`RingBuffer::shoot`] did.
@@ -66,6 +69,7 @@ impl RingBuffer {
             next: 0,
             shot: 0,
             last: Vec::new(),
+            cover: 0.0,
         }
     }
 
@@ -133,6 +137,13 @@ impl RingBuffer {
             .map(|&(_, index)| {
                 let mut out = PathOut::default();
                 pm_photon::trace_path(scene, cfg, targets, index, &mut out);
+                // Photons under a cover, for the corner estimates to keep apart
+                // (`crate::Around`).
+                for (photon, _) in out.photons.iter_mut().filter(|_| self.cover > 0.0) {
+                    if photon.flags & flags::VOLUME == 0 && scene.covered(photon.position, photon.normal, self.cover) {
+                        photon.flags |= flags::COVERED;
+                    }
+                }
                 out
             })
             .collect();
