@@ -124,8 +124,9 @@ impl Scene {
     }
 
     /// The first hit within `t_max` along the ray from `o` in unit direction `d`
-    /// that is not an index-matched boundary.
-    fn solid_hit(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    /// that is not an index-matched boundary: what a probe of the scene's
+    /// surfaces should find (a fog box's walls are not surfaces to light).
+    pub fn solid_hit(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let first = self.intersect(o, d, t_max);
         if !self.layout.index_matched {
             return first;

@@ -154,9 +154,8 @@ fn against_the_path_tracer_on_the_blender_room(
 }
 
 /// Issue 53: the differential checker's rooms with area lights a few millimetres
-/// under the ceiling, drawn by the vertex method as `cargo xtask live` draws them
-/// (48 x 48, one frame), against the path tracer (4,096 a pixel, each through
-/// the pixel's centre as the frame's one sample is): seed 60606's scenes 16 (a
+/// under the ceiling, drawn by the vertex method against the path tracer
+/// ([`vertex_on_generated`]): seed 60606's scenes 16 (a
 /// two-sided light 18 mm under the ceiling), 22 (two, 1.7 and 3.1 mm under it)
 /// and 24 (two, 19 and 4.3 mm, and a mirror slab). The light trapped in the gap
 /// above a two-sided light (its emission between its back and the ceiling) is
@@ -168,28 +167,55 @@ fn against_the_path_tracer_on_the_blender_room(
 /// surface and cover (as the irradiance precompute does), and a triangle reaching
 /// under the light interpolates only the corners of each point's kind: 20.5%,
 /// 18.6% and 26.7%. Asserted: every block within 40% (the method's stated
-/// bound), the light's pixels left out; the reference's caustic layer counts as
-/// indirect light, where the vertex method draws caustics.
+/// bound).
 #[test]
 fn the_vertex_method_keeps_the_light_trapped_above_a_lamp_to_itself() {
-    let size = 48;
     for index in [16, 22, 24] {
-        let dir = tempfile::tempdir().unwrap();
-        let (doc, recipe) = pm_scenegen::random::scene(60606, index);
-        let name = format!("scene-{index:03}");
-        doc.write(dir.path(), &name, false).unwrap();
-        let scene = dir.path().join(format!("{name}.gltf"));
-        live_frames(dir.path(), &scene, pm_methods::live::LiveMethod::Vertex, size, 1);
-        let ours = pm_image::read_exr(&dir.path().join("frames/0000.exr")).unwrap();
-        let reference = path_traced(dir.path(), &scene, 0.0, size, 4096, true);
-        let n = size as usize;
-        let keep = keep_mask(&reference.pixels(None), n, n, None);
-        // The vertex method draws caustics into its indirect layer (the mirror
-        // slab's on the ceiling): judged against the reference's two together.
-        let (l, c) = (Some(pm_color::Layer::Indirect), Some(pm_color::Layer::Caustic));
-        let both: Vec<glam::Vec3> = reference.pixels(l).iter().zip(reference.pixels(c)).map(|(x, y)| *x + y).collect();
-        let g = agreement(&ours.pixels(l), &both, n, &keep, 8);
+        let (g, recipe) = vertex_on_generated(60606, index);
         eprintln!("scene-{index:03} indirect: {g} ({:?})", recipe.lights);
         assert!(g.worst_block < 0.40, "scene-{index:03} indirect: {g} ({:?})", recipe.lights);
     }
+}
+
+/// Issue 53: seed 77777's scene 35 of the checker's generator (a Cornell box
+/// whose lower half is a fog box inset 2 mm from the walls and floor: an
+/// index-matched boundary, extinction 0.66 / m), drawn by the vertex method as
+/// `cargo xtask live` draws it against the path tracer, as above. The coverage
+/// probes took the fog box's bottom face, 2 mm above the floor and facing away
+/// from it, for the floor's edge: the floor's corners read their discs as 0-25%
+/// covered, and the indirect light under the fog came out three times too bright
+/// (the checker: mean +207%, worst 8 x 8 block +669%). The probes now pass
+/// index-matched boundaries as photons do: measured +2.4% in mean, 10.4% in the
+/// worst block.
+/// Asserted: the indirect layer's mean within 10% and every block within 40%
+/// (the method's stated bound; its volume layer, single scattering only, is not
+/// judged here).
+#[test]
+fn the_vertex_method_lights_a_floor_under_a_fog_box_as_the_path_tracer_does() {
+    let (g, recipe) = vertex_on_generated(77777, 35);
+    eprintln!("indirect: {g} ({:?})", recipe.fog);
+    assert!(g.mean.abs() < 0.10 && g.worst_block < 0.40, "indirect: {g} ({:?})", recipe.fog);
+}
+
+/// Scene `index` of the differential checker's generator for `seed`, drawn by the
+/// vertex method as `cargo xtask live` draws it (48 x 48, one frame), against the
+/// path tracer (4,096 a pixel, each through the pixel's centre as the frame's one
+/// sample is): the indirect layer's agreement in 8 x 8 blocks, the light's pixels
+/// left out, the reference's caustic layer counted as indirect light (the vertex
+/// method draws caustics there); and what the scene holds.
+fn vertex_on_generated(seed: u64, index: u32) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
+    let size = 48;
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, recipe) = pm_scenegen::random::scene(seed, index);
+    let name = format!("scene-{index:03}");
+    doc.write(dir.path(), &name, false).unwrap();
+    let scene = dir.path().join(format!("{name}.gltf"));
+    live_frames(dir.path(), &scene, pm_methods::live::LiveMethod::Vertex, size, 1);
+    let ours = pm_image::read_exr(&dir.path().join("frames/0000.exr")).unwrap();
+    let reference = path_traced(dir.path(), &scene, 0.0, size, 4096, true);
+    let n = size as usize;
+    let keep = keep_mask(&reference.pixels(None), n, n, None);
+    let (l, c) = (Some(pm_color::Layer::Indirect), Some(pm_color::Layer::Caustic));
+    let both: Vec<glam::Vec3> = reference.pixels(l).iter().zip(reference.pixels(c)).map(|(x, y)| *x + y).collect();
+    (agreement(&ours.pixels(l), &both, n, &keep, 8), recipe)
 }
