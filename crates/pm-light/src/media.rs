@@ -7,7 +7,7 @@ use crate::DirectLighting;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_sampling::Sampler;
-use pm_scene::{Hit, LightKind, MediumId, Passage};
+use pm_scene::{LightKind, MediumId};
 
 impl DirectLighting<'_> {
     /// Radiance [W sr^-1 m^-2 per channel] arriving at `o` along the ray from `o` in
@@ -68,30 +68,6 @@ impl DirectLighting<'_> {
             sum += m.transmittance(t) * m.sigma_s * ls.li * tr * (f / p_l);
         }
         sum / n.max(1) as f32
-    }
-
-    /// What the eye sees along the ray from `o` in unit direction `d` (first hit
-    /// `first`, started in `medium`) up to its first surface that is not an
-    /// index-matched boundary: the passage (that surface, the transmittance to it,
-    /// the medium there; [`pm_scene::Scene::pass_from_visiting`]) and the light the
-    /// media on the way scatter toward `o` straight from the lights
-    /// ([`Self::single_scattering`] on each segment, `n` samples each, attenuated
-    /// by what lies before it). Light scattered more than once is left out: the
-    /// real-time methods' volume layer.
-    pub fn single_scattering_through(
-        &self,
-        o: Vec3,
-        d: Vec3,
-        first: Option<Hit>,
-        medium: Option<MediumId>,
-        s: &mut Sampler,
-        n: u32,
-    ) -> (Passage, Rgb) {
-        let mut l = Rgb::ZERO;
-        let pass = self.scene.pass_from_visiting(o, d, first, medium, |o, t, m, tr| {
-            l += tr * self.single_scattering(o, d, t, m, s, n);
-        });
-        (pass, l)
     }
 
     /// Where along the segment (0, t_max) of the ray from `o` in direction `d` to

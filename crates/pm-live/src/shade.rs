@@ -39,6 +39,15 @@ pub trait IndirectLight: Sync {
     /// towards `wo`. Asked at the eye's first surface (unless [`Self::SPLATTED`])
     /// and where mirrors and glass lead.
     fn radiance(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3) -> Rgb;
+
+    /// Radiance [W sr^-1 m^-2 per channel] scattered toward `o` by the scattering
+    /// medium `m` along the eye ray's segment from `o` in unit direction `d` to
+    /// `t` \[m\], from light that scattered more than once (the light scattered
+    /// once straight from the lights is the frame's own). None by default: the
+    /// method then draws single scattering only.
+    fn scattered(&self, _o: Vec3, _d: Vec3, _t: f32, _m: &pm_scene::Medium) -> Rgb {
+        Rgb::ZERO
+    }
 }
 
 /// The per-pixel work of a real-time frame, with indirect light from `I`.
@@ -103,10 +112,10 @@ impl<I: IndirectLight> LiveShading<'_, I> {
     /// `first`. Media attenuate what the eye sees (Beer-Lambert over each segment,
     /// through index-matched boundaries, [`Scene::pass_from`]), and the eye ray
     /// takes the light they scatter toward it straight from the lights (the volume
-    /// layer: single scattering, `light_samples` a segment); light scattered more
-    /// than once is left out (README, "Participating media"). Without it a fog
-    /// box's frame lacked a third to half of the path tracer's light (the
-    /// differential checker's fog scenes, issue 53).
+    /// layer: single scattering, `light_samples` a segment) and the light they
+    /// scatter more than once as the method gives it ([`IndirectLight::scattered`]).
+    /// Without single scattering a fog box's frame lacked a third to half of the
+    /// path tracer's light (the differential checker's fog scenes, issue 53).
     fn shade(
         &self,
         o: Vec3,
@@ -116,8 +125,13 @@ impl<I: IndirectLight> LiveShading<'_, I> {
         mut vs: Option<&mut VisibleSurface>,
     ) -> Components {
         let scene = self.light.scene;
-        let (pass, volume) =
-            self.light.single_scattering_through(o, d, first, scene.eye_medium(o), s, self.light_samples);
+        let mut volume = Rgb::ZERO;
+        let pass = scene.pass_from_visiting(o, d, first, scene.eye_medium(o), |o, t, m, tr| {
+            let Some(medium) = scene.medium(m).filter(|x| x.scatters()) else { return };
+            let t = if t.is_finite() { t } else { scene.escape_distance(o, d) };
+            let single = self.light.single_scattering(o, d, t, m, s, self.light_samples);
+            volume += tr * (single + self.indirect.scattered(o, d, t, medium));
+        });
         let tr = pass.tr;
         // Nothing hit: the environment and sun discs (the background).
         let Some(hit) = pass.hit else {
