@@ -608,7 +608,10 @@ impl pm_live::FrameMethod for Vertex {
         let t = Instant::now();
         let maps = f.shadow_maps(world.scene());
         let covered = self.surroundings.covered();
-        let volume = VolumePhotons::of(&self.ring, world.photon_scene(), VOLUME_K, self.max_radius(world));
+        // Only paths traced in scattering media keep volume photons.
+        let volume = (self.trace.pass == MapPass::Progressive)
+            .then(|| VolumePhotons::of(&self.ring, world.photon_scene(), VOLUME_K, self.max_radius(world)))
+            .flatten();
         let indirect = CornerLight {
             corners: &self.corners,
             e: &e,
