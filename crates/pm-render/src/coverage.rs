@@ -53,6 +53,11 @@ pub enum Probe {
 /// Probed with rays: sample points on rings of the disc, each covered when a ray
 /// down from the top of the slab above it meets a surface facing `n`'s way
 /// ([`SAME_SURFACE_COS`], the photons' own test) within the slab.
+/// Index-matched boundaries are passed, as photons pass them
+/// ([`Scene::solid_hit`], [`Scene::solidly_occluded`]): the bottom face of a fog
+/// box 2 mm above a floor, facing away from it, looked like the floor's edge, the
+/// floor's discs read 0-25% covered, and the vertex method's corners there came
+/// out 2-4 times too bright (issue 53's checker, seed 77777).
 /// The outermost ring is probed first. For [`Probe::Slab`], when all of it is
 /// covered, so is the disc (the inner rings are not probed; a hole inside an
 /// unbroken ring is missed), which spares three quarters of the rays in the middle
@@ -79,7 +84,7 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
                 Probe::InView => {
                     let d = o - above;
                     let len = d.length();
-                    !(len > 0.0 && blocked(scene, above, d / len, len))
+                    !(len > 0.0 && scene.solidly_occluded(above, d / len, len))
                         && scene.solid_hit(o, -n, 2.0 * h).is_some_and(|hit| hit.ng.dot(n) > SAME_SURFACE_COS)
                 }
                 Probe::Slab(_) => surface_below(scene, o, n, 2.0 * h),
@@ -95,15 +100,6 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
         }
     }
     if total > 0.0 { covered / total } else { 1.0 }
-}
-
-/// Whether something other than an index-matched boundary blocks the segment
-/// from `o` along unit `d` before `t` \[m\]. A fog box's walls are no surface: the
-/// floor under a fog box inset 2 mm from it read its bottom face as the floor's
-/// edge, its discs as 0-25% covered, and the vertex method's corners there came
-/// out 2-4 times too bright (issue 53's checker, seed 77777).
-fn blocked(scene: &Scene, o: Vec3, d: Vec3, t: f32) -> bool {
-    if scene.rays_walk() { scene.solid_hit(o, d, t).is_some() } else { scene.occluded(o, d, t) }
 }
 
 /// Whether a ray down (along -`n`) from `o` meets a surface facing `n`'s way (either

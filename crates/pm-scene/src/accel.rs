@@ -134,6 +134,16 @@ impl Scene {
         self.walk_from(o, d, t_max, None, first).hit
     }
 
+    /// True when something other than an index-matched boundary blocks the ray
+    /// from `o` along unit `d` before `t_max` ([`Self::solid_hit`]; an any-hit
+    /// test where the scene has no such boundaries).
+    pub fn solidly_occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
+        if !self.layout.index_matched {
+            return self.occluded(o, d, t_max);
+        }
+        self.solid_hit(o, d, t_max).is_some()
+    }
+
     /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
         let mut best_b = [0.0; 3];

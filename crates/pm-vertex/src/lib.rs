@@ -215,10 +215,10 @@ pub struct CornerLight<'a> {
     pub corners: &'a Corners,
     /// Irradiance at each corner.
     pub e: &'a [Rgb],
-    /// Whether each corner lies under a cover ([`Around::covered`]; `None` where
-    /// not known, or none at all): a triangle with corners of both kinds
-    /// interpolates, at each point, only the corners of the point's kind.
-    pub covered: &'a [Option<bool>],
+    /// Each corner's surroundings ([`CornerSurroundings::around`]; `None` where
+    /// not known, or none at all): a triangle with corners both under a cover and
+    /// not interpolates, at each point, only the corners of the point's kind.
+    pub around: &'a [Option<Around>],
     /// The cover distance \[m\] the corners were tested with.
     pub cover: f32,
     /// The scene the points are tested in.
@@ -244,7 +244,7 @@ impl CornerLight<'_> {
     /// 60606 scene 24).
     pub fn irradiance_seen(&self, hit: &Hit) -> Rgb {
         let c = self.corners.tri[hit.tri as usize];
-        let cover = c.map(|k| self.covered.get(k as usize).copied().flatten());
+        let cover = c.map(|k| self.around.get(k as usize).copied().flatten().map(|a| a.covered));
         if !(cover.contains(&Some(true)) && cover.contains(&Some(false))) {
             return self.irradiance_at(hit.tri, hit.b);
         }
@@ -607,7 +607,6 @@ impl pm_live::FrameMethod for Vertex {
         }
         let t = Instant::now();
         let maps = f.shadow_maps(world.scene());
-        let covered = self.surroundings.covered();
         // Only paths traced in scattering media keep volume photons.
         let volume = (self.trace.pass == MapPass::Progressive)
             .then(|| VolumePhotons::of(&self.ring, world.photon_scene(), VOLUME_K, self.max_radius(world)))
@@ -615,7 +614,7 @@ impl pm_live::FrameMethod for Vertex {
         let indirect = CornerLight {
             corners: &self.corners,
             e: &e,
-            covered: &covered,
+            around: self.surroundings.around(),
             cover: self.cover,
             scene: world.photon_scene(),
             volume: volume.as_ref(),

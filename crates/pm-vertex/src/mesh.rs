@@ -170,18 +170,22 @@ pub struct Around {
 /// 8 x 8 blocks on seven of 40 generated rooms (issue 53's checker, seed 60606).
 #[derive(Clone, Debug, Default)]
 pub struct CornerSurroundings {
-    found: Vec<Option<Option<Around>>>,
+    /// Per corner its [`Around`], where found.
+    around: Vec<Option<Around>>,
+    /// Per corner whether it was looked for.
+    probed: Vec<bool>,
 }
 
 impl CornerSurroundings {
     /// Forget every corner's (the scene's meshes moved).
     pub fn clear(&mut self) {
-        self.found.clear();
+        self.around.clear();
+        self.probed.clear();
     }
 
-    /// Per corner whether it lies under a cover, where found.
-    pub fn covered(&self) -> Vec<Option<bool>> {
-        self.found.iter().map(|a| a.flatten().map(|a| a.covered)).collect()
+    /// Per corner its [`Around`], where found (as the last [`Self::update`] left them).
+    pub fn around(&self) -> &[Option<Around>] {
+        &self.around
     }
 
     /// Every corner's [`Around`] in `scene` (the photons' scene), looked for within
@@ -194,9 +198,10 @@ impl CornerSurroundings {
         corners: &Corners,
         active: &[bool],
         (reach, cover): (f32, f32),
-    ) -> Vec<Option<Around>> {
-        self.found.resize(corners.len(), None);
-        let todo: Vec<usize> = (0..corners.len()).filter(|&c| active[c] && self.found[c].is_none()).collect();
+    ) -> &[Option<Around>] {
+        self.around.resize(corners.len(), None);
+        self.probed.resize(corners.len(), false);
+        let todo: Vec<usize> = (0..corners.len()).filter(|&c| active[c] && !self.probed[c]).collect();
         let fresh: Vec<Option<Around>> = todo
             .par_iter()
             .with_min_len(16)
@@ -207,8 +212,8 @@ impl CornerSurroundings {
             })
             .collect();
         for (&c, a) in todo.iter().zip(fresh) {
-            self.found[c] = Some(a);
+            (self.around[c], self.probed[c]) = (a, true);
         }
-        self.found.iter().map(|a| a.flatten()).collect()
+        &self.around
     }
 }

@@ -139,9 +139,13 @@ impl RingBuffer {
                 pm_photon::trace_path(scene, cfg, targets, index, &mut out);
                 // Photons under a cover, for the corner estimates to keep apart
                 // (`crate::Around`).
-                for (photon, _) in out.photons.iter_mut().filter(|_| self.cover > 0.0) {
-                    if photon.flags & flags::VOLUME == 0 && scene.covered(photon.position, photon.normal, self.cover) {
-                        photon.flags |= flags::COVERED;
+                if self.cover > 0.0 {
+                    for (photon, _) in &mut out.photons {
+                        if photon.flags & flags::VOLUME == 0
+                            && scene.covered(photon.position, photon.normal, self.cover)
+                        {
+                            photon.flags |= flags::COVERED;
+                        }
                     }
                 }
                 out
