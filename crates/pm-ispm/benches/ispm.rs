@@ -136,9 +136,10 @@ fn attrition(scenes: &[(&str, Scene)]) {
     println!("|---|---|---|---|---|---|");
     for (name, s) in scenes {
         let res = if *name == "caustic_ring" { 128 } else { 48 };
-        let (b, st) = pm_ispm::bounce_maps(s, res, 1, true);
+        let b = pm_ispm::bounce_maps(s, res, 1, true);
+        let st = b.stats;
         let p = Params(FrameParams { ..Default::default() }, IspmParams { bounces: 3, ..Default::default() });
-        let photons = pm_ispm::trace(s, &b, 3, &KernelShape::new(&p.1, s.bounds.diagonal()), 1);
+        let photons = pm_ispm::trace(s, &b, 3, &KernelShape::new(&p.1, s.bounds.diagonal()), 1).photons;
         println!(
             "| {name} | {} | {} ({:.0}%) | {} ({:.0}%) | {} | {:.2} |",
             st.texels,
@@ -162,8 +163,8 @@ fn splat_against_gather(s: &Scene) {
             FrameParams { ..Default::default() },
             IspmParams { bounces: 1, bounce_res: res, ..Default::default() },
         );
-        let (b, _) = pm_ispm::bounce_maps(s, res, 1, true);
-        let photons = pm_ispm::trace(s, &b, 1, &KernelShape::new(&p.1, s.bounds.diagonal()), 1);
+        let b = pm_ispm::bounce_maps(s, res, 1, true);
+        let photons = pm_ispm::trace(s, &b, 1, &KernelShape::new(&p.1, s.bounds.diagonal()), 1).photons;
         let camera = s.camera.clone().unwrap();
         let film = Film { width: 512, height: 512, spp: 1, contrast: 0.0, seed: 0, pixel_centres: false };
         let gb = pm_ispm::surfaces(s, &raster::first_hits(s, &camera, film.size(), film.rect()), &camera);

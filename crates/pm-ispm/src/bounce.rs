@@ -11,31 +11,58 @@ use crate::IspmParams;
 use crate::splat::VolumePhoton;
 use glam::Vec3;
 use pm_color::Rgb;
+use pm_format::{Photon, flags};
+use pm_photon::{Carrier, Landing};
 use pm_raster::{self, Fragment};
 use pm_render::Film;
 use pm_sampling::Sampler;
-use pm_scene::{Camera, LightKind, MediumId, Scene};
+use pm_scene::{Camera, Flights, LightKind, MediumId, Scene};
 use rayon::prelude::*;
 
 /// Scattering events a photon path may take after its first bounce before it is cut
 /// (specular chains store nothing, so they need a bound of their own).
 const MAX_EVENTS: u32 = 32;
 
-/// A photon leaving its first bounce: an entry of a bounce map (Table 1).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A photon leaving its first bounce: an entry of a bounce map (Table 1). The
+/// first bounce is a surface's, or in a scattering medium a point of the medium
+/// where the photon scattered on its way from the light.
+#[derive(Clone, Copy, Debug)]
 pub struct BouncePhoton {
     /// Where it leaves from (offset off the surface) \[m\].
     pub origin: Vec3,
     /// Unit direction it travels.
     pub dir: Vec3,
-    /// Power [W per channel].
-    pub power: Rgb,
+    /// Its power [W per channel] ([`Carrier::power`]), medium and flights.
+    pub carrier: Carrier,
     /// Path density estimate ρ_p so far (section 4.3).
     pub density: f32,
     /// True when the first bounce was specular (a caustic path so far).
     pub specular: bool,
-    /// The medium it travels in.
-    pub medium: Option<MediumId>,
+}
+
+/// The bounce maps of every light ([`bounce_maps`]).
+#[derive(Clone, Debug, Default)]
+pub struct BounceMaps {
+    /// The photons leaving their first bounce, in light and texel order.
+    pub photons: Vec<BouncePhoton>,
+    /// The photons' first events in scattering media, as volume photons
+    /// ([`flags::VOLUME`] and [`flags::DIRECT`]: single scattering, which the
+    /// frame takes from the lights; their density sizes the beam estimate's
+    /// spheres). Empty without scattering media.
+    pub volume: Vec<Photon>,
+    /// What building them did.
+    pub stats: BounceStats,
+}
+
+/// What [`trace`] stores: photons on surfaces, with their kernels, and photons
+/// in scattering media.
+#[derive(Clone, Debug, Default)]
+pub struct Traced {
+    /// The surface photons, in bounce-map order.
+    pub photons: Vec<VolumePhoton>,
+    /// The photons scattered in media ([`flags::VOLUME`]), the bounce maps' first
+    /// ones before the rest (empty without scattering media).
+    pub volume: Vec<Photon>,
 }
 
 /// What building the bounce maps did (Figure 10's attrition, and the power test).
@@ -71,8 +98,35 @@ fn density_factor(bs: &pm_bsdf::BsdfSample) -> f32 {
     let rho = pm_color::mean(bs.weight).clamp(1e-6, 1.0);
     match bs.lobe {
         pm_bsdf::Lobe::Diffuse => rho / 1000.0,
-        pm_bsdf::Lobe::Glossy => rho / 1000.0 * (std::f32::consts::PI * bs.pdf).clamp(1.0, 100.0),
+        pm_bsdf::Lobe::Glossy => glossy_density(rho, bs.pdf),
         pm_bsdf::Lobe::Specular => rho,
+    }
+}
+
+/// The density factor of a lobe of albedo `rho` whose sample had pdf `pdf`
+/// \[sr^-1\]: the Lambertian ρ / 1000 times π pdf, from 1 up to 100.
+fn glossy_density(rho: f32, pdf: f32) -> f32 {
+    rho / 1000.0 * (std::f32::consts::PI * pdf).clamp(1.0, 100.0)
+}
+
+/// The density factor of scattering in medium `m` from `wo` to `wi` (both away
+/// from the point): a glossy lobe's ([`glossy_density`]) with the medium's
+/// single-scattering albedo and the phase function's value as its pdf, so an
+/// isotropic medium spreads its paths like a Lambertian surface.
+fn medium_density_factor(m: &pm_scene::Medium, wo: Vec3, wi: Vec3) -> f32 {
+    glossy_density(pm_color::mean(m.albedo()).clamp(1e-6, 1.0), m.phase.p(wo, wi))
+}
+
+/// A photon scattered at `p` in `m`, toward `-wo`, as a volume photon of
+/// power `power` [W per channel] with `flags` besides [`flags::VOLUME`].
+fn volume_photon(p: Vec3, wo: Vec3, power: Rgb, extra: u8) -> Photon {
+    Photon {
+        position: p,
+        power,
+        wi: wo,
+        flags: flags::AXIS_LEAF | flags::VOLUME | extra,
+        normal: Vec3::ZERO,
+        irradiance: Rgb::ZERO,
     }
 }
 
@@ -83,30 +137,37 @@ fn rect_solid_angle(u0: f32, u1: f32, v0: f32, v1: f32) -> f32 {
     f(u1, v1) - f(u0, v1) - f(u1, v0) + f(u0, v0)
 }
 
-/// One texel's photon arriving at the first surface: direction, power as emitted
-/// [W per channel], the transmittance of the media on the way (per channel), the
-/// hit and the medium it arrives in.
+/// One texel's photon leaving the light: where from, its direction, its power
+/// as emitted [W per channel], its first hit (the rasteriser's or the BVH's) and
+/// the medium it starts in.
 struct Arrival {
+    origin: Vec3,
     dir: Vec3,
     power: Rgb,
-    tr: Rgb,
-    hit: Option<pm_scene::Hit>,
+    first: Option<pm_scene::Hit>,
     medium: Option<MediumId>,
 }
 
 impl Arrival {
-    /// The photon from `origin` along `dir` with power `power` whose first hit is
-    /// `first`, starting in `medium`: on through index-matched boundaries.
-    fn new(
-        scene: &Scene,
-        origin: Vec3,
-        dir: Vec3,
-        power: Rgb,
-        first: Option<pm_scene::Hit>,
-        medium: Option<MediumId>,
-    ) -> Arrival {
-        let pass = scene.pass_from(origin, dir, first, medium);
-        Arrival { dir, power, tr: pass.tr, hit: pass.hit, medium: pass.medium }
+    /// Its first event: without scattering media, its first surface through
+    /// index-matched boundaries, attenuated on the way (Beer-Lambert) and no
+    /// number drawn from `s`; with them, the free flights of the photon tracer
+    /// ([`Carrier::fly`]: it may scatter in a medium before reaching a surface).
+    fn land<'s>(&self, scene: &'s Scene, s: &mut Sampler) -> (Carrier, Landing<'s>) {
+        if !scene.has_scattering_media() {
+            let pass = scene.pass_from(self.origin, self.dir, self.first, self.medium);
+            let carrier = Carrier { phi: self.power * pass.tr, medium: pass.medium, flights: Flights::new(0.0) };
+            return (carrier, pass.hit.map_or(Landing::Escaped, Landing::Surface));
+        }
+        let mut carrier = Carrier { phi: self.power, medium: self.medium, flights: Flights::new(s.next_1d()) };
+        let mut o = self.origin;
+        for _ in 0..MAX_EVENTS {
+            match carrier.fly(scene, o, self.dir, s) {
+                Landing::Passed { o: beyond } => o = beyond,
+                landing => return (carrier, landing),
+            }
+        }
+        (carrier, Landing::Escaped)
     }
 }
 
@@ -119,7 +180,7 @@ impl Arrival {
 /// environment's photons start on the bounding sphere's disc, so the bounce map's
 /// power stays exact; those that miss the scene carry theirs away). In media a
 /// photon's power is attenuated on its way (Beer-Lambert, through index-matched
-/// boundaries): the real-time methods do not scatter light in media.
+/// boundaries), and in scattering media it may scatter ([`Arrival::land`]).
 fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
     let light = &scene.lights[li];
     let medium = scene.light_medium(li);
@@ -145,10 +206,10 @@ fn arrivals(scene: &Scene, li: usize, res: u32, seed: u64) -> Vec<Arrival> {
                     let mut s = Sampler::new(pm_sampling::mix64(seed ^ 0x626f_756e_6365 ^ li as u64), k as u64);
                     match light.sample_emission(scene, &mut s) {
                         Some(ray) => {
-                            let hit = scene.intersect(ray.origin, ray.dir, f32::INFINITY);
-                            Arrival::new(scene, ray.origin, ray.dir, ray.power / n as f32, hit, medium)
+                            let first = scene.intersect(ray.origin, ray.dir, f32::INFINITY);
+                            Arrival { origin: ray.origin, dir: ray.dir, power: ray.power / n as f32, first, medium }
                         }
-                        None => Arrival { dir: Vec3::Z, power: Rgb::ZERO, tr: Rgb::ONE, hit: None, medium },
+                        None => Arrival { origin: Vec3::ZERO, dir: Vec3::Z, power: Rgb::ZERO, first: None, medium },
                     }
                 })
                 .collect()
@@ -189,7 +250,7 @@ fn cube_arrivals(
             let v0 = v1 - step;
             let dir = (forward + right * (u0 + 0.5 * step) + up * (v0 + 0.5 * step)).normalize();
             let power = intensity(dir) * omega[j];
-            Arrival::new(scene, position, dir, power, f.map(|f| f.hit(scene)), medium)
+            Arrival { origin: position, dir, power, first: f.map(|f| f.hit(scene)), medium }
         }));
     }
     out
@@ -199,11 +260,10 @@ fn cube_arrivals(
 /// light and texel order (deterministic: texel k of light l draws from its own
 /// stream, so a static light gives the same bounce map every frame, as the paper's
 /// seeding by light position and texel does).
-pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<BouncePhoton>, BounceStats) {
-    let mut out = Vec::new();
-    let mut stats = BounceStats::default();
+pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> BounceMaps {
+    let mut out = BounceMaps::default();
     // Nothing emits: no bounce map.
-    let Ok(selector) = pm_light::LightSelector::new(scene, &[]) else { return (out, stats) };
+    let Ok(selector) = pm_light::LightSelector::new(scene, &[]) else { return out };
     for li in 0..scene.lights.len() {
         // Texels in proportion to the light's share of the power (section 4.2), the
         // share the photon tracer and light sampling also use.
@@ -213,43 +273,83 @@ pub fn bounce_maps(scene: &Scene, res: u32, seed: u64, caustics: bool) -> (Vec<B
         }
         let r = ((res as f32 * (share * scene.lights.len() as f32).sqrt()).round() as u32).clamp(4, res.max(4) * 4);
         let arrivals = arrivals(scene, li, r, seed);
-        stats.texels += arrivals.len() as u64;
-        let bounced: Vec<Option<BouncePhoton>> = arrivals
+        out.stats.texels += arrivals.len() as u64;
+        let bounced: Vec<FirstBounce> = arrivals
             .par_iter()
             .enumerate()
             .with_min_len(256)
             .map(|(k, a)| {
-                let hit = a.hit.as_ref()?;
-                let wo = -a.dir;
-                let bsdf = scene.bsdf(hit);
                 let mut s = Sampler::hashed(seed ^ li as u64, 0x6d61_7000_0000 ^ k as u64);
-                let (bs, factor) = pm_photon::scatter(&bsdf, hit, wo, &mut s)?;
-                if bs.specular && !caustics {
-                    return None;
-                }
-                Some(BouncePhoton {
-                    origin: scene.offset_origin(hit.p, hit.ng, bs.wi),
-                    dir: bs.wi,
-                    power: a.power * a.tr * factor,
-                    density: density_factor(&bs),
-                    specular: bs.specular,
-                    medium: scene.medium_after(hit, bs.wi, a.medium),
-                })
+                first_bounce(scene, a, caustics, &mut s)
             })
             .collect();
-        for (a, b) in arrivals.iter().zip(&bounced) {
-            if a.hit.is_some() {
-                stats.hits += 1;
-                stats.incident += a.power * a.tr;
-            }
-            if let Some(b) = b {
-                stats.survived += 1;
-                stats.outgoing += b.power;
+        for b in bounced {
+            let Some(incident) = b.incident else { continue };
+            out.stats.hits += 1;
+            out.stats.incident += incident;
+            out.volume.extend(b.volume);
+            if let Some(b) = b.photon {
+                out.stats.survived += 1;
+                out.stats.outgoing += b.carrier.power();
+                out.photons.push(b);
             }
         }
-        out.extend(bounced.into_iter().flatten());
     }
-    (out, stats)
+    out
+}
+
+/// What one texel's photon did at its first event.
+struct FirstBounce {
+    /// The power reaching it [W per channel]; `None` when it left the scene.
+    incident: Option<Rgb>,
+    /// The volume photon it left where that event was in a medium.
+    volume: Option<Photon>,
+    /// The photon leaving it, if it survived.
+    photon: Option<BouncePhoton>,
+}
+
+/// The first event of arrival `a` ([`Arrival::land`]) and the photon leaving it:
+/// scattered by the surface's BSDF (a specular bounce only when `caustics`) or
+/// the medium's phase function, with Russian roulette.
+fn first_bounce(scene: &Scene, a: &Arrival, caustics: bool, s: &mut Sampler) -> FirstBounce {
+    let (mut carrier, landing) = a.land(scene, s);
+    let wo = -a.dir;
+    match landing {
+        Landing::Surface(hit) => {
+            let incident = Some(carrier.power());
+            let bsdf = scene.bsdf(&hit);
+            let photon = pm_photon::scatter(&bsdf, &hit, wo, s).filter(|(bs, _)| caustics || !bs.specular).map(
+                |(bs, factor)| {
+                    carrier.phi *= factor;
+                    carrier.leave(scene, &hit, bs.wi);
+                    BouncePhoton {
+                        origin: scene.offset_origin(hit.p, hit.ng, bs.wi),
+                        dir: bs.wi,
+                        carrier,
+                        density: density_factor(&bs),
+                        specular: bs.specular,
+                    }
+                },
+            );
+            FirstBounce { incident, volume: None, photon }
+        }
+        Landing::Scattered { p, medium } => {
+            let power = carrier.power();
+            let volume = Some(volume_photon(p, wo, power, flags::DIRECT));
+            let photon = pm_photon::scatter_in_medium(medium, wo, s).map(|(wi, q)| {
+                carrier.phi /= q;
+                BouncePhoton {
+                    origin: p,
+                    dir: wi,
+                    carrier,
+                    density: medium_density_factor(medium, wo, wi),
+                    specular: false,
+                }
+            });
+            FirstBounce { incident: Some(power), volume, photon }
+        }
+        Landing::Escaped | Landing::Passed { .. } => FirstBounce { incident: None, volume: None, photon: None },
+    }
 }
 
 /// The kernel shape of a path of density ρ_p (section 4.3): radius r1 / sqrt(ρ_p)
@@ -299,32 +399,43 @@ impl KernelShape {
 /// Trace the bounce-map photons on (section 4.3): at every non-specular hit store
 /// a photon (power, incident direction, the surface's normal on the arriving side,
 /// the kernel from the path's density), up to `stored` photons per path; scatter by
-/// the shared photon-tracing step. Photons are in bounce-map order.
-pub fn trace(
-    scene: &Scene,
-    bounce: &[BouncePhoton],
-    stored: u32,
-    kernel: &KernelShape,
-    seed: u64,
-) -> Vec<VolumePhoton> {
-    let paths: Vec<Vec<VolumePhoton>> = bounce
+/// the shared photon-tracing step. In scattering media the photons fly as the
+/// photon tracer's do ([`Carrier::fly`]) and every point they scatter at is a
+/// volume photon besides. Photons are in bounce-map order.
+pub fn trace(scene: &Scene, maps: &BounceMaps, stored: u32, kernel: &KernelShape, seed: u64) -> Traced {
+    let paths: Vec<Traced> = maps
+        .photons
         .par_iter()
         .enumerate()
         .with_min_len(64)
         .map(|(i, b)| {
-            let mut out = Vec::new();
+            let mut out = Traced::default();
             let mut s = Sampler::hashed(seed, 0x7472_6163_6500 ^ i as u64);
-            let (mut o, mut d, mut power, mut density, mut caustic) = (b.origin, b.dir, b.power, b.density, b.specular);
-            let mut medium = b.medium;
+            let (mut o, mut d, mut density, mut caustic) = (b.origin, b.dir, b.density, b.specular);
+            let mut c = b.carrier;
             for _ in 0..MAX_EVENTS {
-                if out.len() as u32 >= stored || !pm_color::is_valid(power) || power == Rgb::ZERO {
+                if out.photons.len() as u32 >= stored || !pm_color::is_valid(c.phi) || c.phi == Rgb::ZERO {
                     break;
                 }
-                // Attenuated by the media on the way (not scattered there).
-                let pass = scene.intersect_through(o, d, medium);
-                let Some(hit) = pass.hit else { break };
-                power *= pass.tr;
                 let wo = -d;
+                let hit = match c.fly(scene, o, d, &mut s) {
+                    Landing::Surface(hit) => hit,
+                    Landing::Passed { o: beyond } => {
+                        o = beyond;
+                        continue;
+                    }
+                    Landing::Scattered { p, medium } => {
+                        let extra = if caustic { flags::CAUSTIC } else { 0 };
+                        out.volume.push(volume_photon(p, wo, c.power(), extra));
+                        let Some((wi, q)) = pm_photon::scatter_in_medium(medium, wo, &mut s) else { break };
+                        c.phi /= q;
+                        density *= medium_density_factor(medium, wo, wi);
+                        caustic = false;
+                        (o, d) = (p, wi);
+                        continue;
+                    }
+                    Landing::Escaped => break,
+                };
                 let bsdf = scene.bsdf(&hit);
                 if !bsdf.is_specular() {
                     // The kernel is compressed along the shading normal: on a
@@ -340,26 +451,31 @@ pub fn trace(
                     } else {
                         1.0
                     };
-                    out.push(VolumePhoton {
+                    out.photons.push(VolumePhoton {
                         p: hit.p,
                         n,
                         wi: wo,
-                        power: power / (scene.store_probability(&hit) * covered),
+                        power: c.power() / (scene.store_probability(&hit) * covered),
                         r_xy,
                         r_z,
                         caustic,
                     });
                 }
                 let Some((bs, factor)) = pm_photon::scatter(&bsdf, &hit, wo, &mut s) else { break };
-                power *= factor;
+                c.phi *= factor;
+                c.leave(scene, &hit, bs.wi);
                 density *= density_factor(&bs);
                 caustic &= bs.specular;
-                medium = scene.medium_after(&hit, bs.wi, pass.medium);
                 o = scene.offset_origin(hit.p, hit.ng, bs.wi);
                 d = bs.wi;
             }
             out
         })
         .collect();
-    paths.into_iter().flatten().collect()
+    let mut all = Traced { photons: Vec::new(), volume: maps.volume.clone() };
+    for t in paths {
+        all.photons.extend(t.photons);
+        all.volume.extend(t.volume);
+    }
+    all
 }

@@ -12,14 +12,15 @@
 pub mod bounce;
 pub mod splat;
 
-pub use bounce::{BouncePhoton, BounceStats, KernelShape, bounce_maps, trace};
+pub use bounce::{BounceMaps, BouncePhoton, BounceStats, KernelShape, Traced, bounce_maps, trace};
 
 use glam::Vec3;
 use pm_color::Rgb;
+use pm_format::{FullPhoton, PhotonRecord};
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
 use pm_params::{Any, above, above_up_to, between};
 use pm_raster::Fragment;
-use pm_render::{FrameBuffers, Visibility};
+use pm_render::{FrameBuffers, Visibility, VolumePhotons};
 use pm_scene::{Camera, Hit, Scene};
 use rayon::prelude::*;
 use splat::{GBuffer, PhotonIndex, Seen, SplatOutput, Surface, VolumePhoton};
@@ -113,12 +114,14 @@ impl FrameRow for IspmFrame {
 
 /// Indirect light from photon volumes: splatted over the eye's surfaces after
 /// drawing, gathered (the same kernels, [`splat::gather`]) where mirrors and glass
-/// lead.
+/// lead; in scattering media, the beam estimate over the frame's volume photons.
 pub struct SplatLight<'a> {
     /// The frame's photons.
     pub photons: &'a [VolumePhoton],
     /// Their radius-query index.
     pub index: &'a PhotonIndex,
+    /// The frame's photons scattered in media (none without scattering media).
+    pub volume: Option<&'a VolumePhotons>,
 }
 
 impl IndirectLight for SplatLight<'_> {
@@ -129,6 +132,14 @@ impl IndirectLight for SplatLight<'_> {
         let surface = Surface::new(hit.p, n, wo, *bsdf);
         let (ind, caus) = splat::gather(self.photons, self.index, &surface);
         ind + caus
+    }
+
+    /// The beam estimate over the frame's volume photons scattered more than
+    /// once ([`VolumePhotons::scattered`]); the paper has no media, and without
+    /// it the frames of issue 53's fog scenes had single scattering only (volume
+    /// layer 50-80% dark).
+    fn scattered(&self, o: Vec3, d: Vec3, t: f32, m: &pm_scene::Medium) -> Rgb {
+        self.volume.map_or(Rgb::ZERO, |v| v.scattered(o, d, t, m))
     }
 }
 
@@ -240,12 +251,17 @@ impl Ispm {
         // photons frame after frame (the paper's seeding by light and texel).
         let film = f.film(seed);
         let t = Instant::now();
-        let (bounce, bstats) = bounce_maps(scene, p.bounce_res, seed, self.caustics);
+        let bounce = bounce_maps(scene, p.bounce_res, seed, self.caustics);
+        let bstats = bounce.stats;
         let t_bounce = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let kernel = KernelShape::new(p, scene.bounds.diagonal());
-        let photons = trace(scene, &bounce, p.bounces, &kernel, seed);
+        let diag = scene.bounds.diagonal();
+        let kernel = KernelShape::new(p, diag);
+        let Traced { photons, volume } = trace(scene, &bounce, p.bounces, &kernel, seed);
         let index = PhotonIndex::new(&photons);
+        // Beam spheres up to a tenth of the diagonal, as the vertex method's
+        // estimates reach.
+        let volume = VolumePhotons::new(scene, volume.iter().map(FullPhoton::encode).collect(), 0.1 * diag);
         let t_trace = t.elapsed().as_secs_f64();
         let t = Instant::now();
         pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), &mut self.fragments);
@@ -254,7 +270,7 @@ impl Ispm {
         let maps = f.shadow_maps(scene);
         // Direct light from photons is not a choice here: it is taken by shadow rays.
         let direct = if f.direct == DirectMode::Photons { DirectMode::Rays } else { f.direct };
-        let indirect = SplatLight { photons: &photons, index: &index };
+        let indirect = SplatLight { photons: &photons, index: &index, volume: volume.as_ref() };
         let shading = LiveShading::new(scene, indirect, direct, f, maps.as_ref()).map_err(|e| e.to_string())?;
         let visibility = Visibility::Fragments(scene, &self.fragments);
         pm_render::render_into(

@@ -50,8 +50,8 @@ fn splat_equals_gather_on(name: &str) {
     let s = scene(name);
     let p =
         Params(FrameParams { ..Default::default() }, IspmParams { bounce_res: 24, bounces: 3, ..Default::default() });
-    let (bounce, _) = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
-    let photons = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5);
+    let bounce = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
+    let photons = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5).photons;
     assert!(photons.iter().any(|q| q.caustic) && photons.iter().any(|q| !q.caustic));
     let sizes: Vec<f32> = photons.iter().map(|q| q.r_xy).collect();
     assert!(sizes.iter().cloned().fold(f32::INFINITY, f32::min) < sizes.iter().cloned().fold(0.0, f32::max));
@@ -95,7 +95,7 @@ fn splat_equals_gather_on(name: &str) {
 #[test]
 fn the_bounce_map_carries_the_lights_power() {
     let room = scene("jozwowski_room_16.gltf");
-    let (_, st) = pm_ispm::bounce_maps(&room, 32, 1, true);
+    let st = pm_ispm::bounce_maps(&room, 32, 1, true).stats;
     let phi = room.total_power();
     // Every direction meets a wall: no cracks between the rasterised triangles.
     assert_eq!(st.hits, st.texels, "the room is closed");
@@ -103,7 +103,7 @@ fn the_bounce_map_carries_the_lights_power() {
     assert!(rel(st.incident, phi) < 1e-4, "incident {} vs {}", st.incident, phi);
 
     let furnace = scene("furnace.gltf");
-    let (bounce, st) = pm_ispm::bounce_maps(&furnace, 48, 1, true);
+    let pm_ispm::BounceMaps { photons: bounce, stats: st, .. } = pm_ispm::bounce_maps(&furnace, 48, 1, true);
     let phi = furnace.total_power();
     let survived = st.survived as f32 / st.hits as f32;
     eprintln!("furnace: {} texels, survival {survived:.4}", st.texels);
@@ -249,9 +249,9 @@ fn caustic_paths_are_traced_only_where_the_analysis_finds_them() {
     let p = Params::default();
     let shape = KernelShape::new(&p.1, s.bounds.diagonal());
     for traced in [true, false] {
-        let (b, _) = pm_ispm::bounce_maps(&s, 24, 1, traced);
-        let caustic = pm_ispm::trace(&s, &b, 2, &shape, 1).iter().filter(|q| q.caustic).count();
-        assert_eq!(b.iter().any(|q| q.specular), traced);
+        let b = pm_ispm::bounce_maps(&s, 24, 1, traced);
+        let caustic = pm_ispm::trace(&s, &b, 2, &shape, 1).photons.iter().filter(|q| q.caustic).count();
+        assert_eq!(b.photons.iter().any(|q| q.specular), traced);
         assert_eq!(caustic > 0, traced, "{caustic} caustic photons");
     }
 }
@@ -377,8 +377,8 @@ fn splats_into_kept_scratch_equal_fresh_ones() {
     let s = scene("cornell_spheres.gltf");
     let p =
         Params(FrameParams { ..Default::default() }, IspmParams { bounce_res: 24, bounces: 3, ..Default::default() });
-    let (bounce, _) = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
-    let all = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5);
+    let bounce = pm_ispm::bounce_maps(&s, p.1.bounce_res, 5, true);
+    let all = pm_ispm::trace(&s, &bounce, p.1.bounces, &KernelShape::new(&p.1, s.bounds.diagonal()), 5).photons;
     // A cluster of photons round one of them: they reach a few bands.
     let centre = all[all.len() / 2].p;
     let cluster: Vec<_> =

@@ -126,6 +126,7 @@ impl<I: IndirectLight> LiveShading<'_, I> {
     ) -> Components {
         let scene = self.light.scene;
         let mut volume = Rgb::ZERO;
+        let first_tri = first.as_ref().map(|h| h.tri);
         let pass = scene.pass_from_visiting(o, d, first, scene.eye_medium(o), |o, t, m, tr| {
             let Some(medium) = scene.medium(m).filter(|x| x.scatters()) else { return };
             let t = if t.is_finite() { t } else { scene.escape_distance(o, d) };
@@ -152,10 +153,13 @@ impl<I: IndirectLight> LiveShading<'_, I> {
             v.direct = direct;
         }
         // A splatted method adds its light later where the eye sees the surface
-        // directly; a glossy surface's comes along its lobe.
+        // directly (not through an index-matched boundary: the splat's G-buffer
+        // holds the first fragment, and the floor under a fog box's top face had
+        // no indirect light at all, issue 53); a glossy surface's comes along its
+        // lobe.
         let indirect = if bsdf.is_glossy() {
             self.glossy(&hit, &bsdf, wo, pass.medium, s)
-        } else if I::SPLATTED {
+        } else if I::SPLATTED && first_tri == Some(hit.tri) {
             Rgb::ZERO
         } else {
             self.indirect.radiance(&hit, &bsdf, wo)

@@ -28,10 +28,8 @@ impl LiveMethod {
     /// reference sampled at the pixels' centres as the frames are). Looser than
     /// the batch methods' bound: both estimate indirect light from a few thousand
     /// photons a frame (the vertex method's at mesh corners, interpolated). In
-    /// media image-space photon mapping's photons do not scatter and its eye
-    /// takes single scattering only: a fog room's frame is 15-40% dark
-    /// (BENCHMARKS.md, issue 53); the vertex method adds the beam estimate of its
-    /// paths' scattering events.
+    /// media both add the beam estimate of their photons' scattering events to
+    /// the single scattering the eye takes from the lights.
     pub fn agreement(self) -> crate::Agreement {
         match self {
             LiveMethod::Vertex => crate::Agreement { mean: VERTEX_MEAN, worst_block: VERTEX_BLOCK },

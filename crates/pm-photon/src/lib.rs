@@ -276,55 +276,142 @@ pub fn trace_path(scene: &Scene, cfg: &TraceConfig, targets: &[Target], index: u
     let (mut o, mut d) = (ray.origin, ray.dir);
     let mut photon = PhotonPath::new(scene, li, ray.power / p_sel as f32, &mut s);
     for _ in 0..MAX_BOUNCES {
-        if !pm_color::is_valid(photon.phi) || photon.phi == Rgb::ZERO {
+        if !pm_color::is_valid(photon.carrier.phi) || photon.carrier.phi == Rgb::ZERO {
             return;
         }
         out.rays += 1;
-        let hit = scene.intersect(o, d, f32::INFINITY);
-        if let Some(m) = scene.medium(photon.medium).filter(|m| !m.is_clear()) {
-            let u = if m.scatters() { s.next_1d() } else { 0.0 };
-            let flight = photon.flights.fly(m, scene.segment_length(o, d, hit.as_ref()), u);
-            let (FreeFlight::Through { weight, .. } | FreeFlight::Scatter { weight, .. }) = flight;
-            photon.phi *= weight;
-            photon.w = photon.flights.weight();
-            if let FreeFlight::Scatter { t, .. } = flight {
+        match photon.carrier.fly(scene, o, d, &mut s) {
+            Landing::Escaped => return,
+            Landing::Scattered { p, medium } => {
                 out.reached = true;
-                let p = o + d * t;
-                match photon.in_medium(cfg.pass, m, p, -d, &mut s, out) {
+                match photon.in_medium(cfg.pass, medium, p, -d, &mut s, out) {
                     Some(wi) => (o, d) = (p, wi),
                     None => return,
                 }
-                continue;
             }
-        }
-        let Some(hit) = hit else { return };
-        out.reached = true;
-        if let Some(tint) = scene.index_matched(&hit) {
-            // Straight through, into the medium beyond: no event.
-            photon.phi *= tint;
-            photon.medium = scene.medium_after(&hit, d, photon.medium);
-            o = scene.offset_origin(hit.p, hit.ng, d);
-            continue;
-        }
-        match photon.on_surface(scene, cfg.pass, &hit, -d, &mut s, out) {
-            Some(wi) => (o, d) = (scene.offset_origin(hit.p, hit.ng, wi), wi),
-            None => return,
+            Landing::Passed { o: beyond } => {
+                out.reached = true;
+                o = beyond;
+            }
+            Landing::Surface(hit) => {
+                out.reached = true;
+                match photon.on_surface(scene, cfg.pass, &hit, -d, &mut s, out) {
+                    Some(wi) => (o, d) = (scene.offset_origin(hit.p, hit.ng, wi), wi),
+                    None => return,
+                }
+            }
         }
     }
     out.truncated = true;
 }
 
+/// What a photon carries from event to event and the medium it travels in:
+/// the state every photon tracer shares (the batch maps' paths here, the
+/// image-space method's bounce maps and paths).
+#[derive(Clone, Copy, Debug)]
+pub struct Carrier {
+    /// Power it carries \[W per channel\], before its flights' weight
+    /// ([`Carrier::power`]).
+    pub phi: Rgb,
+    /// The medium it is in.
+    pub medium: Option<pm_scene::MediumId>,
+    /// Its free flights through media (hero channel, density ratios).
+    pub flights: Flights,
+}
+
+/// Where a photon's flight from a point ends ([`Carrier::fly`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Landing<'a> {
+    /// It left the scene.
+    Escaped,
+    /// It scattered at `p` in `medium` (power: the flight's weight taken in).
+    Scattered {
+        /// Where \[m\].
+        p: Vec3,
+        /// The medium it is in.
+        medium: &'a pm_scene::Medium,
+    },
+    /// It went straight through an index-matched boundary and flies on from `o`
+    /// (in the medium beyond, the boundary's colour taken in); no event.
+    Passed {
+        /// Where it flies on from (offset off the boundary) \[m\].
+        o: Vec3,
+    },
+    /// It reached a surface.
+    Surface(pm_scene::Hit),
+}
+
+impl Carrier {
+    /// A photon of power `phi` [W per channel] leaving light `light`: in the
+    /// light's medium, its hero channel drawn from `s` when the scene has media
+    /// (one number; none otherwise).
+    pub fn new(scene: &Scene, light: usize, phi: Rgb, s: &mut Sampler) -> Carrier {
+        let media = scene.has_media();
+        Carrier {
+            phi,
+            medium: if media { scene.light_medium(light) } else { None },
+            flights: Flights::new(if media { s.next_1d() } else { 0.0 }),
+        }
+    }
+
+    /// The power it carries [W per channel]: `phi` times its flights' weight (one
+    /// without media).
+    #[inline]
+    pub fn power(&self) -> Rgb {
+        self.phi * self.flights.weight()
+    }
+
+    /// Fly from `o` along unit `d` to the next thing that happens: across a
+    /// medium that absorbs or scatters, a free flight (one number from `s` when
+    /// it scatters; Beer-Lambert otherwise) that may end in it; then the first
+    /// surface, an index-matched boundary passed, or nothing. One ray.
+    pub fn fly<'s>(&mut self, scene: &'s Scene, o: Vec3, d: Vec3, s: &mut Sampler) -> Landing<'s> {
+        let hit = scene.intersect(o, d, f32::INFINITY);
+        if let Some(m) = scene.medium(self.medium).filter(|m| !m.is_clear()) {
+            let u = if m.scatters() { s.next_1d() } else { 0.0 };
+            let flight = self.flights.fly(m, scene.segment_length(o, d, hit.as_ref()), u);
+            let (FreeFlight::Through { weight, .. } | FreeFlight::Scatter { weight, .. }) = flight;
+            self.phi *= weight;
+            if let FreeFlight::Scatter { t, .. } = flight {
+                return Landing::Scattered { p: o + d * t, medium: m };
+            }
+        }
+        let Some(hit) = hit else { return Landing::Escaped };
+        if let Some(tint) = scene.index_matched(&hit) {
+            self.phi *= tint;
+            self.medium = scene.medium_after(&hit, d, self.medium);
+            return Landing::Passed { o: scene.offset_origin(hit.p, hit.ng, d) };
+        }
+        Landing::Surface(hit)
+    }
+
+    /// Leave a surface event at `hit` in direction `wi`: the medium beyond.
+    pub fn leave(&mut self, scene: &Scene, hit: &pm_scene::Hit, wi: Vec3) {
+        if scene.has_media() {
+            self.medium = scene.medium_after(hit, wi, self.medium);
+        }
+    }
+}
+
+/// A scattering event in medium `m` of a photon travelling toward `-wo`:
+/// Russian roulette by the single-scattering albedo's mean q (the flight's
+/// weight already holds sigma_s over sigma_t), then the phase function sampled
+/// (three numbers from `s`, one when it ends). The new direction and q, which
+/// its power is divided by, or `None` when it is absorbed.
+pub fn scatter_in_medium(m: &pm_scene::Medium, wo: Vec3, s: &mut Sampler) -> Option<(Vec3, f32)> {
+    let q = pm_color::mean(m.albedo()).min(1.0);
+    if !(q > 0.0) || s.next_1d() >= q {
+        return None;
+    }
+    Some((m.phase.sample(wo, s.next_2d()).wi, q))
+}
+
 /// A photon's state between its events.
 struct PhotonPath {
-    /// Power it carries \[W per channel\], before `w`.
-    phi: Rgb,
+    /// What it carries and where.
+    carrier: Carrier,
     /// Every event so far was specular (a caustic photon when it lands).
     specular_chain: bool,
-    /// The medium it is in and its flights (hero channel, density ratios); the
-    /// power it carries is `phi` times `w`, one without media.
-    medium: Option<pm_scene::MediumId>,
-    flights: Flights,
-    w: f32,
     /// Scattering events so far (surfaces, specular ones included, and points in
     /// media; index-matched boundaries are not events).
     events: u32,
@@ -333,15 +420,7 @@ struct PhotonPath {
 impl PhotonPath {
     /// A photon of power `phi` leaving light `light`.
     fn new(scene: &Scene, light: usize, phi: Rgb, s: &mut Sampler) -> PhotonPath {
-        let media = scene.has_media();
-        PhotonPath {
-            phi,
-            specular_chain: true,
-            medium: if media { scene.light_medium(light) } else { None },
-            flights: Flights::new(if media { s.next_1d() } else { 0.0 }),
-            w: 1.0,
-            events: 0,
-        }
+        PhotonPath { carrier: Carrier::new(scene, light, phi, s), specular_chain: true, events: 0 }
     }
 
     /// A scattering event at `p` in medium `m`, the photon travelling toward
@@ -370,7 +449,7 @@ impl PhotonPath {
             }
             let photon = Photon {
                 position: p,
-                power: self.phi * self.w,
+                power: self.carrier.power(),
                 wi: wo,
                 flags: f,
                 normal: Vec3::ZERO,
@@ -378,15 +457,11 @@ impl PhotonPath {
             };
             out.photons.push((photon, self.events));
         }
-        let q = pm_color::mean(m.albedo()).min(1.0);
-        if !(q > 0.0) || s.next_1d() >= q {
-            return None;
-        }
-        self.phi /= q;
-        let ps = m.phase.sample(wo, s.next_2d());
+        let (wi, q) = scatter_in_medium(m, wo, s)?;
+        self.carrier.phi /= q;
         self.specular_chain = false;
         self.events += 1;
-        Some(ps.wi)
+        Some(wi)
     }
 
     /// A surface event at `hit`, the photon arriving from `wo`: stored at a
@@ -421,7 +496,7 @@ impl PhotonPath {
                 }
                 let photon = Photon {
                     position: hit.p,
-                    power: self.phi * self.w / scene.store_probability(hit),
+                    power: self.carrier.power() / scene.store_probability(hit),
                     wi: wo,
                     flags: f,
                     normal: side_n,
@@ -434,15 +509,13 @@ impl PhotonPath {
             }
         }
         let (bs, factor) = scatter(&bsdf, hit, wo, s)?;
-        self.phi *= factor;
+        self.carrier.phi *= factor;
         self.specular_chain &= bs.specular;
         if pass == MapPass::Caustic && !self.specular_chain {
             return None;
         }
         self.events += 1;
-        if scene.has_media() {
-            self.medium = scene.medium_after(hit, bs.wi, self.medium);
-        }
+        self.carrier.leave(scene, hit, bs.wi);
         Some(bs.wi)
     }
 }

@@ -408,6 +408,46 @@ pub fn boundary_corrected(scene: &Scene, beams: pm_estimate::Beams) -> pm_estima
     beams.with_inside_fractions(|i, r| inside_fraction(&free[i], r))
 }
 
+/// The volume photons of a real-time frame (the vertex method's ring, the
+/// image-space method's paths): balanced, as the spheres of the beam estimate
+/// over all but those scattered straight from a light
+/// ([`pm_estimate::beam_spheres`]), their kernels corrected for the media's
+/// boundaries ([`boundary_corrected`]).
+pub struct VolumePhotons {
+    /// The photons, balanced (heap order).
+    pub nodes: Vec<FullPhoton>,
+    /// Their beam spheres.
+    pub beams: pm_estimate::Beams,
+}
+
+impl VolumePhotons {
+    /// Photons a beam radius holds (the batch pipeline's `volume_k`).
+    pub const K: usize = 50;
+
+    /// The `photons` scattered in `scene`'s media, with beam radii from the
+    /// [`Self::K`] nearest within `max_radius` \[m\]; `None` when there are none.
+    pub fn new(scene: &Scene, photons: Vec<FullPhoton>, max_radius: f32) -> Option<VolumePhotons> {
+        if photons.is_empty() {
+            return None;
+        }
+        let nodes = pm_kdtree::balance(&photons);
+        let tree = KdTree::new(&nodes);
+        let beams = pm_estimate::beam_spheres(&tree, Self::K, max_radius * max_radius, false);
+        let beams = boundary_corrected(scene, beams);
+        Some(VolumePhotons { nodes, beams })
+    }
+
+    /// Radiance [W sr^-1 m^-2 per channel] the photons scattered more than once
+    /// put on the segment from `o` along unit `d` to `t` \[m\] in medium `m`
+    /// ([`pm_estimate::beam`], Jarosz, Zwicker and Jensen 2008), as the batch
+    /// pipeline's eye rays take it.
+    pub fn scattered(&self, o: Vec3, d: Vec3, t: f32, m: &pm_scene::Medium) -> pm_color::Rgb {
+        let seg = pm_estimate::Segment { o, d, t_max: t, sigma_t: m.sigma_t() };
+        let mut stack = Vec::new();
+        pm_estimate::beam(&self.nodes, &self.beams, &seg, &mut stack, |wi| m.phase.p(-d, wi))
+    }
+}
+
 /// The fraction of a sphere of radius `r` around a photon that lies in its
 /// medium, from its [`free_distances`]: the mean over the directions of the cube
 /// of the free part of the radius (each direction's cone of the sphere).

@@ -29,7 +29,7 @@ use pm_light::LightSelector;
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
 use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
-use pm_render::{FrameBuffers, Visibility};
+use pm_render::{FrameBuffers, Visibility, VolumePhotons};
 use pm_scene::{Hit, Scene, Target};
 use std::f32::consts::PI;
 use std::time::Instant;
@@ -274,10 +274,7 @@ impl IndirectLight for CornerLight<'_> {
     /// Zwicker and Jensen 2008). Without it the frames of issue 53's fog scenes
     /// had single scattering only, and their volume layer was 50-80% dark.
     fn scattered(&self, o: glam::Vec3, d: glam::Vec3, t: f32, m: &pm_scene::Medium) -> Rgb {
-        let Some(v) = self.volume else { return Rgb::ZERO };
-        let seg = pm_estimate::Segment { o, d, t_max: t, sigma_t: m.sigma_t() };
-        let mut stack = Vec::new();
-        pm_estimate::beam(&v.nodes, &v.beams, &seg, &mut stack, |wi| m.phase.p(-d, wi))
+        self.volume.map_or(Rgb::ZERO, |v| v.scattered(o, d, t, m))
     }
 }
 
@@ -288,36 +285,12 @@ fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
     p.flags & flags::VOLUME == 0 && (direct == DirectMode::Photons || p.flags & flags::DIRECT == 0)
 }
 
-/// Photons a volume photon's beam radius holds (the batch pipeline's `volume_k`).
-const VOLUME_K: usize = 50;
-
-/// A frame's volume photons: the ring's photons scattered in media
-/// ([`flags::VOLUME`]), balanced, and the spheres of the beam estimate over all
-/// but those scattered straight from a light ([`pm_estimate::beam_spheres`]),
-/// their kernels corrected for the media's boundaries
-/// ([`pm_render::boundary_corrected`]).
-pub struct VolumePhotons {
-    /// The photons, balanced (heap order).
-    pub nodes: Vec<pm_format::FullPhoton>,
-    /// Their beam spheres.
-    pub beams: pm_estimate::Beams,
-}
-
-impl VolumePhotons {
-    /// The volume photons of `ring` in `scene`, with beam radii from the `k`
-    /// nearest within `max_radius` \[m\]; `None` when it holds none.
-    fn of(ring: &RingBuffer, scene: &Scene, k: usize, max_radius: f32) -> Option<VolumePhotons> {
-        let held: Vec<pm_format::FullPhoton> =
-            ring.photons().iter().filter(|p| p.flags & flags::VOLUME != 0).map(pm_format::FullPhoton::encode).collect();
-        if held.is_empty() {
-            return None;
-        }
-        let nodes = pm_kdtree::balance(&held);
-        let tree = pm_kdtree::KdTree::new(&nodes);
-        let beams = pm_estimate::beam_spheres(&tree, k, max_radius * max_radius, false);
-        let beams = pm_render::boundary_corrected(scene, beams);
-        Some(VolumePhotons { nodes, beams })
-    }
+/// The ring's photons scattered in media ([`flags::VOLUME`]) for the beam
+/// estimate; `None` when it holds none.
+fn volume_photons(ring: &RingBuffer, scene: &Scene, max_radius: f32) -> Option<VolumePhotons> {
+    let held =
+        ring.photons().iter().filter(|p| p.flags & flags::VOLUME != 0).map(pm_format::FullPhoton::encode).collect();
+    VolumePhotons::new(scene, held, max_radius)
 }
 
 /// The photons of `ring` the estimates read (see [`Vertex::tree_photons`]).
@@ -609,7 +582,7 @@ impl pm_live::FrameMethod for Vertex {
         let maps = f.shadow_maps(world.scene());
         // Only paths traced in scattering media keep volume photons.
         let volume = (self.trace.pass == MapPass::Progressive)
-            .then(|| VolumePhotons::of(&self.ring, world.photon_scene(), VOLUME_K, self.max_radius(world)))
+            .then(|| volume_photons(&self.ring, world.photon_scene(), self.max_radius(world)))
             .flatten();
         let indirect = CornerLight {
             corners: &self.corners,
