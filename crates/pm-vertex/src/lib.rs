@@ -132,14 +132,6 @@ pm_params::params! {
         temporal: f32 = 0.0 => between(0.0, 0.99);
         /// Surfaces seen at pixels by the rasteriser or by eye rays (the same except at silhouettes).
         draw: DrawMode = DrawMode::Raster => Any;
-        /// In scattering media, keep where the paths scatter and add the beam
-        /// estimate of those volume photons along eye rays (light scattered more
-        /// than once); off: single scattering alone. On the checker's fog room
-        /// (seed 77777, scene 35) the volume layer is +1.8% against the path
-        /// tracer with it and 65% dark without, and a 256 x 256 frame takes 296
-        /// against 37 ms (BENCHMARKS.md, issue 53). Scenes without scattering
-        /// media are not affected.
-        multiple_scattering: bool = true => Any;
     }
 }
 
@@ -361,7 +353,7 @@ impl Vertex {
         // In scattering media the paths also keep where they scatter (the
         // progressive pass: the same paths, with the volume photons stored) for the
         // light media scatter more than once ([`CornerLight::volume`]).
-        let media = params.multiple_scattering && world.photon_scene().media.iter().any(|m| m.scatters());
+        let media = frame_params.multiple_scattering && world.photon_scene().media.iter().any(|m| m.scatters());
         let pass = if media { MapPass::Progressive } else { MapPass::Global };
         let trace = TraceConfig { pass, budget: Budget::Emitted(params.total as u64), seed, selector };
         let cover = cover_distance(world.photon_scene(), &params);
