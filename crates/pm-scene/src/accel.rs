@@ -144,8 +144,30 @@ impl Scene {
         self.solid_hit(o, d, t_max).is_some()
     }
 
-    /// Closest intersection along the ray from `o` in unit direction `d` within (0, t_max).
+    /// Closest intersection along the ray from `o` in unit direction `d` within
+    /// (0, t_max). An index-matched boundary and a solid surface closer together
+    /// than a ray's offset off a surface ([`Self::offset_origin`], doubled) are one
+    /// surface here, and the solid one is hit: a fog box standing on the floor
+    /// has its bottom face in the floor's plane, and whichever of the two the
+    /// traversal found first decided whether the floor was reached in the fog
+    /// (and its shadow rays and photons left in it) or the ray, passing the
+    /// face, started under the floor and left the room (issue 53's checker, its
+    /// fog boxes "on the floor").
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+        let hit = self.closest_where(o, d, t_max, |_| true)?;
+        if !self.layout.index_matched || !self.is_index_matched(hit.tri) {
+            return Some(hit);
+        }
+        let off = self.offset_origin(hit.p, hit.ng, d) - hit.p;
+        let cos = d.dot(hit.ng).abs().max(0.05);
+        let reach = (hit.t + 2.0 * off.length() / cos).min(t_max);
+        Some(self.closest_where(o, d, reach, |tri| !self.is_index_matched(tri)).unwrap_or(hit))
+    }
+
+    /// The closest intersection within (0, t_max) with a triangle `accept`
+    /// takes (and an alpha mask keeps).
+    #[inline]
+    fn closest_where(&self, o: Vec3, d: Vec3, t_max: f32, accept: impl Fn(u32) -> bool) -> Option<Hit> {
         let mut best_b = [0.0; 3];
         let tri_ray = TriangleRay::new(o, d);
         let (tris, id) = (&self.bvh_tris, self.bvh.slots());
@@ -155,7 +177,8 @@ impl Scene {
             let (group, mask, slot0) = tris.group(first, count);
             tri_ray.hit4(group, mask, t_best, |lane, t, b| {
                 let s = slot0 + lane as u32;
-                if !self.any_alpha || self.present(id[s as usize], b) {
+                let tri = id[s as usize];
+                if (!self.any_alpha || self.present(tri, b)) && accept(tri) {
                     (t_best, best_b, best) = (t, b, Some((s, t)));
                 }
                 t_best

@@ -335,6 +335,13 @@ impl Scene {
         }
     }
 
+    /// True when triangle `tri` is an index-matched boundary
+    /// ([`Self::index_matched`]).
+    #[inline]
+    pub(crate) fn is_index_matched(&self, tri: u32) -> bool {
+        matches!(self.uniform_bsdf(tri), Some(pm_bsdf::Bsdf::Glass { eta: 1.0, .. }))
+    }
+
     /// What reaches the end of a shadow ray from `o` along unit `d` of length
     /// `t_max` (infinite toward lights at infinity) that starts in medium `medium`,
     /// per channel: zero when a surface blocks it; otherwise the product of each

@@ -629,3 +629,67 @@ fn the_pipeline_on_defaults_agrees_with_the_path_tracer_in_fog_boxes() {
         }
     }
 }
+
+/// Issue 53: a fog box standing on the floor (the checker's fog boxes "on the
+/// floor": its bottom face, an index-matched boundary, in the floor's plane).
+/// Whichever of the two coplanar faces the traversal found first decided where a
+/// ray looking down into the box ended: on the floor in the fog, or past the box's
+/// bottom face, started under the floor, through it and out of the room (or on
+/// the floor in no medium, so that its shadow rays and photons left it as if the
+/// fog were not there). The checker's seed 90210 scene 31 (a sun and a spot over
+/// the fog box, its floor in the foreground): the batch pipeline's indirect layer
+/// 42% off in its worst block, the vertex method's direct layer +14% in mean.
+/// `Scene::intersect` now hits the solid surface of a boundary and a surface
+/// closer together than a ray's offset. Asserted: every camera ray of a 64 x 64
+/// grid that reaches the floor inside the box's footprint ends there, in the fog
+/// (before: 233 of the 335 did not).
+#[test]
+fn a_fog_box_standing_on_the_floor_keeps_the_floor_in_the_fog() {
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, recipe) = pm_scenegen::random::scene(90210, 31);
+    assert!(recipe.fog.as_deref().is_some_and(|f| f.starts_with("on the floor")), "{:?}", recipe.fog);
+    doc.write(dir.path(), "s", false).unwrap();
+    let scene = pm_scene::load(&dir.path().join("s.gltf")).unwrap();
+    let boundary = |tri: u32| matches!(scene.uniform_bsdf(tri), Some(Bsdf::Glass { eta: 1.0, .. }));
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for (i, t) in scene.triangles.iter().enumerate() {
+        if boundary(i as u32) {
+            for p in t.p {
+                (lo, hi) = (lo.min(p), hi.max(p));
+            }
+        }
+    }
+    let floor = scene.bounds.min.y;
+    assert!((lo.y - floor).abs() < 1e-6 * scene.bounds.diagonal(), "the box stands on the floor: {lo} / {floor}");
+    let fog = scene.media.iter().position(|m| m.scatters()).map(|i| i as pm_scene::MediumId);
+    let cam = scene.camera.clone().unwrap();
+    let eye = scene.eye_medium(cam.position);
+    let margin = 0.02 * (hi - lo);
+    let inside =
+        |p: Vec3| p.x > lo.x + margin.x && p.x < hi.x - margin.x && p.z > lo.z + margin.z && p.z < hi.z - margin.z;
+    let (n, mut reached, mut wrong) = (64, 0, Vec::new());
+    let tan = (0.5 * cam.yfov).tan();
+    for j in 0..n {
+        for i in 0..n {
+            let (u, v) = ((i as f32 + 0.5) / n as f32 * 2.0 - 1.0, 1.0 - (j as f32 + 0.5) / n as f32 * 2.0);
+            let d = (cam.forward + cam.right * (u * tan) + cam.up * (v * tan)).normalize();
+            if d.y >= 0.0 {
+                continue;
+            }
+            // Where the ray meets the floor's plane, if nothing is in the way.
+            let at = cam.position + d * ((floor - cam.position.y) / d.y);
+            if !inside(at) || scene.solid_hit(cam.position, d, f32::INFINITY).is_some_and(|h| h.p.y > floor + 1e-3) {
+                continue;
+            }
+            reached += 1;
+            let pass = scene.intersect_through(cam.position, d, eye);
+            let on_floor = pass.hit.as_ref().is_some_and(|h| (h.p.y - floor).abs() < 1e-4 && h.ng.y.abs() > 0.99);
+            if !on_floor || pass.medium != fog {
+                wrong.push((at, pass.hit.map(|h| h.p), pass.medium));
+            }
+        }
+    }
+    eprintln!("{reached} rays reach the floor under the fog box; {} end elsewhere or out of the fog", wrong.len());
+    assert!(reached > 200, "{reached}");
+    assert!(wrong.is_empty(), "{} of {reached}: {:?}", wrong.len(), &wrong[..wrong.len().min(4)]);
+}
