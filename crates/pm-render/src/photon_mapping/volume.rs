@@ -49,7 +49,7 @@ pub(crate) fn gathered<G: PhotonRecord>(
     }
     let max_d2 = cfg.max_radius_volume * cfg.max_radius_volume;
     let u = s.next_1d();
-    pm_estimate::precomputed_march(&vm.tree, &vm.inscattering, seg, u, max_d2, &mut scratch.rejected)
+    pm_estimate::precomputed_march(&vm.tree, &vm.inscattering, seg, m.phase.g, u, max_d2, &mut scratch.rejected)
 }
 
 /// The volume map's estimate [W sr^-1 m^-2 per channel] of the light scattered
