@@ -207,7 +207,16 @@ impl IrradianceCache {
     /// records go with slack 1; rendering accepts a little extrapolation, slack 2, as
     /// Ward's RADIANCE does for secondary samples, so jittered supersamples near a
     /// record's edge do not each trigger a fresh final gather).
-    pub(crate) fn lookup(&self, p: Vec3, n: Vec3, slack: f32) -> Option<Rgb> {
+    ///
+    /// Only records for which `seen(record's position)` holds are read: the caller
+    /// says whether the record's point and `p` see each other (nothing between
+    /// them). Ward's tests alone read records across a surface that divides two
+    /// regions of one plane: a wall's indirect irradiance outside a glass box that
+    /// crosses it leaked into the wall's part inside the glass, the specular layer
+    /// (what is seen through the glass) 10% bright, in stripes up to 20%, where a
+    /// fresh gather at every point agreed within 2.4% (differential checker seed
+    /// 90210, scene 2).
+    pub(crate) fn lookup(&self, p: Vec3, n: Vec3, slack: f32, seen: impl Fn(Vec3) -> bool) -> Option<Rgb> {
         debug_assert!(slack <= MAX_SLACK);
         let a = self.a * slack.min(MAX_SLACK);
         let entries = self.grid.get(&self.key(p))?;
@@ -230,6 +239,9 @@ impl IrradianceCache {
             // Ward's test: skip records in front of the point (they see
             // surfaces the point may not).
             if d.dot(n + r.n) * 0.5 < -0.05 * r.r {
+                continue;
+            }
+            if !seen(r.p) {
                 continue;
             }
             let w = 1.0 / eps.max(1e-4);

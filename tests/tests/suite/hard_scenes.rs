@@ -255,13 +255,26 @@ fn generated_with(
     block: usize,
     mode: pm_methods::Method,
 ) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
+    generated_with_spp(seed, index, size, layer, block, mode, 1024)
+}
+
+/// [`generated_with`] against the path tracer at `spp` a pixel.
+fn generated_with_spp(
+    seed: u64,
+    index: u32,
+    size: u32,
+    layer: pm_color::Layer,
+    block: usize,
+    mode: pm_methods::Method,
+    spp: u32,
+) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
     let dir = tempfile::tempdir().unwrap();
     let (doc, recipe) = pm_scenegen::random::scene(seed, index);
     let name = format!("scene-{index:03}");
     doc.write(dir.path(), &name, false).unwrap();
     let scene = dir.path().join(format!("{name}.gltf"));
     let (_, ours, reference) =
-        pm_tests::defaults_and_path_tracer(dir.path(), scene.to_str().unwrap(), size, 1024, |p| p.mode = mode);
+        pm_tests::defaults_and_path_tracer(dir.path(), scene.to_str().unwrap(), size, spp, |p| p.mode = mode);
     let n = size as usize;
     let keep = pm_image::accuracy::keep_mask(&reference.pixels(None), n, n, None);
     let l = Some(layer);
@@ -285,6 +298,26 @@ fn a_floor_seen_through_a_glass_block_is_as_bright_as_the_path_tracer_sees_it() 
     let (a, recipe) = generated_on_defaults(3, 19, 128, pm_color::Layer::Specular, 16);
     eprintln!("specular: {a} ({:?})", recipe.objects);
     assert!(a.mean.abs() < 0.10, "specular: {a} ({:?})", recipe.objects);
+}
+
+/// `cargo xtask run` on defaults (48 x 48) against the path tracer (4096 a pixel:
+/// a glass box's layer is noisy in it) on seed 90210's scene 2 of the differential
+/// checker's generator: a glass box (its base open) that crosses the back wall, so
+/// the part of the wall inside it is immersed in the glass, beside a diffuse box
+/// through the same wall, a mirror slab and two lamps. The irradiance cache
+/// interpolated the wall's records made outside the glass (lit by the room) into
+/// its part inside (lit through the glass: caustics, which the cache does not
+/// hold): Ward's tests cannot tell them apart on one plane. The specular layer
+/// (what is seen through the glass) was +9.9% against the path tracer at 8192 a
+/// pixel, in vertical stripes up to +20% in 8 x 8 blocks; a fresh final gather at
+/// every point gave +2.4%. A lookup now reads only records its point sees
+/// (`PhotonMapping::cached_irradiance`): +2.9%, worst block 11%. Asserted: the
+/// specular layer's mean within 6%.
+#[test]
+fn the_irradiance_cache_does_not_read_records_across_a_glass_face() {
+    let (a, recipe) = generated_with_spp(90210, 2, 48, pm_color::Layer::Specular, 8, pm_methods::Method::Full, 4096);
+    eprintln!("specular: {a} ({:?})", recipe.objects);
+    assert!(a.mean.abs() < 0.06, "specular: {a} ({:?})", recipe.objects);
 }
 
 /// `cargo xtask run` on defaults (48 x 48) against the path tracer (1024 a pixel)

@@ -163,6 +163,30 @@ photon_map_integrator!(PhotonsView, |v| &v.0, shade_photons);
 photon_map_integrator!(RadianceView, |v| &v.0, shade_radiance);
 photon_map_integrator!(IndirectView, |v| &v.0, shade_indirect);
 
+impl<G: PhotonRecord> PhotonMapping<'_, G> {
+    /// Indirect irradiance [W m^-2] at `p` (shading normal `ns`, geometric `ng`)
+    /// interpolated from `cache`'s records within accuracy x `slack`
+    /// ([`IrradianceCache::lookup`]) that `p` sees: the segment between the two
+    /// points, each lifted off its surface by the ray offset along `ng`, is not
+    /// blocked.
+    pub(crate) fn cached_irradiance(
+        &self,
+        cache: &IrradianceCache,
+        p: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        slack: f32,
+    ) -> Option<Rgb> {
+        let o = self.scene.offset_origin(p, ng, ng);
+        let lift = o - p;
+        cache.lookup(p, ns, slack, |q| {
+            let d = q + lift - o;
+            let l = d.length();
+            !(l > 0.0) || !self.scene.occluded(o, d / l, l)
+        })
+    }
+}
+
 /// Soft indirect irradiance at a non-specular point (in medium `medium`):
 /// interpolated from the cache when a record covers it, else a fresh final gather.
 pub(crate) fn indirect_irradiance<G: PhotonRecord>(
@@ -176,7 +200,7 @@ pub(crate) fn indirect_irradiance<G: PhotonRecord>(
 ) -> Rgb {
     if let Some(c) = &ctx.cache {
         let t = scratch.clock();
-        let e = c.lookup(p, ns, 2.0);
+        let e = ctx.cached_irradiance(c, p, ns, ng, 2.0);
         scratch::add_time(&ctx.counters.ns_icache, t);
         if let Some(e) = e {
             ctx.counters.cache_hits.fetch_add(1, Relaxed);

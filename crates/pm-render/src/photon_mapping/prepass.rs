@@ -42,7 +42,7 @@ impl IrradianceCache {
                     let cache = &cache;
                     points.into_iter().enumerate().filter_map(move |(b, (hit, wo, medium))| {
                         let (ns, ng) = (crate::facing(hit.ns, wo), crate::facing(hit.ng, wo));
-                        if cache.lookup(hit.p, ns, 1.0).is_some() {
+                        if pm.cached_irradiance(cache, hit.p, ns, ng, 1.0).is_some() {
                             return None;
                         }
                         let mut s = Sampler::new(mix64(pixel_seed(film.seed, i) ^ 0x0063_6163_6865 ^ b as u64), 0);
