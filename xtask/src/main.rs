@@ -209,13 +209,18 @@ fn compare(a: &CompareArgs) -> Result<()> {
     let e = pm_image::compare(&la, &lb, a.mask_above);
     let ssim = pm_image::ssim(&la, &lb, ia.width as usize, ia.height as usize);
     let identical = la.iter().zip(&lb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
-    println!(
+    // The report is written at once at the end: a reader that closes the pipe
+    // early (`| head`) is no error.
+    let mut out = String::new();
+    use std::fmt::Write as _;
+    writeln!(
+        out,
         "relative RMSE {:.5}  relative bias {:+.5}  SSIM {ssim:.4}  pixels {}{}",
         e.rel_rmse,
         e.rel_bias,
         e.pixels,
         if identical { "  (bit-identical)" } else { "" }
-    );
+    )?;
     if let Some(n) = a.blocks.filter(|&n| n > 0) {
         let w = ia.width as usize;
         let (ba, bb) = (pm_image::block_means(&la, w, n), pm_image::block_means(&lb, w, n));
@@ -228,19 +233,25 @@ fn compare(a: &CompareArgs) -> Result<()> {
                     if r > 0.0 { format!("{:4.0}", 100.0 * i / r) } else { "   -".into() }
                 })
                 .collect();
-            println!("{}", row.join(""));
+            writeln!(out, "{}", row.join(""))?;
         }
         // The blocks that count, as the differential checks count them (at least
         // half their pixels kept, not black next to the image).
         let keep: Vec<bool> = lb.iter().map(|p| p.max_element() <= a.mask_above).collect();
         let g = pm_image::accuracy::agreement(&la, &lb, w, &keep, n);
-        println!(
+        writeln!(
+            out,
             "{n} x {n} blocks: RMS {:.2}%, worst {:.1}% at column {}, row {}",
             100.0 * g.block_rms,
             100.0 * g.worst_block,
             g.worst_at.0,
             g.worst_at.1
-        );
+        )?;
+    }
+    if let Err(e) = std::io::Write::write_all(&mut std::io::stdout().lock(), out.as_bytes())
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+    {
+        return Err(e.into());
     }
     if let Some(png) = &a.png {
         let (w, h) = (ia.width as usize, ia.height as usize);
