@@ -103,6 +103,11 @@ impl Scene {
     /// surface is the share of such points in it (progressive photon mapping's
     /// gathers, the irradiance precompute).
     pub fn continues_surface(&self, x: Vec3, n: Vec3, off: Vec3, r: f32, same_cos: f32) -> bool {
+        self.surface_beside(x, n, off, r, same_cos).is_some()
+    }
+
+    /// The surface point [`Self::continues_surface`] finds, where it finds one.
+    pub fn surface_beside(&self, x: Vec3, n: Vec3, off: Vec3, r: f32, same_cos: f32) -> Option<Hit> {
         let lift = 0.1 * r;
         let o = x + lift * n;
         let alike = |hit: &Hit| facing(hit.ng, n).dot(n) > same_cos && hit.p.distance_squared(x) <= r * r;
@@ -110,9 +115,9 @@ impl Scene {
         if dist > 0.0
             && let Some(hit) = self.solid_hit(o, off / dist, dist)
         {
-            return alike(&hit);
+            return Some(hit).filter(alike);
         }
-        self.solid_hit(o + off, -n, lift + 2.0 * r).is_some_and(|hit| alike(&hit))
+        self.solid_hit(o + off, -n, lift + 2.0 * r).filter(alike)
     }
 
     /// True when a surface other than an index-matched boundary faces the point
