@@ -563,30 +563,35 @@ fn judge(
             px
         }
     };
-    let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+    let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>) {
         let (la, lb) = (merged(a, l), merged(b, l));
         let reference = la.iter().zip(&lb).map(|(x, y)| (*x + *y) * 0.5).collect();
-        (reference, la, lb)
+        (reference, la)
     };
-    let (reference, _, _) = mean_of(None);
+    let (reference, _) = mean_of(None);
     let whole = pm_image::accuracy::kept_mean(&reference, keep);
     for l in crate::tradeoff::results::COMPARED {
         if m.caustics_in_indirect() && l == Some(Layer::Caustic) {
             continue;
         }
-        let (reference, la, lb) = mean_of(l);
+        let (reference, la) = mean_of(l);
         // Layers that hold less than a twentieth of the light are not judged.
         if l.is_some() && pm_image::accuracy::kept_mean(&reference, keep) < 0.05 * whole {
             continue;
         }
         let ours = merged(img, l);
         let Agreement { mean, worst_block, worst_at, .. } = agreement(&ours, &reference, size, keep, 8);
-        // The average of two halves has half the noise their difference shows.
-        let halves = agreement(&la, &lb, size, keep, 8);
-        let mut noise = (halves.mean.abs() / 2.0, halves.worst_block / 2.0);
-        if let [x, y] = images {
-            let own = agreement(&merged(x, l), &merged(y, l), size, keep, 8);
-            noise = (noise.0 + own.mean.abs() / 2.0, noise.1 + own.worst_block / 2.0);
+        // The average of two halves is off its truth by about half their
+        // difference: a half against the average, |a - b| / (a + b), the same
+        // whichever half holds a firefly. (Half of a against b, |a - b| / 2b, was
+        // not: with a firefly in b it stayed under 50%, and seed 77777's scene 26
+        // failed every batch method at -14%, a firefly in one half of the
+        // reference 34% of its indirect light.)
+        let halves = agreement(&la, &reference, size, keep, 8);
+        let mut noise = (halves.mean.abs(), halves.worst_block);
+        if let [x, _] = images {
+            let own = agreement(&merged(x, l), &ours, size, keep, 8);
+            noise = (noise.0 + own.mean.abs(), noise.1 + own.worst_block);
         }
         let within = mean.abs() <= bound.mean + noise.0 && worst_block <= bound.worst_block + noise.1;
         if !within {
