@@ -16,7 +16,6 @@ pub use bounce::{BounceMaps, BouncePhoton, BounceStats, KernelShape, Traced, bou
 
 use glam::Vec3;
 use pm_color::Rgb;
-use pm_format::{FullPhoton, PhotonRecord};
 use pm_live::{DirectMode, FrameParams, FrameRow, IndirectLight, LiveShading, World};
 use pm_params::{Any, above, above_up_to, between};
 use pm_raster::Fragment;
@@ -261,10 +260,7 @@ impl Ispm {
         let index = PhotonIndex::new(&photons);
         // Beam spheres up to a tenth of the diagonal, as the vertex method's
         // estimates reach.
-        let volume = f
-            .multiple_scattering
-            .then(|| VolumePhotons::new(scene, volume.iter().map(FullPhoton::encode).collect(), 0.1 * diag))
-            .flatten();
+        let volume = f.multiple_scattering.then(|| VolumePhotons::from_traced(scene, &volume, 0.1 * diag)).flatten();
         let t_trace = t.elapsed().as_secs_f64();
         let t = Instant::now();
         pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), &mut self.fragments);

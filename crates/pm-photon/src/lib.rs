@@ -16,7 +16,9 @@
 use glam::Vec3;
 use pm_bsdf::BsdfSample;
 use pm_color::Rgb;
-use pm_format::{Photon, flags};
+/// The photons the tracer emits and their flags, for the methods that keep them
+/// in memory and write no photon-map file (the image-space method).
+pub use pm_format::{Photon, flags};
 pub use pm_light::{LightSelectError, LightSelector};
 use pm_sampling::{Sampler, mix64};
 use pm_scene::{Flights, FreeFlight, Scene, Target};
