@@ -12,7 +12,7 @@ use crate::splat::VolumePhoton;
 use glam::Vec3;
 use pm_color::Rgb;
 use pm_photon::{Carrier, Landing};
-use pm_photon::{Photon, flags};
+use pm_photon::{Photon, flags, volume_photon};
 use pm_raster::{self, Fragment};
 use pm_render::Film;
 use pm_sampling::Sampler;
@@ -115,19 +115,6 @@ fn glossy_density(rho: f32, pdf: f32) -> f32 {
 /// isotropic medium spreads its paths like a Lambertian surface.
 fn medium_density_factor(m: &pm_scene::Medium, wo: Vec3, wi: Vec3) -> f32 {
     glossy_density(pm_color::mean(m.albedo()).clamp(1e-6, 1.0), m.phase.p(wo, wi))
-}
-
-/// A photon scattered at `p` in `m`, toward `-wo`, as a volume photon of
-/// power `power` [W per channel] with `flags` besides [`flags::VOLUME`].
-fn volume_photon(p: Vec3, wo: Vec3, power: Rgb, extra: u8) -> Photon {
-    Photon {
-        position: p,
-        power,
-        wi: wo,
-        flags: flags::AXIS_LEAF | flags::VOLUME | extra,
-        normal: Vec3::ZERO,
-        irradiance: Rgb::ZERO,
-    }
 }
 
 /// Exact solid angle [sr] of the rectangle [u0, u1] x [v0, v1] of the plane at unit
@@ -336,15 +323,12 @@ fn first_bounce(scene: &Scene, a: &Arrival, caustics: bool, s: &mut Sampler) -> 
         Landing::Scattered { p, medium } => {
             let power = carrier.power();
             let volume = Some(volume_photon(p, wo, power, flags::DIRECT));
-            let photon = pm_photon::scatter_in_medium(medium, wo, s).map(|(wi, q)| {
-                carrier.phi /= q;
-                BouncePhoton {
-                    origin: p,
-                    dir: wi,
-                    carrier,
-                    density: medium_density_factor(medium, wo, wi),
-                    specular: false,
-                }
+            let photon = carrier.scatter_in(medium, wo, s).map(|wi| BouncePhoton {
+                origin: p,
+                dir: wi,
+                carrier,
+                density: medium_density_factor(medium, wo, wi),
+                specular: false,
             });
             FirstBounce { incident: Some(power), volume, photon }
         }
@@ -427,8 +411,7 @@ pub fn trace(scene: &Scene, maps: &BounceMaps, stored: u32, kernel: &KernelShape
                     Landing::Scattered { p, medium } => {
                         let extra = if caustic { flags::CAUSTIC } else { 0 };
                         out.volume.push(volume_photon(p, wo, c.power(), extra));
-                        let Some((wi, q)) = pm_photon::scatter_in_medium(medium, wo, &mut s) else { break };
-                        c.phi /= q;
+                        let Some(wi) = c.scatter_in(medium, wo, &mut s) else { break };
                         density *= medium_density_factor(medium, wo, wi);
                         caustic = false;
                         (o, d) = (p, wi);

@@ -260,7 +260,7 @@ impl Ispm {
         let index = PhotonIndex::new(&photons);
         // Beam spheres up to a tenth of the diagonal, as the vertex method's
         // estimates reach.
-        let volume = f.multiple_scattering.then(|| VolumePhotons::from_traced(scene, &volume, 0.1 * diag)).flatten();
+        let volume = f.multiple_scattering.then(|| VolumePhotons::new(scene, &volume, 0.1 * diag)).flatten();
         let t_trace = t.elapsed().as_secs_f64();
         let t = Instant::now();
         pm_raster::first_hits_into(scene, camera, film.size(), film.rect(), &mut self.fragments);

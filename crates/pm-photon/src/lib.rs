@@ -387,6 +387,20 @@ impl Carrier {
         Landing::Surface(hit)
     }
 
+    /// A scattering event in medium `m`, the photon travelling toward `-wo`:
+    /// Russian roulette by the single-scattering albedo's mean q (the flight's
+    /// weight already holds sigma_s over sigma_t; the power is divided by q),
+    /// then the phase function sampled (three numbers from `s`, one when it
+    /// ends). The new direction, or `None` when it is absorbed.
+    pub fn scatter_in(&mut self, m: &pm_scene::Medium, wo: Vec3, s: &mut Sampler) -> Option<Vec3> {
+        let q = pm_color::mean(m.albedo()).min(1.0);
+        if !(q > 0.0) || s.next_1d() >= q {
+            return None;
+        }
+        self.phi /= q;
+        Some(m.phase.sample(wo, s.next_2d()).wi)
+    }
+
     /// Leave a surface event at `hit` in direction `wi`: the medium beyond.
     pub fn leave(&mut self, scene: &Scene, hit: &pm_scene::Hit, wi: Vec3) {
         if scene.has_media() {
@@ -395,17 +409,19 @@ impl Carrier {
     }
 }
 
-/// A scattering event in medium `m` of a photon travelling toward `-wo`:
-/// Russian roulette by the single-scattering albedo's mean q (the flight's
-/// weight already holds sigma_s over sigma_t), then the phase function sampled
-/// (three numbers from `s`, one when it ends). The new direction and q, which
-/// its power is divided by, or `None` when it is absorbed.
-pub fn scatter_in_medium(m: &pm_scene::Medium, wo: Vec3, s: &mut Sampler) -> Option<(Vec3, f32)> {
-    let q = pm_color::mean(m.albedo()).min(1.0);
-    if !(q > 0.0) || s.next_1d() >= q {
-        return None;
+/// A photon scattered at `p` in a medium, arriving from `wo` (unit, toward
+/// where it came from), as a volume photon of power `power` [W per channel]
+/// with `extra` flags besides [`flags::VOLUME`] ([`flags::DIRECT`] for a first
+/// event, [`flags::CAUSTIC`] after mirrors and glass alone).
+pub fn volume_photon(p: Vec3, wo: Vec3, power: Rgb, extra: u8) -> Photon {
+    Photon {
+        position: p,
+        power,
+        wi: wo,
+        flags: flags::AXIS_LEAF | flags::VOLUME | extra,
+        normal: Vec3::ZERO,
+        irradiance: Rgb::ZERO,
     }
-    Some((m.phase.sample(wo, s.next_2d()).wi, q))
 }
 
 /// A photon's state between its events.
@@ -443,24 +459,16 @@ impl PhotonPath {
             return None;
         }
         if matches!(pass, MapPass::Volume | MapPass::Progressive) {
-            let mut f = flags::AXIS_LEAF | flags::VOLUME;
-            if self.events == 0 {
-                f |= flags::DIRECT;
+            let extra = if self.events == 0 {
+                flags::DIRECT
             } else if self.specular_chain {
-                f |= flags::CAUSTIC;
-            }
-            let photon = Photon {
-                position: p,
-                power: self.carrier.power(),
-                wi: wo,
-                flags: f,
-                normal: Vec3::ZERO,
-                irradiance: Rgb::ZERO,
+                flags::CAUSTIC
+            } else {
+                0
             };
-            out.photons.push((photon, self.events));
+            out.photons.push((volume_photon(p, wo, self.carrier.power(), extra), self.events));
         }
-        let (wi, q) = scatter_in_medium(m, wo, s)?;
-        self.carrier.phi /= q;
+        let wi = self.carrier.scatter_in(m, wo, s)?;
         self.specular_chain = false;
         self.events += 1;
         Some(wi)

@@ -424,19 +424,15 @@ impl VolumePhotons {
     /// Photons a beam radius holds (the batch pipeline's `volume_k`).
     pub const K: usize = 50;
 
-    /// The `photons` scattered in `scene`'s media, with beam radii from the
-    /// [`Self::K`] nearest within `max_radius` \[m\]; `None` when there are none.
-    pub fn new(scene: &Scene, photons: Vec<FullPhoton>, max_radius: f32) -> Option<VolumePhotons> {
-        Self::balanced(scene, photons, max_radius)
-    }
-
-    /// [`Self::new`] from the photon tracer's photons as it emits them (a method
-    /// that writes no photon-map file need not know its records).
-    pub fn from_traced(scene: &Scene, photons: &[pm_format::Photon], max_radius: f32) -> Option<VolumePhotons> {
-        Self::balanced(scene, photons.iter().map(FullPhoton::encode).collect(), max_radius)
-    }
-
-    fn balanced(scene: &Scene, photons: Vec<FullPhoton>, max_radius: f32) -> Option<VolumePhotons> {
+    /// The `photons` scattered in `scene`'s media (as the photon tracer emits
+    /// them), with beam radii from the [`Self::K`] nearest within `max_radius`
+    /// \[m\]; `None` when there are none.
+    pub fn new<'p>(
+        scene: &Scene,
+        photons: impl IntoIterator<Item = &'p pm_format::Photon>,
+        max_radius: f32,
+    ) -> Option<VolumePhotons> {
+        let photons: Vec<FullPhoton> = photons.into_iter().map(FullPhoton::encode).collect();
         if photons.is_empty() {
             return None;
         }

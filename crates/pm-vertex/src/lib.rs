@@ -280,9 +280,7 @@ fn estimates_read(direct: DirectMode, p: &pm_format::Photon) -> bool {
 /// The ring's photons scattered in media ([`flags::VOLUME`]) for the beam
 /// estimate; `None` when it holds none.
 fn volume_photons(ring: &RingBuffer, scene: &Scene, max_radius: f32) -> Option<VolumePhotons> {
-    let held =
-        ring.photons().iter().filter(|p| p.flags & flags::VOLUME != 0).map(pm_format::FullPhoton::encode).collect();
-    VolumePhotons::new(scene, held, max_radius)
+    VolumePhotons::new(scene, ring.photons().iter().filter(|p| p.flags & flags::VOLUME != 0), max_radius)
 }
 
 /// The photons of `ring` the estimates read (see [`Vertex::tree_photons`]).

@@ -243,23 +243,12 @@ fn generated_on_defaults(
     layer: pm_color::Layer,
     block: usize,
 ) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
-    generated_with(seed, index, size, layer, block, pm_methods::Method::Full)
+    generated_with(seed, index, size, layer, block, pm_methods::Method::Full, 1024)
 }
 
-/// [`generated_on_defaults`] with render mode `mode`.
+/// [`generated_on_defaults`] with render mode `mode`, against the path tracer at
+/// `spp` a pixel.
 fn generated_with(
-    seed: u64,
-    index: u32,
-    size: u32,
-    layer: pm_color::Layer,
-    block: usize,
-    mode: pm_methods::Method,
-) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
-    generated_with_spp(seed, index, size, layer, block, mode, 1024)
-}
-
-/// [`generated_with`] against the path tracer at `spp` a pixel.
-fn generated_with_spp(
     seed: u64,
     index: u32,
     size: u32,
@@ -314,7 +303,7 @@ fn a_floor_seen_through_a_glass_block_is_as_bright_as_the_path_tracer_sees_it() 
 /// worst block. Asserted: every block of the indirect layer within 25%.
 #[test]
 fn sppm_keeps_the_light_trapped_above_a_lamp_to_itself() {
-    let (a, recipe) = generated_with(90210, 27, 48, pm_color::Layer::Indirect, 8, pm_methods::Method::Sppm);
+    let (a, recipe) = generated_with(90210, 27, 48, pm_color::Layer::Indirect, 8, pm_methods::Method::Sppm, 1024);
     eprintln!("sppm indirect: {a} ({:?})", recipe.lights);
     assert!(a.worst_block < 0.25, "sppm indirect: {a} ({:?})", recipe.lights);
 }
@@ -334,7 +323,7 @@ fn sppm_keeps_the_light_trapped_above_a_lamp_to_itself() {
 /// specular layer's mean within 6%.
 #[test]
 fn the_irradiance_cache_does_not_read_records_across_a_glass_face() {
-    let (a, recipe) = generated_with_spp(90210, 2, 48, pm_color::Layer::Specular, 8, pm_methods::Method::Full, 4096);
+    let (a, recipe) = generated_with(90210, 2, 48, pm_color::Layer::Specular, 8, pm_methods::Method::Full, 4096);
     eprintln!("specular: {a} ({:?})", recipe.objects);
     assert!(a.mean.abs() < 0.06, "specular: {a} ({:?})", recipe.objects);
 }
@@ -361,7 +350,7 @@ fn rough_metal_reflects_the_room_as_the_path_tracer_sees_it() {
         eprintln!("{seed}/{index} indirect: {a} ({:?})", recipe.objects);
         assert!(a.mean.abs() < 0.04 && a.worst_block < 0.20, "{seed}/{index} indirect: {a} ({:?})", recipe.objects);
     }
-    let (a, recipe) = generated_with(16654, 32, 48, pm_color::Layer::Indirect, 8, pm_methods::Method::Sppm);
+    let (a, recipe) = generated_with(16654, 32, 48, pm_color::Layer::Indirect, 8, pm_methods::Method::Sppm, 1024);
     eprintln!("sppm 16654/32 indirect: {a} ({:?})", recipe.objects);
     assert!(a.worst_block < 0.25, "sppm 16654/32 indirect: {a} ({:?})", recipe.objects);
 }
