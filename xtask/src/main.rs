@@ -127,6 +127,12 @@ struct CompareArgs {
     /// full colour at a factor of 2), side by side.
     #[arg(long, value_name = "FILE")]
     png: Option<PathBuf>,
+    /// Judge the pixels `cargo xtask differential` judges: leave out those that
+    /// see one of this scene's emitters (directly or in mirrors and glass) and
+    /// their neighbours, and print the mean as it does (kept image over kept
+    /// reference, minus 1).
+    #[arg(long, value_name = "GLTF")]
+    scene: Option<PathBuf>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -206,6 +212,15 @@ fn compare(a: &CompareArgs) -> Result<()> {
         i.total_or_layer(a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))
     };
     let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);
+    let (w, h) = (ia.width as usize, ia.height as usize);
+    let keep: Vec<bool> = match &a.scene {
+        Some(scene) => differential::emitters_left_out(&pm_scene::load(scene)?, w, h)?
+            .into_iter()
+            .zip(&lb)
+            .map(|(k, p)| k && p.max_element() <= a.mask_above)
+            .collect(),
+        None => lb.iter().map(|p| p.max_element() <= a.mask_above).collect(),
+    };
     let e = pm_image::compare(&la, &lb, a.mask_above);
     let ssim = pm_image::ssim(&la, &lb, ia.width as usize, ia.height as usize);
     let identical = la.iter().zip(&lb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
@@ -221,8 +236,11 @@ fn compare(a: &CompareArgs) -> Result<()> {
         e.pixels,
         if identical { "  (bit-identical)" } else { "" }
     )?;
+    if a.scene.is_some() {
+        let g = pm_image::accuracy::agreement(&la, &lb, w, &keep, 8);
+        writeln!(out, "the pixels the differential checks judge: mean {:+.2}%", 100.0 * g.mean)?;
+    }
     if let Some(n) = a.blocks.filter(|&n| n > 0) {
-        let w = ia.width as usize;
         let (ba, bb) = (pm_image::block_means(&la, w, n), pm_image::block_means(&lb, w, n));
         for (row_a, row_b) in ba.chunks(w.div_ceil(n)).zip(bb.chunks(w.div_ceil(n))) {
             let row: Vec<String> = row_a
@@ -237,7 +255,6 @@ fn compare(a: &CompareArgs) -> Result<()> {
         }
         // The blocks that count, as the differential checks count them (at least
         // half their pixels kept, not black next to the image).
-        let keep: Vec<bool> = lb.iter().map(|p| p.max_element() <= a.mask_above).collect();
         let g = pm_image::accuracy::agreement(&la, &lb, w, &keep, n);
         writeln!(
             out,
@@ -254,7 +271,6 @@ fn compare(a: &CompareArgs) -> Result<()> {
         return Err(e.into());
     }
     if let Some(png) = &a.png {
-        let (w, h) = (ia.width as usize, ia.height as usize);
         pm_image::write_png(png, 3 * w as u32, h as u32, &side_by_side(&la, &lb, w, h), 0.0)?;
     }
     Ok(())

@@ -53,6 +53,10 @@ pub struct Args {
     /// stopped and the method counted as hung.
     #[arg(long, default_value_t = 300.0)]
     pub time_limit_s: f64,
+    /// Check only these scenes of the seed's set (their indices, from 0): to
+    /// look again at the ones a run failed. The report counts only them.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<u32>,
 }
 
 /// A method the checker runs: the batch renderer's (`cargo xtask run`) or a
@@ -193,6 +197,9 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
     let base = pm_pipeline::Pipeline::load(&root.join("pipeline.toml"))?;
     let mut outcomes = Vec::new();
     for (k, (scene, recipe)) in scenes.iter().enumerate() {
+        if !args.only.is_empty() && !args.only.contains(&(k as u32)) {
+            continue;
+        }
         let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
         let dir = out.join(&name);
         std::fs::create_dir_all(&dir)?;
@@ -222,7 +229,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             eprintln!("differential: {name}: unjudged: {why}");
             continue;
         }
-        let keep = emitters_left_out(&loaded, args.size as usize)?;
+        let keep = emitters_left_out(&loaded, args.size as usize, args.size as usize)?;
         // The references each kind of method needs: the batch methods filter
         // their pixels, the real-time ones draw one sample at each pixel's centre.
         let mut references: BTreeMap<bool, Result<(pm_image::Layers, pm_image::Layers)>> = BTreeMap::new();
@@ -270,7 +277,8 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
         outcomes.into_iter().filter(|o| o.verdict != "passed" && o.verdict != "unjudged").collect();
     worst.sort_by(|x, y| badness(y).total_cmp(&badness(x)));
     let bounds = methods.iter().map(|(m, a)| (m.to_string(), *a)).collect();
-    let report = Report { scenes: args.scenes, seed: args.seed, methods: counts, bounds, worst };
+    let checked = if args.only.is_empty() { args.scenes } else { args.only.iter().filter(|&&k| k < args.scenes).count() as u32 };
+    let report = Report { scenes: checked, seed: args.seed, methods: counts, bounds, worst };
     pm_stage::write_json(&out.join("report.json"), &serde_json::to_value(&report)?)?;
     contact_sheet(&out, &report.worst, args.size as usize)?;
     println!("{}", summary(&report));
@@ -350,7 +358,7 @@ fn badness(o: &Outcome) -> f64 {
     }
 }
 
-/// The pixels to judge in a `size` x `size` image of `scene`: all but those
+/// The pixels to judge in a `width` x `height` image of `scene`: all but those
 /// where the camera sees an emitter (any of 4 x 4 rays through the pixel),
 /// directly or in mirrors and glass (through [`MIRRORED_DEPTH`] specular
 /// bounces, both branches), and their neighbours, whose anti-aliased edges would
@@ -359,19 +367,19 @@ fn badness(o: &Outcome) -> f64 {
 /// agreed with Mitsuba 3 within 0.5%. Not a brightness threshold: a spot light's
 /// pool of light on the floor is as bright as a light, and judging without it
 /// once made a -2% image read -58%.
-fn emitters_left_out(s: &pm_scene::Scene, size: usize) -> Result<Vec<bool>> {
+pub fn emitters_left_out(s: &pm_scene::Scene, width: usize, height: usize) -> Result<Vec<bool>> {
     let cam = s.camera.as_ref().context("the scene has no camera")?;
     let sees_light = |x: usize, y: usize| {
         (0..16).any(|k| {
             let (u, v) = (
-                (x as f32 + (k % 4) as f32 / 4.0 + 0.125) / size as f32,
-                (y as f32 + (k / 4) as f32 / 4.0 + 0.125) / size as f32,
+                (x as f32 + (k % 4) as f32 / 4.0 + 0.125) / width as f32,
+                (y as f32 + (k / 4) as f32 / 4.0 + 0.125) / height as f32,
             );
             sees_emitter(s, cam.position, cam.ray_direction(u, v, 1.0), 0)
         })
     };
-    let light: Vec<bool> = (0..size * size).map(|i| sees_light(i % size, i / size)).collect();
-    Ok(pm_image::accuracy::left_out_with_neighbours(&light, size, size))
+    let light: Vec<bool> = (0..width * height).map(|i| sees_light(i % width, i / width)).collect();
+    Ok(pm_image::accuracy::left_out_with_neighbours(&light, width, height))
 }
 
 /// Specular bounces through which [`emitters_left_out`] looks for emitters.

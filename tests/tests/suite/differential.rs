@@ -25,6 +25,7 @@ fn the_small_differential_run_finds_no_crash_and_no_nonfinite_pixel() {
         reference_spp: 128,
         out: Some(dir.path().to_path_buf()),
         time_limit_s: 120.0,
+        only: vec![],
     };
     let bins = pm_tests::bins();
     let report = pm_study::differential::run_with(&args, &root, &bins).unwrap();
