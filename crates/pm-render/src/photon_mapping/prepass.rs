@@ -64,6 +64,7 @@ impl IrradianceCache {
             for (p, ns, g) in &new {
                 cache.insert(*p, *ns, g);
             }
+            cache.clamp_to_neighbours();
             if step == 1 {
                 break;
             }
