@@ -254,9 +254,13 @@ impl<'a> DirectLighting<'a> {
     /// `unoccluded` radiance ρ / π L_e ∫ cos dω [W sr^-1 m^-2] in closed form
     /// ([`pm_scene::Light::cos_integral`]) times the ratio estimate of its visibility
     /// Σ w_i V_i / Σ w_i over `n` light samples of its own (stratified over it), w_i
-    /// each sample's unoccluded contribution, with the ratio's 1 / n bias taken away
-    /// ([`visibility`]). Where a light is wholly seen or wholly hidden it is exact
-    /// (no noise); in penumbrae it is consistent. One sample gives that sample's
+    /// each sample's unoccluded contribution. Where a light is wholly seen or
+    /// wholly hidden it is exact (no noise); in penumbrae it is consistent, its
+    /// bias falling as 1 / n (and smaller for stratified samples than for
+    /// independent ones). The jackknife, which takes that term away from
+    /// independent samples, does not suit stratified ones: it made a penumbra 1.2%
+    /// bright at eight samples, where the plain ratio agreed with unbiased light
+    /// sampling within 0.1% (`closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae`). One sample gives that sample's
     /// visibility alone, whose mean weighs the light's points by the sampling
     /// density rather than by their contribution: on cornell_boxes, bias 4.4%
     /// against 2.0% from four samples on (trade-off study).
@@ -265,7 +269,7 @@ impl<'a> DirectLighting<'a> {
     /// [`CLOSED_FORM_LIGHTS`]): `n` among them all, chosen by power, gave a light
     /// one or two, and two stacked lamps, which put a whole room in the upper one's
     /// penumbra, lit its walls 2.1% to 2.7% dark at the pipeline's four samples
-    /// (issue 53's checker, scene 2 of seed 23897; -0.2% to +0.6% now, +0.3% at 64).
+    /// (issue 53's checker, scene 2 of seed 23897): -1.0% to -0.2% now, +0.3% at 64.
     /// In a medium the visibility is each shadow ray's transmittance (per channel):
     /// the ratio estimates the mean transmittance the light arrives with.
     fn closed_form_direct(
@@ -278,13 +282,12 @@ impl<'a> DirectLighting<'a> {
     ) -> Rgb {
         let scene = self.scene;
         let mut sum = Rgb::ZERO;
-        let mut samples = [(0.0f32, Rgb::ZERO); KEPT_SAMPLES];
         for (li, u) in unoccluded.iter().enumerate() {
             if u.max_element() <= 0.0 {
                 continue;
             }
             let net = (n > 1).then(|| s.net_4d());
-            let (mut seen, mut all, mut m) = (Rgb::ZERO, 0.0f32, 0);
+            let (mut seen, mut all) = (Rgb::ZERO, 0.0f32);
             for k in 0..n {
                 let u = match &net {
                     Some(net) => net.point(&self.nets, n, k),
@@ -292,49 +295,14 @@ impl<'a> DirectLighting<'a> {
                 };
                 let Some((c, o, wi, t_max)) = self.unshadowed_on((li, 1.0), at, u, false) else { continue };
                 let (w, v) = (c.element_sum(), scene.transmittance_along(o, wi, t_max, medium));
-                if w > 0.0 {
-                    (seen, all) = (seen + v * w, all + w);
-                    if let Some(slot) = samples.get_mut(m) {
-                        *slot = (w, v);
-                    }
-                    m += 1;
-                }
+                (seen, all) = (seen + v * w, all + w);
             }
             if all > 0.0 {
-                let ratio = seen / all;
-                sum += *u * if m <= KEPT_SAMPLES { visibility(ratio, (seen, all), &samples[..m]) } else { ratio };
+                sum += *u * (seen / all);
             }
         }
         sum
     }
-}
-
-/// Most light samples of a light at a shading point whose visibility
-/// [`visibility`] corrects (beyond them the plain ratio, whose bias is then
-/// below a part in that many).
-const KEPT_SAMPLES: usize = 64;
-
-/// A light's visibility from its samples (w_i, V_i): the ratio R = Σ w_i V_i /
-/// Σ w_i (`ratio`, of the sums `seen` and `all`) with its 1 / m bias taken away by
-/// the jackknife (Quenouille 1956): m R - (m - 1) / m Σ_i R_(-i), R_(-i) the
-/// ratio without sample i. Where every sample sees the light alike, each R_(-i)
-/// equals R and it stays exact. Clamped to [0, 1] (a transmittance). On the
-/// scene in [`DirectLighting::closed_form_direct`] the walls' direct light at
-/// four samples a light was -0.5% without it, +0.3% with it and at 64 samples.
-fn visibility(ratio: Rgb, (seen, all): (Rgb, f32), samples: &[(f32, Rgb)]) -> Rgb {
-    let m = samples.len() as f32;
-    if samples.len() < 2 {
-        return ratio;
-    }
-    let mut left_out = Rgb::ZERO;
-    for &(w, v) in samples {
-        let rest = all - w;
-        if rest <= 0.0 {
-            return ratio;
-        }
-        left_out += (seen - v * w) / rest;
-    }
-    (ratio * m - left_out * ((m - 1.0) / m)).clamp(Rgb::ZERO, Rgb::ONE)
 }
 
 /// One light sample's numbers drawn from the stream (the light, then the triangle,
