@@ -1,6 +1,6 @@
 //! Irradiance precomputed at photon positions (Christensen 1999 section 2.1).
 
-use crate::{Irradiance, KnnParams, SurfaceQuery, disc_share, irradiance, irradiance_on};
+use crate::{Irradiance, KnnParams, SurfaceQuery};
 use pm_format::{PhotonRecord, flags};
 use pm_kdtree::{KdTree, KnnScratch};
 use rayon::prelude::*;
@@ -79,20 +79,10 @@ pub fn precompute<R: PhotonRecord>(
                 .map(|i| {
                     let r = &tree.nodes()[i];
                     let (x, n) = (r.position(), r.normal());
-                    let est = match scene.and_then(|q| Some((q, q.surroundings(x, n)?))) {
-                        Some((q, s)) => {
-                            let under = r.flags() & flags::COVERED != 0;
-                            let (mut est, mixed) = irradiance_on(&tree, x, n, &s, under, p, &mut scratch);
-                            if est.count > 0 && est.r2 > 0.0 {
-                                // A fixed turn per photon (deterministic), spread by a hash.
-                                let turn = (pm_sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32;
-                                let cover = mixed.then_some(under);
-                                est.e /= disc_share(q, x, s.normal, est.r2.sqrt(), turn, cover);
-                            }
-                            est
-                        }
-                        None => irradiance(&tree, x, n, p, &mut scratch),
-                    };
+                    // A fixed turn per photon (deterministic), spread by a hash.
+                    let turn = (pm_sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32;
+                    let under = || r.flags() & flags::COVERED != 0;
+                    let est = crate::surface_irradiance(&tree, scene, x, n, under, turn, p, &mut scratch);
                     (i as u32, est)
                 })
                 .collect();

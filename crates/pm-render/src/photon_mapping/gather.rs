@@ -12,7 +12,7 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
-use pm_sampling::{Sampler, basis};
+use pm_sampling::{Sampler, basis, mix64};
 use pm_scene::{Hit, MediumId};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
@@ -61,15 +61,6 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                 // (62% of a 1.46M-triangle scene's prepass; BENCHMARKS.md).
                 let visible = |r: &G| {
                     let (q, nq) = (r.position(), r.normal());
-                    // A photon under a cover (in the gap above a light panel a few
-                    // millimetres below the ceiling, bright with trapped light)
-                    // serves only a query under one too: the ceiling just outside
-                    // the panel saw the gap's irradiance through the lift below
-                    // (+5% indirect light on the differential checker's scene 7 of
-                    // seed 3, issue 53). One ray, only for covered photons.
-                    if r.flags() & pm_format::flags::COVERED != 0 && !crate::covered(ctx.scene, p, n) {
-                        return false;
-                    }
                     let to_q = q - p;
                     let len = to_q.length();
                     let in_plane = n.dot(to_q).abs() <= 1e-4 * len + 1e-6 * p.abs().max(q.abs()).max_element();
@@ -89,12 +80,19 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                             && open(scene.offset_origin(q, nq, nq), nq, lift))
                         && (across == 0.0 || open(o, d / across, across))
                 };
+                // A photon under a cover (in the gap above a light panel a few
+                // millimetres below the ceiling, bright with trapped light) serves
+                // only a query under one too: the ceiling just outside the panel
+                // saw the gap's irradiance through the lift below (+5% indirect
+                // light on the differential checker's scene 7 of seed 3, issue 53).
+                // One ray, only when such a photon is met.
                 let found = pm_estimate::precomputed_irradiance_where(
                     tree,
                     p,
                     n,
                     max_d2,
                     &mut scratch.rejected,
+                    || crate::covered(ctx.scene, p, n),
                     visible,
                     VISIBILITY_TESTS,
                 );
@@ -118,7 +116,15 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                     max_d2: cfg.max_radius_global * cfg.max_radius_global,
                     filter: Filter::None,
                 };
-                pm_estimate::irradiance(tree, p, n, &params, &mut scratch.knn).e
+                // As the precompute estimates at a photon (the gaps around the
+                // surface, covers, the disc's share on it), with a turn of the
+                // disc's probes from the point's bits.
+                let surfaces = crate::SceneSurfaces { scene: ctx.scene, reach: cfg.max_radius_global };
+                let bits = p.to_array().map(f32::to_bits);
+                let turn = (mix64((bits[0] as u64) << 32 ^ (bits[1] as u64) << 16 ^ bits[2] as u64) >> 40) as f32
+                    / (1u64 << 24) as f32;
+                let covered = || crate::covered(ctx.scene, p, n);
+                pm_estimate::surface_irradiance(tree, Some(&surfaces), p, n, covered, turn, &params, &mut scratch.knn).e
             }
             None => Rgb::ZERO,
         },
