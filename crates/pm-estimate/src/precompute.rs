@@ -80,7 +80,7 @@ pub fn precompute<R: PhotonRecord>(
                     let r = &tree.nodes()[i];
                     let (x, n) = (r.position(), r.normal());
                     // A fixed turn per photon (deterministic), spread by a hash.
-                    let turn = (pm_sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32;
+                    let turn = pm_sampling::unit_of(pm_sampling::mix64(i as u64));
                     let under = || r.flags() & flags::COVERED != 0;
                     let est = crate::surface_irradiance(&tree, scene, x, n, under, turn, p, &mut scratch);
                     (i as u32, est)

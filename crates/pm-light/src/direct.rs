@@ -260,10 +260,12 @@ impl<'a> DirectLighting<'a> {
     /// independent ones). The jackknife, which takes that term away from
     /// independent samples, does not suit stratified ones: it made a penumbra 1.2%
     /// bright at eight samples, where the plain ratio agreed with unbiased light
-    /// sampling within 0.1% (`closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae`). One sample gives that sample's
-    /// visibility alone, whose mean weighs the light's points by the sampling
-    /// density rather than by their contribution: on cornell_boxes, bias 4.4%
-    /// against 2.0% from four samples on (trade-off study).
+    /// sampling within 0.1% (the suite's
+    /// `closed_form_direct_light_is_exact_where_seen_and_unbiased_in_penumbrae`).
+    /// One sample gives that sample's visibility alone, whose mean weighs the
+    /// light's points by the sampling density rather than by their contribution:
+    /// on cornell_boxes, bias 4.4% against 2.0% from four samples on (trade-off
+    /// study).
     ///
     /// Each light takes its own `n` samples (a scene has at most
     /// [`CLOSED_FORM_LIGHTS`]): `n` among them all, chosen by power, gave a light

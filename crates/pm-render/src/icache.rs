@@ -191,16 +191,15 @@ impl IrradianceCache {
         let mut r: Vec<f32> = self.records.iter().map(|x| x.r).collect();
         for (i, ri) in self.records.iter().enumerate() {
             let Some(entries) = self.grid.get(&self.key(ri.p)) else { continue };
+            let own = ri.e.element_sum();
             for e in entries {
-                let d = ri.p - e.p;
-                let j = e.id as usize;
-                if j == i || d.length() >= a * e.r || r[j] <= ri.r + d.length() {
+                let (j, d) = (e.id as usize, (ri.p - e.p).length());
+                if j == i || d >= a * e.r || r[j] <= ri.r + d {
                     continue;
                 }
                 let predicted = self.records[j].extrapolated(ri.p, ri.n).element_sum();
-                let own = ri.e.element_sum();
                 if predicted * DISAGREE < own || predicted > DISAGREE * own {
-                    r[j] = r[j].min(ri.r + d.length());
+                    r[j] = ri.r + d;
                 }
             }
         }

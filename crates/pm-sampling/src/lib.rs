@@ -21,6 +21,13 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A number in [0, 1) from the top 24 bits of `h` (a [`mix64`] of some key): a
+/// fixed, well-spread value per key, where no sample stream is at hand.
+#[inline]
+pub fn unit_of(h: u64) -> f32 {
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
 /// A stream of samples in [0,1) for one index (photon, pixel sample, ...). Each call
 /// advances one dimension. Equal (seed, index) give equal streams on every thread.
 /// The stream's keys are derived on the first draw: a pixel whose shading needs no

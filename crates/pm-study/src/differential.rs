@@ -277,8 +277,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
         outcomes.into_iter().filter(|o| o.verdict != "passed" && o.verdict != "unjudged").collect();
     worst.sort_by(|x, y| badness(y).total_cmp(&badness(x)));
     let bounds = methods.iter().map(|(m, a)| (m.to_string(), *a)).collect();
-    let checked =
-        if args.only.is_empty() { args.scenes } else { args.only.iter().filter(|&&k| k < args.scenes).count() as u32 };
+    let checked = (0..args.scenes).filter(|k| args.only.is_empty() || args.only.contains(k)).count() as u32;
     let report = Report { scenes: checked, seed: args.seed, methods: counts, bounds, worst };
     pm_stage::write_json(&out.join("report.json"), &serde_json::to_value(&report)?)?;
     contact_sheet(&out, &report.worst, args.size as usize)?;

@@ -12,7 +12,7 @@ use pm_bsdf::Bsdf;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::PhotonRecord;
-use pm_sampling::{Sampler, basis, mix64};
+use pm_sampling::{Sampler, basis, mix64, unit_of};
 use pm_scene::{Hit, MediumId};
 use std::f32::consts::PI;
 use std::sync::atomic::Ordering::Relaxed;
@@ -121,8 +121,7 @@ pub(crate) fn lookup_irradiance<G: PhotonRecord>(
                 // disc's probes from the point's bits.
                 let surfaces = crate::SceneSurfaces { scene: ctx.scene, reach: cfg.max_radius_global };
                 let bits = p.to_array().map(f32::to_bits);
-                let turn = (mix64((bits[0] as u64) << 32 ^ (bits[1] as u64) << 16 ^ bits[2] as u64) >> 40) as f32
-                    / (1u64 << 24) as f32;
+                let turn = unit_of(mix64((bits[0] as u64) << 32 ^ (bits[1] as u64) << 16 ^ bits[2] as u64));
                 let covered = || crate::covered(ctx.scene, p, n);
                 pm_estimate::surface_irradiance(tree, Some(&surfaces), p, n, covered, turn, &params, &mut scratch.knn).e
             }
