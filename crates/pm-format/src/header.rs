@@ -585,9 +585,9 @@ pub(crate) fn read_file(path: &Path, expect: &ReadExpect) -> Result<crate::AnyMa
             if !pm_color::is_valid(r.power()) {
                 return bad("power is negative or not finite");
             }
-            if r.flags() & !flags::KNOWN != 0 {
-                return bad("unknown flag bits");
-            }
+            // Every bit of the flags byte has a meaning (`flags::KNOWN` is all
+            // of them), so no flag value is invalid.
+            const _: () = assert!(flags::KNOWN == u8::MAX);
             if !pm_color::is_valid(r.irradiance()) {
                 return bad("irradiance is negative or not finite");
             }
