@@ -135,8 +135,8 @@ impl<'a> DirectLighting<'a> {
     fn every_delta(&self, at: &Lit, medium: Option<MediumId>) -> Rgb {
         let mut sum = Rgb::ZERO;
         for &li in &self.every {
-            if let Some((c, o, wi, t_max)) = self.unshadowed_on((li, 1.0), at, [0.5; 4], false) {
-                sum += c * self.scene.transmittance_along(o, wi, t_max, medium);
+            if let Some((c, ray)) = self.unshadowed_on((li, 1.0), at, [0.5; 4], false) {
+                sum += c * ray.transmittance(self.scene, medium);
             }
         }
         sum
@@ -145,7 +145,7 @@ impl<'a> DirectLighting<'a> {
     /// One sample of reflected radiance from a light picked among the others.
     fn sampled_light(&self, at: &Lit, u: [f32; 4], mis: bool, medium: Option<MediumId>) -> Rgb {
         match self.unshadowed(at.hit, at.bsdf, at.wo, u, mis) {
-            Some((_, c, o, wi, t_max)) => c * self.scene.transmittance_along(o, wi, t_max, medium),
+            Some((_, c, ray)) => c * ray.transmittance(self.scene, medium),
             None => Rgb::ZERO,
         }
     }
@@ -201,35 +201,21 @@ impl<'a> DirectLighting<'a> {
             return Rgb::ZERO;
         }
         let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, f) };
-        let t_max = shadow_length(scene, p, p, &ls);
-        ls.li * (f * w / p_l) * scene.transmittance_along(p, ls.wi, t_max, medium)
+        ls.li * (f * w / p_l) * ShadowRay::new(p, p, &ls).transmittance(scene, medium)
     }
 
     /// A light sample's light, its contribution as if nothing blocked it, and its
-    /// shadow ray (origin, direction, length); `None` where it contributes nothing.
+    /// shadow ray; `None` where it contributes nothing.
     #[inline]
-    fn unshadowed(
-        &self,
-        hit: &Hit,
-        bsdf: &Bsdf,
-        wo: Vec3,
-        u: [f32; 4],
-        mis: bool,
-    ) -> Option<(usize, Rgb, Vec3, Vec3, f32)> {
+    fn unshadowed(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Option<(usize, Rgb, ShadowRay)> {
         let (li, p_sel) = self.sampled.as_ref()?.pick(u[3]);
-        let (c, o, wi, t_max) = self.unshadowed_on((li, p_sel as f32), &Lit { hit, bsdf, wo }, u, mis)?;
-        Some((li, c, o, wi, t_max))
+        let (c, ray) = self.unshadowed_on((li, p_sel as f32), &Lit { hit, bsdf, wo }, u, mis)?;
+        Some((li, c, ray))
     }
 
     /// [`Self::unshadowed`] on light `li`, chosen with probability `p_sel`.
     #[inline]
-    fn unshadowed_on(
-        &self,
-        (li, p_sel): (usize, f32),
-        at: &Lit,
-        u: [f32; 4],
-        mis: bool,
-    ) -> Option<(Rgb, Vec3, Vec3, f32)> {
+    fn unshadowed_on(&self, (li, p_sel): (usize, f32), at: &Lit, u: [f32; 4], mis: bool) -> Option<(Rgb, ShadowRay)> {
         let Lit { hit, bsdf, wo } = *at;
         let scene = self.scene;
         let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
@@ -241,11 +227,10 @@ impl<'a> DirectLighting<'a> {
         if f.max_element() <= 0.0 {
             return None;
         }
-        let o = scene.offset_origin(hit.p, hit.ng, ls.wi);
-        let t_max = shadow_length(scene, hit.p, o, &ls);
+        let ray = ShadowRay::new(hit.p, scene.offset_origin(hit.p, hit.ng, ls.wi), &ls);
         let p_l = ls.pdf * p_sel;
         let w = if ls.delta || !mis { 1.0 } else { power_heuristic(p_l, bsdf.pdf(wo, ls.wi, hit.ns)) };
-        Some((f * ls.li * (w / p_l), o, ls.wi, t_max))
+        Some((f * ls.li * (w / p_l), ray))
     }
 
     /// Direct light on a Lambertian surface from lights that all have a closed-form
@@ -295,8 +280,8 @@ impl<'a> DirectLighting<'a> {
                     Some(net) => net.point(&self.nets, n, k),
                     None => light_numbers(s),
                 };
-                let Some((c, o, wi, t_max)) = self.unshadowed_on((li, 1.0), at, u, false) else { continue };
-                let (w, v) = (c.element_sum(), scene.transmittance_along(o, wi, t_max, medium));
+                let Some((c, ray)) = self.unshadowed_on((li, 1.0), at, u, false) else { continue };
+                let (w, v) = (c.element_sum(), ray.transmittance(scene, medium));
                 (seen, all) = (seen + v * w, all + w);
             }
             if all > 0.0 {
@@ -340,11 +325,10 @@ pub(crate) fn lambert_unoccluded(light: &pm_scene::Light, p: Vec3, n: Vec3, rho:
 /// 350 m from its camera-relative origin has coordinates 3e-5 m apart, and without
 /// it the floor of a 0.55 m Cornell box 100 km away lost most of its direct light;
 /// issue 36), stretched by the cosine at the light's surface. Toward a point or
-/// spot light, and in a scene whose shadow rays walk through index-matched
-/// boundaries (each passed from an origin offset off its surface, which shifts the
-/// rest of the ray as the first offset did: cornell_fog's light blocked itself),
-/// the units unstretched and 1e-4 of the length. Infinite for lights at infinity.
-pub(crate) fn shadow_length(scene: &pm_scene::Scene, p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> f32 {
+/// spot light the units unstretched and 1e-4 of the length. Infinite for lights
+/// at infinity. A ray that walks through index-matched boundaries measures what
+/// is left of it after each to the light's plane ([`ShadowRay`]).
+fn shadow_length(p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> f32 {
     if !ls.dist.is_finite() {
         return f32::INFINITY;
     }
@@ -361,7 +345,7 @@ pub(crate) fn shadow_length(scene: &pm_scene::Scene, p: Vec3, o: Vec3, ls: &pm_s
     let ahead = if cos.abs() > 1e-6 { ((o - p).dot(ls.normal) / cos).max(along) } else { along };
     let ulps = far * (16.0 * f32::EPSILON);
     let end = ls.dist - ahead;
-    if ls.normal == Vec3::ZERO || scene.rays_walk() {
+    if ls.normal == Vec3::ZERO {
         return end * (1.0 - 1e-4) - ulps;
     }
     // On a light's surface the end is known to the rounding of its coordinates,
@@ -371,6 +355,30 @@ pub(crate) fn shadow_length(scene: &pm_scene::Scene, p: Vec3, o: Vec3, ls: &pm_s
     // photon maps said, as Mitsuba 3 does (it has such a margin too), and as both
     // do not with the lights 2 cm apart (BENCHMARKS.md).
     end - ulps / cos.abs().max(0.01)
+}
+
+/// A shadow ray toward a light sample: from `o` along unit `d`, `t_max` \[m\]
+/// long ([`shadow_length`]), ending on the light's surface of unit normal
+/// `end` (zero toward a point, spot or sun light).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShadowRay {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub t_max: f32,
+    pub end: Vec3,
+}
+
+impl ShadowRay {
+    /// The shadow ray from `o` (the offset of point `p`) toward `ls`.
+    pub fn new(p: Vec3, o: Vec3, ls: &pm_scene::LightSample) -> ShadowRay {
+        ShadowRay { o, d: ls.wi, t_max: shadow_length(p, o, ls), end: ls.normal }
+    }
+
+    /// What reaches the light along it from medium `medium`
+    /// ([`pm_scene::Scene::transmittance_to`]).
+    pub fn transmittance(&self, scene: &pm_scene::Scene, medium: Option<MediumId>) -> Rgb {
+        scene.transmittance_to(self.o, self.d, self.t_max, self.end, medium)
+    }
 }
 
 /// The power heuristic (beta = 2) weight of a sample with density `a` against `b`.

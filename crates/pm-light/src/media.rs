@@ -63,8 +63,7 @@ impl DirectLighting<'_> {
             if !(f > 0.0 && p_l > 0.0) {
                 continue;
             }
-            let shadow = crate::direct::shadow_length(scene, x, x, &ls);
-            let tr = scene.transmittance_along(x, ls.wi, shadow, medium);
+            let tr = crate::direct::ShadowRay::new(x, x, &ls).transmittance(scene, medium);
             sum += m.transmittance(t) * m.sigma_s * ls.li * tr * (f / p_l);
         }
         sum / n.max(1) as f32

@@ -349,11 +349,27 @@ impl Scene {
     /// boundary it passes (changing medium there). In a scene without media or
     /// index-matched boundaries, [`Self::occluded`]'s answer as zero or one.
     pub fn transmittance_along(&self, o: Vec3, d: Vec3, t_max: f32, medium: Option<MediumId>) -> Rgb {
+        self.transmittance_to(o, d, t_max, Vec3::ZERO, medium)
+    }
+
+    /// [`Self::transmittance_along`] for a shadow ray that ends on a surface of
+    /// unit normal `end_normal` (a light's; zero where it ends at a point): past
+    /// each index-matched boundary the walk goes on from an origin offset off the
+    /// boundary, which shifts the ray across it, and what is left of the ray is
+    /// measured to the plane through its end, not along it. Measured along it, a
+    /// grazing ray through a fog box's top reached the light's own surface (the
+    /// shift over the cosine there), and shadow rays had ended a ten-thousandth
+    /// of their length short to make up for it: in front of a lamp 0.03 mm below
+    /// another they passed the lower one, lit with the upper one's hidden part,
+    /// and the path tracer's indirect light came out 11% brighter than the
+    /// photons' (issue 53's checker, seed 77777 scene 30).
+    pub fn transmittance_to(&self, o: Vec3, d: Vec3, t_max: f32, end_normal: Vec3, medium: Option<MediumId>) -> Rgb {
         if !self.rays_walk() {
             return if self.occluded(o, d, t_max) { Rgb::ZERO } else { Rgb::ONE };
         }
         let first = self.intersect(o, d, t_max);
-        match self.walk_from(o, d, t_max, medium, first) {
+        let end = (t_max.is_finite() && d.dot(end_normal).abs() > 1e-6).then(|| (o + d * t_max, end_normal));
+        match self.walk_visiting(o, d, (t_max, end), medium, first, |_, _, _, _| {}) {
             Passage { hit: Some(_), .. } => Rgb::ZERO,
             p => p.tr,
         }
@@ -393,7 +409,7 @@ impl Scene {
             let t = first.as_ref().map_or(f32::INFINITY, |h| h.t);
             return Passage { hit: first, tr: Rgb::ONE, t, medium };
         }
-        self.walk_visiting(o, d, f32::INFINITY, medium, first, visit)
+        self.walk_visiting(o, d, (f32::INFINITY, None), medium, first, visit)
     }
 
     /// The walk the above take, from the ray's first hit `hit` within `t_max`:
@@ -409,16 +425,18 @@ impl Scene {
         medium: Option<MediumId>,
         hit: Option<Hit>,
     ) -> Passage {
-        self.walk_visiting(o, d, t_max, medium, hit, |_, _, _, _| {})
+        self.walk_visiting(o, d, (t_max, None), medium, hit, |_, _, _, _| {})
     }
 
     /// [`Self::walk_from`], calling `visit` for each stretch in a medium as
-    /// [`Self::pass_from_visiting`] says.
+    /// [`Self::pass_from_visiting`] says; with `end` (a point and a unit normal
+    /// not perpendicular to `d`), what is left of the walk after each boundary is
+    /// measured to the plane through them ([`Self::transmittance_to`]).
     fn walk_visiting(
         &self,
         o: Vec3,
         d: Vec3,
-        t_max: f32,
+        (t_max, end): (f32, Option<(Vec3, Vec3)>),
         medium: Option<MediumId>,
         mut hit: Option<Hit>,
         mut visit: impl FnMut(Vec3, f32, Option<MediumId>, Rgb),
@@ -449,7 +467,11 @@ impl Scene {
             cur = self.medium_after(&h, d, cur);
             let next = self.offset_origin(h.p, h.ng, d);
             let step = (next - o).dot(d);
-            (travelled, left, o) = (travelled + step, left - step, next);
+            let rest = match end {
+                Some((e, n)) => (e - next).dot(n) / d.dot(n),
+                None => left - step,
+            };
+            (travelled, left, o) = (travelled + step, rest, next);
             if !(left > 0.0) {
                 return Passage { hit: None, tr, t: f32::INFINITY, medium: cur };
             }
