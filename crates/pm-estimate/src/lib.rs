@@ -262,6 +262,26 @@ pub fn irradiance_on<R: PhotonRecord>(
     p: &KnnParams,
     scratch: &mut KnnScratch,
 ) -> (Irradiance, bool) {
+    irradiance_on_seen(tree, x, n, s, covered, p, scratch, |_| true)
+}
+
+/// [`irradiance_on`] summing, of the photons it finds, only those `seen`
+/// accepts; the disc keeps the radius of the k nearest. Divided by the share of
+/// the disc where `seen` would accept a photon, it is the density over that
+/// share: the vertex method's corners beside a glass box standing on the floor
+/// count only the photons they see, not those on the floor under the box, lit
+/// through it (issue 53's checker, seed 12902 scene 17).
+#[allow(clippy::too_many_arguments)]
+pub fn irradiance_on_seen<R: PhotonRecord>(
+    tree: &impl Neighbours<R>,
+    x: Vec3,
+    n: Vec3,
+    s: &Surroundings,
+    covered: bool,
+    p: &KnnParams,
+    scratch: &mut KnnScratch,
+    seen: impl Fn(&R) -> bool,
+) -> (Irradiance, bool) {
     let (below, above) = (-0.5 * s.behind, 0.5 * s.front);
     let other_cover = std::cell::Cell::new(false);
     let between = |r: &R| {
@@ -270,7 +290,8 @@ pub fn irradiance_on<R: PhotonRecord>(
         other_cover.set(other_cover.get() || !alike);
         h > below && h < above && alike
     };
-    let (e, r2, count) = gather(tree, x, n, p, scratch, between, |_| Rgb::ONE);
+    let weight = |r: &R| if seen(r) { Rgb::ONE } else { Rgb::ZERO };
+    let (e, r2, count) = gather(tree, x, n, p, scratch, between, weight);
     (Irradiance { e, r2, count }, other_cover.get())
 }
 
@@ -307,7 +328,7 @@ pub fn surface_irradiance<R: PhotonRecord>(
     }
 }
 
-/// sum_p weight(wi_p) w_p Phi_p / (pi r^2) over the k nearest photons on the query's
+/// sum_p weight(p) w_p Phi_p / (pi r^2) over the k nearest photons on the query's
 /// side, leaving out the one that marks the radius; returns (sum, r^2, photons found).
 fn gather<R: PhotonRecord>(
     tree: &impl Neighbours<R>,
@@ -316,14 +337,14 @@ fn gather<R: PhotonRecord>(
     p: &KnnParams,
     scratch: &mut KnnScratch,
     keep: impl Fn(&R) -> bool,
-    weight: impl Fn(Vec3) -> Rgb,
+    weight: impl Fn(&R) -> Rgb,
 ) -> (Rgb, f32, usize) {
     let res = tree.knn(x, p.k, p.max_d2, |_, r| on_query_side(r, n) && keep(r), scratch);
     if res.count == 0 || !(res.max_dist2 > 0.0) {
         return (Rgb::ZERO, res.max_dist2, res.count);
     }
     let r2 = res.max_dist2;
-    let sum = sum_but_boundary(tree, scratch, |r, d2| weight(r.wi()) * r.power() * p.filter.weight(d2, r2));
+    let sum = sum_but_boundary(tree, scratch, |r, d2| weight(r) * r.power() * p.filter.weight(d2, r2));
     (sum / (PI * r2), r2, res.count)
 }
 
@@ -364,7 +385,7 @@ pub fn radiance<R: PhotonRecord>(
     scratch: &mut KnnScratch,
     f_r: impl Fn(Vec3) -> Rgb,
 ) -> Rgb {
-    gather(tree, x, n, p, scratch, |_| true, f_r).0
+    gather(tree, x, n, p, scratch, |_| true, |r| f_r(r.wi())).0
 }
 
 /// The precomputed irradiance of the nearest photon that carries one and whose

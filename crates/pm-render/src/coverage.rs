@@ -32,11 +32,30 @@ pub const MIN_COVERAGE: f32 = 0.125;
 /// the disc's way ([`SAME_SURFACE_COS`]) within a slab about the disc's plane.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Probe {
-    /// In view of the centre: the slab is half the radius thick, and a part counts
-    /// only if the point a quarter of the radius above it is seen from the point as
-    /// far above the centre (a k-nearest estimate's photons lie on the surface
-    /// around the corner, not behind a wall standing on it).
-    InView,
+    /// What a surface estimate's photon search counts
+    /// ([`pm_estimate::irradiance_on`]): a part counts when a ray down from
+    /// `above` \[m\] over the disc's plane meets a surface facing the disc's way
+    /// before `below` \[m\] under it (the estimate's half gaps), seen from the
+    /// centre or not (photons are found by distance, not by sight), and, with
+    /// `cover` (distance \[m\], the centre's state), only where that surface lies
+    /// under a cover exactly when the centre does (the estimate keeps covered and
+    /// open photons apart). The vertex method's corners had counted only what
+    /// their centre saw: on the floor beside a glass box the floor beyond the box
+    /// was out of view, its photons were in the estimate, and the corners at the
+    /// box's foot read 2-4 times too bright (issue 53's checker, seed 12902 scene 3).
+    /// With `view` (a height \[m\]), only the parts whose surface point is
+    /// [`in_view`] of the centre at that height count, for an estimate that
+    /// counts only the photons so seen.
+    Estimate {
+        /// How far under the disc's plane a surface counts \[m\].
+        below: f32,
+        /// How far over it \[m\].
+        above: f32,
+        /// The cover distance \[m\] and whether the centre is under a cover.
+        cover: Option<(f32, bool)>,
+        /// The height \[m\] at which a part must be in view of the centre.
+        view: Option<f32>,
+    },
     /// Anywhere within the slab |offset · n| < half-thickness \[m\], seen or not:
     /// the support of an image-space photon volume, which lights every pixel
     /// within its ellipsoid (an occlusion test there counted the floor under a
@@ -65,11 +84,10 @@ pub enum Probe {
 /// its corners' fractions and probes every ring.
 pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weight: impl Fn(f32) -> f32) -> f32 {
     let (t, b) = n.any_orthonormal_pair();
-    let h = match probe {
-        Probe::InView => 0.25 * r,
-        Probe::Slab(half) => half,
+    let (above, depth) = match probe {
+        Probe::Estimate { below, above, .. } => (above, above + below),
+        Probe::Slab(half) => (half, 2.0 * half),
     };
-    let above = p + n * h;
     let (mut covered, mut total) = (0.0, 0.0);
     for ring in (0..RINGS).rev() {
         let s = ((ring as f32 + 0.5) / RINGS as f32).sqrt();
@@ -79,15 +97,22 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
         for spoke in 0..SPOKES {
             // The rings turn by irrational steps so that no sample lies on an axis.
             let a = std::f32::consts::TAU * (spoke as f32 + 0.5 + 0.382 * ring as f32) / SPOKES as f32;
-            let o = above + (t * a.cos() + b * a.sin()) * (r * s);
+            let off = (t * a.cos() + b * a.sin()) * (r * s);
+            let o = p + n * above + off;
             let on_surface = match probe {
-                Probe::InView => {
-                    let d = o - above;
-                    let len = d.length();
-                    !(len > 0.0 && scene.solidly_occluded(above, d / len, len))
-                        && scene.solid_hit(o, -n, 2.0 * h).is_some_and(|hit| hit.ng.dot(n) > SAME_SURFACE_COS)
+                Probe::Estimate { cover, view, .. } => {
+                    let found = match cover {
+                        // Under a cover along the surface's own normal there, as
+                        // its photons are flagged (along the disc's, a point on
+                        // a sphere found its own facet).
+                        Some((within, centre)) => {
+                            surface_below(scene, o, n, depth, |q, nq| scene.covered(q, nq, within) == centre)
+                        }
+                        None => surface_below(scene, o, n, depth, |_, _| true),
+                    };
+                    found.is_some_and(|q| view.is_none_or(|lift| in_view(scene, p, n, q, lift)))
                 }
-                Probe::Slab(_) => surface_below(scene, o, n, 2.0 * h),
+                Probe::Slab(_) => surface_below(scene, o, n, depth, |_, _| true).is_some(),
             };
             if on_surface {
                 covered += w;
@@ -95,30 +120,51 @@ pub fn disc_coverage(scene: &Scene, p: Vec3, n: Vec3, r: f32, probe: Probe, weig
                 all = false;
             }
         }
-        if all && ring == RINGS - 1 && probe != Probe::InView {
+        if all && ring == RINGS - 1 && matches!(probe, Probe::Slab(_)) {
             return 1.0;
         }
     }
     if total > 0.0 { covered / total } else { 1.0 }
 }
 
-/// Whether a ray down (along -`n`) from `o` meets a surface facing `n`'s way (either
-/// side of it, [`SAME_SURFACE_COS`]) within `depth` \[m\], passing through the
-/// steeper ones (the side of a sphere standing on the floor, seen from inside);
-/// at most four surfaces are passed.
-fn surface_below(scene: &Scene, mut o: Vec3, n: Vec3, mut depth: f32) -> bool {
+/// Whether point `q` (a photon, a part of a disc) is in view of the surface
+/// point `x` (unit normal `n`) as an estimate there may count it: the segment
+/// between the two, both lifted `lift` \[m\] along `n`, meets no solid surface
+/// (glass blocks it: what lies beyond a glass box standing on the floor is not
+/// the floor around `x`).
+pub fn in_view(scene: &Scene, x: Vec3, n: Vec3, q: Vec3, lift: f32) -> bool {
+    let (a, b) = (x + n * lift, q + n * lift);
+    let d = b - a;
+    let len = d.length();
+    !(len > 0.0 && scene.solidly_occluded(a, d / len, len))
+}
+
+/// Where a ray down (along -`n`) from `o` meets, within `depth` \[m\], a surface
+/// point facing `n`'s way (either side of it, [`SAME_SURFACE_COS`]) that `keep`
+/// accepts (given the point and the surface's normal there on `n`'s side),
+/// passing through the steeper surfaces (the side of a sphere standing on the
+/// floor, seen from inside) and those it refuses; at most four surfaces are
+/// passed.
+fn surface_below(
+    scene: &Scene,
+    mut o: Vec3,
+    n: Vec3,
+    mut depth: f32,
+    keep: impl Fn(Vec3, Vec3) -> bool,
+) -> Option<Vec3> {
     for _ in 0..4 {
-        let Some(hit) = scene.solid_hit(o, -n, depth) else { return false };
-        if pm_scene::facing(hit.ng, n).dot(n) > SAME_SURFACE_COS {
-            return true;
+        let hit = scene.solid_hit(o, -n, depth)?;
+        let ng = pm_scene::facing(hit.ng, n);
+        if ng.dot(n) > SAME_SURFACE_COS && keep(hit.p, ng) {
+            return Some(hit.p);
         }
         depth -= (hit.p - o).dot(-n);
         o = scene.offset_origin(hit.p, hit.ng, -n);
         if !(depth > 0.0) {
-            return false;
+            return None;
         }
     }
-    false
+    None
 }
 
 #[cfg(test)]
@@ -153,26 +199,69 @@ mod tests {
         1.0 - ((0.5f32).acos() - 3f32.sqrt() / 4.0) / std::f32::consts::PI
     }
 
-    /// Against the disc's area on the floor, computed by hand: all of it in the open,
-    /// half at the floor's open edge, a quarter at the floor's corner, and with the
-    /// wall a chord at half the radius away on either side (within the 32 samples'
-    /// resolution) for the vertex method's probe, which counts only what the centre
-    /// sees. (A corner exactly at the wall's foot sees the floor on both sides: its
-    /// probes start in the wall's plane.)
+    /// Against the disc's area on the floor, computed by hand: all of it in the
+    /// open, half at the floor's open edge, a quarter at the floor's corner, and
+    /// all of it beside the wall standing on the floor, whose far side holds
+    /// photons the estimate finds as well, or, counting only what the centre
+    /// sees, a chord at half the radius (within the 32 samples' resolution).
     #[test]
-    fn in_view_coverage_is_the_part_of_the_disc_on_the_surface_in_view() {
+    fn estimate_coverage_is_the_part_of_the_disc_whose_photons_the_estimate_counts() {
         let s = floor_wall_and_strips();
+        let probe = Probe::Estimate { below: 0.1, above: 0.1, cover: None, view: None };
         let cases = [
             (Vec3::new(0.8, 0.0, 0.5), 1.0, 0.0),
             (Vec3::new(1.0, 0.0, 0.5), 0.5, 0.0),
-            (Vec3::new(1.0, 0.0, 1.0), 0.25, 0.0),
-            (Vec3::new(0.2, 0.0, 0.5), chord_at_half(), 0.04),
-            (Vec3::new(0.4, 0.0, 0.5), chord_at_half(), 0.04),
+            (Vec3::new(1.0, 0.0, 1.0), 0.25, 0.04),
+            (Vec3::new(0.2, 0.0, 0.5), 1.0, 0.0),
+            (Vec3::new(0.4, 0.0, 0.5), 1.0, 0.0),
         ];
         for (p, want, tol) in cases {
-            let got = disc_coverage(&s, p, Vec3::Y, 0.2, Probe::InView, |_| 1.0);
+            let got = disc_coverage(&s, p, Vec3::Y, 0.2, probe, |_| 1.0);
             assert!((got - want).abs() <= tol + 1e-6, "at {p}: {got} against {want}");
         }
+        // For an estimate that counts only the photons in view, the wall cuts a
+        // chord at half the radius on either side of it.
+        let seen = Probe::Estimate { below: 0.1, above: 0.1, cover: None, view: Some(0.05) };
+        for p in [Vec3::new(0.2, 0.0, 0.5), Vec3::new(0.4, 0.0, 0.5)] {
+            let got = disc_coverage(&s, p, Vec3::Y, 0.2, seen, |_| 1.0);
+            assert!((got - chord_at_half()).abs() <= 0.04, "at {p}, in view: {got}");
+        }
+    }
+
+    /// A plate 1 cm over the floor's half x < 0.5 (above the slab): a disc whose
+    /// edge it crosses at half the radius counts the open floor for an open centre
+    /// and the floor under the plate for a covered one, as the estimate keeps their
+    /// photons apart; without the cover test all of it counts.
+    #[test]
+    fn estimate_coverage_keeps_covered_and_open_floor_apart() {
+        let mut s = floor_wall_and_strips();
+        let v = |x, y, z| Vec3::new(x, y, z);
+        let mut tris = s.triangles.clone();
+        tris.push(Triangle::new([v(-0.5, 0.01, 0.0), v(-0.5, 0.01, 1.0), v(0.5, 0.01, 1.0)], 0).unwrap());
+        tris.push(Triangle::new([v(-0.5, 0.01, 0.0), v(0.5, 0.01, 1.0), v(0.5, 0.01, 0.0)], 0).unwrap());
+        s = Scene::from_parts(tris, s.materials.clone(), Vec::new(), None);
+        let (p, below, above) = (Vec3::new(0.6, 0.0, 0.5), 0.1, 0.005);
+        let open = disc_coverage(
+            &s,
+            p,
+            Vec3::Y,
+            0.2,
+            Probe::Estimate { below, above, cover: Some((0.05, false)), view: None },
+            |_| 1.0,
+        );
+        assert!((open - chord_at_half()).abs() <= 0.04, "open: {open}");
+        let shut = disc_coverage(
+            &s,
+            p,
+            Vec3::Y,
+            0.2,
+            Probe::Estimate { below, above, cover: Some((0.05, true)), view: None },
+            |_| 1.0,
+        );
+        assert!((shut - (1.0 - chord_at_half())).abs() <= 0.04, "covered: {shut}");
+        let all =
+            disc_coverage(&s, p, Vec3::Y, 0.2, Probe::Estimate { below, above, cover: None, view: None }, |_| 1.0);
+        assert_eq!(all, 1.0, "without the cover test");
     }
 
     /// A photon volume's support has no view test: the floor behind the wall
@@ -193,12 +282,9 @@ mod tests {
             let got = disc_coverage(&s, p, Vec3::Y, 0.2, Probe::Slab(0.05), cone);
             assert!((got - want).abs() <= tol + 1e-6, "at {p}: {got} against {want}");
         }
-        // Over the strips: all the floor below them counts, where the vertex
-        // method's probe stops at them.
+        // Over the strips: all the floor below them counts.
         let strips = Vec3::new(0.63, 0.0, 0.1);
         let got = disc_coverage(&s, strips, Vec3::Y, 0.1, Probe::Slab(0.05), cone);
         assert_eq!(got, 1.0, "over the strips");
-        let in_view = disc_coverage(&s, strips, Vec3::Y, 0.1, Probe::InView, |_| 1.0);
-        assert!(in_view < 0.9, "over the strips, in view: {in_view}");
     }
 }

@@ -29,7 +29,7 @@ mod path;
 mod photon_mapping;
 mod render;
 
-pub use coverage::{MIN_COVERAGE, Probe, SAME_SURFACE_COS, disc_coverage};
+pub use coverage::{MIN_COVERAGE, Probe, SAME_SURFACE_COS, disc_coverage, in_view};
 pub use icache::IrradianceCache;
 pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt};
 pub use path::PathTracer;

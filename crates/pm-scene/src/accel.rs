@@ -74,8 +74,9 @@ impl Scene {
     /// the surface's unit geometric normal on `n`'s side, and the distances to the
     /// nearest other surface behind it and in front of it \[m\], each at most
     /// `reach`; index-matched boundaries (a fog box's walls, which light passes
-    /// straight through) do not count. Three rays: one from just above `x` down
-    /// onto the surface, one on from there behind it, one out in front. `None` when
+    /// straight through) do not count, nor surfaces within a hair of it. Three
+    /// rays: one from just above `x` down onto the surface, one on from there
+    /// behind it, one out in front. `None` when
     /// no surface lies within a hair (1e-5 of the scene's diagonal, or a few ulps of
     /// `x`) of `x`.
     pub fn surface_gaps(&self, x: Vec3, n: Vec3, reach: f32) -> Option<(Vec3, f32, f32)> {
@@ -84,7 +85,11 @@ impl Scene {
         let here = self.intersect_through(start, -n, None);
         let here = here.hit.filter(|_| here.t <= 3.0 * hair)?;
         let ng = geometry::facing(here.ng, n);
-        let gap = |w: Vec3| self.intersect_through(self.offset_origin(here.p, ng, w), w, None).t.min(reach);
+        // From a hair off the surface: at a mesh's vertex (the vertex method's
+        // corners sit on them) a ray from the surface meets the facets round the
+        // vertex at once, and a sphere's corner read a gap of 1e-7 m behind it,
+        // so its estimate counted no photon below its tangent plane.
+        let gap = |w: Vec3| (hair + self.intersect_through(here.p + w * hair, w, None).t).min(reach);
         Some((ng, gap(-ng), gap(ng)))
     }
 

@@ -23,6 +23,7 @@ pub use mesh::{Around, CornerSurroundings, Corners};
 pub use ring::{Distribution, RingBuffer, ShootStats};
 pub use subdivide::{AUTO_MAX_TRIANGLES, Subdivide, Subdivision, expected_radius, scenes};
 
+use glam::Vec3;
 use pm_color::Rgb;
 use pm_format::{FullIrrPhoton, PhotonRecord, flags};
 use pm_light::LightSelector;
@@ -31,6 +32,7 @@ use pm_params::{Any, above, at_least, between};
 use pm_photon::{Budget, MapPass, TraceConfig};
 use pm_render::{FrameBuffers, Visibility, VolumePhotons};
 use pm_scene::{Hit, Scene, Target};
+use rayon::prelude::*;
 use std::f32::consts::PI;
 use std::time::Instant;
 
@@ -213,6 +215,9 @@ pub struct CornerLight<'a> {
     pub around: &'a [Option<Around>],
     /// The cover distance \[m\] the corners were tested with.
     pub cover: f32,
+    /// Per drawn triangle whether a wall stands between two of its corners
+    /// ([`SplitTriangles`]; `None` where not known, taken as no).
+    pub split: &'a [Option<bool>],
     /// The scene the points are tested in.
     pub scene: &'a Scene,
     /// The ring's photons scattered in media, for the light media scatter more
@@ -233,23 +238,85 @@ impl CornerLight<'_> {
     /// kind alone, their barycentrics renormalised: the covered corners read the
     /// light trapped in the gap, and interpolated it onto the open ceiling beside
     /// the lamp (+30-75% in the 8 x 8 blocks there on issue 53's checker, seed
-    /// 60606 scene 24).
+    /// 60606 scene 24). Likewise on a triangle with a wall between two of its
+    /// corners ([`SplitTriangles`]), the corners in view of the hit alone: the
+    /// floor's corners under a glass box standing on it read the light through
+    /// the box, four times the floor around, and the triangles reaching under
+    /// the box drew it round the box's foot (+40-70% in the blocks there, seed
+    /// 12902 scene 17).
     pub fn irradiance_seen(&self, hit: &Hit) -> Rgb {
         let c = self.corners.tri[hit.tri as usize];
         let cover = c.map(|k| self.around.get(k as usize).copied().flatten().map(|a| a.covered));
-        if !(cover.contains(&Some(true)) && cover.contains(&Some(false))) {
+        let mixed = cover.contains(&Some(true)) && cover.contains(&Some(false));
+        let split = self.split.get(hit.tri as usize).copied().flatten() == Some(true);
+        if !mixed && !split {
             return self.irradiance_at(hit.tri, hit.b);
         }
         let n = pm_scene::facing(hit.ng, self.corners.n[c[0] as usize]);
-        let here = Some(self.scene.covered(hit.p, n, self.cover));
+        let here = mixed.then(|| Some(self.scene.covered(hit.p, n, self.cover)));
+        let lift = split_lift(&c.map(|k| self.corners.p[k as usize]));
         let (mut sum, mut w) = (Rgb::ZERO, 0.0);
         for k in 0..3 {
-            if cover[k] == here {
+            let p = self.corners.p[c[k] as usize];
+            if here.is_none_or(|h| cover[k] == h) && (!split || pm_render::in_view(self.scene, hit.p, n, p, lift)) {
                 sum += self.e[c[k] as usize] * hit.b[k];
                 w += hit.b[k];
             }
         }
         if w > 0.0 { sum / w } else { self.irradiance_at(hit.tri, hit.b) }
+    }
+}
+
+/// The height \[m\] over a triangle (corners `p`) at which its corners and the
+/// points on it must see each other ([`SplitTriangles`]): a tenth of its
+/// longest edge.
+fn split_lift(p: &[Vec3; 3]) -> f32 {
+    0.1 * p[0].distance(p[1]).max(p[1].distance(p[2])).max(p[2].distance(p[0]))
+}
+
+/// Per drawn triangle whether a wall stands between two of its corners: one
+/// corner out of [`pm_render::in_view`] of another at [`split_lift`] over the
+/// triangle, in the photons' scene (a triangle of the floor reaching under a
+/// box standing on it). Found once (three rays) when one of its corners is
+/// first active, and kept until the meshes move.
+#[derive(Clone, Debug, Default)]
+pub struct SplitTriangles {
+    split: Vec<Option<bool>>,
+}
+
+impl SplitTriangles {
+    /// Forget every triangle's (the scene's meshes moved).
+    pub fn clear(&mut self) {
+        self.split.clear();
+    }
+
+    /// Per triangle whether it is split, where found (as the last
+    /// [`Self::update`] left them).
+    pub fn split(&self) -> &[Option<bool>] {
+        &self.split
+    }
+
+    /// Find the triangles of `corners` with an `active` corner and none found yet.
+    pub fn update(&mut self, scene: &Scene, corners: &Corners, active: &[bool]) {
+        self.split.resize(corners.tri.len(), None);
+        let todo: Vec<usize> = (0..corners.tri.len())
+            .filter(|&t| self.split[t].is_none() && corners.tri[t].iter().any(|&c| active[c as usize]))
+            .collect();
+        let fresh: Vec<bool> = todo
+            .par_iter()
+            .with_min_len(64)
+            .map(|&t| {
+                let c = corners.tri[t];
+                let p = c.map(|k| corners.p[k as usize]);
+                let n = corners.n[c[0] as usize];
+                let n = pm_scene::facing((p[1] - p[0]).cross(p[2] - p[0]).normalize_or(n), n);
+                let lift = split_lift(&p);
+                (0..3).any(|k| !pm_render::in_view(scene, p[k], n, p[(k + 1) % 3], lift))
+            })
+            .collect();
+        for (&t, f) in todo.iter().zip(fresh) {
+            self.split[t] = Some(f);
+        }
     }
 }
 
@@ -318,6 +385,8 @@ pub struct Vertex {
     /// The corners' disc coverages probed so far (`coverage`).
     coverage: CoverageCache,
     surroundings: CornerSurroundings,
+    /// Which drawn triangles have a wall between their corners.
+    split: SplitTriangles,
     /// The buffer's paths in the order they were shot, oldest first, as runs of
     /// paths shot under one pose of the photons' world.
     shot_under: std::collections::VecDeque<(usize, pm_live::PhotonPose)>,
@@ -373,6 +442,7 @@ impl Vertex {
             subdivision: None,
             coverage: CoverageCache::default(),
             surroundings: CornerSurroundings::default(),
+            split: SplitTriangles::default(),
             shot_under: std::collections::VecDeque::new(),
             max_lag,
             cover,
@@ -503,20 +573,41 @@ impl Vertex {
         let p = &self.params;
         let max_radius = self.max_radius(world);
         let around = self.surroundings.update(world.photon_scene(), &self.corners, active, (max_radius, self.cover));
-        let (mut e, r2) = match &self.grid {
+        let scene = world.photon_scene();
+        // The estimates of the corners `which`, counting only the photons in view
+        // of each at its lift (`view`) or all it finds.
+        let estimate = |which: &[bool], view: Option<&[f32]>| match &self.grid {
             Some(grid) if p.photon_search == PhotonSearch::Grid => {
                 // The grid holds each path's unscaled power: scale the (linear) estimate.
                 let held = self.ring.filled() as u64;
-                let (e, r2) = self.corners.irradiance(grid, active, &around, p.k, max_radius);
-                (e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect(), r2)
+                let view = view.map(|lift| (scene, lift));
+                let (e, r2) = self.corners.irradiance(grid, which, around, (p.k, max_radius), view);
+                (e.into_iter().map(|v| pm_photon::scale_power(v, held)).collect::<Vec<_>>(), r2)
             }
             _ => {
                 let tree = pm_kdtree::KdTree::with_buckets(records, buckets);
-                self.corners.irradiance(&tree, active, &around, p.k, max_radius)
+                self.corners.irradiance(&tree, which, around, (p.k, max_radius), view.map(|lift| (scene, lift)))
             }
         };
+        let (mut e, r2) = estimate(active, None);
         if p.coverage {
-            self.coverage.correct(world.photon_scene(), &self.corners, active, &mut e, &r2);
+            // Divide by the share of the disc the estimate counts; where part of
+            // the disc is out of the corner's view, estimate again from the
+            // photons in view only (the same k nearest, the same radius).
+            let shares = self.coverage.shares(scene, &self.corners, active, (around, self.cover), &r2);
+            let hidden: Vec<bool> = shares.iter().map(|s| s.is_some_and(|s| s.hidden())).collect();
+            if hidden.contains(&true) {
+                let lift: Vec<f32> = shares.iter().map(|s| s.map_or(0.0, |s| s.lift)).collect();
+                let (seen, _) = estimate(&hidden, Some(&lift));
+                for c in (0..e.len()).filter(|&c| hidden[c]) {
+                    e[c] = seen[c];
+                }
+            }
+            for (e, s) in e.iter_mut().zip(&shares) {
+                if let Some(s) = s {
+                    *e /= s.divisor();
+                }
+            }
         }
         let mut flicker = 0.0;
         if let Some((prev, was)) = &self.previous {
@@ -547,6 +638,7 @@ impl pm_live::FrameMethod for Vertex {
             self.corners.follow(world.scene());
             self.coverage.clear();
             self.surroundings.clear();
+            self.split.clear();
         }
         // Moving emitters can change a light's power, and so its share of photons.
         if let Ok(selector) = LightSelector::new(world.photon_scene(), &[]) {
@@ -563,12 +655,13 @@ impl pm_live::FrameMethod for Vertex {
         let active = self.corners.active(world.scene(), world.camera(), aspect, p.back_face_culling, p.frustum_culling);
         let (e, flicker) = self.estimate(world, &records, &buckets, &active);
         let estimate = t.elapsed().as_secs_f64();
-        let (p, f) = (&self.params, &self.frame_params);
         if !draw {
             self.previous = Some((e, active));
             return Ok(VertexFrame { frame, paths_shot: shot.paths, flicker, ..Default::default() });
         }
         let t = Instant::now();
+        self.split.update(world.photon_scene(), &self.corners, &active);
+        let (p, f) = (&self.params, &self.frame_params);
         let maps = f.shadow_maps(world.scene());
         // Only paths traced in scattering media keep volume photons.
         let volume = (self.trace.pass == MapPass::Progressive)
@@ -579,6 +672,7 @@ impl pm_live::FrameMethod for Vertex {
             e: &e,
             around: self.surroundings.around(),
             cover: self.cover,
+            split: self.split.split(),
             scene: world.photon_scene(),
             volume: volume.as_ref(),
         };

@@ -8,6 +8,7 @@ use glam::Vec3;
 use pm_color::Rgb;
 use pm_estimate::{Filter, KnnParams};
 use pm_format::FullIrrPhoton;
+use pm_format::PhotonRecord;
 use pm_kdtree::{KnnScratch, Neighbours};
 use pm_scene::{Camera, Scene};
 use rayon::prelude::*;
@@ -124,14 +125,16 @@ impl Corners {
     /// radius of its disc \[m^2\]; zero elsewhere. A corner with its surroundings
     /// known (`around`, see [`CornerSurroundings`]) counts only the photons of its
     /// own surface and cover, as the irradiance precompute does
-    /// ([`pm_estimate::irradiance_on`]).
+    /// ([`pm_estimate::irradiance_on`]), and with `view` (the photons' scene and
+    /// a height \[m\] per corner) only those in view of it at that height
+    /// ([`pm_render::in_view`]; the disc keeps the radius of the k nearest).
     pub fn irradiance(
         &self,
         tree: &(impl Neighbours<FullIrrPhoton> + Sync),
         active: &[bool],
         around: &[Option<Around>],
-        k: usize,
-        max_radius: f32,
+        (k, max_radius): (usize, f32),
+        view: Option<(&Scene, &[f32])>,
     ) -> (Vec<Rgb>, Vec<f32>) {
         let p = KnnParams { k, max_d2: max_radius * max_radius, filter: Filter::None };
         (0..self.len())
@@ -141,9 +144,14 @@ impl Corners {
                     return (Rgb::ZERO, 0.0);
                 }
                 let (x, n) = (self.p[c], self.n[c]);
-                let e = match around.get(c).copied().flatten() {
-                    Some(a) => pm_estimate::irradiance_on(tree, x, n, &a.gaps, a.covered, &p, scratch).0,
-                    None => pm_estimate::irradiance(tree, x, n, &p, scratch),
+                let e = match (around.get(c).copied().flatten(), view) {
+                    (Some(a), Some((scene, lift))) => {
+                        let seen =
+                            |r: &FullIrrPhoton| pm_render::in_view(scene, x, a.gaps.normal, r.position(), lift[c]);
+                        pm_estimate::irradiance_on_seen(tree, x, n, &a.gaps, a.covered, &p, scratch, seen).0
+                    }
+                    (Some(a), None) => pm_estimate::irradiance_on(tree, x, n, &a.gaps, a.covered, &p, scratch).0,
+                    (None, _) => pm_estimate::irradiance(tree, x, n, &p, scratch),
                 };
                 (e.e, e.r2)
             })

@@ -193,8 +193,8 @@ fn a_full_buffer_is_the_batch_map_and_its_estimates_are_the_batchs() {
     let corners = live.method().corners();
     let all = vec![true; corners.len()];
     let r = params.1.max_radius_rel_diag * s.bounds.diagonal();
-    let (el, _) = corners.irradiance(&pm_kdtree::KdTree::new(&live_records), &all, &[], params.1.k, r);
-    let (eb, _) = corners.irradiance(&pm_kdtree::KdTree::new(&batch_records), &all, &[], params.1.k, r);
+    let (el, _) = corners.irradiance(&pm_kdtree::KdTree::new(&live_records), &all, &[], (params.1.k, r), None);
+    let (eb, _) = corners.irradiance(&pm_kdtree::KdTree::new(&batch_records), &all, &[], (params.1.k, r), None);
     let mut worst = 0f32;
     for (x, y) in el.iter().zip(&eb) {
         worst = worst.max((*x - *y).abs().max_element() / y.max_element().max(1e-12));
