@@ -139,7 +139,8 @@ pub fn photon_maps_seeded(
         filter: pm_estimate::Filter::None,
     };
     let surfaces = pm_render::SceneSurfaces { scene, reach: params.max_d2.sqrt() };
-    pm_estimate::precompute(&mut g, &params, fraction, Some(&surfaces), &|_| {});
+    let refine = pm_estimate::IrradianceParams::default().refine_ratio;
+    pm_estimate::precompute(&mut g, &params, (fraction, refine), Some(&surfaces), &|_| {});
     let cfg = TraceConfig {
         pass: MapPass::Caustic,
         budget: Budget::Stored { target: caustic, cap: caustic * 1000 },

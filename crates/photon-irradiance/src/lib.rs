@@ -83,7 +83,7 @@ pub fn run(cli: &Cli) -> Result<IrradianceReport> {
     let n = map.len();
     let progress = Progress::new("irradiance", n as u64);
     let stats = with_map!(&mut map, m => {
-        let stats = pm_estimate::precompute(&mut m.records, &params, p.fraction, around, &|d| progress.set(d));
+        let stats = pm_estimate::precompute(&mut m.records, &params, (p.fraction, p.refine_ratio), around, &|d| progress.set(d));
         m.header.has_irradiance = true;
         let mut p: serde_json::Value = serde_json::from_str(&m.header.params).unwrap_or(json!({}));
         p["irradiance"] = json!({"params": cli.params, "max_radius_m": max_radius_m});
@@ -99,6 +99,7 @@ pub fn run(cli: &Cli) -> Result<IrradianceReport> {
         input: cli.input.display().to_string(),
         photons: n,
         computed: stats.computed as u64,
+        refined: stats.refined,
         empty_estimates: stats.empty as u64,
         covered: stats.covered,
         params: cli.params.clone(),

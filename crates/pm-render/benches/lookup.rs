@@ -33,7 +33,7 @@ fn main() {
     let max_r = params.max_radius_rel_diag * scene.bounds.diagonal();
     let knn = KnnParams { k: params.k, max_d2: max_r * max_r, filter: Filter::None };
     let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: max_r };
-    precompute(&mut nodes, &knn, 0.25, Some(&surfaces), &|_| {});
+    precompute(&mut nodes, &knn, (0.25, 0.0), Some(&surfaces), &|_| {});
     let irr = pm_render::irradiance_subset(&nodes);
     let buckets = Buckets::new(&nodes);
     let integrator = |lookup: Lookup| {

@@ -32,7 +32,7 @@ fn main() {
                 let mut n = nodes.clone();
                 let t = Instant::now();
                 let with: Option<&dyn pm_estimate::SurfaceQuery> = with_scene.then_some(&around);
-                let s = precompute(&mut n, &p, f, with, &|_| {});
+                let s = precompute(&mut n, &p, (f, 0.0), with, &|_| {});
                 let secs = t.elapsed().as_secs_f64();
                 if with_scene {
                     gaps = gaps.min(secs);

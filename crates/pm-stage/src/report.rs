@@ -99,6 +99,10 @@ pub struct IrradianceReport {
     pub photons: usize,
     /// Estimates computed (photons given an irradiance).
     pub computed: u64,
+    /// Of those, at photons outside the stratified subset, where the subset's
+    /// irradiance changes fast (`refine_ratio`).
+    #[serde(default)]
+    pub refined: u64,
     /// Estimates that found no photon.
     pub empty_estimates: u64,
     /// Photons under a cover (`flags::COVERED`: another surface faces them from

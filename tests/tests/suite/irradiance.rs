@@ -42,7 +42,7 @@ fn plane_under_a_directional_light_matches_the_cosine_law() {
     assert!(nodes.iter().all(|r| r.flags() & flags::DIRECT != 0), "only direct light reaches a lone plane");
     let params = all_irradiance_params(50);
     let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: params.max_d2.sqrt() };
-    precompute(&mut nodes, &params, 1.0, Some(&surfaces), &|_| {});
+    precompute(&mut nodes, &params, (1.0, 0.0), Some(&surfaces), &|_| {});
     // Away from the edges, where the disk of 50 photons lies on the plane.
     let inner: Vec<f32> =
         nodes.iter().filter(|r| r.position().abs().max_element() < 3.0).map(|r| r.irradiance().x).collect();
@@ -66,7 +66,7 @@ fn furnace_irradiance_is_five_pi_at_every_photon() {
     let mut nodes = global_tree(&scene, 200_000, 4);
     let params = all_irradiance_params(50);
     let surfaces = pm_render::SceneSurfaces { scene: &scene, reach: params.max_d2.sqrt() };
-    precompute(&mut nodes, &params, 1.0, Some(&surfaces), &|_| {});
+    precompute(&mut nodes, &params, (1.0, 0.0), Some(&surfaces), &|_| {});
     let want = 5.0 * PI;
     let e: Vec<f32> = nodes.iter().map(|r| r.irradiance().x).collect();
     let mean = e.iter().sum::<f32>() / e.len() as f32;
