@@ -133,6 +133,11 @@ struct CompareArgs {
     /// reference, minus 1).
     #[arg(long, value_name = "GLTF")]
     scene: Option<PathBuf>,
+    /// With `--layer indirect`: add each image's caustic layer to it, as `cargo
+    /// xtask differential` judges a method that draws its caustics into its
+    /// indirect layer (the vertex method).
+    #[arg(long)]
+    with_caustics: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -209,7 +214,16 @@ fn compare(a: &CompareArgs) -> Result<()> {
     }
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
         let name = pm_color::layer_name(a.layer);
-        i.total_or_layer(a.layer).map(<[_]>::to_vec).ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))
+        let mut px = i
+            .total_or_layer(a.layer)
+            .map(<[_]>::to_vec)
+            .ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))?;
+        if a.with_caustics && a.layer == Some(pm_color::Layer::Indirect) {
+            for (x, c) in px.iter_mut().zip(i.pixels(Some(pm_color::Layer::Caustic))) {
+                *x += c;
+            }
+        }
+        anyhow::Ok(px)
     };
     let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);
     let (w, h) = (ia.width as usize, ia.height as usize);
