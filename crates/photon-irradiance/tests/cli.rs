@@ -41,7 +41,17 @@ fn stores_irradiance_in_the_selected_fraction_identically_for_any_thread_count()
     let e_true = write_sorted::<CompactIrrPhoton>(&input, 40_000, MapKind::Global, Order::KdTree);
     for t in ["1", "2"] {
         let out = dir.path().join(format!("irr{t}.pmap"));
-        let o = irradiance(&[input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--threads", t, "--k", "100"]);
+        let o = irradiance(&[
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            t,
+            "--k",
+            "100",
+            "--refine-ratio",
+            "0",
+        ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let a = std::fs::read(dir.path().join("irr1.pmap")).unwrap();
@@ -60,6 +70,23 @@ fn stores_irradiance_in_the_selected_fraction_identically_for_any_thread_count()
     assert!(
         map.records.iter().filter(|r| r.flags() & flags::HAS_IRRADIANCE == 0).all(|r| r.irradiance() == Vec3::ZERO)
     );
+    // With the default refinement the photons between disagreeing precomputed
+    // neighbours get one too: here only along the floor's edges, where (without
+    // the scene) the estimates read half the light.
+    let out = dir.path().join("refined.pmap");
+    let o = irradiance(&[input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--k", "100"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let refined: PhotonMap<CompactIrrPhoton> =
+        pm_format::read_as(&out, &ReadExpect { irradiance: Some(true), ..Default::default() }).unwrap();
+    let extra: Vec<&CompactIrrPhoton> = refined
+        .records
+        .iter()
+        .zip(&map.records)
+        .filter(|(r, plain)| r.flags() & flags::HAS_IRRADIANCE != 0 && plain.flags() & flags::HAS_IRRADIANCE == 0)
+        .map(|(r, _)| r)
+        .collect();
+    assert!(!extra.is_empty() && extra.len() < 2_000, "{} refined", extra.len());
+    assert!(extra.iter().all(|r| r.position().abs().max_element() > 0.75), "a photon refined away from the edges");
 }
 
 #[test]
