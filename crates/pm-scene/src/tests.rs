@@ -158,18 +158,24 @@ fn camera_rays_round_trip_through_projection() {
 
 /// Subdivision (Jozwowski 2002 section 4.3) splits triangles until no edge is
 /// longer than the limit, keeps the surface (area, every ray's hit
-/// point and shading normal), the objects, and each light's power.
+/// point and shading normal), the objects, and each light's power; a light's
+/// own triangles stay whole (so points near it sample it by solid angle).
 #[test]
 fn subdivision_keeps_the_surface_lights_and_objects() {
     let s = load_scene("cornell_spheres.gltf");
     let sub = s.subdivided(0.25);
     // The walls split (2 m quads); the spheres' small triangles stay whole.
     assert!(sub.triangles.len() > s.triangles.len() + 1000, "{} -> {}", s.triangles.len(), sub.triangles.len());
-    for t in &sub.triangles {
+    let emits = |sc: &Scene, t: &Triangle| sc.materials[t.material as usize].emission != Rgb::ZERO;
+    for t in sub.triangles.iter().filter(|t| !emits(&sub, t)) {
         for k in 0..3 {
             assert!((t.p[(k + 1) % 3] - t.p[k]).length() <= 0.25 * (1.0 + 1e-5));
         }
     }
+    let lamps = |sc: &Scene| sc.triangles.iter().filter(|t| emits(sc, t)).map(|t| t.p).collect::<Vec<_>>();
+    assert!(!lamps(&s).is_empty());
+    assert_eq!(lamps(&sub), lamps(&s));
+    assert!(lamps(&s).iter().any(|p| (p[1] - p[0]).length() > 0.25), "the lamp would have split");
     let area = |sc: &Scene| sc.triangles.iter().map(|t| t.area() as f64).sum::<f64>();
     assert!((area(&sub) / area(&s) - 1.0).abs() < 1e-5);
     assert_eq!(sub.objects.len(), s.objects.len());
