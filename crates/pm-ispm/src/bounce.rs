@@ -87,15 +87,16 @@ fn rgb_array<S: serde::Serializer>(v: &Rgb, s: S) -> Result<S::Ok, S::Error> {
 }
 
 /// Path density factor of one scattering event (section 4.3): ρ/1000 for a
-/// Lambertian sample, ρ for mirror reflection or refraction, with ρ the sample's
-/// mean weight (its albedo). A glossy sample's factor is the Lambertian one times
+/// Lambertian sample, ρ for mirror reflection or refraction, with ρ the
+/// probability the photon survived the event's Russian roulette
+/// ([`pm_photon::survival`] of the sample's weight, its albedo). A glossy sample's factor is the Lambertian one times
 /// how much more concentrated its lobe is, π pdf (the pdf ratio of Herzog et al.'s
 /// path density, about 1 for a cosine lobe), from 1 up to the paper's ρ/10 at 100:
 /// the paper's ρ/10 for every glossy sample gave the rough (alpha 1) specular layer
 /// of Blender's Principled BSDF volumes of a tenth of the diffuse ones' area, bright
 /// dots all over a Blender room's walls.
 fn density_factor(bs: &pm_bsdf::BsdfSample) -> f32 {
-    let rho = pm_color::mean(bs.weight).clamp(1e-6, 1.0);
+    let rho = pm_photon::survival(bs.weight).max(1e-6);
     match bs.lobe {
         pm_bsdf::Lobe::Diffuse => rho / 1000.0,
         pm_bsdf::Lobe::Glossy => glossy_density(rho, bs.pdf),
@@ -114,7 +115,7 @@ fn glossy_density(rho: f32, pdf: f32) -> f32 {
 /// single-scattering albedo and the phase function's value as its pdf, so an
 /// isotropic medium spreads its paths like a Lambertian surface.
 fn medium_density_factor(m: &pm_scene::Medium, wo: Vec3, wi: Vec3) -> f32 {
-    glossy_density(pm_color::mean(m.albedo()).clamp(1e-6, 1.0), m.phase.p(wo, wi))
+    glossy_density(pm_photon::survival(m.albedo()).max(1e-6), m.phase.p(wo, wi))
 }
 
 /// Exact solid angle [sr] of the rectangle [u0, u1] x [v0, v1] of the plane at unit

@@ -388,12 +388,12 @@ impl Carrier {
     }
 
     /// A scattering event in medium `m`, the photon travelling toward `-wo`:
-    /// Russian roulette by the single-scattering albedo's mean q (the flight's
-    /// weight already holds sigma_s over sigma_t; the power is divided by q),
-    /// then the phase function sampled (three numbers from `s`, one when it
-    /// ends). The new direction, or `None` when it is absorbed.
+    /// Russian roulette by the single-scattering albedo's [`survival`]
+    /// probability q (the flight's weight already holds sigma_s over sigma_t; the
+    /// power is divided by q), then the phase function sampled (three numbers from
+    /// `s`, one when it ends). The new direction, or `None` when it is absorbed.
     pub fn scatter_in(&mut self, m: &pm_scene::Medium, wo: Vec3, s: &mut Sampler) -> Option<Vec3> {
-        let q = pm_color::mean(m.albedo()).min(1.0);
+        let q = survival(m.albedo());
         if !(q > 0.0) || s.next_1d() >= q {
             return None;
         }
@@ -530,13 +530,28 @@ impl PhotonPath {
     }
 }
 
+/// The probability [0, 1] that a photon survives Russian roulette at an event
+/// whose sampling weight (BSDF sample or single-scattering albedo) is `weight`:
+/// its largest channel (Jensen 2001, "Realistic Image Synthesis Using Photon
+/// Mapping", section 5.2), so that dividing the power by it never raises a
+/// channel at a Lambertian bounce. McGuire and Luebke's appendix A (step 2(d))
+/// takes the channels' mean, which keeps a photon's mean power but multiplies a
+/// saturated colour's: a green wall of albedo (0.1, 0.8, 0.1) raised a green
+/// photon's green power 2.4 times at every bounce, and a photon that had crossed
+/// a green-walled fog room a few times came back with thousands of times its
+/// emitted green power, a green spark 140 times its pixel's value in progressive
+/// photon mapping (the differential checker's seed 77777, scene 9; issue 53).
+pub fn survival(weight: Rgb) -> f32 {
+    weight.max_element().min(1.0)
+}
+
 /// One scattering event of a photon that arrived at `hit` from direction `wo`:
 /// sample the BSDF, refuse directions the shading normal allows but the geometry
 /// does not (they would leak through the surface), then Russian roulette on the
-/// scattering albedo keeping spectral balance: survive with q = mean(weight) and
-/// scale the power by weight / q (McGuire and Luebke 2009, appendix A, step 2(d)).
-/// Returns the sample and the factor to multiply the photon's power by, or none
-/// when the photon is absorbed. Draws three numbers from `s`, four if it survives.
+/// scattering albedo keeping spectral balance: survive with q = [`survival`] and
+/// scale the power by weight / q. Returns the sample and the factor to multiply
+/// the photon's power by, or none when the photon is absorbed. Draws three
+/// numbers from `s`, four if it survives.
 pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Sampler) -> Option<(BsdfSample, Rgb)> {
     let u = s.next_2d();
     let uc = s.next_1d();
@@ -545,7 +560,7 @@ pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Samp
     if same_side == bs.transmitted {
         return None;
     }
-    let q = pm_color::mean(bs.weight).min(1.0);
+    let q = survival(bs.weight);
     if !(q > 0.0) || s.next_1d() >= q {
         return None;
     }

@@ -75,6 +75,36 @@ fn direct_photons_carry_the_lights_power_for_any_light_shares() {
     }
 }
 
+/// Russian roulette by a bounce's largest albedo channel ([`pm_photon::survival`]):
+/// in a closed box whose every surface (lights included) is a saturated green
+/// of albedo (0.1, 0.8, 0.1), no stored photon carries more of any channel than
+/// a photon leaves the light with, and each channel's stored power is the
+/// geometric series Phi / (1 - rho) of its own albedo (5 Phi green, 1.11 Phi red
+/// and blue). By the channels' mean, as McGuire and Luebke's appendix A has it,
+/// the series hold too but a green photon's green power grew 2.4 times a
+/// bounce: the largest stored was 6,340 times the emitted (issue 53).
+#[test]
+fn russian_roulette_in_a_saturated_room_never_raises_a_photons_power() {
+    let mut scene = closed_box_two_lights();
+    let rho = Rgb::new(0.1, 0.8, 0.1);
+    for m in &mut scene.materials {
+        *m = material(&m.name.clone(), Bsdf::Lambert { rho }, m.emission);
+    }
+    let scene = Scene::from_parts(scene.triangles.clone(), scene.materials.clone(), Vec::new(), None);
+    let phi = scene.total_power();
+    let m = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Emitted(40_000)), &|_| {}).unwrap();
+    let emitted = phi / m.stats.emitted as f32;
+    let largest = m.photons.iter().fold(Vec3::ZERO, |a, p| a.max(p.power));
+    eprintln!("largest stored {largest} vs emitted {emitted}: {}", largest / emitted);
+    assert!((largest / emitted).max_element() <= 1.0 + 1e-4, "largest stored {largest} vs emitted {emitted}");
+    let total = sum_power(m.photons.iter().copied());
+    let expected = phi / (Vec3::ONE - rho);
+    let rel = (total / expected - Vec3::ONE).abs().max_element();
+    eprintln!("stored {total} vs {expected}: {rel}");
+    assert!(rel < 0.03, "stored {total} vs Phi / (1 - rho) = {expected}");
+    assert_eq!(m.stats.truncated_paths, 0);
+}
+
 #[test]
 fn furnace_stored_power_is_the_geometric_series() {
     // Closed sphere, albedo 0.8: bounce k stores Phi 0.8^k in expectation, in total
