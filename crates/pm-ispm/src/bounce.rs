@@ -86,17 +86,22 @@ fn rgb_array<S: serde::Serializer>(v: &Rgb, s: S) -> Result<S::Ok, S::Error> {
     serde::Serialize::serialize(&v.to_array(), s)
 }
 
+/// The image-space method's Russian roulette: the paper's spectral balance by
+/// the channels' mean (appendix A, step 2(d); [`pm_photon::Roulette`] says why
+/// this method keeps it).
+const ROULETTE: pm_photon::Roulette = pm_photon::Roulette::ChannelMean;
+
 /// Path density factor of one scattering event (section 4.3): ρ/1000 for a
 /// Lambertian sample, ρ for mirror reflection or refraction, with ρ the
-/// probability the photon survived the event's Russian roulette
-/// ([`pm_photon::survival`] of the sample's weight, its albedo). A glossy sample's factor is the Lambertian one times
+/// probability the photon survived the event's Russian roulette ([`ROULETTE`]
+/// of the sample's weight, its albedo). A glossy sample's factor is the Lambertian one times
 /// how much more concentrated its lobe is, π pdf (the pdf ratio of Herzog et al.'s
 /// path density, about 1 for a cosine lobe), from 1 up to the paper's ρ/10 at 100:
 /// the paper's ρ/10 for every glossy sample gave the rough (alpha 1) specular layer
 /// of Blender's Principled BSDF volumes of a tenth of the diffuse ones' area, bright
 /// dots all over a Blender room's walls.
 fn density_factor(bs: &pm_bsdf::BsdfSample) -> f32 {
-    let rho = pm_photon::survival(bs.weight).max(1e-6);
+    let rho = ROULETTE.survival(bs.weight).max(1e-6);
     match bs.lobe {
         pm_bsdf::Lobe::Diffuse => rho / 1000.0,
         pm_bsdf::Lobe::Glossy => glossy_density(rho, bs.pdf),
@@ -115,7 +120,7 @@ fn glossy_density(rho: f32, pdf: f32) -> f32 {
 /// single-scattering albedo and the phase function's value as its pdf, so an
 /// isotropic medium spreads its paths like a Lambertian surface.
 fn medium_density_factor(m: &pm_scene::Medium, wo: Vec3, wi: Vec3) -> f32 {
-    glossy_density(pm_photon::survival(m.albedo()).max(1e-6), m.phase.p(wo, wi))
+    glossy_density(ROULETTE.survival(m.albedo()).max(1e-6), m.phase.p(wo, wi))
 }
 
 /// Exact solid angle [sr] of the rectangle [u0, u1] x [v0, v1] of the plane at unit
@@ -306,8 +311,9 @@ fn first_bounce(scene: &Scene, a: &Arrival, caustics: bool, s: &mut Sampler) -> 
         Landing::Surface(hit) => {
             let incident = Some(carrier.power());
             let bsdf = scene.bsdf(&hit);
-            let photon = pm_photon::scatter(&bsdf, &hit, wo, s).filter(|(bs, _)| caustics || !bs.specular).map(
-                |(bs, factor)| {
+            let photon = pm_photon::scatter(&bsdf, &hit, wo, ROULETTE, s)
+                .filter(|(bs, _)| caustics || !bs.specular)
+                .map(|(bs, factor)| {
                     carrier.phi *= factor;
                     carrier.leave(scene, &hit, bs.wi);
                     BouncePhoton {
@@ -317,14 +323,13 @@ fn first_bounce(scene: &Scene, a: &Arrival, caustics: bool, s: &mut Sampler) -> 
                         density: density_factor(&bs),
                         specular: bs.specular,
                     }
-                },
-            );
+                });
             FirstBounce { incident, volume: None, photon }
         }
         Landing::Scattered { p, medium } => {
             let power = carrier.power();
             let volume = Some(volume_photon(p, wo, power, flags::DIRECT));
-            let photon = carrier.scatter_in(medium, wo, s).map(|wi| BouncePhoton {
+            let photon = carrier.scatter_in(medium, wo, ROULETTE, s).map(|wi| BouncePhoton {
                 origin: p,
                 dir: wi,
                 carrier,
@@ -412,7 +417,7 @@ pub fn trace(scene: &Scene, maps: &BounceMaps, stored: u32, kernel: &KernelShape
                     Landing::Scattered { p, medium } => {
                         let extra = if caustic { flags::CAUSTIC } else { 0 };
                         out.volume.push(volume_photon(p, wo, c.power(), extra));
-                        let Some(wi) = c.scatter_in(medium, wo, &mut s) else { break };
+                        let Some(wi) = c.scatter_in(medium, wo, ROULETTE, &mut s) else { break };
                         density *= medium_density_factor(medium, wo, wi);
                         caustic = false;
                         (o, d) = (p, wi);
@@ -427,7 +432,8 @@ pub fn trace(scene: &Scene, maps: &BounceMaps, stored: u32, kernel: &KernelShape
                     // neighbouring facets' points out of the thin kernel (the furnace
                     // sphere lost 13% of its indirect light that way).
                     let n = pm_render::facing(hit.ns, wo);
-                    let (r_xy, r_z) = kernel.radii(density, pm_render::covered(scene, hit.p, n));
+                    let under_cover = pm_render::covered(scene, hit.p, n);
+                    let (r_xy, r_z) = kernel.radii(density, under_cover);
                     // The cone kernel's weight 1 - t over its disc.
                     let covered = if kernel.coverage {
                         pm_render::disc_coverage(scene, hit.p, n, r_xy, pm_render::Probe::Slab(r_z), |t| 1.0 - t)
@@ -443,9 +449,10 @@ pub fn trace(scene: &Scene, maps: &BounceMaps, stored: u32, kernel: &KernelShape
                         r_xy,
                         r_z,
                         caustic,
+                        covered: under_cover,
                     });
                 }
-                let Some((bs, factor)) = pm_photon::scatter(&bsdf, &hit, wo, &mut s) else { break };
+                let Some((bs, factor)) = pm_photon::scatter(&bsdf, &hit, wo, ROULETTE, &mut s) else { break };
                 c.phi *= factor;
                 c.leave(scene, &hit, bs.wi);
                 density *= density_factor(&bs);

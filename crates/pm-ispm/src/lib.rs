@@ -119,6 +119,9 @@ pub struct SplatLight<'a> {
     pub photons: &'a [VolumePhoton],
     /// Their radius-query index.
     pub index: &'a PhotonIndex,
+    /// The scene, when some photon lies under a cover
+    /// ([`VolumePhoton::covered`]): the points gathered at are then asked too.
+    pub covers: Option<&'a Scene>,
     /// The frame's photons scattered in media (none without scattering media).
     pub volume: Option<&'a VolumePhotons>,
 }
@@ -128,7 +131,8 @@ impl IndirectLight for SplatLight<'_> {
 
     fn radiance(&self, hit: &Hit, bsdf: &pm_bsdf::Bsdf, wo: Vec3) -> Rgb {
         let n = pm_render::facing(hit.ns, wo);
-        let surface = Surface::new(hit.p, n, wo, *bsdf);
+        let mut surface = Surface::new(hit.p, n, wo, *bsdf);
+        surface.covered = self.covers.is_some_and(|scene| pm_render::covered(scene, hit.p, n));
         let (ind, caus) = splat::gather(self.photons, self.index, &surface);
         ind + caus
     }
@@ -269,7 +273,13 @@ impl Ispm {
         let maps = f.shadow_maps(scene);
         // Direct light from photons is not a choice here: it is taken by shadow rays.
         let direct = if f.direct == DirectMode::Photons { DirectMode::Rays } else { f.direct };
-        let indirect = SplatLight { photons: &photons, index: &index, volume: volume.as_ref() };
+        let any_covered = photons.iter().any(|p| p.covered);
+        let indirect = SplatLight {
+            photons: &photons,
+            index: &index,
+            covers: any_covered.then_some(scene),
+            volume: volume.as_ref(),
+        };
         let shading = LiveShading::new(scene, indirect, direct, f, maps.as_ref()).map_err(|e| e.to_string())?;
         let visibility = Visibility::Fragments(scene, &self.fragments);
         pm_render::render_into(
@@ -283,6 +293,11 @@ impl Ispm {
         let t_direct = t.elapsed().as_secs_f64();
         let t = Instant::now();
         gbuffer_into(scene, &self.fragments, camera, &mut self.gbuffer);
+        if any_covered {
+            let (w, h) = (f.width, f.height);
+            let rects = photons.iter().filter(|p| p.covered).filter_map(|p| p.screen_rect(camera, w, h));
+            self.gbuffer.mark_covered(scene, w, rects);
+        }
         let eye_tr = eye_transmittance(scene, camera, &self.fragments);
         let (gbuffer, full, low, low_gbuffer) = (&self.gbuffer, &mut self.full, &mut self.low, &mut self.low_gbuffer);
         let (w, h, sub) = (f.width, f.height, p.subsample);

@@ -388,12 +388,13 @@ impl Carrier {
     }
 
     /// A scattering event in medium `m`, the photon travelling toward `-wo`:
-    /// Russian roulette by the single-scattering albedo's [`survival`]
-    /// probability q (the flight's weight already holds sigma_s over sigma_t; the
-    /// power is divided by q), then the phase function sampled (three numbers from
-    /// `s`, one when it ends). The new direction, or `None` when it is absorbed.
-    pub fn scatter_in(&mut self, m: &pm_scene::Medium, wo: Vec3, s: &mut Sampler) -> Option<Vec3> {
-        let q = survival(m.albedo());
+    /// Russian roulette by the single-scattering albedo's survival probability q
+    /// as `roulette` says (the flight's weight already holds sigma_s over
+    /// sigma_t; the power is divided by q), then the phase function sampled
+    /// (three numbers from `s`, one when it ends). The new direction, or `None`
+    /// when it is absorbed.
+    pub fn scatter_in(&mut self, m: &pm_scene::Medium, wo: Vec3, roulette: Roulette, s: &mut Sampler) -> Option<Vec3> {
+        let q = roulette.survival(m.albedo());
         if !(q > 0.0) || s.next_1d() >= q {
             return None;
         }
@@ -468,7 +469,7 @@ impl PhotonPath {
             };
             out.photons.push((volume_photon(p, wo, self.carrier.power(), extra), self.events));
         }
-        let wi = self.carrier.scatter_in(m, wo, s)?;
+        let wi = self.carrier.scatter_in(m, wo, Roulette::LargestChannel, s)?;
         self.specular_chain = false;
         self.events += 1;
         Some(wi)
@@ -518,7 +519,7 @@ impl PhotonPath {
                 return None; // the caustic map only needs the first non-specular hit
             }
         }
-        let (bs, factor) = scatter(&bsdf, hit, wo, s)?;
+        let (bs, factor) = scatter(&bsdf, hit, wo, Roulette::LargestChannel, s)?;
         self.carrier.phi *= factor;
         self.specular_chain &= bs.specular;
         if pass == MapPass::Caustic && !self.specular_chain {
@@ -530,29 +531,53 @@ impl PhotonPath {
     }
 }
 
-/// The probability [0, 1] that a photon survives Russian roulette at an event
-/// whose sampling weight (BSDF sample or single-scattering albedo) is `weight`:
-/// its largest channel (Jensen 2001, "Realistic Image Synthesis Using Photon
-/// Mapping", section 5.2), so that dividing the power by it never raises a
-/// channel at a Lambertian bounce. McGuire and Luebke's appendix A (step 2(d))
-/// takes the channels' mean, which keeps a photon's mean power but multiplies a
-/// saturated colour's: a green wall of albedo (0.1, 0.8, 0.1) raised a green
-/// photon's green power 2.4 times at every bounce, and a photon that had crossed
-/// a green-walled fog room a few times came back with thousands of times its
-/// emitted green power, a green spark 140 times its pixel's value in progressive
-/// photon mapping (the differential checker's seed 77777, scene 9; issue 53).
-pub fn survival(weight: Rgb) -> f32 {
-    weight.max_element().min(1.0)
+/// How a photon's Russian roulette keeps its spectral balance: the survival
+/// probability q [0, 1] at an event whose sampling weight (a BSDF sample's, or a
+/// medium's single-scattering albedo) is `weight`, the power then divided by q.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Roulette {
+    /// q = the weight's largest channel (Jensen 2001, "Realistic Image Synthesis
+    /// Using Photon Mapping", section 5.2): dividing by it never raises a channel
+    /// at a Lambertian bounce. The photon tracer's (the batch maps, SPPM's passes,
+    /// the vertex method's ring). By the mean, a green wall of albedo (0.1, 0.8,
+    /// 0.1) raised a green photon's green power 2.4 times at every bounce, and in
+    /// a green-walled fog room SPPM drew green sparks 140 times their pixel (the
+    /// differential checker's seed 77777, scene 9; issue 53).
+    LargestChannel,
+    /// q = the weight's channel mean (McGuire and Luebke 2009, appendix A, step
+    /// 2(d)): every photon keeps its mean power. The image-space method's, whose
+    /// volumes are sized by the paper's path density and whose paths stop after
+    /// `bounces` events (so a channel grows at most (max / mean)^bounces): with
+    /// the largest channel its frames of Blender's animated room were no better
+    /// (block RMS over four frames and two seeds 8.6% against 8.1%) and took 1.36
+    /// times as long (60% more photons a frame on cornell_boxes).
+    ChannelMean,
+}
+
+impl Roulette {
+    /// The survival probability at an event of sampling weight `weight`.
+    pub fn survival(self, weight: Rgb) -> f32 {
+        match self {
+            Roulette::LargestChannel => weight.max_element().min(1.0),
+            Roulette::ChannelMean => pm_color::mean(weight).min(1.0),
+        }
+    }
 }
 
 /// One scattering event of a photon that arrived at `hit` from direction `wo`:
 /// sample the BSDF, refuse directions the shading normal allows but the geometry
 /// does not (they would leak through the surface), then Russian roulette on the
-/// scattering albedo keeping spectral balance: survive with q = [`survival`] and
-/// scale the power by weight / q. Returns the sample and the factor to multiply
-/// the photon's power by, or none when the photon is absorbed. Draws three
-/// numbers from `s`, four if it survives.
-pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Sampler) -> Option<(BsdfSample, Rgb)> {
+/// scattering albedo keeping spectral balance: survive with q as `roulette` says
+/// and scale the power by weight / q. Returns the sample and the factor to
+/// multiply the photon's power by, or none when the photon is absorbed. Draws
+/// three numbers from `s`, four if it survives.
+pub fn scatter(
+    bsdf: &pm_bsdf::Bsdf,
+    hit: &pm_scene::Hit,
+    wo: Vec3,
+    roulette: Roulette,
+    s: &mut Sampler,
+) -> Option<(BsdfSample, Rgb)> {
     let u = s.next_2d();
     let uc = s.next_1d();
     let bs = bsdf.sample(wo, hit.ns, u, uc)?;
@@ -560,7 +585,7 @@ pub fn scatter(bsdf: &pm_bsdf::Bsdf, hit: &pm_scene::Hit, wo: Vec3, s: &mut Samp
     if same_side == bs.transmitted {
         return None;
     }
-    let q = survival(bs.weight);
+    let q = roulette.survival(bs.weight);
     if !(q > 0.0) || s.next_1d() >= q {
         return None;
     }

@@ -75,7 +75,7 @@ fn direct_photons_carry_the_lights_power_for_any_light_shares() {
     }
 }
 
-/// Russian roulette by a bounce's largest albedo channel ([`pm_photon::survival`]):
+/// Russian roulette by a bounce's largest albedo channel (`pm_photon::Roulette`):
 /// in a closed box whose every surface (lights included) is a saturated green
 /// of albedo (0.1, 0.8, 0.1), no stored photon carries more of any channel than
 /// a photon leaves the light with, and each channel's stored power is the
