@@ -214,16 +214,8 @@ fn compare(a: &CompareArgs) -> Result<()> {
     }
     let pick = |i: &pm_image::Layers, p: &PathBuf| {
         let name = pm_color::layer_name(a.layer);
-        let mut px = i
-            .total_or_layer(a.layer)
-            .map(<[_]>::to_vec)
-            .ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))?;
-        if a.with_caustics && a.layer == Some(pm_color::Layer::Indirect) {
-            for (x, c) in px.iter_mut().zip(i.pixels(Some(pm_color::Layer::Caustic))) {
-                *x += c;
-            }
-        }
-        anyhow::Ok(px)
+        i.total_or_layer(a.layer).ok_or_else(|| anyhow::anyhow!("{}: no layer {name}", p.display()))?;
+        anyhow::Ok(i.pixels_caustics_in_indirect(a.layer, a.with_caustics))
     };
     let (la, lb) = (pick(&ia, &a.image)?, pick(&ib, &a.reference)?);
     let (w, h) = (ia.width as usize, ia.height as usize);

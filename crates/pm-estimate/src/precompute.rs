@@ -81,7 +81,8 @@ pub fn precompute<R: PhotonRecord>(
     let buckets = pm_kdtree::Buckets::new(&*nodes);
     let tree = KdTree::with_buckets(&*nodes, &buckets);
     let used = |i: usize| tree.nodes()[i].flags() & flags::UNUSED == 0;
-    let first: Vec<usize> = (0..nodes.len()).filter(|&i| used(i) && selected(i, fraction)).collect();
+    let (first, rest): (Vec<usize>, Vec<usize>) =
+        (0..nodes.len()).filter(|&i| used(i)).partition(|&i| selected(i, fraction));
     let refining = fraction < 1.0 && refine > 1.0;
     // Progress over the photons: the subset's estimates, then (refining) the
     // other photons' checks, each its share of them.
@@ -129,7 +130,6 @@ pub fn precompute<R: PhotonRecord>(
             .collect();
         subset = pm_kdtree::balance(&subset);
         let sub = KdTree::new(&subset);
-        let rest: Vec<usize> = (0..nodes.len()).filter(|&i| used(i) && !selected(i, fraction)).collect();
         done.store(0, std::sync::atomic::Ordering::Relaxed);
         let refined: Vec<usize> = rest
             .par_chunks(CHUNK)

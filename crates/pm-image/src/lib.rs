@@ -49,6 +49,20 @@ impl Layers {
             .unwrap_or_else(|| vec![Vec3::ZERO; (self.width * self.height) as usize])
     }
 
+    /// [`Self::pixels`], with the caustic layer added to the indirect one when
+    /// `caustics_in_indirect`: how an image is judged against a method that draws
+    /// its caustics into its indirect layer (the vertex method has no caustic
+    /// map), and that method's image against it alike.
+    pub fn pixels_caustics_in_indirect(&self, layer: Option<Layer>, caustics_in_indirect: bool) -> Vec<Vec3> {
+        let mut px = self.pixels(layer);
+        if caustics_in_indirect && layer == Some(Layer::Indirect) {
+            for (x, c) in px.iter_mut().zip(self.pixels(Some(Layer::Caustic))) {
+                *x += c;
+            }
+        }
+        px
+    }
+
     /// The layer called `name` in the file (the total is [`TOTAL`]).
     pub fn by_name(&self, name: &str) -> Option<&[Vec3]> {
         self.layers.iter().find(|l| l.0 == name).map(|l| l.1.as_slice())

@@ -240,28 +240,16 @@ mod tests {
         tris.push(Triangle::new([v(-0.5, 0.01, 0.0), v(-0.5, 0.01, 1.0), v(0.5, 0.01, 1.0)], 0).unwrap());
         tris.push(Triangle::new([v(-0.5, 0.01, 0.0), v(0.5, 0.01, 1.0), v(0.5, 0.01, 0.0)], 0).unwrap());
         s = Scene::from_parts(tris, s.materials.clone(), Vec::new(), None);
-        let (p, below, above) = (Vec3::new(0.6, 0.0, 0.5), 0.1, 0.005);
-        let open = disc_coverage(
-            &s,
-            p,
-            Vec3::Y,
-            0.2,
-            Probe::Estimate { below, above, cover: Some((0.05, false)), view: None },
-            |_| 1.0,
-        );
+        let p = Vec3::new(0.6, 0.0, 0.5);
+        let share = |cover| {
+            let probe = Probe::Estimate { below: 0.1, above: 0.005, cover, view: None };
+            disc_coverage(&s, p, Vec3::Y, 0.2, probe, |_| 1.0)
+        };
+        let open = share(Some((0.05, false)));
         assert!((open - chord_at_half()).abs() <= 0.04, "open: {open}");
-        let shut = disc_coverage(
-            &s,
-            p,
-            Vec3::Y,
-            0.2,
-            Probe::Estimate { below, above, cover: Some((0.05, true)), view: None },
-            |_| 1.0,
-        );
+        let shut = share(Some((0.05, true)));
         assert!((shut - (1.0 - chord_at_half())).abs() <= 0.04, "covered: {shut}");
-        let all =
-            disc_coverage(&s, p, Vec3::Y, 0.2, Probe::Estimate { below, above, cover: None, view: None }, |_| 1.0);
-        assert_eq!(all, 1.0, "without the cover test");
+        assert_eq!(share(None), 1.0, "without the cover test");
     }
 
     /// A photon volume's support has no view test: the floor behind the wall

@@ -597,14 +597,8 @@ fn judge(
     }
     // A method without a caustic map draws its caustics into its indirect layer:
     // judged there, against the reference's two layers together.
-    let merged = |img: &pm_image::Layers, l: Option<Layer>| -> Vec<Vec3> {
-        let px = img.pixels(l);
-        if m.caustics_in_indirect() && l == Some(Layer::Indirect) {
-            px.iter().zip(img.pixels(Some(Layer::Caustic))).map(|(x, c)| *x + c).collect()
-        } else {
-            px
-        }
-    };
+    let merged =
+        |img: &pm_image::Layers, l: Option<Layer>| img.pixels_caustics_in_indirect(l, m.caustics_in_indirect());
     let mean_of = |l: Option<Layer>| -> (Vec<Vec3>, Vec<Vec3>) {
         let (la, lb) = (merged(a, l), merged(b, l));
         let reference = la.iter().zip(&lb).map(|(x, y)| (*x + *y) * 0.5).collect();

@@ -272,10 +272,7 @@ fn generated_edited(
     edit: impl FnOnce(&mut pm_pipeline::Pipeline),
 ) -> (pm_image::accuracy::Agreement, pm_scenegen::random::Recipe) {
     let dir = tempfile::tempdir().unwrap();
-    let (doc, recipe) = pm_scenegen::random::scene(seed, index);
-    let name = format!("scene-{index:03}");
-    doc.write(dir.path(), &name, false).unwrap();
-    let scene = dir.path().join(format!("{name}.gltf"));
+    let (scene, recipe) = crate::generated_scene(dir.path(), seed, index);
     let (_, ours, reference) = pm_tests::defaults_and_path_tracer(dir.path(), scene.to_str().unwrap(), size, spp, edit);
     let n = size as usize;
     let keep = pm_study::differential::emitters_left_out(&pm_scene::load(&scene).unwrap(), n, n).unwrap();
@@ -319,9 +316,7 @@ fn the_light_trapped_above_a_lamp_neither_darkens_nor_lights_the_room() {
 #[test]
 fn the_gaps_round_a_spheres_vertices_are_not_its_own_facets() {
     let dir = tempfile::tempdir().unwrap();
-    let (doc, _) = pm_scenegen::random::scene(23897, 26);
-    doc.write(dir.path(), "scene-026", false).unwrap();
-    let s = pm_scene::load(&dir.path().join("scene-026.gltf")).unwrap();
+    let s = pm_scene::load(&crate::generated_scene(dir.path(), 23897, 26).0).unwrap();
     let sphere = s.objects.iter().find(|o| o.name.starts_with("object_0")).unwrap();
     let mut worst = f32::INFINITY;
     for t in sphere.tris.clone() {

@@ -21,3 +21,13 @@ mod runner;
 mod scenes;
 mod sppm;
 mod tidy;
+
+/// Scene `index` of the differential checker's generator for `seed`, written
+/// into `dir` as `cargo xtask differential` writes it (scene-NNN.gltf): its path
+/// and what it holds.
+fn generated_scene(dir: &std::path::Path, seed: u64, index: u32) -> (std::path::PathBuf, pm_scenegen::random::Recipe) {
+    let (doc, recipe) = pm_scenegen::random::scene(seed, index);
+    let name = format!("scene-{index:03}");
+    doc.write(dir, &name, false).unwrap();
+    (dir.join(format!("{name}.gltf")), recipe)
+}

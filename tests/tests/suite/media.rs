@@ -646,10 +646,9 @@ fn the_pipeline_on_defaults_agrees_with_the_path_tracer_in_fog_boxes() {
 #[test]
 fn a_fog_box_standing_on_the_floor_keeps_the_floor_in_the_fog() {
     let dir = tempfile::tempdir().unwrap();
-    let (doc, recipe) = pm_scenegen::random::scene(90210, 31);
+    let (path, recipe) = crate::generated_scene(dir.path(), 90210, 31);
     assert!(recipe.fog.as_deref().is_some_and(|f| f.starts_with("on the floor")), "{:?}", recipe.fog);
-    doc.write(dir.path(), "s", false).unwrap();
-    let scene = pm_scene::load(&dir.path().join("s.gltf")).unwrap();
+    let scene = pm_scene::load(&path).unwrap();
     let boundary = |tri: u32| matches!(scene.uniform_bsdf(tri), Some(Bsdf::Glass { eta: 1.0, .. }));
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     for (i, t) in scene.triangles.iter().enumerate() {

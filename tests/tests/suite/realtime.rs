@@ -271,9 +271,8 @@ fn a_rough_metal_box_in_fog_reflects_the_lit_fog_in_both_real_time_methods() {
 #[test]
 fn the_vertex_methods_split_leaves_a_lamp_near_the_ceiling_sampled_without_sparks() {
     let dir = tempfile::tempdir().unwrap();
-    let (doc, recipe) = pm_scenegen::random::scene(60606, 33);
-    doc.write(dir.path(), "scene", false).unwrap();
-    let file = pm_scene::load(&dir.path().join("scene.gltf")).unwrap();
+    let (path, recipe) = crate::generated_scene(dir.path(), 60606, 33);
+    let file = pm_scene::load(&path).unwrap();
     let (drawn, _, split) = pm_vertex::scenes(file.clone(), None, &pm_vertex::VertexParams::default());
     assert!(split.triangles.1 > split.triangles.0, "the vertex method splits this scene: {split:?}");
     let up = glam::Vec3::Y;
@@ -346,10 +345,7 @@ fn live_and_reference(
 ) -> (pm_image::Layers, pm_image::Layers, Vec<bool>, pm_scenegen::random::Recipe) {
     let size = 48;
     let dir = tempfile::tempdir().unwrap();
-    let (doc, recipe) = pm_scenegen::random::scene(seed, index);
-    let name = format!("scene-{index:03}");
-    doc.write(dir.path(), &name, false).unwrap();
-    let scene = dir.path().join(format!("{name}.gltf"));
+    let (scene, recipe) = crate::generated_scene(dir.path(), seed, index);
     live_frames(dir.path(), &scene, method, size, 1);
     let ours = pm_image::read_exr(&dir.path().join("frames/0000.exr")).unwrap();
     let reference = path_traced(dir.path(), &scene, 0.0, size, 4096, true);
@@ -377,12 +373,7 @@ fn live_on_generated(
         .iter()
         .map(|&layer| {
             let l = Some(layer);
-            let mut theirs = reference.pixels(l);
-            if layer == pm_color::Layer::Indirect && method == LiveMethod::Vertex {
-                for (x, c) in theirs.iter_mut().zip(reference.pixels(Some(pm_color::Layer::Caustic))) {
-                    *x += c;
-                }
-            }
+            let theirs = reference.pixels_caustics_in_indirect(l, method == LiveMethod::Vertex);
             agreement(&ours.pixels(l), &theirs, n, &keep, 8)
         })
         .collect();
