@@ -10,7 +10,9 @@
 //! [`pm_methods::live::LiveMethod::agreement`]): the image's mean and its worst 8
 //! x 8 block, and each layer that holds at least a twentieth of the light, the
 //! pixels that see a light left out, with the reference's noise (and a
-//! real-time method's own) allowed on top.
+//! real-time method's own) allowed on top. Where the path tracer cannot see all
+//! the light ([`reference_blind_spot`]: a point, spot or sun light and a mirror or
+//! glass) the methods run as well and are judged on the direct layer alone.
 //! A method that fails to run is `crashed`, one with a stage past the time limit
 //! `hung`; one that writes a NaN, infinite or negative pixel is `nonfinite`. Writes DIR/report.json, DIR/worst.png (a
 //! contact sheet of the worst failures, ours beside the path tracer's, their
@@ -124,6 +126,9 @@ pub struct Outcome {
     pub layers: Vec<LayerOutcome>,
     /// The error, for a crash.
     pub error: Option<String>,
+    /// Why only the direct layer is judged, when the path tracer cannot render
+    /// the rest ([`reference_blind_spot`]).
+    pub blind_spot: Option<String>,
     /// The seeds judged: 2 for the real-time methods, and for a batch method
     /// whose first image failed (judged again as the mean of two seeds' images,
     /// their difference allowed as its own noise); else 1.
@@ -162,8 +167,13 @@ pub struct Counts {
     /// A stage ran past the time limit.
     pub hung: u32,
     /// Not judged: the path tracer cannot render all of the scene's light (see
-    /// [`reference_blind_spot`]).
+    /// [`reference_blind_spot`]) and the direct layer, all it can, holds less
+    /// than a twentieth of it. The method ran: a crash, hang or non-finite
+    /// pixel is counted as such.
     pub unjudged: u32,
+    /// Of the passed and failed, those judged on the direct layer alone (the
+    /// path tracer's blind spot).
+    pub direct_only: u32,
 }
 
 /// DIR/report.json.
@@ -219,20 +229,12 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
                 continue;
             }
         };
-        if let Some(why) = reference_blind_spot(&loaded) {
-            for (m, _) in &methods {
-                let verdict = "unjudged".to_string();
-                outcomes.push(Outcome {
-                    scene: name.clone(),
-                    method: m.to_string(),
-                    verdict,
-                    layers: vec![],
-                    error: Some(why.clone()),
-                    seeds: 0,
-                });
-            }
-            eprintln!("differential: {name}: unjudged: {why}");
-            continue;
+        // Where the path tracer cannot see all of the light, the methods still
+        // run (a crash, a hang or a non-finite pixel counts there too) and are
+        // judged on the direct layer alone, which both render whole.
+        let blind = reference_blind_spot(&loaded);
+        if let Some(why) = &blind {
+            eprintln!("differential: {name}: judged on the direct layer only: {why}");
         }
         let keep = emitters_left_out(&loaded, args.size as usize, args.size as usize)?;
         // The references each kind of method needs: the batch methods filter
@@ -261,7 +263,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
                 Checked::Live(m) => run_live(bins, &base, scene, m, args.size, &out),
             };
             let mut outcome = match &images {
-                Ok(images) => judge(&name, m, bound, images, (a, b), &keep),
+                Ok(images) => judge(&name, m, bound, images, (a, b), &keep, blind.as_deref()),
                 Err(e) => crashed(&name, m, &format!("{e:#}")),
             };
             // A batch method's failure is judged again on two seeds, as the
@@ -279,7 +281,7 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
                     Ok(image) => {
                         let both = [first[0].clone(), image];
                         pm_image::write_exr(&out.join("judged.exr"), &mean_image(&both))?;
-                        judge(&name, m, bound, &both, (a, b), &keep)
+                        judge(&name, m, bound, &both, (a, b), &keep, blind.as_deref())
                     }
                     Err(e) => crashed(&name, m, &format!("seed {}: {e:#}", second.seed)),
                 };
@@ -298,6 +300,9 @@ pub fn run_with(args: &Args, root: &Path, bins: &Bins) -> Result<Report> {
             "unjudged" => c.unjudged += 1,
             "hung" => c.hung += 1,
             _ => c.nonfinite += 1,
+        }
+        if o.blind_spot.is_some() && matches!(o.verdict.as_str(), "passed" | "failed") {
+            c.direct_only += 1;
         }
     }
     let mut worst: Vec<Outcome> =
@@ -320,8 +325,8 @@ pub fn summary(r: &Report) -> String {
         .map(|(m, c)| {
             let judged = r.scenes - c.unjudged;
             format!(
-                "{m} {}/{judged} passed ({} failed, {} crashed, {} hung, {} non-finite; {} unjudged)",
-                c.passed, c.failed, c.crashed, c.hung, c.nonfinite, c.unjudged
+                "{m} {}/{judged} passed ({} failed, {} crashed, {} hung, {} non-finite; {} judged on the direct layer only, {} unjudged)",
+                c.passed, c.failed, c.crashed, c.hung, c.nonfinite, c.direct_only, c.unjudged
             )
         })
         .collect();
@@ -453,7 +458,15 @@ pub fn reference_blind_spot(s: &pm_scene::Scene) -> Option<String> {
 /// else "crashed".
 fn crashed(scene: &str, m: Checked, e: &str) -> Outcome {
     let verdict = if e.contains("timed out") { "hung" } else { "crashed" }.to_string();
-    Outcome { scene: scene.into(), method: m.to_string(), verdict, layers: Vec::new(), error: Some(e.into()), seeds: 0 }
+    Outcome {
+        scene: scene.into(),
+        method: m.to_string(),
+        verdict,
+        layers: Vec::new(),
+        error: Some(e.into()),
+        blind_spot: None,
+        seeds: 0,
+    }
 }
 
 /// The name of the path tracer's image with seed `seed`, with every sample through
@@ -578,6 +591,7 @@ fn judge(
     images: &[pm_image::Layers],
     (a, b): (&pm_image::Layers, &pm_image::Layers),
     keep: &[bool],
+    blind_spot: Option<&str>,
 ) -> Outcome {
     let size = (keep.len() as f64).sqrt() as usize;
     let seeds = images.len() as u32;
@@ -587,6 +601,7 @@ fn judge(
         verdict: "passed".into(),
         layers: vec![],
         error: None,
+        blind_spot: blind_spot.map(String::from),
         seeds,
     };
     let img = &mean_image(images);
@@ -608,6 +623,9 @@ fn judge(
     let whole = pm_image::accuracy::kept_mean(&reference, keep);
     for l in crate::tradeoff::results::COMPARED {
         if m.caustics_in_indirect() && l == Some(Layer::Caustic) {
+            continue;
+        }
+        if blind_spot.is_some() && l != Some(Layer::Direct) {
             continue;
         }
         let (reference, la) = mean_of(l);
@@ -635,6 +653,9 @@ fn judge(
         }
         let name = if l.is_none() { "image".to_string() } else { pm_color::layer_name(l).to_string() };
         o.layers.push(LayerOutcome { layer: name, mean, worst_block, worst_at, noise, within });
+    }
+    if o.layers.is_empty() {
+        o.verdict = "unjudged".into();
     }
     o
 }
