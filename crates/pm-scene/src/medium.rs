@@ -231,6 +231,10 @@ pub(crate) struct MediaLayout {
     pub scene: Option<MediumId>,
     /// Per object: the medium just outside it.
     pub outside: Vec<Option<MediumId>>,
+    /// Per object: true when the medium outside it differs across its surface
+    /// (a glass box standing half in a fog box): the medium beyond each of its
+    /// surfaces is then found where a ray leaves it ([`Scene::medium_after`]).
+    pub straddles: Vec<bool>,
     /// The medium at the camera's position.
     pub camera: Option<MediumId>,
     /// Per light: the medium its light starts in (the scene's for lights at infinity).
@@ -266,6 +270,10 @@ pub struct Passage {
 /// Most surfaces a containment walk crosses before it gives up (and takes the
 /// scene's medium): more than any sane nesting.
 const WALK_HITS: usize = 4096;
+
+/// Triangles of a medium's mesh whose outside is found to tell whether the mesh
+/// stands in two media ([`MediaLayout::straddles`]).
+const STRADDLE_SAMPLES: usize = 256;
 
 impl Scene {
     /// The medium `id` names (`None` for vacuum).
@@ -310,14 +318,20 @@ impl Scene {
     /// `wi`, having arrived in medium `cur`: for a surface that bounds a medium, its
     /// inside when `wi` leaves by the back and the medium outside the mesh when by
     /// the front; `cur` for any other surface (both of its sides are in one medium).
+    /// A mesh that stands partly in another medium ([`MediaLayout::straddles`])
+    /// has no one outside: leaving it, the medium is found by a walk from where
+    /// the ray leaves, as [`Self::medium_at`] finds it.
     #[inline]
     pub fn medium_after(&self, hit: &Hit, wi: Vec3, cur: Option<MediumId>) -> Option<MediumId> {
         let Some(inside) = self.material(hit).interior else { return cur };
         if wi.dot(hit.ng) < 0.0 {
-            Some(inside)
-        } else {
-            self.object_of(hit.tri).and_then(|o| self.layout.outside.get(o as usize).copied().flatten())
+            return Some(inside);
         }
+        let o = self.object_of(hit.tri)?;
+        if self.layout.straddles.get(o as usize).copied().unwrap_or(false) {
+            return self.medium_walk(self.offset_origin(hit.p, hit.ng, wi), wi, Some(o));
+        }
+        self.layout.outside.get(o as usize).copied().flatten()
     }
 
     /// The transmission colour of an index-matched boundary at `hit` (smooth
@@ -601,6 +615,7 @@ impl Scene {
     pub fn finish_media(&mut self) -> Result<(), String> {
         let n = self.objects.len();
         self.layout.outside = vec![self.layout.scene; n];
+        self.layout.straddles = vec![false; n];
         self.media_flags();
         if self.media.is_empty() {
             self.layout.camera = None;
@@ -663,13 +678,32 @@ impl Scene {
             self.layout.sphere_radius = grown;
             crate::light::finish_lights(self);
         }
-        for o in 0..self.objects.len() {
-            let obj = &self.objects[o];
-            if self.materials[obj.material as usize].interior.is_none() {
-                continue;
-            }
-            let (p, ng) = self.in_front_of(obj.tris.start);
-            self.layout.outside[o] = self.medium_walk(p, ng, Some(o as u32));
+        let bounding: Vec<usize> = (0..self.objects.len())
+            .filter(|&o| self.materials[self.objects[o].material as usize].interior.is_some())
+            .collect();
+        let bounds: Vec<crate::Bounds> = bounding
+            .iter()
+            .map(|&o| {
+                crate::bounds_of(
+                    &self.triangles[self.objects[o].tris.start as usize..self.objects[o].tris.end as usize],
+                )
+            })
+            .collect();
+        for (k, &o) in bounding.iter().enumerate() {
+            let tris = self.objects[o].tris.clone();
+            let (p, ng) = self.in_front_of(tris.start);
+            let outside = self.medium_walk(p, ng, Some(o as u32));
+            self.layout.outside[o] = outside;
+            // Only a mesh whose box overlaps another medium's can have two
+            // media outside it: then walks from up to 256 of its triangles,
+            // spread over the mesh, say whether it does.
+            let overlaps = bounds.iter().enumerate().any(|(j, b)| j != k && b.overlaps(&bounds[k]));
+            let stride = (tris.len() / STRADDLE_SAMPLES).max(1);
+            self.layout.straddles[o] = overlaps
+                && tris.step_by(stride).any(|t| {
+                    let (p, ng) = self.in_front_of(t);
+                    self.medium_walk(p, ng, Some(o as u32)) != outside
+                });
         }
         self.layout.camera = self.camera.as_ref().map(|c| c.position).and_then(|p| self.medium_at(p));
         self.layout.lights = (0..self.lights.len())

@@ -214,6 +214,11 @@ impl Bounds {
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)
     }
+
+    /// True when the two boxes share a point (touching counts).
+    pub fn overlaps(&self, o: &Bounds) -> bool {
+        self.min.cmple(o.max).all() && o.min.cmple(self.max).all()
+    }
 }
 
 /// The bounds of `triangles` (zero for none).
