@@ -81,19 +81,27 @@ impl Bins {
 pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool) -> Result<()> {
     let (status, last) = wait_for(&bins.path(program), args, quiet, bins.time_limit)
         .map_err(|e| anyhow::anyhow!("stage {step}: {e:#}"))?;
-    if !status.success() {
-        bail!("stage {step} failed ({status}): {}", last.trim());
+    failed(step, status, &last)
+}
+
+/// Ok for a stage that succeeded; else the error saying which failed and its
+/// last line, an [`pm_stage::Unsupported`] one when it exited with
+/// [`pm_stage::EXIT_UNSUPPORTED`] (the runner then exits with that code too).
+fn failed(step: &str, status: std::process::ExitStatus, last: &str) -> Result<()> {
+    if status.success() {
+        return Ok(());
     }
-    Ok(())
+    let message = format!("stage {step} failed ({status}): {}", last.trim());
+    if status.code() == Some(pm_stage::EXIT_UNSUPPORTED as i32) {
+        return Err(pm_stage::Unsupported(message).into());
+    }
+    bail!(message)
 }
 
 /// [`run`] for a program given by its path, with no time limit.
 pub fn run_program(program: &Path, args: &[String], step: &str, quiet: bool) -> Result<()> {
     let (status, last) = wait_for(program, args, quiet, None)?;
-    if !status.success() {
-        bail!("stage {step} failed ({status}): {}", last.trim());
-    }
-    Ok(())
+    failed(step, status, &last)
 }
 
 /// [`run_program`] for a stage that may stop before its work is done, keeping
@@ -104,9 +112,7 @@ pub fn run_resumable(program: &Path, args: &[String], step: &str, quiet: bool) -
     if status.code() == Some(pm_stage::EXIT_UNFINISHED as i32) {
         return Ok(false);
     }
-    if !status.success() {
-        bail!("stage {step} failed ({status}): {}", last.trim());
-    }
+    failed(step, status, &last)?;
     Ok(true)
 }
 

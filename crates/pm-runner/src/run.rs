@@ -96,8 +96,8 @@ pub fn run(args: &RunArgs, root: &Path) -> Result<Vec<Outcome>> {
     run_with(args, root, &bins)
 }
 
-/// Load the pipeline, apply `args`, create the output folder and ask the scene
-/// analysis (through photon-trace) which effects to simulate.
+/// Load the pipeline, apply `args`, ask the scene analysis (through
+/// photon-trace) which effects to simulate and create the output folder.
 pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let pipeline = args.pipeline.clone().unwrap_or_else(|| root.join("pipeline.toml"));
     let mut cfg = Pipeline::load(&pipeline)?;
@@ -108,7 +108,6 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
     let scene = args.scene.clone().unwrap_or_else(|| cfg.scene_path(&pipeline));
     let name = scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let out = args.out.clone().unwrap_or_else(|| root.join("out").join(&name));
-    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     bins.check()?;
 
     // Which effects to simulate: the scene analysis, or the list pipeline.toml forces.
@@ -119,10 +118,18 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {
-            bail!("scene analysis failed: {}", String::from_utf8_lossy(&o.stderr).trim());
+            // The stage's own line (it names the file and the problem); a scene
+            // needing an extension not read keeps its exit code.
+            let line = String::from_utf8_lossy(&o.stderr).trim().to_string();
+            if o.status.code() == Some(pm_stage::EXIT_UNSUPPORTED as i32) {
+                return Err(pm_stage::Unsupported(line).into());
+            }
+            bail!("scene analysis failed: {line}");
         }
         serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no analysis")?
     };
+    // Created once the scene is known to load: a refused scene leaves nothing.
+    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     Ok(Setup::new(cfg, scene, out, analysis))
 }
 

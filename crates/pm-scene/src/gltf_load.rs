@@ -18,12 +18,24 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    #[error("{path}: cannot read: {error}")]
     Io {
         /// The scene file.
         path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
+        /// The OS error (in the message, not a second link of the error's
+        /// chain, which would say it twice).
+        error: std::io::Error,
+    },
+    /// The file needs a glTF extension this renderer does not read
+    /// (`extensionsRequired`).
+    #[error("{path}: needs glTF extension {extension}, which this renderer does not read: {needed}")]
+    Unsupported {
+        /// The scene file.
+        path: PathBuf,
+        /// The extension (and how many more the file needs, if any).
+        extension: String,
+        /// What it holds and how to get a file without it.
+        needed: String,
     },
     /// The glTF crate rejected the document or its buffers.
     #[error("{path}: not a valid glTF 2.0 file: {message}")]
@@ -54,6 +66,45 @@ const SUPPORTED_EXTENSIONS: [&str; 8] = [
     "KHR_materials_specular",
 ];
 
+/// What an extension this renderer does not read holds, and how to get a file
+/// without it: said when a file requires it ([`SceneError::Unsupported`]).
+fn unsupported_needs(ext: &str) -> &'static str {
+    match ext {
+        "KHR_draco_mesh_compression" => {
+            "Draco-compressed meshes; export again without mesh compression (Blender: glTF export, Data, Compression off)"
+        }
+        "EXT_meshopt_compression" => {
+            "meshoptimizer-compressed buffers; pack again without compression (gltfpack without -c)"
+        }
+        "KHR_mesh_quantization" => "quantised vertex attributes; pack again without quantisation (gltfpack -noq)",
+        "EXT_texture_webp" => "WebP images; export again with PNG or JPEG images (Blender: glTF export, Images: PNG)",
+        "KHR_texture_basisu" => "KTX2 (Basis Universal) images; pack again with PNG or JPEG images",
+        "KHR_materials_pbrSpecularGlossiness" => {
+            "the old specular-glossiness materials; convert them to metallic-roughness"
+        }
+        _ => "export the scene again without it",
+    }
+}
+
+/// What is lost where a file uses, but does not require, an extension this
+/// renderer does not read: said in the warning that names it.
+fn ignored_loses(ext: &str) -> &'static str {
+    match ext {
+        "KHR_materials_clearcoat" => "clear coats are not drawn (no coat highlight or reflection)",
+        "KHR_materials_sheen" => "sheen is not drawn",
+        "KHR_materials_anisotropy" => "anisotropic highlights are drawn isotropic",
+        "KHR_materials_iridescence" => "iridescence is not drawn",
+        "KHR_materials_diffuse_transmission" => "light through thin diffuse surfaces is not drawn",
+        "KHR_materials_dispersion" => "glass does not disperse light",
+        "KHR_materials_unlit" => "unlit materials are lit as the base colour's diffuse",
+        "KHR_materials_variants" => "material variants are ignored: each mesh keeps its default material",
+        "EXT_texture_webp" | "KHR_texture_basisu" => "the file's fallback images are used instead",
+        "EXT_mesh_gpu_instancing" => "GPU instances are not drawn: each node draws its mesh once",
+        "KHR_animation_pointer" => "animations of anything but node transforms are ignored",
+        _ => "what it adds is ignored",
+    }
+}
+
 /// Load a glTF 2.0 scene with the glTF specification's light units (see
 /// [`LightUnits`]). Problems that do not stop loading are in `Scene::warnings`.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -70,7 +121,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
     for ext in doc.extensions_used() {
         if !SUPPORTED_EXTENSIONS.contains(&ext) {
-            warnings.push(format!("extension {ext} is not supported and is ignored"));
+            warnings.push(format!("extension {ext} is not read and is ignored: {}", ignored_loses(ext)));
         }
     }
     let base_dir = path.parent().unwrap_or(Path::new("."));
@@ -161,7 +212,7 @@ fn read_document(
     path: &Path,
     units: LightUnits,
 ) -> Result<(gltf::Document, Vec<gltf::buffer::Data>, [u8; 32]), SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+    let bytes = std::fs::read(path).map_err(|error| SceneError::Io { path: path.to_owned(), error })?;
     let gltf_err = |e: gltf::Error| SceneError::Gltf { path: path.to_owned(), message: e.to_string() };
     let content = |message: String| SceneError::Content { path: path.to_owned(), message };
     // Parse, check the references gltf-json's validation indexes without a bounds check
@@ -169,6 +220,22 @@ fn read_document(
     // validate.
     let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err)?;
     let root = raw.document.into_json();
+    // A required extension we do not read is the one thing to say: validation
+    // would first list what it leaves undecodable (a Draco mesh's accessors
+    // have no buffer view).
+    let unread: Vec<&String> =
+        root.extensions_required.iter().filter(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str())).collect();
+    if let Some(first) = unread.first() {
+        let more = match unread.len() - 1 {
+            0 => String::new(),
+            n => format!(" (and {n} more: {})", unread[1..].iter().map(|e| e.as_str()).collect::<Vec<_>>().join(", ")),
+        };
+        return Err(SceneError::Unsupported {
+            path: path.to_owned(),
+            extension: format!("{first}{more}"),
+            needed: unsupported_needs(first).into(),
+        });
+    }
     check_attribute_indices(&root).map_err(content)?;
     let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));

@@ -158,8 +158,50 @@ fn malformed_files_are_rejected_with_one_line_errors() {
         assert_one_line_naming(&err, &path, what);
     }
     let missing = data("does_not_exist.gltf");
-    let err = load(&missing).err().unwrap().to_string();
+    let e = load(&missing).err().unwrap();
+    let err = e.to_string();
     assert_one_line_naming(&err, &missing, "cannot read");
+    // The OS's reason once: in the message, not again as the error's source
+    // (an error chain printed whole said it twice).
+    assert!(std::error::Error::source(&e).is_none() && err.matches("os error").count() == 1, "{err}");
+}
+
+/// `handmade.gltf` with its first accessor's buffer view taken away, as a
+/// Draco-compressed file's accessors have none, and `extensions` added.
+fn with_extensions(required: &[&str], used: &[&str]) -> PathBuf {
+    let dir = tempfile::tempdir().unwrap().keep();
+    let mut g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("handmade.gltf")).unwrap()).unwrap();
+    if !required.is_empty() {
+        g["accessors"][0].as_object_mut().unwrap().remove("bufferView");
+        g["extensionsRequired"] = serde_json::json!(required);
+    }
+    g["extensionsUsed"] = serde_json::json!(used);
+    let path = dir.join("compressed.gltf");
+    std::fs::write(&path, g.to_string()).unwrap();
+    path
+}
+
+/// A file that requires an extension not read (Blender's Draco option) is
+/// refused in one line that names it and says how to get a file without it, not
+/// in a list of the accessors it leaves without data; two name the first and
+/// count the rest. One used but not required is a warning naming it and what
+/// is lost.
+#[test]
+fn extensions_not_read_are_named_with_what_they_need_or_lose() {
+    let draco = "KHR_draco_mesh_compression";
+    let path = with_extensions(&[draco], &[draco]);
+    let e = load(&path).err().expect("a Draco file is refused");
+    let err = e.to_string();
+    assert!(matches!(e, pm_scene::SceneError::Unsupported { .. }), "{err}");
+    assert_one_line_naming(&err, &path, &draco.to_lowercase());
+    assert!(err.contains("Compression off") && !err.contains("Missing data"), "{err}");
+    let path = with_extensions(&["EXT_texture_webp", draco], &["EXT_texture_webp", draco]);
+    let err = load(&path).err().unwrap().to_string();
+    assert!(err.contains("EXT_texture_webp (and 1 more: KHR_draco_mesh_compression)") && err.contains("PNG"), "{err}");
+    let s = load(&with_extensions(&[], &["KHR_materials_clearcoat"])).unwrap();
+    let warned: Vec<&String> = s.warnings.iter().filter(|w| w.contains("KHR_materials_clearcoat")).collect();
+    assert!(warned.len() == 1 && warned[0].contains("clear coats are not drawn"), "{:?}", s.warnings);
 }
 
 #[test]

@@ -23,6 +23,39 @@ use std::time::Instant;
 /// progressive render stopped by its time budget).
 pub const EXIT_UNFINISHED: u8 = 75;
 
+/// The exit code of a stage, or of the runner, given a scene that needs a glTF
+/// extension this renderer does not read ([`pm_scene::SceneError::Unsupported`]):
+/// nothing is written, and no retry will help until the file changes.
+pub const EXIT_UNSUPPORTED: u8 = 2;
+
+/// A stage the runner ran stopped with [`EXIT_UNSUPPORTED`]: its message, so the
+/// runner exits with the same code ([`exit_code`]).
+#[derive(Debug)]
+pub struct Unsupported(pub String);
+
+impl std::fmt::Display for Unsupported {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Unsupported {}
+
+/// True when the failure is (or a stage's was) a scene needing an extension
+/// not read.
+pub fn is_unsupported(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<Unsupported>().is_some()
+            || matches!(c.downcast_ref::<pm_scene::SceneError>(), Some(pm_scene::SceneError::Unsupported { .. }))
+    })
+}
+
+/// The exit code for a failure: [`EXIT_UNSUPPORTED`] for [`is_unsupported`],
+/// else 1.
+pub fn exit_code(e: &anyhow::Error) -> ExitCode {
+    if is_unsupported(e) { ExitCode::from(EXIT_UNSUPPORTED) } else { ExitCode::FAILURE }
+}
+
 /// A stage's body stopped before its work was done and can be continued: its
 /// outputs are written, and [`main_with`] prints `<stage>: unfinished: <what>`
 /// and exits with [`EXIT_UNFINISHED`].
@@ -39,7 +72,8 @@ impl std::error::Error for Unfinished {}
 
 /// Run a stage's body and turn its result into the process exit: on error, print
 /// `<stage>: error: <message chain>` as one line on stderr and return exit code 1
-/// ([`EXIT_UNFINISHED`] for [`Unfinished`]).
+/// ([`EXIT_UNFINISHED`] for [`Unfinished`], [`EXIT_UNSUPPORTED`] for a scene
+/// needing an extension not read).
 pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
     // Built for x86-64-v3 (.cargo/config.toml): say so on a CPU without it rather
     // than die of an illegal instruction.
@@ -59,7 +93,7 @@ pub fn main_with(stage: &str, body: impl FnOnce() -> Result<()>) -> ExitCode {
         Err(e) => {
             let msg = format!("{e:#}").replace('\n', " ");
             eprintln!("{stage}: error: {msg}");
-            ExitCode::FAILURE
+            exit_code(&e)
         }
     }
 }
