@@ -5,7 +5,7 @@
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
 use crate::{
-    AlphaMode, Camera, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, TextureRef,
+    AlphaMode, Camera, Filter, LUMINOUS_EFFICACY, LightKind, LightUnits, Material, Object, Scene, Texture, TextureRef,
     Triangle, Wrap,
 };
 use glam::{DMat4, DVec3, Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
@@ -120,7 +120,9 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
     let (doc, buffers, content_hash) = read_document(path, units)?;
     let mut warnings = Vec::new();
     for ext in doc.extensions_used() {
-        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+        // One a material carries is said with the material's name (read_material).
+        let on_a_material = doc.materials().any(|m| m.extensions().is_some_and(|e| e.contains_key(ext)));
+        if !SUPPORTED_EXTENSIONS.contains(&ext) && !on_a_material {
             warnings.push(format!("extension {ext} is not read and is ignored: {}", ignored_loses(ext)));
         }
     }
@@ -304,7 +306,7 @@ fn read_material(
     // does not know (clearcoat, sheen, iridescence, ...), then textures.
     if let Some(ext) = m.extensions() {
         for k in ext.keys().filter(|k| *k != "KHR_materials_volume_scatter") {
-            warnings.push(format!("material '{name}': extension {k} ignored"));
+            warnings.push(format!("material '{name}': extension {k} ignored: {}", ignored_loses(k)));
         }
     }
     if m.occlusion_texture().is_some() {
@@ -1111,7 +1113,7 @@ struct TextureLoader<'a> {
     base_dir: &'a Path,
     buffers: &'a [gltf::buffer::Data],
     textures: Vec<Texture>,
-    cache: std::collections::HashMap<(usize, [Wrap; 2], bool), u32>,
+    cache: std::collections::HashMap<(usize, [Wrap; 2], Filter, bool), u32>,
 }
 
 impl TextureLoader<'_> {
@@ -1138,7 +1140,11 @@ impl TextureLoader<'_> {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
             gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
         });
-        let key = (image.index(), wrap, srgb);
+        let filter = match sampler.mag_filter() {
+            Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
+            _ => Filter::Linear,
+        };
+        let key = (image.index(), wrap, filter, srgb);
         let index = match self.cache.get(&key) {
             Some(&t) => t,
             None => {
@@ -1146,7 +1152,7 @@ impl TextureLoader<'_> {
                     .map_err(|e| format!("image {}: {e}", image.index()))?;
                 let mut t = decode_texture(&data, srgb)
                     .ok_or_else(|| format!("image {}: unsupported image format {:?}", image.index(), data.format))?;
-                t.wrap = wrap;
+                (t.wrap, t.filter) = (wrap, filter);
                 self.textures.push(t);
                 let i = self.textures.len() as u32 - 1;
                 self.cache.insert(key, i);

@@ -22,6 +22,23 @@ pub struct Texture {
     pub srgb: bool,
     /// How u and v outside [0, 1] wrap (the glTF sampler's wrapS and wrapT).
     pub wrap: [Wrap; 2],
+    /// How a lookup between texel centres reads them (the sampler's magFilter).
+    pub filter: Filter,
+}
+
+/// How a texture lookup reads the texels round it (glTF 2.0 sampler magFilter,
+/// section 5.26; there is no mip-mapping, so minFilter's choice between levels
+/// does not arise).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Filter {
+    /// Bilinear between the four nearest texel centres (glTF's LINEAR, and what
+    /// a sampler without a magFilter gets).
+    #[default]
+    Linear,
+    /// The texel the point falls in (NEAREST; Blender's "Closest"
+    /// interpolation): pixel art and coarse tiles keep their hard edges and
+    /// colours.
+    Nearest,
 }
 
 /// Which texture a material parameter reads, with which coordinates.
@@ -87,7 +104,7 @@ static SRGB_TO_LINEAR: std::sync::LazyLock<[f32; 256]> =
 impl Texture {
     /// A texture of linear-or-sRGB 8-bit RGBA texels with repeat wrapping.
     pub fn new(width: u32, height: u32, texels: Vec<[u8; 4]>, srgb: bool) -> Texture {
-        Texture { width, height, texels, srgb, wrap: [Wrap::Repeat; 2] }
+        Texture { width, height, texels, srgb, wrap: [Wrap::Repeat; 2], filter: Filter::Linear }
     }
 
     /// One texel as linear RGBA.
@@ -103,8 +120,8 @@ impl Texture {
         }
     }
 
-    /// Bilinear lookup of linear RGBA (sRGB texels decoded before filtering),
-    /// wrapped as the texture's sampler says.
+    /// Lookup of linear RGBA (sRGB texels decoded before filtering), bilinear or
+    /// nearest and wrapped as the texture's sampler says.
     pub fn sample(&self, uv: Vec2) -> glam::Vec4 {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * self.width as f32 - 0.5;
@@ -112,9 +129,14 @@ impl Texture {
         if !x.is_finite() || !y.is_finite() {
             return self.texel(0);
         }
+        let at = |i: i64, j: i64| self.texel((self.wrap[1].texel(j, h) * w + self.wrap[0].texel(i, w)) as usize);
+        if self.filter == Filter::Nearest {
+            // The texel whose square holds the point: x + 0.5 lies in [i, i + 1).
+            // (Saturating: a coordinate past i64's range wraps like any other.)
+            return at((x + 0.5).floor() as i64, (y + 0.5).floor() as i64);
+        }
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let at = |i: i64, j: i64| self.texel((self.wrap[1].texel(j, h) * w + self.wrap[0].texel(i, w)) as usize);
         let (i, j) = (x0 as i64, y0 as i64);
         (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
             + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy

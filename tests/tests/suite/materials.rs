@@ -700,3 +700,36 @@ fn the_pipeline_on_defaults_agrees_with_the_path_tracer_on_blenders_materials() 
     assert!(a.mean.abs() < 0.012, "{a}");
     assert!(a.worst_block < 0.15, "{a}");
 }
+
+/// The floor tile of tests/scenes/blender_coated (tests/blender/coated_room.py,
+/// Blender's own exporter): a thin scaled cube with Blender's default cube UVs
+/// and a 4 x 4 base-colour texture read with "Closest" interpolation, exported as
+/// the sampler's magFilter NEAREST. Its top face covers two yellow texels and
+/// lies between lilac ones. The sampler's filter was ignored and every lookup
+/// bilinear: a texel-sized face blended its yellow with the lilac round it (the
+/// "uniform pale grey-lilac" tile of issue 54; on a bare copy of the tile at 64 x
+/// 64 ours read 0.52 to 0.34 across the face where Cycles reads 0.63 and 0.24,
+/// and now reads those). Asserted: at 400 points over the top face, the base
+/// colour is the yellow texel's.
+#[test]
+fn a_blender_tile_read_with_closest_interpolation_shows_its_texels_unblended() {
+    let s = pm_scene::load(std::path::Path::new("../tests/scenes/blender_coated/blender_coated.gltf")).unwrap();
+    let tile = s.objects.iter().find(|o| o.name.starts_with("floor_tile")).unwrap();
+    let tex = s.materials[tile.material as usize].base_texture.expect("the tile's base colour is a texture");
+    assert_eq!(s.textures[tex.texture as usize].filter, pm_scene::Filter::Nearest);
+    // The script's yellow: Blender's 8-bit image holds its pixels as sRGB codes.
+    let yellow = Vec3::new(0.85, 0.65, 0.05).map(srgb_decode);
+    let top = tile.tris.clone().map(|t| &s.triangles[t as usize]).filter(|t| t.ng().y > 0.99);
+    let mut checked = 0;
+    for tri in top {
+        for i in 1..20 {
+            for j in 1..(20 - i) {
+                let (u, v) = (i as f32 / 20.0, j as f32 / 20.0);
+                let c = s.sample_at(&tex, tri, [1.0 - u - v, u, v]).truncate();
+                assert!((c - yellow).abs().max_element() < 0.01, "base colour {c} at ({u}, {v}), not the yellow texel");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 300, "{checked} points on the tile's top face");
+}
