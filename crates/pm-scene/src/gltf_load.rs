@@ -55,7 +55,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 8] = [
+const SUPPORTED_EXTENSIONS: [&str; 9] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -64,6 +64,7 @@ const SUPPORTED_EXTENSIONS: [&str; 8] = [
     "KHR_materials_volume",
     "KHR_materials_volume_scatter",
     "KHR_materials_specular",
+    "EXT_texture_webp",
 ];
 
 /// What an extension this renderer does not read holds, and how to get a file
@@ -77,7 +78,6 @@ fn unsupported_needs(ext: &str) -> &'static str {
             "meshoptimizer-compressed buffers; pack again without compression (gltfpack without -c)"
         }
         "KHR_mesh_quantization" => "quantised vertex attributes; pack again without quantisation (gltfpack -noq)",
-        "EXT_texture_webp" => "WebP images; export again with PNG or JPEG images (Blender: glTF export, Images: PNG)",
         "KHR_texture_basisu" => "KTX2 (Basis Universal) images; pack again with PNG or JPEG images",
         "KHR_materials_pbrSpecularGlossiness" => {
             "the old specular-glossiness materials; convert them to metallic-roughness"
@@ -98,7 +98,7 @@ fn ignored_loses(ext: &str) -> &'static str {
         "KHR_materials_dispersion" => "glass does not disperse light",
         "KHR_materials_unlit" => "unlit materials are lit as the base colour's diffuse",
         "KHR_materials_variants" => "material variants are ignored: each mesh keeps its default material",
-        "EXT_texture_webp" | "KHR_texture_basisu" => "the file's fallback images are used instead",
+        "KHR_texture_basisu" => "the file's fallback images are used instead",
         "EXT_mesh_gpu_instancing" => "GPU instances are not drawn: each node draws its mesh once",
         "KHR_animation_pointer" => "animations of anything but node transforms are ignored",
         _ => "what it adds is ignored",
@@ -519,7 +519,7 @@ impl Materials {
         buffers: &[gltf::buffer::Data],
         warnings: &mut Vec<String>,
     ) -> Result<Materials, String> {
-        let mut loader = TextureLoader { base_dir, buffers, textures: Vec::new(), cache: Default::default() };
+        let mut loader = TextureLoader { doc, base_dir, buffers, textures: Vec::new(), cache: Default::default() };
         let (mut materials, mut uv1_needed, mut tangent_sets) = (Vec::new(), Vec::new(), Vec::new());
         let mut media = Vec::new();
         for (i, m) in doc.materials().enumerate() {
@@ -1110,6 +1110,7 @@ fn info(i: Option<gltf::texture::Info<'_>>) -> Option<TextureSource<'_>> {
 
 /// The textures materials read, each image decoded once per wrapping and colour space.
 struct TextureLoader<'a> {
+    doc: &'a gltf::Document,
     base_dir: &'a Path,
     buffers: &'a [gltf::buffer::Data],
     textures: Vec<Texture>,
@@ -1133,7 +1134,19 @@ impl TextureLoader<'_> {
         if !transform.is_finite() {
             return Err("texture transform is not finite".into());
         }
-        let image = texture.source();
+        // EXT_texture_webp's image where there is one (the extension's rule: a
+        // client that reads WebP uses it; `source` is then the fallback or absent).
+        let webp = texture
+            .extensions()
+            .and_then(|e| e.get("EXT_texture_webp"))
+            .and_then(|w| w.get("source"))
+            .and_then(|v| v.as_u64());
+        let image = match webp {
+            Some(i) => self.doc.images().nth(i as usize).ok_or_else(|| {
+                format!("texture {}: EXT_texture_webp names image {i}, which the file does not have", texture.index())
+            })?,
+            None => texture.source().ok_or_else(|| format!("texture {} has no image", texture.index()))?,
+        };
         let sampler = texture.sampler();
         let wrap = [sampler.wrap_s(), sampler.wrap_t()].map(|w| match w {
             gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
@@ -1148,10 +1161,11 @@ impl TextureLoader<'_> {
         let index = match self.cache.get(&key) {
             Some(&t) => t,
             None => {
-                let data = gltf::image::Data::from_source(image.source(), Some(self.base_dir), self.buffers)
-                    .map_err(|e| format!("image {}: {e}", image.index()))?;
-                let mut t = decode_texture(&data, srgb)
-                    .ok_or_else(|| format!("image {}: unsupported image format {:?}", image.index(), data.format))?;
+                let at = |e: String| format!("image {}: {e}", image.index());
+                let bytes = image_bytes(&image, self.base_dir, self.buffers).map_err(at)?;
+                let decoded = decode_image(&bytes).map_err(at)?;
+                let mut t = decode_texture(&decoded, srgb)
+                    .ok_or_else(|| at(format!("unsupported pixel format {:?}", decoded.color())))?;
                 (t.wrap, t.filter) = (wrap, filter);
                 self.textures.push(t);
                 let i = self.textures.len() as u32 - 1;
@@ -1171,30 +1185,63 @@ fn uv_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> glam::Affin
     glam::Affine2::from_mat2_translation(r * glam::Mat2::from_diagonal(Vec2::from(scale)), Vec2::from(offset))
 }
 
+/// The encoded bytes of glTF image `image`: its buffer view's, a base64 data
+/// URI's, or a file's beside the scene (its URI percent-decoded).
+fn image_bytes(image: &gltf::Image, base_dir: &Path, buffers: &[gltf::buffer::Data]) -> Result<Vec<u8>, String> {
+    match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = &buffers.get(view.buffer().index()).ok_or("its buffer is missing")?.0;
+            let range = view.offset()..view.offset().saturating_add(view.length());
+            data.get(range).map(<[u8]>::to_vec).ok_or_else(|| "its buffer view runs past its buffer".into())
+        }
+        gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
+            Some(rest) => {
+                let (_, b64) = rest.split_once(";base64,").ok_or("a data URI that is not base64")?;
+                base64::decode(b64).map_err(|e| format!("its data URI: {e}"))
+            }
+            None => {
+                let name = urlencoding::decode(uri).map_err(|e| format!("uri '{uri}': {e}"))?;
+                let path = base_dir.join(name.as_ref());
+                std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))
+            }
+        },
+    }
+}
+
+/// An image decoded from PNG, JPEG or WebP (EXT_texture_webp), told apart by
+/// their first bytes (the glTF mimeType is not always given, nor right).
+fn decode_image(bytes: &[u8]) -> Result<image::DynamicImage, String> {
+    use image::ImageFormat;
+    let format = image::guess_format(bytes).map_err(|_| "not a PNG, JPEG or WebP image".to_string())?;
+    if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::WebP) {
+        return Err(format!("a {format:?} image, which glTF does not allow (PNG, JPEG or WebP)"));
+    }
+    image::load_from_memory_with_format(bytes, format).map_err(|e| format!("{format:?}: {e}"))
+}
+
 /// 8-bit RGBA texels of a decoded image (16-bit channels keep their high byte; one
-/// channel is grey, two are grey and alpha).
-fn decode_texture(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
-    use gltf::image::Format;
-    let (channels, bytes) = match data.format {
-        Format::R8 => (1, 1),
-        Format::R8G8 => (2, 1),
-        Format::R8G8B8 => (3, 1),
-        Format::R8G8B8A8 => (4, 1),
-        Format::R16 => (1, 2),
-        Format::R16G16 => (2, 2),
-        Format::R16G16B16 => (3, 2),
-        Format::R16G16B16A16 => (4, 2),
-        _ => return None,
-    };
-    let n = (data.width as usize).checked_mul(data.height as usize)?;
-    if n == 0 || data.pixels.len() < n * channels * bytes {
+/// channel is grey, two are grey and alpha); `None` for float pixels.
+fn decode_texture(img: &image::DynamicImage, srgb: bool) -> Option<Texture> {
+    let color = img.color();
+    let channels = color.channel_count() as usize;
+    let bytes = color.bytes_per_pixel() as usize / channels;
+    if !color.has_color() && channels > 2
+        || bytes > 2
+        || matches!(color, image::ColorType::Rgb32F | image::ColorType::Rgba32F)
+    {
+        return None;
+    }
+    let (width, height) = (img.width(), img.height());
+    let n = (width as usize).checked_mul(height as usize)?;
+    let pixels = img.as_bytes();
+    if n == 0 || pixels.len() < n * channels * bytes {
         return None;
     }
     // The high byte of a 16-bit channel: image decodes to native-endian u16.
     let hi = if cfg!(target_endian = "little") { bytes - 1 } else { 0 };
     let texels = (0..n)
         .map(|i| {
-            let px = &data.pixels[i * channels * bytes..];
+            let px = &pixels[i * channels * bytes..];
             let c = |k: usize| px[k * bytes + hi];
             match channels {
                 1 => [c(0), c(0), c(0), 255],
@@ -1204,5 +1251,5 @@ fn decode_texture(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
             }
         })
         .collect();
-    Some(Texture::new(data.width, data.height, texels, srgb))
+    Some(Texture::new(width, height, texels, srgb))
 }

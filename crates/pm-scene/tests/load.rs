@@ -196,9 +196,12 @@ fn extensions_not_read_are_named_with_what_they_need_or_lose() {
     assert!(matches!(e, pm_scene::SceneError::Unsupported { .. }), "{err}");
     assert_one_line_naming(&err, &path, &draco.to_lowercase());
     assert!(err.contains("Compression off") && !err.contains("Missing data"), "{err}");
-    let path = with_extensions(&["EXT_texture_webp", draco], &["EXT_texture_webp", draco]);
+    let path = with_extensions(&["KHR_texture_basisu", draco], &["KHR_texture_basisu", draco]);
     let err = load(&path).err().unwrap().to_string();
-    assert!(err.contains("EXT_texture_webp (and 1 more: KHR_draco_mesh_compression)") && err.contains("PNG"), "{err}");
+    assert!(
+        err.contains("KHR_texture_basisu (and 1 more: KHR_draco_mesh_compression)") && err.contains("PNG"),
+        "{err}"
+    );
     let s = load(&with_extensions(&[], &["KHR_materials_clearcoat"])).unwrap();
     let warned: Vec<&String> = s.warnings.iter().filter(|w| w.contains("KHR_materials_clearcoat")).collect();
     assert!(warned.len() == 1 && warned[0].contains("clear coats are not drawn"), "{:?}", s.warnings);

@@ -733,3 +733,60 @@ fn a_blender_tile_read_with_closest_interpolation_shows_its_texels_unblended() {
     }
     assert!(checked >= 300, "{checked} points on the tile's top face");
 }
+
+/// The same Blender scene exported with WebP images (Blender's Images: WebP
+/// option, tests/blender/coated_room.py --webp): the texture has no `source`,
+/// only EXT_texture_webp's, and the file requires the extension. It was refused
+/// (the glTF crate decodes PNG and JPEG only, and rejects a texture without a
+/// source); it now loads, with the triangles of the PNG twin and the tile's
+/// texels as Blender's own decoder reads the file (within 2 of 255). Blender's
+/// encoder is lossy (quality 75, chroma at half resolution): on this 4 x 4
+/// texture the yellow texels come back as (180, 140, 146) and (190, 154, 137),
+/// the PNG's being (217, 166, 13); a user who wants the texels kept exports PNG.
+#[test]
+fn blenders_webp_export_loads_with_the_texels_blender_decodes() {
+    let dir = Path::new("../tests/scenes/blender_coated");
+    let (png, webp) =
+        (load(&dir.join("blender_coated.gltf")).unwrap(), load(&dir.join("blender_coated_webp.gltf")).unwrap());
+    assert!(webp.warnings.iter().all(|w| !w.contains("webp")), "{:?}", webp.warnings);
+    let o = webp.objects.iter().find(|o| o.name.starts_with("floor_tile")).unwrap();
+    let t = &webp.textures[webp.materials[o.material as usize].base_texture.unwrap().texture as usize];
+    assert_eq!((t.width, t.height, t.filter), (4, 4, pm_scene::Filter::Nearest));
+    // Blender 4.5.4's decode of tile.webp (bpy.data.images.load), bottom row first.
+    let blender: [[u8; 3]; 16] = [
+        [142, 113, 180],
+        [143, 114, 179],
+        [147, 119, 176],
+        [147, 120, 172],
+        [146, 109, 181],
+        [148, 113, 175],
+        [151, 120, 160],
+        [153, 123, 151],
+        [153, 101, 184],
+        [163, 115, 173],
+        [180, 140, 146],
+        [190, 154, 137],
+        [162, 102, 191],
+        [160, 105, 162],
+        [158, 113, 106],
+        [158, 119, 77],
+    ];
+    let mut worst = 0;
+    for (k, want) in blender.iter().enumerate() {
+        // glTF's images run top row first.
+        let got = t.texels[(3 - k / 4) * 4 + k % 4];
+        worst = worst.max((0..3).map(|c| got[c].abs_diff(want[c])).max().unwrap());
+    }
+    eprintln!("largest texel difference from Blender's decode: {worst} of 255");
+    assert!(worst <= 2, "{worst} of 255");
+    // The same objects, each with the same bounds (the exporter may order
+    // meshes differently).
+    assert_eq!(png.triangles.len(), webp.triangles.len());
+    for o in &png.objects {
+        let w = webp.objects.iter().find(|w| w.name == o.name).unwrap_or_else(|| panic!("{} missing", o.name));
+        let bounds =
+            |s: &Scene, r: &std::ops::Range<u32>| pm_scene::bounds_of(&s.triangles[r.start as usize..r.end as usize]);
+        let (a, b) = (bounds(&png, &o.tris), bounds(&webp, &w.tris));
+        assert!(a.min.distance(b.min).max(a.max.distance(b.max)) < 1e-6, "{}: {a:?} {b:?}", o.name);
+    }
+}
