@@ -55,7 +55,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 9] = [
+const SUPPORTED_EXTENSIONS: [&str; 10] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -65,6 +65,7 @@ const SUPPORTED_EXTENSIONS: [&str; 9] = [
     "KHR_materials_volume_scatter",
     "KHR_materials_specular",
     "EXT_texture_webp",
+    "KHR_mesh_quantization",
 ];
 
 /// What an extension this renderer does not read holds, and how to get a file
@@ -77,7 +78,6 @@ fn unsupported_needs(ext: &str) -> &'static str {
         "EXT_meshopt_compression" => {
             "meshoptimizer-compressed buffers; pack again without compression (gltfpack without -c)"
         }
-        "KHR_mesh_quantization" => "quantised vertex attributes; pack again without quantisation (gltfpack -noq)",
         "KHR_texture_basisu" => "KTX2 (Basis Universal) images; pack again with PNG or JPEG images",
         "KHR_materials_pbrSpecularGlossiness" => {
             "the old specular-glossiness materials; convert them to metallic-roughness"
@@ -221,7 +221,7 @@ fn read_document(
     // (it panics on a POSITION accessor index out of range; found by fuzzing), then
     // validate.
     let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err)?;
-    let root = raw.document.into_json();
+    let mut root = raw.document.into_json();
     // A required extension we do not read is the one thing to say: validation
     // would first list what it leaves undecodable (a Draco mesh's accessors
     // have no buffer view).
@@ -238,6 +238,9 @@ fn read_document(
             needed: unsupported_needs(first).into(),
         });
     }
+    // Every required extension is one we read: the glTF crate, which checks
+    // them against its own shorter list (no KHR_mesh_quantization), need not.
+    root.extensions_required.clear();
     check_attribute_indices(&root).map_err(content)?;
     let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));
@@ -912,18 +915,25 @@ fn decode_primitive(
         Ok(())
     };
     let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or("has no POSITION attribute")?;
-    check("POSITION", pos_acc, Dimensions::Vec3, &[DataType::F32])?;
+    // The component types core glTF allows, and those KHR_mesh_quantization
+    // adds (integers, normalised or not, for positions and texture coordinates;
+    // normalised signed ones for normals and tangents).
+    let (any_int, signed_norm) = (
+        [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16],
+        [DataType::F32, DataType::I8, DataType::I16],
+    );
+    check("POSITION", pos_acc.clone(), Dimensions::Vec3, &any_int)?;
     let normal_acc = prim.get(&gltf::Semantic::Normals);
     if let Some(a) = normal_acc.clone() {
-        check("NORMAL", a, Dimensions::Vec3, &[DataType::F32])?;
+        check("NORMAL", a, Dimensions::Vec3, &signed_norm)?;
     }
     let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
     if let Some(a) = uv_acc.clone() {
-        check("TEXCOORD_0", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+        check("TEXCOORD_0", a, Dimensions::Vec2, &any_int)?;
     }
     let uv1_acc = if read_uv1 { prim.get(&gltf::Semantic::TexCoords(1)) } else { None };
     if let Some(a) = uv1_acc.clone() {
-        check("TEXCOORD_1", a, Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+        check("TEXCOORD_1", a, Dimensions::Vec2, &any_int)?;
     }
     let color_acc = prim.get(&gltf::Semantic::Colors(0));
     if let Some(a) = color_acc.clone() {
@@ -932,23 +942,22 @@ fn decode_primitive(
     }
     let tangent_acc = if tangent_set.is_some() { prim.get(&gltf::Semantic::Tangents) } else { None };
     if let Some(a) = tangent_acc.clone() {
-        check("TANGENT", a, Dimensions::Vec4, &[DataType::F32])?;
+        check("TANGENT", a, Dimensions::Vec4, &signed_norm)?;
     }
     if let Some(a) = prim.indices() {
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
-    let positions: Vec<Vec3> = reader.read_positions().ok_or("POSITION cannot be read")?.map(Vec3::from).collect();
+    let positions: Vec<Vec3> = read_floats(&pos_acc, buffers).into_iter().map(Vec3::from).collect();
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(format!(
             "vertex {i} has a position that is not finite (NaN or Inf, or overflow after the node transform)"
         ));
     }
-    let normals: Option<Vec<Vec3>> =
-        if normal_acc.is_some() { reader.read_normals().map(|it| it.map(Vec3::from).collect()) } else { None };
-    let read_uv = |set: u32| reader.read_tex_coords(set).map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>());
-    let uvs = if uv_acc.is_some() { read_uv(0) } else { None };
-    let uvs1 = if uv1_acc.is_some() { read_uv(1) } else { None };
+    let normals: Option<Vec<Vec3>> = normal_acc.map(|a| read_floats(&a, buffers).into_iter().map(Vec3::from).collect());
+    let read_uv = |a: gltf::Accessor| read_floats(&a, buffers).into_iter().map(Vec2::from).collect::<Vec<_>>();
+    let uvs = uv_acc.map(read_uv);
+    let uvs1 = uv1_acc.map(read_uv);
     let colors: Option<Vec<Vec4>> = if color_acc.is_some() {
         reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect())
     } else {
@@ -991,7 +1000,7 @@ fn decode_primitive(
     let corner_tangents: Option<Vec<Vec4>> = if tangent_set.is_none() {
         None
     } else if tangent_acc.is_some() {
-        let t: Vec<Vec4> = reader.read_tangents().ok_or("TANGENT cannot be read")?.map(Vec4::from).collect();
+        let t: Vec<Vec4> = read_floats(tangent_acc.as_ref().unwrap(), buffers).into_iter().map(Vec4::from).collect();
         if t.len() != positions.len() {
             return Err(format!("TANGENT has {} entries but POSITION has {}", t.len(), positions.len()));
         }
@@ -1000,6 +1009,42 @@ fn decode_primitive(
         tangent_uvs.map(|uv| mikktspace_tangents(&positions, normals.as_deref(), uv, &indices))
     };
     Ok(LocalPrim { positions, normals, uvs, uvs1, colors, indices, corner_tangents })
+}
+
+/// The elements of accessor `acc`, `N` components each, as floats: float
+/// components as stored, integer ones as glTF 2.0 (section 3.11) and
+/// KHR_mesh_quantization say: normalised, c / 255 or c / 65535 unsigned and
+/// max(c / 127, -1) or max(c / 32767, -1) signed; otherwise the integer's value
+/// (quantised positions, which the node's scale and translation place). The
+/// accessor was checked: not sparse, within its buffer, `N` components.
+fn read_floats<const N: usize>(acc: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Vec<[f32; N]> {
+    use gltf::accessor::DataType;
+    let Some(view) = acc.view() else { return Vec::new() };
+    let data = &buffers[view.buffer().index()].0;
+    let (ty, norm) = (acc.data_type(), acc.normalized());
+    let comp = ty.size();
+    let stride = view.stride().unwrap_or(acc.size());
+    let base = view.offset() + acc.offset();
+    let component = |b: &[u8]| -> f32 {
+        match ty {
+            DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            DataType::I8 if norm => (b[0] as i8 as f32 / 127.0).max(-1.0),
+            DataType::I8 => b[0] as i8 as f32,
+            DataType::U8 if norm => b[0] as f32 / 255.0,
+            DataType::U8 => b[0] as f32,
+            DataType::I16 if norm => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32767.0).max(-1.0),
+            DataType::I16 => i16::from_le_bytes([b[0], b[1]]) as f32,
+            DataType::U16 if norm => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
+            DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32,
+        }
+    };
+    (0..acc.count())
+        .map(|i| {
+            let at = base + i * stride;
+            std::array::from_fn(|k| component(&data[at + k * comp..at + (k + 1) * comp]))
+        })
+        .collect()
 }
 
 /// Append a decoded primitive's triangles placed by `world` (normals by `normal_m`,
