@@ -49,7 +49,8 @@ fn a_scene_needing_an_extension_not_read_stops_the_run_with_exit_code_2_and_no_o
 /// as normalised bytes, texture coordinates as normalised 16-bit integers under
 /// a texture transform. They were refused; they now load as their originals:
 /// every object's bounds within the file's quantisation step (the room's 2 m in
-/// 14 bits: 0.12 mm), the path tracer's image of the quantised Cornell box
+/// 14 bits: 0.12 mm; also for a box 1,000 km from the origin, which the loader
+/// moves near its camera), the path tracer's image of the quantised Cornell box
 /// within 0.5% of the original's in mean and 3% in every 8 x 8 block (same seed,
 /// 32 x 32, 64 a pixel), and the Blender tile's top face still shows only its
 /// yellow texel (NEAREST sampling through quantised coordinates).
@@ -60,6 +61,9 @@ fn gltfpacks_quantised_scenes_load_and_render_as_their_originals() {
     let pairs = [
         (root.join("cornell_spheres.gltf"), dir.join("gltfpack/cornell_spheres_quantized.gltf")),
         (dir.join("blender_coated/blender_coated.gltf"), dir.join("gltfpack/blender_coated_quantized.gltf")),
+        // The box placed 1,000 km out (a parent node's translation), packed:
+        // loaded near its camera, it must land where the original does.
+        (root.join("cornell_boxes.gltf"), dir.join("gltfpack/cornell_boxes_far_quantized.gltf")),
     ];
     for (original, packed) in &pairs {
         let (a, b) = (pm_scene::load(original).unwrap(), pm_scene::load(packed).unwrap());
