@@ -28,6 +28,7 @@ import sys
 
 import bpy
 import room
+from material_room import image, sphere
 from room import principled, quad
 
 # The tile's texture: which texels are yellow. Blender's default cube UVs put
@@ -51,11 +52,7 @@ def main(out, cycles_px, draco, webp):
     coat, bsdf = principled("coated_red", (0.7, 0.05, 0.04), roughness=0.5)
     bsdf.inputs["Coat Weight"].default_value = 1.0
     bsdf.inputs["Coat Roughness"].default_value = 0.03
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=0.4, location=(-1.0, 0.8, 0.4))
-    obj = bpy.context.active_object
-    obj.name = "coated_sphere"
-    bpy.ops.object.shade_smooth()
-    obj.data.materials.append(coat)
+    sphere("coated_sphere", (-1.0, 0.8, 0.4), 0.4, coat)
 
     velvet, bsdf = principled("velvet", (0.15, 0.05, 0.3), roughness=1.0)
     bsdf.inputs["Sheen Weight"].default_value = 1.0
@@ -68,19 +65,9 @@ def main(out, cycles_px, draco, webp):
 
     brushed, bsdf = principled("brushed_metal", (0.9, 0.9, 0.9), roughness=0.35, metallic=1.0)
     bsdf.inputs["Anisotropic"].default_value = 0.8
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=0.4, location=(1.1, 0.6, 0.4))
-    obj = bpy.context.active_object
-    obj.name = "brushed_sphere"
-    bpy.ops.object.shade_smooth()
-    obj.data.materials.append(brushed)
+    sphere("brushed_sphere", (1.1, 0.6, 0.4), 0.4, brushed)
 
-    img = bpy.data.images.new("tile", width=4, height=4, alpha=False)
-    img.pixels = [v for j in range(4) for i in range(4) for v in (*tile_texel(i, j), 1.0)]
-    img.filepath_raw = os.path.join(out, "tile.png")
-    img.file_format = "PNG"
-    img.save()
-    img.source = "FILE"
-    img.reload()
+    img = image("tile", 4, 4, tile_texel, out)
     tile_mat, bsdf = principled("tile", (1.0, 1.0, 1.0), roughness=0.8)
     tex = tile_mat.node_tree.nodes.new("ShaderNodeTexImage")
     tex.image = img

@@ -85,17 +85,23 @@ pub fn run(bins: &Bins, program: &str, args: &[String], step: &str, quiet: bool)
 }
 
 /// Ok for a stage that succeeded; else the error saying which failed and its
-/// last line, an [`pm_stage::Unsupported`] one when it exited with
-/// [`pm_stage::EXIT_UNSUPPORTED`] (the runner then exits with that code too).
+/// last line ([`stage_error`]).
 fn failed(step: &str, status: std::process::ExitStatus, last: &str) -> Result<()> {
     if status.success() {
         return Ok(());
     }
-    let message = format!("stage {step} failed ({status}): {}", last.trim());
+    Err(stage_error(status, format!("stage {step} failed ({status}): {}", last.trim())))
+}
+
+/// The error for a stage that exited with `status`, saying `message`: an
+/// [`pm_stage::Unsupported`] one when it exited with
+/// [`pm_stage::EXIT_UNSUPPORTED`], so the runner exits with that code too.
+pub fn stage_error(status: std::process::ExitStatus, message: String) -> anyhow::Error {
     if status.code() == Some(pm_stage::EXIT_UNSUPPORTED as i32) {
-        return Err(pm_stage::Unsupported(message).into());
+        pm_stage::Unsupported(message).into()
+    } else {
+        anyhow::anyhow!(message)
     }
-    bail!(message)
 }
 
 /// [`run`] for a program given by its path, with no time limit.

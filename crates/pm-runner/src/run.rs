@@ -4,7 +4,7 @@
 //! `cargo xtask live`: photon-live with pipeline.toml's `[live]` settings.
 
 use crate::bins::{self, Bins};
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use pm_pipeline::steps::{Kind, Step, step_key, steps};
 use pm_pipeline::{EffectsCfg, Pipeline, Setup};
 use serde_json::json;
@@ -118,13 +118,10 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
             .output()
             .context("cannot start photon-trace --analyze")?;
         if !o.status.success() {
-            // The stage's own line (it names the file and the problem); a scene
+            // The stage's own line names the file and the problem; a scene
             // needing an extension not read keeps its exit code.
-            let line = String::from_utf8_lossy(&o.stderr).trim().to_string();
-            if o.status.code() == Some(pm_stage::EXIT_UNSUPPORTED as i32) {
-                return Err(pm_stage::Unsupported(line).into());
-            }
-            bail!("scene analysis failed: {line}");
+            let line = String::from_utf8_lossy(&o.stderr);
+            return Err(bins::stage_error(o.status, format!("scene analysis failed: {}", line.trim())));
         }
         serde_json::from_slice(&o.stdout).context("photon-trace --analyze printed no analysis")?
     };
