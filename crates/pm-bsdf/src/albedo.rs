@@ -94,10 +94,95 @@ pub(crate) fn layer_albedo(f0: f32, mu: f32, alpha: f32) -> f32 {
     (f0 * at(&t.a) + at(&t.b)).clamp(0.0, 1.0)
 }
 
+/// The least value over mu of [`layer_albedo`] (at the grid's cosines).
+pub(crate) fn layer_albedo_min(f0: f32, alpha: f32) -> f32 {
+    (0..N).map(|i| layer_albedo(f0, mu_at(i), alpha)).fold(1.0, f32::min)
+}
+
 /// The cosine-weighted mean of [`layer_albedo`] over the hemisphere.
 pub(crate) fn layer_albedo_mean(f0: f32, alpha: f32) -> f32 {
     let t = &*TABLES;
     let (j, fy) = alpha_coord(alpha);
     let lerp = |tab: &[f32]| tab[j] * (1.0 - fy) + tab[j + 1] * fy;
     (f0 * lerp(&t.a_mean) + lerp(&t.b_mean)).clamp(0.0, 1.0)
+}
+
+/// Grid points of the sheen table in mu and in sheen roughness.
+const NS: usize = 32;
+/// Midpoint quadrature per sheen grid point: this many cosines times as many azimuths.
+const SHEEN_Q: usize = 64;
+
+/// Directional albedo E_s(mu) of the Charlie sheen lobe (white sheen colour) at
+/// (mu index, roughness index), row-major in mu, with the least value per
+/// roughness index.
+struct SheenTable {
+    e: Vec<f32>,
+    least: Vec<f32>,
+}
+
+fn sheen_roughness_at(j: usize) -> f32 {
+    let r0 = crate::layered::MIN_SHEEN_ROUGHNESS;
+    r0 + (1.0 - r0) * j as f32 / (NS - 1) as f32
+}
+
+fn sheen_mu_at(i: usize) -> f32 {
+    (i as f32 / (NS - 1) as f32).max(1e-3)
+}
+
+/// Integrated once per process (when a sheen is first met) by midpoint
+/// quadrature over cos(theta_i) and phi: E_s(mu) = int f_sheen cos_i dw_i.
+static SHEEN: LazyLock<SheenTable> = LazyLock::new(|| {
+    use glam::Vec3;
+    let mut e = vec![0.0; NS * NS];
+    for j in 0..NS {
+        let r = sheen_roughness_at(j);
+        for i in 0..NS {
+            let mu = sheen_mu_at(i);
+            let lo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+            let mut sum = 0.0f64;
+            for a in 0..SHEEN_Q {
+                let z = (a as f32 + 0.5) / SHEEN_Q as f32;
+                let s = (1.0 - z * z).max(0.0).sqrt();
+                for b in 0..SHEEN_Q {
+                    let phi = std::f32::consts::TAU * (b as f32 + 0.5) / SHEEN_Q as f32;
+                    let li = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+                    sum += (crate::layered::charlie_f(lo, li, r * r) * z) as f64;
+                }
+            }
+            // dw = dz dphi: the grid's cell is (1 / Q) (2 pi / Q).
+            e[i * NS + j] = (sum * std::f64::consts::TAU / (SHEEN_Q * SHEEN_Q) as f64) as f32;
+        }
+    }
+    let least = (0..NS).map(|j| (0..NS).map(|i| e[i * NS + j]).fold(f32::INFINITY, f32::min)).collect();
+    SheenTable { e, least }
+});
+
+/// Fractional grid coordinate of sheen alpha (= roughness^2).
+fn sheen_coord(alpha: f32) -> (usize, f32) {
+    let r0 = crate::layered::MIN_SHEEN_ROUGHNESS;
+    let x = ((alpha.max(0.0).sqrt() - r0) / (1.0 - r0)).clamp(0.0, 1.0) * (NS - 1) as f32;
+    let j = (x as usize).min(NS - 2);
+    (j, x - j as f32)
+}
+
+/// Directional albedo of the Charlie sheen lobe of white colour at cos(theta) =
+/// `mu` and sheen alpha `alpha`, in [0, 1].
+pub(crate) fn sheen_albedo(mu: f32, alpha: f32) -> f32 {
+    let t = &*SHEEN;
+    let x = mu.clamp(0.0, 1.0) * (NS - 1) as f32;
+    let i = (x as usize).min(NS - 2);
+    let fx = x - i as f32;
+    let (j, fy) = sheen_coord(alpha);
+    let v = |ii: usize, jj: usize| t.e[ii * NS + jj];
+    let at =
+        (v(i, j) * (1.0 - fx) + v(i + 1, j) * fx) * (1.0 - fy) + (v(i, j + 1) * (1.0 - fx) + v(i + 1, j + 1) * fx) * fy;
+    at.clamp(0.0, 1.0)
+}
+
+/// The least value over mu of [`sheen_albedo`] (a lower bound: the two
+/// neighbouring roughnesses' least values interpolated).
+pub(crate) fn sheen_albedo_min(alpha: f32) -> f32 {
+    let t = &*SHEEN;
+    let (j, fy) = sheen_coord(alpha);
+    (t.least[j] * (1.0 - fy) + t.least[j + 1] * fy).clamp(0.0, 1.0)
 }

@@ -1,8 +1,9 @@
 //! The scattering models of the scene (one place for all of them): Lambertian
 //! diffuse, perfect mirror, smooth dielectric (glass, solid or thin-walled), and GGX
 //! microfacet glossy reflection (conductor, and the glTF 2.0 dielectric: a GGX
-//! specular layer Fresnel-mixed over a diffuse base, Appendix B), and scattering
-//! inside media (the Henyey-Greenstein phase function).
+//! specular layer Fresnel-mixed over a diffuse base, Appendix B), the rest of glTF's
+//! material model over those (clear coat, sheen, anisotropy: [`Layered`]), and
+//! scattering inside media (the Henyey-Greenstein phase function).
 //!
 //! Conventions (pbrt-v4, chapter 9): `wo` and `wi` are unit vectors pointing away
 //! from the surface; `n` is the unit shading normal on the side the geometry was
@@ -17,8 +18,10 @@ use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 mod albedo;
+mod layered;
 mod phase;
 
+pub use layered::{COAT_F0, Layered, MIN_SHEEN_ROUGHNESS};
 pub use phase::{HenyeyGreenstein, PhaseSample};
 
 /// One scattering model. Built once per material by the scene crate.
@@ -73,6 +76,9 @@ pub enum Bsdf {
         /// The specular layer's weight w in [0, 1] (specularFactor).
         weight: f32,
     },
+    /// A clear coat, sheen or anisotropic roughness over the dielectric or metal
+    /// (KHR_materials_clearcoat, _sheen, _anisotropy): [`Layered`].
+    Layered(Layered),
 }
 
 /// The glTF dielectric's two parts seen from one direction ([`Bsdf::layers`]).
@@ -158,7 +164,24 @@ impl Bsdf {
     /// dielectric's lobe over its diffuse base is not glossy in this sense: the
     /// base reflects most of the light.
     pub fn is_glossy(&self) -> bool {
-        matches!(self, Bsdf::Conductor { .. })
+        match self {
+            Bsdf::Conductor { .. } => true,
+            Bsdf::Layered(l) => l.metal,
+            _ => false,
+        }
+    }
+
+    /// The sharpest GGX alpha among the lobes [`Self::layers`] splits off a
+    /// diffuse base (a glTF dielectric's specular layer; a coated or sheened
+    /// dielectric's coat and specular layer): renderers that read the base's light
+    /// from an irradiance sample these lobes when they are sharp. None for models
+    /// without such a split.
+    pub fn layer_alpha(&self) -> Option<f32> {
+        match self {
+            Bsdf::Plastic { alpha, .. } => Some(*alpha),
+            Bsdf::Layered(l) if !l.metal => Some(l.sharpest_alpha()),
+            _ => None,
+        }
     }
 
     /// The glTF dielectric ([`Bsdf::Plastic`]) seen from `wo` as its two parts, for
@@ -174,6 +197,16 @@ impl Bsdf {
     /// the layer reflects the dim light near the horizon, not the hemisphere's
     /// mean (issue 53's material room; BENCHMARKS.md).
     pub fn layers(&self, wo: Vec3, n: Vec3) -> Option<Layers> {
+        if let Bsdf::Layered(l) = self {
+            // Everything but the diffuse base is the layer: the same model without it.
+            if l.metal {
+                return None;
+            }
+            let base_albedo = l.diffuse_albedo(wo, n);
+            let layer_albedo = (l.albedo(wo, n) - base_albedo).max_element().max(0.0);
+            let layer = Bsdf::Layered(Layered { rho: Rgb::ZERO, ..*l });
+            return Some(Layers { base_albedo, layer, layer_weight: 1.0, layer_albedo });
+        }
         let Bsdf::Plastic { rho, alpha, f0, weight } = *self else { return None };
         let cos_o = wo.dot(n).abs().min(1.0);
         let layer_albedo = weight * albedo::layer_albedo(f0.max_element(), cos_o, alpha);
@@ -205,6 +238,7 @@ impl Bsdf {
                 l.base_albedo + tint * l.layer_albedo
             }
             Bsdf::Conductor { f0, .. } => f0,
+            Bsdf::Layered(l) => l.albedo(wo, n),
             Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
         }
     }
@@ -213,8 +247,12 @@ impl Bsdf {
     pub fn f(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
         // Lambert needs no local frame: only the sides of wo and wi (the same dot
         // products the frame would give as z).
-        if let Bsdf::Lambert { rho } = *self {
-            return if wo.dot(n) * wi.dot(n) <= 0.0 { Rgb::ZERO } else { rho * FRAC_1_PI };
+        match self {
+            Bsdf::Lambert { rho } => {
+                return if wo.dot(n) * wi.dot(n) <= 0.0 { Rgb::ZERO } else { *rho * FRAC_1_PI };
+            }
+            Bsdf::Layered(l) => return l.f(wo, wi, n),
+            _ => {}
         }
         let (t, b) = basis(n);
         let lo = to_local(wo, t, b, n);
@@ -227,12 +265,15 @@ impl Bsdf {
             Bsdf::Lambert { rho } => rho * FRAC_1_PI,
             Bsdf::Conductor { f0, alpha } => ggx_f(lo, li, alpha, f0),
             Bsdf::Plastic { rho, alpha, f0, weight } => plastic_f(rho, alpha, f0, weight, lo, li),
-            Bsdf::Mirror { .. } | Bsdf::Glass { .. } => Rgb::ZERO,
+            Bsdf::Mirror { .. } | Bsdf::Glass { .. } | Bsdf::Layered(_) => Rgb::ZERO,
         }
     }
 
     /// Solid-angle density of sampling `wi` given `wo` [sr^-1]; zero for delta lobes.
     pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        if let Bsdf::Layered(l) = self {
+            return l.pdf(wo, wi, n);
+        }
         let (t, b) = basis(n);
         let lo = to_local(wo, t, b, n);
         let li = to_local(wi, t, b, n);
@@ -247,7 +288,7 @@ impl Bsdf {
                 let ps = plastic_spec_prob(f0, weight, lo);
                 ps * ggx_pdf(lo, li, alpha) + (1.0 - ps) * cosine_hemisphere_pdf(li.z)
             }
-            Bsdf::Mirror { .. } | Bsdf::Glass { .. } => 0.0,
+            Bsdf::Mirror { .. } | Bsdf::Glass { .. } | Bsdf::Layered(_) => 0.0,
         }
     }
 
@@ -268,6 +309,9 @@ impl Bsdf {
     /// Returns `None` when the sample carries no energy (below the horizon, or a
     /// degenerate microfacet configuration).
     pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        if let Bsdf::Layered(l) = self {
+            return l.sample(wo, n, u, uc).filter(|s| s.wi.is_finite() && s.weight.is_finite());
+        }
         let (t, b) = basis(n);
         let lo_raw = to_local(wo, t, b, n);
         if lo_raw.z == 0.0 || !lo_raw.is_finite() {
@@ -278,6 +322,7 @@ impl Bsdf {
         let lo = lo_raw * Vec3::new(1.0, 1.0, side);
         let world = |l: Vec3| to_world(l * Vec3::new(1.0, 1.0, side), t, b, n);
         let s = match *self {
+            Bsdf::Layered(_) => return None,
             Bsdf::Lambert { rho } => {
                 let li = cosine_hemisphere(u);
                 if li.z <= 0.0 {
@@ -543,6 +588,24 @@ pub struct Pbr {
     /// KHR_materials_specular's specularColorFactor (linear, >= 0): tints the
     /// dielectric's F0 (one without the extension).
     pub specular_color: Rgb,
+    /// KHR_materials_clearcoat's weight in [0, 1] (clearcoatFactor x texture; 0
+    /// without the extension).
+    pub coat: f32,
+    /// The coat's perceptual roughness in [0, 1] (alpha = roughness^2).
+    pub coat_roughness: f32,
+    /// The coat's unit normal in world space (clearcoatNormalTexture); zero: the
+    /// shading normal.
+    pub coat_normal: Vec3,
+    /// KHR_materials_sheen's colour, linear (zero without the extension).
+    pub sheen: Rgb,
+    /// The sheen's perceptual roughness in [0, 1].
+    pub sheen_roughness: f32,
+    /// KHR_materials_anisotropy's strength in [0, 1] (0 without the extension).
+    pub anisotropy: f32,
+    /// The unit anisotropy direction in world space (the tangent rotated by
+    /// anisotropyRotation, or the anisotropy texture's direction); zero when the
+    /// surface has no tangents.
+    pub anisotropy_dir: Vec3,
 }
 
 impl Pbr {
@@ -558,7 +621,20 @@ impl Pbr {
             thin: true,
             specular: 1.0,
             specular_color: Rgb::ONE,
+            coat: 0.0,
+            coat_roughness: 0.0,
+            coat_normal: Vec3::ZERO,
+            sheen: Rgb::ZERO,
+            sheen_roughness: 0.0,
+            anisotropy: 0.0,
+            anisotropy_dir: Vec3::ZERO,
         }
+    }
+
+    /// True when the point has a clear coat, sheen or anisotropy: its model is
+    /// [`Bsdf::Layered`].
+    pub fn is_layered(&self) -> bool {
+        self.coat > 0.0 || self.sheen.max_element() > 0.0 || self.anisotropy > 0.0
     }
 }
 
@@ -574,6 +650,8 @@ impl Bsdf {
         let alpha = (roughness * roughness).max(MIN_ALPHA);
         if p.transmission > 0.0 {
             Bsdf::Glass { eta: p.ior, tint: base, thin: p.thin }
+        } else if p.is_layered() {
+            Bsdf::Layered(Layered::from_pbr(p))
         } else if p.metallic >= 0.5 {
             if roughness < MIRROR_ROUGHNESS { Bsdf::Mirror { r: base } } else { Bsdf::Conductor { f0: base, alpha } }
         } else {
@@ -602,6 +680,11 @@ impl Bsdf {
             Bsdf::Glass { eta, tint, thin } => Bsdf::Glass { eta, tint: tint * c, thin },
             Bsdf::Conductor { f0, alpha } => Bsdf::Conductor { f0: f0 * c, alpha },
             Bsdf::Plastic { rho, alpha, f0, weight } => Bsdf::Plastic { rho: rho * c, alpha, f0, weight },
+            Bsdf::Layered(l) if l.metal => Bsdf::Layered(Layered { f0: l.f0 * c, ..l }),
+            Bsdf::Layered(l) => Bsdf::Layered(Layered { rho: l.rho * c, ..l }),
         }
     }
 }
+
+#[cfg(test)]
+mod layered_tests;

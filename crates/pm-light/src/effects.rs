@@ -51,7 +51,7 @@ fn kind_name(b: &Bsdf) -> &'static str {
     match b {
         Bsdf::Mirror { .. } => "mirror",
         Bsdf::Glass { .. } => "glass",
-        Bsdf::Conductor { .. } | Bsdf::Plastic { .. } => "glossy",
+        Bsdf::Conductor { .. } | Bsdf::Plastic { .. } | Bsdf::Layered(_) => "glossy",
         Bsdf::Lambert { .. } => "diffuse",
     }
 }
@@ -242,7 +242,7 @@ fn glossy(scene: &Scene) -> Decision {
         .iter()
         .enumerate()
         .filter(|(i, m)| {
-            matches!(m.bsdf, Bsdf::Conductor { .. } | Bsdf::Plastic { .. })
+            matches!(m.bsdf, Bsdf::Conductor { .. } | Bsdf::Plastic { .. } | Bsdf::Layered(_))
                 && scene.triangles.iter().any(|t| t.material as usize == *i)
         })
         .map(|(_, m)| format!("'{}'", m.name))

@@ -228,18 +228,26 @@ impl Scene {
         let color = tr.color().map_or(glam::Vec4::ONE, |c| c[0] * b[0] + c[1] * b[1] + c[2] * b[2]);
         let mut hit = Hit { t, tri, b, p, ng, ns, uv, uv1, color };
         let m = &self.materials[tr.material as usize];
-        if let (Some(nt), Some(tg)) = (&m.normal_texture, tr.tangent()) {
-            let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
-            let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
-            if tangent != Vec3::ZERO {
-                let bitangent = ns.cross(tangent) * if tg[0].w < 0.0 { -1.0 } else { 1.0 };
-                let c = self.lookup(nt, &hit);
-                let v = (c.truncate() * 2.0 - Vec3::ONE) * Vec3::new(m.normal_scale, m.normal_scale, 1.0);
-                hit.ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
-            }
+        if let Some(nt) = &m.normal_texture
+            && let Some((tangent, bitangent)) = self.tangent_frame(tr, b, ns)
+        {
+            let c = self.lookup(nt, &hit);
+            let v = (c.truncate() * 2.0 - Vec3::ONE) * Vec3::new(m.normal_scale, m.normal_scale, 1.0);
+            hit.ns = (tangent * v.x + bitangent * v.y + ns * v.z).normalize_or(ns);
         }
         hit.ns = facing(hit.ns, ng);
         hit
+    }
+
+    /// The unit tangent and bitangent at barycentrics `b` of `tr` about unit normal
+    /// `n`: the interpolated tangent made perpendicular to `n`, and bitangent = w
+    /// cross(n, t) (glTF 2.0 section 3.7.2.1). None without tangents or where the
+    /// tangent lies along `n`.
+    pub(crate) fn tangent_frame(&self, tr: &Triangle, b: [f32; 3], n: Vec3) -> Option<(Vec3, Vec3)> {
+        let tg = tr.tangent()?;
+        let tangent = (tg[0] * b[0] + tg[1] * b[1] + tg[2] * b[2]).truncate();
+        let tangent = (tangent - n * n.dot(tangent)).normalize_or_zero();
+        (tangent != Vec3::ZERO).then(|| (tangent, n.cross(tangent) * if tg[0].w < 0.0 { -1.0 } else { 1.0 }))
     }
 }
 

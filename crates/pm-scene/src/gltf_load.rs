@@ -2,6 +2,7 @@
 //!
 //! Every input check happens here, once; the rest of the workspace trusts a `Scene`.
 
+use crate::LayerTextures;
 use crate::anim::{AnimatedMesh, Animation, Channel, Interp, NodeRest, Path as AnimPath};
 use crate::light::Light;
 use crate::{
@@ -55,7 +56,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 10] = [
+const SUPPORTED_EXTENSIONS: [&str; 13] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -66,7 +67,15 @@ const SUPPORTED_EXTENSIONS: [&str; 10] = [
     "KHR_materials_specular",
     "EXT_texture_webp",
     "KHR_mesh_quantization",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_anisotropy",
 ];
+
+/// The material extensions read from a material's own JSON (the glTF crate does
+/// not model them): not said to be ignored.
+const READ_MATERIAL_EXTENSIONS: &[&str] =
+    &["KHR_materials_volume_scatter", "KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_anisotropy"];
 
 /// What an extension this renderer does not read holds, and how to get a file
 /// without it: said when a file requires it ([`SceneError::Unsupported`]).
@@ -90,9 +99,6 @@ fn unsupported_needs(ext: &str) -> &'static str {
 /// renderer does not read: said in the warning that names it.
 fn ignored_loses(ext: &str) -> &'static str {
     match ext {
-        "KHR_materials_clearcoat" => "clear coats are not drawn (no coat highlight or reflection)",
-        "KHR_materials_sheen" => "sheen is not drawn",
-        "KHR_materials_anisotropy" => "anisotropic highlights are drawn isotropic",
         "KHR_materials_iridescence" => "iridescence is not drawn",
         "KHR_materials_diffuse_transmission" => "light through thin diffuse surfaces is not drawn",
         "KHR_materials_dispersion" => "glass does not disperse light",
@@ -261,8 +267,9 @@ struct ReadMaterial {
     medium: Option<crate::Medium>,
     /// Whether a texture reads TEXCOORD_1.
     uses_uv1: bool,
-    /// The TEXCOORD_n set its normal texture reads.
-    normal_uv_set: Option<u8>,
+    /// The TEXCOORD_n set its tangents follow (its normal texture's, coat normal
+    /// texture's or anisotropy's), if it needs tangents.
+    tangent_uv_set: Option<u8>,
 }
 
 /// One glTF material: its BSDF factors, the textures it reads (decoded by
@@ -275,9 +282,11 @@ fn read_material(
     warnings: &mut Vec<String>,
 ) -> Result<ReadMaterial, String> {
     let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
-    let factors = read_factors(&m, &name, warnings)?;
+    let mut factors = read_factors(&m, &name, warnings)?;
+    let rotation = read_layer_factors(&m, &mut factors).map_err(|e| format!("material '{name}': {e}"))?;
     let bsdf = Bsdf::from_pbr(&factors);
     let pbr = m.pbr_metallic_roughness();
+    let doc = loader.doc;
     // Every texture a material reads, with its coordinate set and transform.
     let mut uses_uv1 = false;
     let mut texture = |source: Option<TextureSource>, srgb: bool, what: &str| -> Result<_, String> {
@@ -305,10 +314,30 @@ fn read_material(
         return Err(format!("material '{name}': normal texture scale {normal_scale} is not finite"));
     }
     let normal_texture = texture(normal.map(|nt| normal_source(&nt)), false, "normal")?;
+    let ext = |k: &str| m.extensions().and_then(|e| e.get(k));
+    let mut layer_texture = |k: &str, key: &str, srgb: bool| -> Result<Option<TextureRef>, String> {
+        let Some(e) = ext(k) else { return Ok(None) };
+        let source = json_info(doc, e, key).map_err(|e| format!("material '{name}': {k}: {e}"))?;
+        texture(source, srgb, key)
+    };
+    let mut layers = LayerTextures {
+        coat: layer_texture("KHR_materials_clearcoat", "clearcoatTexture", false)?,
+        coat_roughness: layer_texture("KHR_materials_clearcoat", "clearcoatRoughnessTexture", false)?,
+        coat_normal: layer_texture("KHR_materials_clearcoat", "clearcoatNormalTexture", false)?,
+        coat_normal_scale: 1.0,
+        sheen_color: layer_texture("KHR_materials_sheen", "sheenColorTexture", true)?,
+        sheen_roughness: layer_texture("KHR_materials_sheen", "sheenRoughnessTexture", false)?,
+        anisotropy: layer_texture("KHR_materials_anisotropy", "anisotropyTexture", false)?,
+        anisotropy_rotation: rotation,
+    };
+    if let Some(scale) = ext("KHR_materials_clearcoat").and_then(|c| c.get("clearcoatNormalTexture")) {
+        layers.coat_normal_scale = json_number(scale, "scale", 1.0, f32::MIN..=f32::MAX)
+            .map_err(|e| format!("material '{name}': clearcoatNormalTexture: {e}"))?;
+    }
     // What is not read, said once per material: material extensions the loader
-    // does not know (clearcoat, sheen, iridescence, ...), then textures.
+    // does not know (iridescence, ...), then textures.
     if let Some(ext) = m.extensions() {
-        for k in ext.keys().filter(|k| *k != "KHR_materials_volume_scatter") {
+        for k in ext.keys().filter(|k| !READ_MATERIAL_EXTENSIONS.contains(&k.as_str())) {
             warnings.push(format!("material '{name}': extension {k} ignored: {}", ignored_loses(k)));
         }
     }
@@ -337,11 +366,19 @@ fn read_material(
         specular_color_texture,
         normal_texture,
         normal_scale,
+        layers,
         emission,
         double_sided: m.double_sided(),
         interior: None,
     };
-    Ok(ReadMaterial { material, medium, uses_uv1, normal_uv_set: normal_texture.map(|t| t.uv_set) })
+    // Tangents are read or generated from the coordinates of the first texture
+    // that needs them (the normal texture's, the coat normal's, the
+    // anisotropy's; TEXCOORD_0 for an untextured anisotropy).
+    let tangent_uv_set = normal_texture
+        .or(layers.coat_normal)
+        .map(|t| t.uv_set)
+        .or_else(|| (material.pbr.anisotropy > 0.0).then(|| layers.anisotropy.map_or(0, |t| t.uv_set)));
+    Ok(ReadMaterial { material, medium, uses_uv1, tangent_uv_set })
 }
 
 /// The material's scattering factors (base colour, metallic, roughness,
@@ -384,23 +421,93 @@ fn read_factors(m: &gltf::Material, name: &str, warnings: &mut Vec<String>) -> R
         thin: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
         specular,
         specular_color,
+        ..Pbr::dielectric(base)
     })
 }
 
 /// A normal texture as a texture source: KHR_texture_transform on a normal
 /// texture is only in its JSON.
 fn normal_source<'a>(nt: &gltf::material::NormalTexture<'a>) -> TextureSource<'a> {
-    let transform = nt.extension_value("KHR_texture_transform").map(|t| {
-        let pair = |k: &str, d: f32| {
-            let a = t.get(k).and_then(|v| v.as_array());
-            let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
-            [at(0), at(1)]
-        };
-        let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
-        let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
-        (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
-    });
-    (nt.texture(), nt.tex_coord(), transform)
+    (nt.texture(), nt.tex_coord(), nt.extension_value("KHR_texture_transform").map(json_transform))
+}
+
+/// A KHR_texture_transform object read from JSON: its matrix and its own
+/// TEXCOORD_n if it names one.
+fn json_transform(t: &gltf::json::Value) -> (glam::Affine2, Option<u32>) {
+    let pair = |k: &str, d: f32| {
+        let a = t.get(k).and_then(|v| v.as_array());
+        let at = |i: usize| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
+        [at(0), at(1)]
+    };
+    let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+    let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|v| v as u32);
+    (uv_transform(pair("offset", 0.0), rotation, pair("scale", 1.0)), set)
+}
+
+/// A textureInfo inside a material extension's JSON (`index`, `texCoord`, and
+/// KHR_texture_transform) as a texture source; `key` names it in errors.
+fn json_info<'a>(
+    doc: &'a gltf::Document,
+    ext: &gltf::json::Value,
+    key: &str,
+) -> Result<Option<TextureSource<'a>>, String> {
+    let Some(info) = ext.get(key) else { return Ok(None) };
+    let index = info.get("index").and_then(|v| v.as_u64()).ok_or_else(|| format!("{key} has no texture index"))?;
+    let texture = doc
+        .textures()
+        .nth(index as usize)
+        .ok_or_else(|| format!("{key} names texture {index}, which the file does not have"))?;
+    let tex_coord = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+    let transform = info.get("extensions").and_then(|e| e.get("KHR_texture_transform")).map(json_transform);
+    Ok(Some((texture, tex_coord, transform)))
+}
+
+/// A number in a material extension's JSON, `default` when absent; an error
+/// when present and not a finite number in `range`.
+fn json_number(
+    ext: &gltf::json::Value,
+    key: &str,
+    default: f32,
+    range: std::ops::RangeInclusive<f32>,
+) -> Result<f32, String> {
+    match ext.get(key) {
+        None => Ok(default),
+        Some(v) => match v.as_f64().map(|x| x as f32) {
+            Some(x) if x.is_finite() && range.contains(&x) => Ok(x),
+            _ => Err(format!("{key} {v} is not a number in [{}, {}]", range.start(), range.end())),
+        },
+    }
+}
+
+/// The factors of KHR_materials_clearcoat, _sheen and _anisotropy into `pbr`, and
+/// their rotation (textures are read by the caller).
+fn read_layer_factors(m: &gltf::Material, pbr: &mut Pbr) -> Result<f32, String> {
+    let ext = |k: &str| m.extensions().and_then(|e| e.get(k));
+    let mut rotation = 0.0;
+    if let Some(c) = ext("KHR_materials_clearcoat") {
+        let err = |e: String| format!("KHR_materials_clearcoat: {e}");
+        pbr.coat = json_number(c, "clearcoatFactor", 0.0, 0.0..=1.0).map_err(err)?;
+        pbr.coat_roughness = json_number(c, "clearcoatRoughnessFactor", 0.0, 0.0..=1.0).map_err(err)?;
+    }
+    if let Some(sh) = ext("KHR_materials_sheen") {
+        let err = |e: String| format!("KHR_materials_sheen: {e}");
+        let c = sh.get("sheenColorFactor").map_or(Ok([0.0; 3]), |v| {
+            let a = v.as_array().filter(|a| a.len() == 3);
+            let x = a.map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN) as f32).collect::<Vec<_>>());
+            match x {
+                Some(x) if x.iter().all(|c| c.is_finite() && *c >= 0.0) => Ok([x[0], x[1], x[2]]),
+                _ => Err(format!("sheenColorFactor {v} is not a colour")),
+            }
+        });
+        pbr.sheen = Rgb::from(c.map_err(err)?).min(Rgb::ONE);
+        pbr.sheen_roughness = json_number(sh, "sheenRoughnessFactor", 0.0, 0.0..=1.0).map_err(err)?;
+    }
+    if let Some(a) = ext("KHR_materials_anisotropy") {
+        let err = |e: String| format!("KHR_materials_anisotropy: {e}");
+        pbr.anisotropy = json_number(a, "anisotropyStrength", 0.0, 0.0..=1.0).map_err(err)?;
+        rotation = json_number(a, "anisotropyRotation", 0.0, f32::MIN..=f32::MAX).map_err(err)?;
+    }
+    Ok(rotation)
 }
 
 /// The material's alpha mode, its cutoff checked.
@@ -506,8 +613,8 @@ struct Materials {
     textures: Vec<Texture>,
     /// Per material, whether a texture reads TEXCOORD_1 (only then is it read).
     uv1_needed: Vec<bool>,
-    /// Per material, the TEXCOORD_n set its normal texture reads (tangents are
-    /// needed only then, generated from that set when the file has none).
+    /// Per material, the TEXCOORD_n set its tangents follow (they are needed only
+    /// then, generated from that set when the file has none).
     tangent_sets: Vec<Option<u8>>,
     /// glTF's default material (primitives without one), the last.
     default: u32,
@@ -529,7 +636,7 @@ impl Materials {
             let read = read_material(m, i, &mut loader, warnings)?;
             media.push(read.medium);
             uv1_needed.push(read.uses_uv1);
-            tangent_sets.push(read.normal_uv_set);
+            tangent_sets.push(read.tangent_uv_set);
             materials.push(read.material);
         }
         // glTF's default material (primitives without one): white-ish diffuse.

@@ -39,7 +39,7 @@ pub use light::{
     AreaPoint, EmittedRay, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target, spot_falloff,
     sun_radiance,
 };
-pub use material::{AlphaMode, Filter, Material, Texture, TextureRef, Wrap};
+pub use material::{AlphaMode, Filter, LayerTextures, Material, Texture, TextureRef, Wrap};
 pub use medium::{Flights, FreeFlight, Medium, MediumId, Passage, single_scattering_albedo};
 pub use memory::MemoryUse;
 pub use mesh::{Bounds, Object, Triangle, TriangleExtras, bounds_of};

@@ -143,6 +143,42 @@ impl Texture {
     }
 }
 
+/// The textures of KHR_materials_clearcoat, _sheen and _anisotropy, and the
+/// anisotropy's rotation: each multiplies its factor in [`Material::pbr`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LayerTextures {
+    /// clearcoatTexture: R multiplies the coat's weight.
+    pub coat: Option<TextureRef>,
+    /// clearcoatRoughnessTexture: G multiplies the coat's roughness.
+    pub coat_roughness: Option<TextureRef>,
+    /// clearcoatNormalTexture: the coat's own tangent-space normal, about the
+    /// mesh's normal (not the base's normal texture).
+    pub coat_normal: Option<TextureRef>,
+    /// The coat normal texture's `scale`.
+    pub coat_normal_scale: f32,
+    /// sheenColorTexture: RGB (sRGB) multiplies the sheen colour.
+    pub sheen_color: Option<TextureRef>,
+    /// sheenRoughnessTexture: A multiplies the sheen roughness.
+    pub sheen_roughness: Option<TextureRef>,
+    /// anisotropyTexture: RG the direction in tangent space ((d + 1) / 2), B
+    /// multiplies the strength.
+    pub anisotropy: Option<TextureRef>,
+    /// anisotropyRotation [rad], counter-clockwise from the tangent.
+    pub anisotropy_rotation: f32,
+}
+
+impl LayerTextures {
+    /// True when any texture is present.
+    pub fn any(&self) -> bool {
+        self.coat.is_some()
+            || self.coat_roughness.is_some()
+            || self.coat_normal.is_some()
+            || self.sheen_color.is_some()
+            || self.sheen_roughness.is_some()
+            || self.anisotropy.is_some()
+    }
+}
+
 /// A surface material: its scattering model and emission, and the textures that
 /// vary them over the surface.
 #[derive(Clone, Debug)]
@@ -175,6 +211,9 @@ pub struct Material {
     pub normal_texture: Option<TextureRef>,
     /// The normal texture's `scale`: multiplies the sampled normal's x and y.
     pub normal_scale: f32,
+    /// The textures of the clear coat, sheen and anisotropy, and the anisotropy's
+    /// rotation.
+    pub layers: LayerTextures,
     /// Emitted radiance L_e [W sr^-1 m^-2 per channel] (emissiveFactor x
     /// KHR_materials_emissive_strength), times the emissive texture where there is one.
     pub emission: Rgb,
@@ -204,6 +243,7 @@ impl Material {
             specular_color_texture: None,
             normal_texture: None,
             normal_scale: 1.0,
+            layers: LayerTextures::default(),
             emission,
             double_sided: false,
             interior: None,
@@ -223,6 +263,15 @@ impl Material {
             || self.specular_texture.is_some()
             || self.specular_color_texture.is_some()
             || self.partly_transmissive()
+            || self.pbr.anisotropy > 0.0
+            || self.layers.any()
+    }
+
+    /// True when the material has textures of its coat or sheen, or an
+    /// anisotropy, whose direction follows the surface's tangents: its points
+    /// need a tangent frame ([`crate::Triangle::tangent`]).
+    pub fn needs_tangents(&self) -> bool {
+        self.pbr.anisotropy > 0.0 || self.layers.coat_normal.is_some()
     }
 
     /// KHR_materials_transmission with a factor strictly between 0 and 1: a mix of
@@ -384,7 +433,54 @@ impl Scene {
             let c = self.lookup(t, hit);
             pbr.specular_color *= Rgb::new(c.x, c.y, c.z);
         }
+        if pbr.is_layered() {
+            self.layers_at(m, hit, &mut pbr);
+        }
         Bsdf::from_pbr(&pbr)
+    }
+
+    /// The clear coat's, sheen's and anisotropy's textures at a hit, and the two
+    /// directions they set in world space: the anisotropy direction
+    /// (KHR_materials_anisotropy: the texture's direction, or the tangent, rotated
+    /// by anisotropyRotation in the tangent plane of the shading normal) and the
+    /// coat's normal (its normal texture about the mesh's interpolated normal).
+    fn layers_at(&self, m: &Material, hit: &Hit, pbr: &mut Pbr) {
+        let lt = &m.layers;
+        if let Some(t) = &lt.coat {
+            pbr.coat *= self.lookup(t, hit).x;
+        }
+        if let Some(t) = &lt.coat_roughness {
+            pbr.coat_roughness *= self.lookup(t, hit).y;
+        }
+        if let Some(t) = &lt.sheen_color {
+            let c = self.lookup(t, hit);
+            pbr.sheen *= Rgb::new(c.x, c.y, c.z);
+        }
+        if let Some(t) = &lt.sheen_roughness {
+            pbr.sheen_roughness *= self.lookup(t, hit).w;
+        }
+        let tr = &self.triangles[hit.tri as usize];
+        if pbr.anisotropy > 0.0
+            && let Some((t, b)) = self.tangent_frame(tr, hit.b, hit.ns)
+        {
+            let mut d = Vec2::X;
+            if let Some(tex) = &lt.anisotropy {
+                let c = self.lookup(tex, hit);
+                d = (Vec2::new(c.x, c.y) * 2.0 - Vec2::ONE).normalize_or(Vec2::X);
+                pbr.anisotropy *= c.z;
+            }
+            let d = Vec2::from_angle(lt.anisotropy_rotation).rotate(d);
+            pbr.anisotropy_dir = t * d.x + b * d.y;
+        }
+        if let Some(tex) = &lt.coat_normal {
+            let (_, nv) = tr.point_normal(hit.b);
+            let nv = facing(nv, hit.ng);
+            if let Some((t, b)) = self.tangent_frame(tr, hit.b, nv) {
+                let s = lt.coat_normal_scale;
+                let v = (self.lookup(tex, hit).truncate() * 2.0 - Vec3::ONE) * Vec3::new(s, s, 1.0);
+                pbr.coat_normal = facing((t * v.x + b * v.y + nv * v.z).normalize_or(nv), hit.ng);
+            }
+        }
     }
 
     /// Radiance emitted at a hit toward `wo` [W sr^-1 m^-2]: the front face emits, and

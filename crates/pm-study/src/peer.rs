@@ -161,9 +161,9 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
                 rgb(tint)
             )
         }
-        Bsdf::Conductor { .. } | Bsdf::Plastic { .. } => {
+        Bsdf::Conductor { .. } | Bsdf::Plastic { .. } | Bsdf::Layered(_) => {
             return Err(format!(
-                "material {}: rough conductors and the glTF dielectric have no equal in Mitsuba (its Fresnel terms differ)",
+                "material {}: rough conductors, the glTF dielectric and its coat, sheen and anisotropy have no equal in Mitsuba (its Fresnel terms differ)",
                 m.name
             ));
         }

@@ -464,7 +464,7 @@ fn reflected_indirect<G: PhotonRecord>(
     scratch: &mut Scratch,
 ) -> Rgb {
     let At { hit, bsdf, wo, medium, .. } = *at;
-    let sharp = matches!(*bsdf, Bsdf::Plastic { alpha, .. } if alpha < SAMPLED_LAYER_ALPHA);
+    let sharp = bsdf.layer_alpha().is_some_and(|alpha| alpha < SAMPLED_LAYER_ALPHA);
     match sharp.then(|| bsdf.layers(wo, hit.ns)).flatten() {
         None => albedo * e / PI,
         Some(layers) => {
