@@ -17,7 +17,13 @@ Run with Blender as a Python module (../shared/CRATES.md):
     target/bpy/bin/python tests/blender/coated_room.py tests/scenes/blender_coated
 
 With --cycles PX, it also renders the scene with Cycles (CPU, 512 samples, PX x
-PX) to DIR/cycles.exr. With --draco or --webp, the export uses Blender's Draco
+PX) to DIR/cycles.exr. With --gltf-anisotropy as well, Cycles renders the brushed
+sphere as glTF defines the exported file's anisotropy rather than as Blender
+does (the exporter writes Blender's Anisotropic as anisotropyStrength, but
+Cycles stretches alpha along the tangent by 1 / sqrt(1 - 0.9 s) and glTF to
+mix(alpha, 1, s^2)): its roughness and anisotropy set, after the export, to give
+Cycles' alpha_x and alpha_y the file's alpha_t and alpha_b, with single-scattering
+GGX, so that Cycles checks our anisotropic lobe. With --draco or --webp, the export uses Blender's Draco
 mesh compression or WebP images, as a user who wants small files does (the
 file name gets _draco or _webp).
 """
@@ -42,7 +48,7 @@ def tile_texel(i, j):
     return YELLOW if j == 2 and i in (2, 3) else LILAC
 
 
-def main(out, cycles_px, draco, webp):
+def main(out, cycles_px, draco, webp, gltf_anisotropy):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     os.makedirs(out, exist_ok=True)
     scene = bpy.context.scene
@@ -97,6 +103,16 @@ def main(out, cycles_px, draco, webp):
         export_draco_mesh_compression_enable=draco,
         export_image_format="WEBP" if webp else "AUTO",
     )
+    if cycles_px and gltf_anisotropy:
+        # glTF: alpha_t = a + (1 - a) s^2, alpha_b = a (a = roughness^2);
+        # Cycles: alpha_x = r^2 / q, alpha_y = r^2 q, q = sqrt(1 - 0.9 s_c).
+        a = 0.35 ** 2
+        alpha_t, alpha_b = a + (1.0 - a) * 0.8 ** 2, a
+        q = math.sqrt(alpha_b / alpha_t)
+        b = brushed.node_tree.nodes["Principled BSDF"]
+        b.inputs["Roughness"].default_value = (alpha_t * alpha_b) ** 0.25
+        b.inputs["Anisotropic"].default_value = (1.0 - q * q) / 0.9
+        b.distribution = "GGX"
     if cycles_px:
         room.cycles(scene, 512)
         scene.render.filepath = os.path.join(out, "cycles.exr")
@@ -106,4 +122,4 @@ def main(out, cycles_px, draco, webp):
 if __name__ == "__main__":
     args = sys.argv[1:]
     px = int(args[args.index("--cycles") + 1]) if "--cycles" in args else 0
-    main(args[0], px, "--draco" in args, "--webp" in args)
+    main(args[0], px, "--draco" in args, "--webp" in args, "--gltf-anisotropy" in args)
