@@ -5,6 +5,16 @@
 //! reach a non-specular surface through specular bounces only are stored in the
 //! caustic map, traced in a separate pass aimed at the specular objects.
 //!
+//! Glossy lobes (a rough metal, the glTF dielectric's GGX layer, a clear coat,
+//! sheen) are not specular here: a photon is stored at every hit on a surface
+//! with any non-delta lobe (a coated dielectric stores at its coat and base
+//! alike: the BSDF is one), and one that scattered off such a lobe is a global
+//! photon wherever it lands. The caustic map holds Dirac chains only (LS+D):
+//! light a sharp coat or rough metal focuses reaches the eye through final
+//! gathers, whose rays sample those surfaces' lobes, or, at a surface seen
+//! directly, through the gather's glossy sampling ([`pm_bsdf::Bsdf::layer_alpha`]),
+//! never through both.
+//!
 //! Determinism: photon `i` of a map draws its samples from a stream keyed by
 //! (seed, map, i) and nothing else, batches are traced in parallel and concatenated
 //! in index order, so results are bit-identical for any thread count, and a map

@@ -178,6 +178,37 @@ fn diffuse_scene_has_no_caustic_photons() {
     assert!(!g.photons.is_empty());
 }
 
+/// Photon classification with glossy lobes (module doc): the cornell_spheres
+/// spheres turned into clear-coated red dielectrics (a sharp GGX coat over a
+/// diffuse base, one material with both kinds of lobe) are no caustic targets,
+/// the caustic pass stores nothing, every photon of the global pass is stored
+/// unflagged, and the spheres themselves store photons (their base), the coat's
+/// reflections among the walls' photons. With the spheres as they are (chrome
+/// and glass) the global pass flags caustic photons: the test can tell them apart.
+#[test]
+fn a_coated_surface_stores_photons_and_its_coat_makes_no_caustic_photons() {
+    let mut scene = scene_file("cornell_spheres.gltf");
+    let plain = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Emitted(20_000)), &|_| {}).unwrap();
+    assert!(plain.photons.iter().any(|p| p.flags & flags::CAUSTIC != 0));
+    let coated = Bsdf::from_pbr(&pm_bsdf::Pbr {
+        coat: 1.0,
+        coat_roughness: 0.05,
+        ..pm_bsdf::Pbr::dielectric(Rgb::new(0.7, 0.05, 0.04))
+    });
+    assert!(matches!(coated, Bsdf::Layered(_)) && !coated.is_specular());
+    for m in scene.materials.iter_mut().filter(|m| m.bsdf.is_specular()) {
+        *m = material(&m.name.clone(), coated, Rgb::ZERO);
+    }
+    assert!(pm_photon::specular_targets(&scene).is_empty());
+    let c = trace(&scene, &cfg(&scene, MapPass::Caustic, Budget::Emitted(10_000)), &|_| {}).unwrap();
+    assert!(c.photons.is_empty());
+    let g = trace(&scene, &cfg(&scene, MapPass::Global, Budget::Emitted(20_000)), &|_| {}).unwrap();
+    assert!(g.photons.iter().all(|p| p.flags & flags::CAUSTIC == 0));
+    // The glass sphere's surface: centre (0.45, 0.35, 0.3), radius 0.35.
+    let on_sphere = g.photons.iter().filter(|p| (p.position.distance(Vec3::new(0.45, 0.35, 0.3)) - 0.35).abs() < 1e-3);
+    assert!(on_sphere.count() > 100);
+}
+
 fn bits(ps: &[Photon]) -> Vec<[u32; 16]> {
     ps.iter()
         .map(|p| {
