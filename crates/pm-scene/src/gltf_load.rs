@@ -56,7 +56,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 13] = [
+const SUPPORTED_EXTENSIONS: [&str; 14] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -67,6 +67,7 @@ const SUPPORTED_EXTENSIONS: [&str; 13] = [
     "KHR_materials_specular",
     "EXT_texture_webp",
     "KHR_mesh_quantization",
+    "KHR_draco_mesh_compression",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_materials_anisotropy",
@@ -81,9 +82,6 @@ const READ_MATERIAL_EXTENSIONS: &[&str] =
 /// without it: said when a file requires it ([`SceneError::Unsupported`]).
 fn unsupported_needs(ext: &str) -> &'static str {
     match ext {
-        "KHR_draco_mesh_compression" => {
-            "Draco-compressed meshes; export again without mesh compression (Blender: glTF export, Data, Compression off)"
-        }
         "EXT_meshopt_compression" => {
             "meshoptimizer-compressed buffers; pack again without compression (gltfpack without -c)"
         }
@@ -174,7 +172,7 @@ pub fn load_with(path: &Path, units: LightUnits) -> Result<Scene, SceneError> {
         let at = Placed { index: node.index(), name: &node_name, world };
         let (a, w) = (&mut animation, &mut warnings);
         if let Some(mesh) = node.mesh() {
-            walk.mesh(&at, mesh, &mats, &buffers, a, w).map_err(content)?;
+            walk.mesh(&at, mesh, &mats, &doc, &buffers, a, w).map_err(content)?;
         }
         if let Some(light) = node.light() {
             walk.light(&at, light, units, a, w).map_err(content)?;
@@ -248,7 +246,21 @@ fn read_document(
     // them against its own shorter list (no KHR_mesh_quantization), need not.
     root.extensions_required.clear();
     check_attribute_indices(&root).map_err(content)?;
-    let gltf = gltf::Gltf { document: gltf::Document::from_json(root).map_err(gltf_err)?, blob: raw.blob };
+    // Draco primitives' accessors hold no data (it is in the extension's buffer
+    // view), which glTF's JSON validation refuses: a copy is validated with them
+    // pointing at that view, and the file is kept as it is.
+    let draco = crate::draco::accessors(&root);
+    let document = if draco.is_empty() {
+        gltf::Document::from_json(root).map_err(gltf_err)?
+    } else {
+        let mut patched = root.clone();
+        for &(a, view) in &draco {
+            patched.accessors[a].buffer_view = Some(gltf::json::Index::new(view));
+        }
+        gltf::Document::from_json(patched).map_err(gltf_err)?;
+        gltf::Document::from_json_without_validation(root)
+    };
+    let gltf = gltf::Gltf { document, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
     let mut hasher = blake3::Hasher::new();
@@ -660,6 +672,7 @@ impl NodeWalk {
         at: &Placed,
         mesh: gltf::Mesh,
         mats: &Materials,
+        doc: &gltf::Document,
         buffers: &[gltf::buffer::Data],
         animation: &mut Animation,
         warnings: &mut Vec<String>,
@@ -687,7 +700,7 @@ impl NodeWalk {
             let local = match self.decoded.entry((mesh.index(), pi)) {
                 std::collections::hash_map::Entry::Occupied(e) => std::rc::Rc::clone(e.get()),
                 std::collections::hash_map::Entry::Vacant(e) => {
-                    let d = decode_primitive(&prim, buffers, mat).map_err(|m| format!("{what}: {m}"))?;
+                    let d = decode_primitive(&prim, doc, buffers, mat).map_err(|m| format!("{what}: {m}"))?;
                     if let Some(w) = coarse_positions(&d.positions) {
                         warnings.push(format!("{what}: {w}"));
                     }
@@ -990,10 +1003,15 @@ fn coarse_positions(positions: &[Vec3]) -> Option<String> {
 /// material has a normal texture, its tangents; errors name the accessor.
 fn decode_primitive(
     prim: &gltf::Primitive,
+    doc: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     PrimMaterial { read_uv1, tangent_set, .. }: PrimMaterial,
 ) -> Result<LocalPrim, String> {
     use gltf::accessor::{DataType, Dimensions};
+    // KHR_draco_mesh_compression: the attributes it holds (and the triangles)
+    // come from its decoded data, the rest from their accessors.
+    let draco = crate::draco::decode(prim, doc, buffers)?;
+    let in_draco = |sem: &str| draco.as_ref().is_some_and(|d| d.has(sem));
     let check = |sem: &str, acc: gltf::Accessor, dims: Dimensions, types: &[DataType]| -> Result<(), String> {
         if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
             return Err(format!(
@@ -1002,6 +1020,9 @@ fn decode_primitive(
                 acc.dimensions(),
                 acc.data_type()
             ));
+        }
+        if in_draco(sem) || (sem == "indices" && draco.is_some()) {
+            return Ok(());
         }
         if acc.sparse().is_some() {
             return Err(format!("{sem} accessor {} is sparse, which is not supported", acc.index()));
@@ -1055,20 +1076,26 @@ fn decode_primitive(
         check("indices", a, Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
-    let positions: Vec<Vec3> = read_floats(&pos_acc, buffers).into_iter().map(Vec3::from).collect();
+    let d = draco.as_ref();
+    let positions: Vec<Vec3> = attribute(d, "POSITION", &pos_acc, buffers).into_iter().map(Vec3::from).collect();
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(format!(
             "vertex {i} has a position that is not finite (NaN or Inf, or overflow after the node transform)"
         ));
     }
-    let normals: Option<Vec<Vec3>> = normal_acc.map(|a| read_floats(&a, buffers).into_iter().map(Vec3::from).collect());
-    let read_uv = |a: gltf::Accessor| read_floats(&a, buffers).into_iter().map(Vec2::from).collect::<Vec<_>>();
-    let uvs = uv_acc.map(read_uv);
-    let uvs1 = uv1_acc.map(read_uv);
-    let colors: Option<Vec<Vec4>> = if color_acc.is_some() {
-        reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect())
-    } else {
-        None
+    let normals: Option<Vec<Vec3>> =
+        normal_acc.map(|a| attribute(d, "NORMAL", &a, buffers).into_iter().map(Vec3::from).collect());
+    let read_uv = |a: gltf::Accessor, sem: &str| attribute(d, sem, &a, buffers).into_iter().map(Vec2::from).collect();
+    let uvs: Option<Vec<Vec2>> = uv_acc.map(|a| read_uv(a, "TEXCOORD_0"));
+    let uvs1: Option<Vec<Vec2>> = uv1_acc.map(|a| read_uv(a, "TEXCOORD_1"));
+    let colors: Option<Vec<Vec4>> = match (&color_acc, d) {
+        (Some(a), Some(d)) if d.has("COLOR_0") => Some(if a.dimensions() == Dimensions::Vec3 {
+            d.floats::<3>("COLOR_0").unwrap_or_default().into_iter().map(|c| Vec3::from(c).extend(1.0)).collect()
+        } else {
+            d.floats::<4>("COLOR_0").unwrap_or_default().into_iter().map(Vec4::from).collect()
+        }),
+        (Some(_), _) => reader.read_colors(0).map(|it| it.into_rgba_f32().map(Vec4::from).collect()),
+        (None, _) => None,
     };
     if let Some(c) = &colors
         && let Some(i) = c.iter().position(|c| !c.is_finite() || c.min_element() < 0.0)
@@ -1087,9 +1114,10 @@ fn decode_primitive(
             return Err(format!("{what} has {len} entries but POSITION has {}", positions.len()));
         }
     }
-    let indices: Vec<u32> = match reader.read_indices() {
-        Some(it) => it.into_u32().collect(),
-        None => (0..positions.len() as u32).collect(),
+    let indices: Vec<u32> = match (d, reader.read_indices()) {
+        (Some(d), _) => d.indices.clone(),
+        (None, Some(it)) => it.into_u32().collect(),
+        (None, None) => (0..positions.len() as u32).collect(),
     };
     if !indices.len().is_multiple_of(3) {
         return Err(format!("{} indices is not a multiple of 3", indices.len()));
@@ -1107,7 +1135,8 @@ fn decode_primitive(
     let corner_tangents: Option<Vec<Vec4>> = if tangent_set.is_none() {
         None
     } else if tangent_acc.is_some() {
-        let t: Vec<Vec4> = read_floats(tangent_acc.as_ref().unwrap(), buffers).into_iter().map(Vec4::from).collect();
+        let t: Vec<Vec4> =
+            attribute(d, "TANGENT", tangent_acc.as_ref().unwrap(), buffers).into_iter().map(Vec4::from).collect();
         if t.len() != positions.len() {
             return Err(format!("TANGENT has {} entries but POSITION has {}", t.len(), positions.len()));
         }
@@ -1116,6 +1145,21 @@ fn decode_primitive(
         tangent_uvs.map(|uv| mikktspace_tangents(&positions, normals.as_deref(), uv, &indices))
     };
     Ok(LocalPrim { positions, normals, uvs, uvs1, colors, indices, corner_tangents })
+}
+
+/// Vertex attribute `sem` as floats, `N` a vertex: from the primitive's decoded
+/// Draco data when it holds the attribute, else from its accessor `acc`
+/// ([`read_floats`]).
+fn attribute<const N: usize>(
+    draco: Option<&crate::draco::Decoded>,
+    sem: &str,
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+) -> Vec<[f32; N]> {
+    match draco.and_then(|d| d.floats::<N>(sem)) {
+        Some(v) => v,
+        None => read_floats(acc, buffers),
+    }
 }
 
 /// The elements of accessor `acc`, `N` components each, as floats: float

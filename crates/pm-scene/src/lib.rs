@@ -18,6 +18,7 @@ mod accel;
 mod anim;
 mod bvh4;
 mod camera;
+mod draco;
 mod environment;
 mod geometry;
 mod gltf_load;

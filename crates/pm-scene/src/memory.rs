@@ -22,12 +22,21 @@ pub struct MemoryUse {
     pub textures: usize,
     /// Light sampling tables (area lights' CDFs and bounding spheres).
     pub lights: usize,
+    /// The materials (each with its BSDF, factors and texture references) and
+    /// their names.
+    pub materials: usize,
 }
 
 impl MemoryUse {
     /// The sum \[bytes\].
     pub fn total(&self) -> usize {
-        self.triangles + self.bvh + self.light_of_triangle + self.animation + self.textures + self.lights
+        self.triangles
+            + self.bvh
+            + self.light_of_triangle
+            + self.animation
+            + self.textures
+            + self.lights
+            + self.materials
     }
 
     /// The parts that grow with the triangle count, per triangle of `triangles`
@@ -42,14 +51,15 @@ impl std::fmt::Display for MemoryUse {
         let mb = |b: usize| b as f64 / 1e6;
         write!(
             f,
-            "{:.1} MB (triangles {:.1}, BVH {:.1}, light ids {:.1}, animation {:.1}, textures {:.1}, lights {:.1})",
+            "{:.1} MB (triangles {:.1}, BVH {:.1}, light ids {:.1}, animation {:.1}, textures {:.1}, lights {:.1}, materials {:.1})",
             mb(self.total()),
             mb(self.triangles),
             mb(self.bvh),
             mb(self.light_of_triangle),
             mb(self.animation),
             mb(self.textures),
-            mb(self.lights)
+            mb(self.lights),
+            mb(self.materials)
         )
     }
 }
@@ -77,6 +87,8 @@ impl Scene {
             animation: self.animation.meshes.iter().map(|m| bytes(m.local.capacity(), size_of::<Triangle>())).sum(),
             textures: self.textures.iter().map(|t| bytes(t.texels.capacity(), 4)).sum(),
             lights,
+            materials: bytes(self.materials.capacity(), size_of::<crate::Material>())
+                + self.materials.iter().map(|m| m.name.capacity()).sum::<usize>(),
         }
     }
 }
