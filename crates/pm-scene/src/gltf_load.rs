@@ -56,7 +56,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 14] = [
+const SUPPORTED_EXTENSIONS: [&str; 15] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -68,6 +68,7 @@ const SUPPORTED_EXTENSIONS: [&str; 14] = [
     "EXT_texture_webp",
     "KHR_mesh_quantization",
     "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_materials_anisotropy",
@@ -82,9 +83,6 @@ const READ_MATERIAL_EXTENSIONS: &[&str] =
 /// without it: said when a file requires it ([`SceneError::Unsupported`]).
 fn unsupported_needs(ext: &str) -> &'static str {
     match ext {
-        "EXT_meshopt_compression" => {
-            "meshoptimizer-compressed buffers; pack again without compression (gltfpack without -c)"
-        }
         "KHR_texture_basisu" => "KTX2 (Basis Universal) images; pack again with PNG or JPEG images",
         "KHR_materials_pbrSpecularGlossiness" => {
             "the old specular-glossiness materials; convert them to metallic-roughness"
@@ -262,7 +260,7 @@ fn read_document(
     };
     let gltf = gltf::Gltf { document, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&gltf.document, Some(base_dir), gltf.blob.clone()).map_err(gltf_err)?;
+    let buffers = read_buffers(&gltf.document, base_dir, gltf.blob.clone()).map_err(content)?;
     let mut hasher = blake3::Hasher::new();
     hasher.update(&bytes);
     for b in &buffers {
@@ -270,6 +268,31 @@ fn read_document(
     }
     hasher.update(format!("light units: {units}").as_bytes());
     Ok((gltf.document, buffers, *hasher.finalize().as_bytes()))
+}
+
+/// The buffers of `doc` (files beside the scene, data URIs, the GLB chunk), each
+/// checked against its stated length, with EXT_meshopt_compression's views
+/// decoded into their fallback buffers, which have no data of their own.
+fn read_buffers(
+    doc: &gltf::Document,
+    base_dir: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, String> {
+    let mut buffers = Vec::new();
+    for b in doc.buffers() {
+        let data = if crate::meshopt_views::is_fallback(&b) {
+            gltf::buffer::Data(vec![0; b.length().next_multiple_of(4)])
+        } else {
+            gltf::buffer::Data::from_source_and_blob(b.source(), Some(base_dir), &mut blob)
+                .map_err(|e| format!("buffer {}: {e}", b.index()))?
+        };
+        if data.len() < b.length() {
+            return Err(format!("buffer {} has {} bytes, {} stated", b.index(), data.len(), b.length()));
+        }
+        buffers.push(data);
+    }
+    crate::meshopt_views::decode_views(doc, &mut buffers)?;
+    Ok(buffers)
 }
 
 /// One glTF material as [`read_material`] reads it.

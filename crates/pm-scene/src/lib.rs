@@ -27,6 +27,7 @@ mod material;
 mod medium;
 mod memory;
 mod mesh;
+mod meshopt_views;
 mod portal;
 
 pub use anim::Animation;

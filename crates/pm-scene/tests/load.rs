@@ -182,8 +182,7 @@ fn with_extensions(required: &[&str], used: &[&str]) -> PathBuf {
     path
 }
 
-/// A file that requires an extension not read (gltfpack's meshopt compression)
-/// is refused in one line that names it and says how to get a file without it,
+/// A file that requires an extension not read (KTX2 images) is refused in one line that names it and says how to get a file without it,
 /// not in a list of the accessors it leaves without data; two name the first
 /// and count the rest. One used but not required is a warning naming it and
 /// what is lost.
@@ -303,6 +302,43 @@ fn blenders_draco_export_loads_as_the_uncompressed_one() {
     std::fs::write(&path, g.to_string()).unwrap();
     let err = load(&path).err().expect("cut Draco data is refused").to_string();
     assert!(!err.contains('\n') && err.contains("cut.gltf"), "{err}");
+}
+
+/// gltfpack's meshopt-compressed coated room (`-c`): a view whose compressed
+/// bytes are damaged (its codec's header byte zeroed) is refused in one line
+/// naming the file, the view and the extension; intact, it loads
+/// (`tests/tests/suite/scenes.rs` renders it against the original).
+#[test]
+fn damaged_meshopt_data_is_one_line_naming_the_view() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/scenes/gltfpack");
+    load(&dir.join("blender_coated_meshopt.gltf")).unwrap_or_else(|e| panic!("{e}"));
+    let tmp = tempfile::tempdir().unwrap().keep();
+    let g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("blender_coated_meshopt.gltf")).unwrap()).unwrap();
+    let mut bin = std::fs::read(dir.join("blender_coated_meshopt.bin")).unwrap();
+    let first = g["bufferViews"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find_map(|v| {
+            v["extensions"]["EXT_meshopt_compression"]["byteOffset"]
+                .as_u64()
+                .or(v["extensions"]["EXT_meshopt_compression"].is_object().then_some(0))
+        })
+        .unwrap();
+    bin[first as usize] = 0;
+    std::fs::write(tmp.join("blender_coated_meshopt.bin"), &bin).unwrap();
+    std::fs::copy(dir.join("tile.png"), tmp.join("tile.png")).unwrap();
+    let path = tmp.join("damaged.gltf");
+    std::fs::write(&path, g.to_string()).unwrap();
+    let err = load(&path).err().expect("damaged data is refused").to_string();
+    assert!(
+        !err.contains('\n')
+            && err.contains("damaged.gltf")
+            && err.contains("EXT_meshopt_compression")
+            && err.contains("buffer view"),
+        "{err}"
+    );
 }
 
 /// KHR_materials_anisotropy's rotation turns the direction counter-clockwise in
