@@ -66,24 +66,16 @@ fn decode(src: &[u8], mode: &str, filter: &str, stride: usize, count: usize) -> 
             filtered(bytes, filter, stride)
         }
         "TRIANGLES" | "INDICES" => {
-            let seq = mode == "INDICES";
+            // Decoded as 32-bit values (the codecs' output does not depend on
+            // the width), written at the view's width.
+            let v = if mode == "INDICES" {
+                meshopt::decode_index_sequence::<u32>(src, count).map_err(bad)?
+            } else {
+                meshopt::decode_index_buffer::<u32>(src, count).map_err(bad)?
+            };
             match stride {
-                2 => Ok(if seq {
-                    meshopt::decode_index_sequence::<u16>(src, count).map_err(bad)?
-                } else {
-                    meshopt::decode_index_buffer::<u16>(src, count).map_err(bad)?
-                }
-                .iter()
-                .flat_map(|i| i.to_le_bytes())
-                .collect()),
-                4 => Ok(if seq {
-                    meshopt::decode_index_sequence::<u32>(src, count).map_err(bad)?
-                } else {
-                    meshopt::decode_index_buffer::<u32>(src, count).map_err(bad)?
-                }
-                .iter()
-                .flat_map(|i| i.to_le_bytes())
-                .collect()),
+                2 => Ok(v.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect()),
+                4 => Ok(v.iter().flat_map(|i| i.to_le_bytes()).collect()),
                 _ => Err(format!("index byteStride {stride} is not 2 or 4")),
             }
         }
