@@ -56,7 +56,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 15] = [
+const SUPPORTED_EXTENSIONS: [&str; 16] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -66,6 +66,7 @@ const SUPPORTED_EXTENSIONS: [&str; 15] = [
     "KHR_materials_volume_scatter",
     "KHR_materials_specular",
     "EXT_texture_webp",
+    "KHR_texture_basisu",
     "KHR_mesh_quantization",
     "KHR_draco_mesh_compression",
     "EXT_meshopt_compression",
@@ -83,7 +84,6 @@ const READ_MATERIAL_EXTENSIONS: &[&str] =
 /// without it: said when a file requires it ([`SceneError::Unsupported`]).
 fn unsupported_needs(ext: &str) -> &'static str {
     match ext {
-        "KHR_texture_basisu" => "KTX2 (Basis Universal) images; pack again with PNG or JPEG images",
         "KHR_materials_pbrSpecularGlossiness" => {
             "the old specular-glossiness materials; convert them to metallic-roughness"
         }
@@ -100,7 +100,6 @@ fn ignored_loses(ext: &str) -> &'static str {
         "KHR_materials_dispersion" => "glass does not disperse light",
         "KHR_materials_unlit" => "unlit materials are lit as the base colour's diffuse",
         "KHR_materials_variants" => "material variants are ignored: each mesh keeps its default material",
-        "KHR_texture_basisu" => "the file's fallback images are used instead",
         "EXT_mesh_gpu_instancing" => "GPU instances are not drawn: each node draws its mesh once",
         "KHR_animation_pointer" => "animations of anything but node transforms are ignored",
         _ => "what it adds is ignored",
@@ -260,7 +259,8 @@ fn read_document(
     };
     let gltf = gltf::Gltf { document, blob: raw.blob };
     let base_dir = path.parent().unwrap_or(Path::new("."));
-    let buffers = read_buffers(&gltf.document, base_dir, gltf.blob.clone()).map_err(content)?;
+    let mut buffers = read_buffers(&gltf.document, base_dir, gltf.blob.clone()).map_err(gltf_err)?;
+    crate::meshopt_views::decode_views(&gltf.document, &mut buffers).map_err(content)?;
     let mut hasher = blake3::Hasher::new();
     hasher.update(&bytes);
     for b in &buffers {
@@ -271,27 +271,27 @@ fn read_document(
 }
 
 /// The buffers of `doc` (files beside the scene, data URIs, the GLB chunk), each
-/// checked against its stated length, with EXT_meshopt_compression's views
-/// decoded into their fallback buffers, which have no data of their own.
+/// checked against its stated length, as the glTF crate reads them, except
+/// EXT_meshopt_compression's fallback buffers, which have no data of their own:
+/// zeros, for the compressed views to be decoded into
+/// ([`crate::meshopt_views::decode_views`]).
 fn read_buffers(
     doc: &gltf::Document,
     base_dir: &Path,
     mut blob: Option<Vec<u8>>,
-) -> Result<Vec<gltf::buffer::Data>, String> {
+) -> Result<Vec<gltf::buffer::Data>, gltf::Error> {
     let mut buffers = Vec::new();
     for b in doc.buffers() {
         let data = if crate::meshopt_views::is_fallback(&b) {
             gltf::buffer::Data(vec![0; b.length().next_multiple_of(4)])
         } else {
-            gltf::buffer::Data::from_source_and_blob(b.source(), Some(base_dir), &mut blob)
-                .map_err(|e| format!("buffer {}: {e}", b.index()))?
+            gltf::buffer::Data::from_source_and_blob(b.source(), Some(base_dir), &mut blob)?
         };
         if data.len() < b.length() {
-            return Err(format!("buffer {} has {} bytes, {} stated", b.index(), data.len(), b.length()));
+            return Err(gltf::Error::BufferLength { buffer: b.index(), expected: b.length(), actual: data.len() });
         }
         buffers.push(data);
     }
-    crate::meshopt_views::decode_views(doc, &mut buffers)?;
     Ok(buffers)
 }
 
@@ -1353,16 +1353,16 @@ impl TextureLoader<'_> {
         if !transform.is_finite() {
             return Err("texture transform is not finite".into());
         }
-        // EXT_texture_webp's image where there is one (the extension's rule: a
-        // client that reads WebP uses it; `source` is then the fallback or absent).
-        let webp = texture
-            .extensions()
-            .and_then(|e| e.get("EXT_texture_webp"))
-            .and_then(|w| w.get("source"))
-            .and_then(|v| v.as_u64());
-        let image = match webp {
-            Some(i) => self.doc.images().nth(i as usize).ok_or_else(|| {
-                format!("texture {}: EXT_texture_webp names image {i}, which the file does not have", texture.index())
+        // KHR_texture_basisu's (KTX2) or EXT_texture_webp's image where there is
+        // one (the extensions' rule: a client that reads it uses it; `source` is
+        // then the fallback or absent).
+        let ext_source = ["KHR_texture_basisu", "EXT_texture_webp"].into_iter().find_map(|name| {
+            let e = texture.extensions()?.get(name)?;
+            Some((name, e.get("source").and_then(|v| v.as_u64())?))
+        });
+        let image = match ext_source {
+            Some((name, i)) => self.doc.images().nth(i as usize).ok_or_else(|| {
+                format!("texture {}: {name} names image {i}, which the file does not have", texture.index())
             })?,
             None => texture.source().ok_or_else(|| format!("texture {} has no image", texture.index()))?,
         };
@@ -1427,10 +1427,23 @@ fn image_bytes(image: &gltf::Image, base_dir: &Path, buffers: &[gltf::buffer::Da
     }
 }
 
-/// An image decoded from PNG, JPEG or WebP (EXT_texture_webp), told apart by
+/// An image decoded from PNG, JPEG, WebP (EXT_texture_webp) or KTX2 with Basis
+/// Universal data (KHR_texture_basisu: ETC1S or UASTC, transcoded to 8-bit RGBA
+/// by the pure-Rust `basisu` crate, its largest mip level), told apart by
 /// their first bytes (the glTF mimeType is not always given, nor right).
 fn decode_image(bytes: &[u8]) -> Result<image::DynamicImage, String> {
     use image::ImageFormat;
+    const KTX2: [u8; 12] = [0xab, b'K', b'T', b'X', b' ', b'2', b'0', 0xbb, b'\r', b'\n', 0x1a, b'\n'];
+    if bytes.starts_with(&KTX2) {
+        let t = basisu::Transcoder::new(bytes).map_err(|e| format!("KTX2: {e:?}"))?;
+        let (w, h) = t.base_dimensions();
+        let rgba = t
+            .transcode(0, basisu::TargetFormat::Rgba32, basisu::DecodeFlags::NONE)
+            .map_err(|e| format!("KTX2 ({:?}): {e:?}", t.source_format()))?;
+        return image::RgbaImage::from_raw(w, h, rgba)
+            .map(image::DynamicImage::ImageRgba8)
+            .ok_or_else(|| format!("KTX2: {w} x {h} texels do not fit what it decodes to"));
+    }
     let format = image::guess_format(bytes).map_err(|_| "not a PNG, JPEG or WebP image".to_string())?;
     if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::WebP) {
         return Err(format!("a {format:?} image, which glTF does not allow (PNG, JPEG or WebP)"));

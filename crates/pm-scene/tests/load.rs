@@ -182,22 +182,24 @@ fn with_extensions(required: &[&str], used: &[&str]) -> PathBuf {
     path
 }
 
-/// A file that requires an extension not read (KTX2 images) is refused in one line that names it and says how to get a file without it,
-/// not in a list of the accessors it leaves without data; two name the first
-/// and count the rest. One used but not required is a warning naming it and
-/// what is lost.
+/// A file that requires an extension not read (the old specular-glossiness
+/// materials) is refused in one line that names it and says how to get a file
+/// without it, not in a list of the accessors it leaves without data; two name
+/// the first and count the rest. One used but not required is a warning naming
+/// it and what is lost.
 #[test]
 fn extensions_not_read_are_named_with_what_they_need_or_lose() {
-    let meshopt = "EXT_meshopt_compression";
-    let path = with_extensions(&[meshopt], &[meshopt]);
-    let e = load(&path).err().expect("a meshopt file is refused");
+    let gloss = "KHR_materials_pbrSpecularGlossiness";
+    let path = with_extensions(&[gloss], &[gloss]);
+    let e = load(&path).err().expect("a specular-glossiness file is refused");
     let err = e.to_string();
     assert!(matches!(e, pm_scene::SceneError::Unsupported { .. }), "{err}");
-    assert_one_line_naming(&err, &path, &meshopt.to_lowercase());
-    assert!(err.contains("gltfpack without -c") && !err.contains("Missing data"), "{err}");
-    let path = with_extensions(&["KHR_texture_basisu", meshopt], &["KHR_texture_basisu", meshopt]);
+    assert_one_line_naming(&err, &path, &gloss.to_lowercase());
+    assert!(err.contains("metallic-roughness") && !err.contains("Missing data"), "{err}");
+    let ibl = "EXT_lights_image_based";
+    let path = with_extensions(&[gloss, ibl], &[gloss, ibl]);
     let err = load(&path).err().unwrap().to_string();
-    assert!(err.contains("KHR_texture_basisu (and 1 more: EXT_meshopt_compression)") && err.contains("PNG"), "{err}");
+    assert!(err.contains("KHR_materials_pbrSpecularGlossiness (and 1 more: EXT_lights_image_based)"), "{err}");
     let s = load(&with_extensions(&[], &["KHR_materials_iridescence"])).unwrap();
     let warned: Vec<&String> = s.warnings.iter().filter(|w| w.contains("KHR_materials_iridescence")).collect();
     assert!(warned.len() == 1 && warned[0].contains("iridescence is not drawn"), "{:?}", s.warnings);

@@ -757,6 +757,34 @@ fn a_blender_tile_read_with_closest_interpolation_shows_its_texels_unblended() {
     assert!(checked >= 300, "{checked} points on the tile's top face");
 }
 
+/// The coated room's tile as KTX2 images with Basis Universal data
+/// (KHR_texture_basisu, required, no PNG fallback; encoded by Basis Universal's
+/// own encoder, tests/scenes/blender_coated/ktx2_tile.mjs): they were refused.
+/// UASTC (zstd-supercompressed) gives back every texel of the PNG exactly;
+/// ETC1S (BasisLZ) loads with its codec's loss, which is large on a 4 x 4 image
+/// of two colours (one ETC1 block, a base colour per half): the lilac texels
+/// (140, 115, 191) come back as (144, 119, 160), the yellow pair as a light
+/// lilac (182, 157, 198).
+#[test]
+fn ktx2_images_load_with_the_texels_basis_universal_gives_back() {
+    let dir = Path::new("../tests/scenes/blender_coated");
+    let tile = |s: &pm_scene::Scene| {
+        let o = s.objects.iter().find(|o| o.name.starts_with("floor_tile")).unwrap();
+        s.textures[s.materials[o.material as usize].base_texture.unwrap().texture as usize].clone()
+    };
+    let png = tile(&load(&dir.join("blender_coated.gltf")).unwrap());
+    let uastc_scene = load(&dir.join("blender_coated_ktx2.gltf")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(uastc_scene.warnings.is_empty(), "{:?}", uastc_scene.warnings);
+    let uastc = tile(&uastc_scene);
+    assert_eq!((uastc.width, uastc.height, uastc.filter, uastc.srgb), (4, 4, pm_scene::Filter::Nearest, true));
+    assert_eq!(uastc.texels, png.texels);
+    let etc1s = tile(&load(&dir.join("blender_coated_ktx2_etc1s.gltf")).unwrap_or_else(|e| panic!("{e}")));
+    let lilac = png.texels[0];
+    let near = |a: [u8; 4], b: [u8; 4]| (0..3).all(|k| (a[k] as i32 - b[k] as i32).abs() <= 32);
+    let kept = etc1s.texels.iter().zip(&png.texels).filter(|(e, p)| **p == lilac && near(**e, **p)).count();
+    assert_eq!((etc1s.width, etc1s.height, kept), (4, 4, 14), "{:?}", etc1s.texels);
+}
+
 /// The same Blender scene exported with WebP images (Blender's Images: WebP
 /// option, tests/blender/coated_room.py --webp): the texture has no `source`,
 /// only EXT_texture_webp's, and the file requires the extension. It was refused

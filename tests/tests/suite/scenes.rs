@@ -9,8 +9,8 @@ fn committed_scenes_are_up_to_date() {
 }
 
 /// A scene that requires a glTF extension the renderer does not read (here a
-/// committed scene marked as needing KTX2 images, its first accessor's data
-/// gone as well) stops `cargo xtask run` before anything is written, with the
+/// committed scene marked as needing the old specular-glossiness materials,
+/// its first accessor's data gone as well) stops `cargo xtask run` before anything is written, with the
 /// stage's one line naming the file and the extension and exit code 2 (kept
 /// through the runner, `pm_stage::is_unsupported`); a stage run alone exits with
 /// 2 and writes no image.
@@ -21,10 +21,10 @@ fn a_scene_needing_an_extension_not_read_stops_the_run_with_exit_code_2_and_no_o
     let mut g: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(scenes.join("cornell_boxes.gltf")).unwrap()).unwrap();
     g["accessors"][0].as_object_mut().unwrap().remove("bufferView");
-    g["extensionsRequired"] = serde_json::json!(["KHR_texture_basisu"]);
-    g["extensionsUsed"] = serde_json::json!(["KHR_texture_basisu"]);
+    g["extensionsRequired"] = serde_json::json!(["KHR_materials_pbrSpecularGlossiness"]);
+    g["extensionsUsed"] = serde_json::json!(["KHR_materials_pbrSpecularGlossiness"]);
     std::fs::copy(scenes.join("cornell_boxes.bin"), dir.path().join("cornell_boxes.bin")).unwrap();
-    let scene = dir.path().join("ktx2.gltf");
+    let scene = dir.path().join("glossiness.gltf");
     std::fs::write(&scene, g.to_string()).unwrap();
     let out = dir.path().join("out");
     let args = pm_runner::run::RunArgs { scene: Some(scene.clone()), out: Some(out.clone()), ..Default::default() };
@@ -32,7 +32,10 @@ fn a_scene_needing_an_extension_not_read_stops_the_run_with_exit_code_2_and_no_o
     let e = pm_runner::run::run_with(&args, &root, &pm_tests::bins()).err().expect("the run succeeded");
     let msg = format!("{e:#}");
     assert!(pm_stage::is_unsupported(&e), "{msg}");
-    assert!(msg.contains("ktx2.gltf") && msg.contains("KHR_texture_basisu") && !msg.contains('\n'), "{msg}");
+    assert!(
+        msg.contains("glossiness.gltf") && msg.contains("KHR_materials_pbrSpecularGlossiness") && !msg.contains('\n'),
+        "{msg}"
+    );
     assert!(!out.exists(), "the run created {}", out.display());
     let image = dir.path().join("image.exr");
     let status = std::process::Command::new(pm_tests::bins().path("photon-render"))
@@ -130,7 +133,9 @@ fn gltfpacks_quantised_scenes_load_and_render_as_their_originals() {
 /// pixel: bias 0.001%), within 1.5% and 10% with WebP too, whose lossy tile is
 /// 3-8% darker in its blocks (Blender's WebP export is lossy; the texels are
 /// the ones Blender decodes, `materials::blenders_webp_export_loads_with_the_texels_blender_decodes`).
-/// Draco files were refused (`KHR_draco_mesh_compression` required) until stop 74.
+/// The tile as a KTX2 image with UASTC data gives the same image exactly. Draco
+/// and KTX2 files were refused (`KHR_draco_mesh_compression`,
+/// `KHR_texture_basisu` required) until stop 74.
 #[test]
 fn blenders_draco_and_webp_exports_render_as_the_uncompressed_one() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/scenes/blender_coated");
@@ -145,9 +150,13 @@ fn blenders_draco_and_webp_exports_render_as_the_uncompressed_one() {
     let plain = image("blender_coated.gltf");
     let bright: Vec<bool> = plain.total().iter().map(|p| p.max_element() > 8.0).collect();
     let keep = pm_image::accuracy::left_out_with_neighbours(&bright, 32, 32);
-    for (name, mean, worst) in
-        [("blender_coated_draco.gltf", 0.003, 0.03), ("blender_coated_draco_webp.gltf", 0.015, 0.10)]
-    {
+    for (name, mean, worst) in [
+        ("blender_coated_draco.gltf", 0.003, 0.03),
+        ("blender_coated_draco_webp.gltf", 0.015, 0.10),
+        // The tile as KTX2 with UASTC data (KHR_texture_basisu): its texels
+        // come back exactly, so the image is the PNG twin's.
+        ("blender_coated_ktx2.gltf", 1e-6, 1e-6),
+    ] {
         let g = pm_image::accuracy::agreement(&image(name).total().to_vec(), &plain.total().to_vec(), 32, &keep, 8);
         eprintln!("{name} against the uncompressed export: {g}");
         assert!(g.mean.abs() < mean && g.worst_block < worst, "{name}: {g}");
