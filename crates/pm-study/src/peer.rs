@@ -1,7 +1,8 @@
 //! `cargo xtask peer`: our path tracer against Mitsuba 3's on the same scene, size,
 //! depth and sample count (issue 40, goal 1). Each glTF scene is translated into a
 //! Mitsuba scene (XML with binary PLY meshes): Lambertian, mirror and smooth glass
-//! materials, one-sided area lights and point lights, the perspective camera and a
+//! materials, white (anisotropic) GGX metals as `roughconductor` (alpha_u along
+//! the texture coordinates' dp/du, as our tangents run), one-sided area lights and point lights, the perspective camera and a
 //! box pixel filter; anything else is refused with the reason, since a comparison of
 //! different scenes would be no comparison. Both renderers then run alternately
 //! (`--runs` times; the best time of each counts, Mitsuba's after a warm-up render
@@ -140,6 +141,9 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
     if m.alpha_mode != pm_scene::AlphaMode::Opaque {
         return Err(format!("material {}: alpha is not translated", m.name));
     }
+    if m.layers.any() || m.layers.anisotropy_rotation != 0.0 {
+        return Err(format!("material {}: layer textures and anisotropy rotation are not translated", m.name));
+    }
     Ok(match m.bsdf {
         // Our reflecting BSDFs shade both sides (the normal is turned to the ray's
         // side); Mitsuba's are black from behind unless two-sided.
@@ -161,6 +165,18 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
                 rgb(tint)
             )
         }
+        // A white metal's Schlick Fresnel is 1 at every angle: Mitsuba's
+        // roughconductor of material "none" (F = 1), its alpha_u along the shading
+        // frame's dp/du, which the PLY's texture coordinates give, as ours follows
+        // the tangents generated from them (KHR_materials_anisotropy).
+        Bsdf::Layered(l)
+            if l.metal && l.f0 == pm_color::Rgb::ONE && l.coat == 0.0 && l.sheen == pm_color::Rgb::ZERO =>
+        {
+            format!(
+                "<bsdf type=\"twosided\"><bsdf type=\"roughconductor\"><string name=\"distribution\" value=\"ggx\"/><float name=\"alpha_u\" value=\"{}\"/><float name=\"alpha_v\" value=\"{}\"/><string name=\"material\" value=\"none\"/></bsdf></bsdf>",
+                l.alpha.x, l.alpha.y
+            )
+        }
         Bsdf::Conductor { .. } | Bsdf::Plastic { .. } | Bsdf::Layered(_) => {
             return Err(format!(
                 "material {}: rough conductors, the glTF dielectric and its coat, sheen and anisotropy have no equal in Mitsuba (its Fresnel terms differ)",
@@ -177,6 +193,7 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
 fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>, behind: f32) -> Result<()> {
     let list = &scene.triangles[tris.start as usize..tris.end as usize];
     let normals = list.iter().all(|t| t.n.is_some());
+    let uvs = list.iter().all(|t| t.uv().is_some());
     let mut out = Vec::new();
     let mut header = format!(
         "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
@@ -184,6 +201,9 @@ fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>, behind: f32
     );
     if normals {
         header.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+    }
+    if uvs {
+        header.push_str("property float u\nproperty float v\n");
     }
     let _ = write!(header, "element face {}\nproperty list uchar int vertex_indices\nend_header\n", list.len());
     out.extend_from_slice(header.as_bytes());
@@ -194,6 +214,9 @@ fn write_ply(path: &Path, scene: &Scene, tris: std::ops::Range<u32>, behind: f32
             let mut v = (t.p[k] + shift).to_array().to_vec();
             if let Some(n) = t.n.filter(|_| normals) {
                 v.extend((n[k] * turn).to_array());
+            }
+            if let Some(uv) = t.uv().filter(|_| uvs) {
+                v.extend(uv[k].to_array());
             }
             for x in v {
                 out.extend_from_slice(&x.to_le_bytes());
@@ -241,6 +264,11 @@ pub(crate) fn translate(scene: &Scene, name: &str, dir: &Path, size: u32, spp: u
     for (i, o) in scene.objects.iter().enumerate() {
         let m = &scene.materials[o.material as usize];
         let bsdf = bsdf_xml(scene, m).map_err(refuse)?;
+        let tris = &scene.triangles[o.tris.start as usize..o.tris.end as usize];
+        if matches!(m.bsdf, Bsdf::Layered(l) if l.alpha.x != l.alpha.y) && !tris.iter().all(|t| t.uv().is_some()) {
+            // Without texture coordinates the two shading frames are unrelated.
+            return Err(refuse(format!("material {}: anisotropy on a mesh without texture coordinates", m.name)));
+        }
         let ply = format!("mesh_{i}.ply");
         write_ply(&dir.join(&ply), scene, o.tris.clone(), 0.0)?;
         let mut emitter = String::new();
