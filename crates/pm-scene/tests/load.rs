@@ -343,6 +343,53 @@ fn damaged_meshopt_data_is_one_line_naming_the_view() {
     );
 }
 
+/// The coat's, sheen's and anisotropy's textures are read with their channels and
+/// KHR_texture_transform: on textured.gltf's 2 x 1 texture (sRGB red left,
+/// sRGB 188 blue right, NEAREST), clearcoatTexture's R is 1 on the left and 0
+/// on the right, and an offset of half the width swaps them; sheenColorTexture
+/// is decoded from sRGB; anisotropyTexture's B multiplies the strength (0 on the
+/// red texel: isotropic there).
+#[test]
+fn layer_textures_are_read_with_their_channels_and_transforms() {
+    let dir = tempfile::tempdir().unwrap().keep();
+    let mut g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("textured.gltf")).unwrap()).unwrap();
+    let bsdf = |g: &serde_json::Value, x: f32| {
+        let path = dir.join("layers.gltf");
+        std::fs::write(&path, g.to_string()).unwrap();
+        let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let h = s.intersect(Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+        s.bsdf(&h)
+    };
+    let probe = |g: &serde_json::Value, x: f32| match bsdf(g, x) {
+        pm_bsdf::Bsdf::Layered(l) => l,
+        other => panic!("{other:?}"),
+    };
+    g["materials"][0]["extensions"] = serde_json::json!({
+        "KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatTexture": {"index": 0}},
+        "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0], "sheenColorTexture": {"index": 0}},
+    });
+    g["extensionsUsed"] = serde_json::json!(["KHR_materials_clearcoat", "KHR_materials_sheen"]);
+    let (left, right) = (probe(&g, 0.25), probe(&g, 0.75));
+    assert!(left.coat == 1.0 && right.coat == 0.0, "{} {}", left.coat, right.coat);
+    let blue = pm_color::srgb_decode(188.0 / 255.0);
+    assert!((left.sheen - Vec3::X).length() < 1e-6 && (right.sheen - Vec3::new(0.0, 0.0, blue)).length() < 1e-5);
+    g["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatTexture"]["extensions"] =
+        serde_json::json!({"KHR_texture_transform": {"offset": [0.5, 0.0]}});
+    let (left, right) = (probe(&g, 0.25), probe(&g, 0.75));
+    assert!(left.coat == 0.0 && right.coat == 1.0, "with the offset: {} {}", left.coat, right.coat);
+    g["materials"][0]["pbrMetallicRoughness"]["metallicFactor"] = serde_json::json!(1.0);
+    g["materials"][0]["pbrMetallicRoughness"]["roughnessFactor"] = serde_json::json!(0.5);
+    g["materials"][0]["extensions"] = serde_json::json!({
+        "KHR_materials_anisotropy": {"anisotropyStrength": 1.0, "anisotropyTexture": {"index": 0}}
+    });
+    g["extensionsUsed"] = serde_json::json!(["KHR_materials_anisotropy"]);
+    // Strength 0 on the red texel: the plain isotropic conductor there.
+    assert!(matches!(bsdf(&g, 0.25), pm_bsdf::Bsdf::Conductor { .. }), "{:?}", bsdf(&g, 0.25));
+    let right = probe(&g, 0.75);
+    assert!(right.alpha.x > right.alpha.y, "{:?}", right.alpha);
+}
+
 /// KHR_materials_anisotropy's rotation turns the direction counter-clockwise in
 /// the tangent plane: a quarter turn runs it along the bitangent; a material
 /// without TANGENTs gets them generated from its UVs.
