@@ -157,7 +157,9 @@ impl Layered {
         (1.0 - self.spec_albedo(mu)) * self.sheen_leaves(mu) * self.coat_leaves(mu)
     }
 
-    /// The base frame at normal `n`: x along the anisotropy direction.
+    /// The base frame at normal `n`: x along the anisotropy direction (without
+    /// one, `basis(n)`'s, which lies the same way for `n` and `-n`: renderers
+    /// pass the normal turned toward the viewer or not).
     fn base_frame(&self, n: Vec3) -> (Vec3, Vec3) {
         let t = self.tangent - n * n.dot(self.tangent);
         if t.length_squared() > 1e-8 {

@@ -324,3 +324,27 @@ fn a_coated_dielectric_splits_into_its_base_and_its_layers_without_losing_light(
         assert!((parts - whole).abs().max_element() < 0.02, "cos {cos}: parts {parts}, whole {whole}");
     }
 }
+
+/// Without a tangent (a mesh with neither tangents nor texture coordinates) an
+/// anisotropic lobe lies the same way whether a renderer passes the normal
+/// turned toward the viewer or not.
+#[test]
+fn an_anisotropic_lobe_without_a_tangent_does_not_turn_with_the_normals_sign() {
+    let bsdf = Bsdf::from_pbr(&Pbr { metallic: 1.0, roughness: 0.4, anisotropy: 0.9, ..Pbr::dielectric(Rgb::ONE) });
+    let Bsdf::Layered(l) = bsdf else { panic!("{bsdf:?}") };
+    assert_eq!(l.tangent, Vec3::ZERO);
+    for n in [Vec3::Z, Vec3::new(0.3, -0.5, 0.2).normalize(), Vec3::X, Vec3::new(0.0, 0.6, 0.0).normalize()] {
+        for i in 0..64u64 {
+            let mut s = Sampler::new(4, i);
+            let (a, b) = (s.next_2d(), s.next_2d());
+            let (t, bt) = basis(n);
+            let local = |u: Vec2| {
+                let d = dir(u.x.max(0.05), TAU * u.y);
+                t * d.x + bt * d.y + n * d.z
+            };
+            let (wo, wi) = (local(a), local(b));
+            let (f1, f2) = (bsdf.f(wo, wi, n), bsdf.f(wo, wi, -n));
+            assert!((f1 - f2).abs().max_element() <= 1e-4 * f1.max_element().max(1.0), "n {n}: {f1} against {f2}");
+        }
+    }
+}

@@ -8,8 +8,11 @@
 //! slabs, some standing nearly touching a wall or another object: gaps from 0.1 mm
 //! to 5 cm) of diffuse, mirror, glass or rough metal, one or two lights (one- or
 //! two-sided area lights, some close to a surface; point, spot, sun), sometimes an
-//! index-matched box of fog (inset, touching or crossing the walls), and a root
-//! node that scales the whole by 1e-3 to 1e4 and moves it up to 1e6 m away.
+//! index-matched box of fog (inset, touching or crossing the walls), a root
+//! node that scales the whole by 1e-3 to 1e4 and moves it up to 1e6 m away, and
+//! in two scenes of five Blender's layered materials (issue 54: the rough metal
+//! brushed, diffuse objects clear-coated or velvet), drawn from a stream of their
+//! own so the rest of every scene is what it was before they were added.
 
 use crate::gltf::Doc;
 use crate::scenes::{block, chrome_and_glass, diffuse, emitter, fog_box, merge, quad, sphere};
@@ -32,6 +35,8 @@ pub struct Recipe {
     pub lights: Vec<String>,
     /// The fog box, if any: where it sits and its extinction [m^-1].
     pub fog: Option<String>,
+    /// Clear coats, sheen and anisotropy given to its materials (issue 54).
+    pub layers: Vec<String>,
     /// The root node's uniform scale.
     pub scale: f64,
     /// The root node's translation \[m\].
@@ -68,7 +73,8 @@ impl Rng {
 
 /// Scene `index` of the scenes of `seed`, and what it holds.
 pub fn scene(seed: u64, index: u32) -> (Doc, Recipe) {
-    let mut r = Rng(seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ (index as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+    let key = seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ (index as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    let mut r = Rng(key);
     let mut doc = Doc::default();
     let mut recipe = Recipe { seed, index, ..Default::default() };
     let open = r.chance(0.25);
@@ -100,7 +106,44 @@ pub fn scene(seed: u64, index: u32) -> (Doc, Recipe) {
         let scale = [recipe.scale; 3];
         doc.root = Some(json!({"name": "root", "translation": recipe.offset, "scale": scale}));
     }
+    // Blender's layered materials, from a stream of their own so that every
+    // other choice of the scene is what it was before they were added.
+    let mut rl = Rng(key ^ 0x1a7e_12ed_c0a7_5eed);
+    if rl.chance(0.4) {
+        recipe.layers = layers(&mut doc, &mut rl);
+    }
     (doc, recipe)
+}
+
+/// Clear coats, sheen and anisotropy (KHR_materials_clearcoat, _sheen,
+/// _anisotropy) on the scene's objects: the rough metal brushed (its direction
+/// whatever the surface's frame is: the generated meshes have no texture
+/// coordinates), each diffuse object coated or velvet half the time.
+fn layers(doc: &mut Doc, r: &mut Rng) -> Vec<String> {
+    let mut out = Vec::new();
+    for i in 0..doc.materials.len() {
+        let name = doc.materials[i]["name"].as_str().unwrap_or("").to_owned();
+        let ext = if name == "rough_metal" {
+            let (s, rot) = (r.range(0.3, 0.9), r.range(0.0, std::f32::consts::PI));
+            out.push(format!("{name}: anisotropy {s:.2} at {rot:.2} rad"));
+            ("KHR_materials_anisotropy", json!({"anisotropyStrength": s, "anisotropyRotation": rot}))
+        } else if name.starts_with("object_") && r.chance(0.5) {
+            if r.chance(0.5) {
+                let (c, rough) = (r.range(0.5, 1.0), r.range(0.0, 0.3));
+                out.push(format!("{name}: clear coat {c:.2}, roughness {rough:.2}"));
+                ("KHR_materials_clearcoat", json!({"clearcoatFactor": c, "clearcoatRoughnessFactor": rough}))
+            } else {
+                let (c, rough) = ([r.range(0.3, 1.0), r.range(0.3, 1.0), r.range(0.3, 1.0)], r.range(0.3, 0.8));
+                out.push(format!("{name}: sheen {c:.2?}, roughness {rough:.2}"));
+                ("KHR_materials_sheen", json!({"sheenColorFactor": c, "sheenRoughnessFactor": rough}))
+            }
+        } else {
+            continue;
+        };
+        doc.materials[i]["extensions"][ext.0] = ext.1;
+        doc.extensions.push(ext.0);
+    }
+    out
 }
 
 /// The room: a floor, back and side walls of random colours, and a ceiling unless
