@@ -11,7 +11,8 @@
 
 use std::sync::LazyLock;
 
-/// Grid points in mu (cosine of the direction, 0..1) and alpha (MIN_ALPHA..1).
+/// Grid points in mu (cosine of the direction, 0..1) and in alpha (MIN_ALPHA..1)
+/// or sheen roughness (MIN_SHEEN_ROUGHNESS..1), for both tables.
 const N: usize = 32;
 /// Half vectors per grid point.
 const SAMPLES: u32 = 1024;
@@ -74,24 +75,30 @@ static TABLES: LazyLock<Tables> = LazyLock::new(|| {
 
 /// Fractional grid coordinate of `alpha`.
 fn alpha_coord(alpha: f32) -> (usize, f32) {
-    let x = ((alpha - crate::MIN_ALPHA) / (1.0 - crate::MIN_ALPHA)).clamp(0.0, 1.0) * (N - 1) as f32;
+    grid_coord((alpha - crate::MIN_ALPHA) / (1.0 - crate::MIN_ALPHA))
+}
+
+/// The cell and fraction of `x` in [0, 1] on a grid of `N` points spanning it.
+fn grid_coord(x: f32) -> (usize, f32) {
+    let x = x.clamp(0.0, 1.0) * (N - 1) as f32;
     let j = (x as usize).min(N - 2);
     (j, x - j as f32)
+}
+
+/// Table `tab` (row-major in mu, `N` x `N`) read bilinearly at cosine `mu` and
+/// the column coordinate `(j, fy)`.
+fn bilinear(tab: &[f32], mu: f32, (j, fy): (usize, f32)) -> f32 {
+    let (i, fx) = grid_coord(mu);
+    let v = |ii: usize, jj: usize| tab[ii * N + jj];
+    (v(i, j) * (1.0 - fx) + v(i + 1, j) * fx) * (1.0 - fy) + (v(i, j + 1) * (1.0 - fx) + v(i + 1, j + 1) * fx) * fy
 }
 
 /// Directional albedo of the GGX layer with normal-incidence reflectance `f0`
 /// (scalar) at cos(theta) = `mu`: F0 A + B, in [0, 1].
 pub(crate) fn layer_albedo(f0: f32, mu: f32, alpha: f32) -> f32 {
     let t = &*TABLES;
-    let x = mu.clamp(0.0, 1.0) * (N - 1) as f32;
-    let i = (x as usize).min(N - 2);
-    let fx = x - i as f32;
-    let (j, fy) = alpha_coord(alpha);
-    let at = |tab: &[f32]| {
-        let v = |ii: usize, jj: usize| tab[ii * N + jj];
-        (v(i, j) * (1.0 - fx) + v(i + 1, j) * fx) * (1.0 - fy) + (v(i, j + 1) * (1.0 - fx) + v(i + 1, j + 1) * fx) * fy
-    };
-    (f0 * at(&t.a) + at(&t.b)).clamp(0.0, 1.0)
+    let c = alpha_coord(alpha);
+    (f0 * bilinear(&t.a, mu, c) + bilinear(&t.b, mu, c)).clamp(0.0, 1.0)
 }
 
 /// The least value over mu of [`layer_albedo`] (at the grid's cosines).
@@ -107,8 +114,6 @@ pub(crate) fn layer_albedo_mean(f0: f32, alpha: f32) -> f32 {
     (f0 * lerp(&t.a_mean) + lerp(&t.b_mean)).clamp(0.0, 1.0)
 }
 
-/// Grid points of the sheen table in mu and in sheen roughness.
-const NS: usize = 32;
 /// Midpoint quadrature per sheen grid point: this many cosines times as many azimuths.
 const SHEEN_Q: usize = 64;
 
@@ -122,22 +127,18 @@ struct SheenTable {
 
 fn sheen_roughness_at(j: usize) -> f32 {
     let r0 = crate::layered::MIN_SHEEN_ROUGHNESS;
-    r0 + (1.0 - r0) * j as f32 / (NS - 1) as f32
-}
-
-fn sheen_mu_at(i: usize) -> f32 {
-    (i as f32 / (NS - 1) as f32).max(1e-3)
+    r0 + (1.0 - r0) * j as f32 / (N - 1) as f32
 }
 
 /// Integrated once per process (when a sheen is first met) by midpoint
 /// quadrature over cos(theta_i) and phi: E_s(mu) = int f_sheen cos_i dw_i.
 static SHEEN: LazyLock<SheenTable> = LazyLock::new(|| {
     use glam::Vec3;
-    let mut e = vec![0.0; NS * NS];
-    for j in 0..NS {
+    let mut e = vec![0.0; N * N];
+    for j in 0..N {
         let r = sheen_roughness_at(j);
-        for i in 0..NS {
-            let mu = sheen_mu_at(i);
+        for i in 0..N {
+            let mu = mu_at(i);
             let lo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
             let mut sum = 0.0f64;
             for a in 0..SHEEN_Q {
@@ -150,33 +151,23 @@ static SHEEN: LazyLock<SheenTable> = LazyLock::new(|| {
                 }
             }
             // dw = dz dphi: the grid's cell is (1 / Q) (2 pi / Q).
-            e[i * NS + j] = (sum * std::f64::consts::TAU / (SHEEN_Q * SHEEN_Q) as f64) as f32;
+            e[i * N + j] = (sum * std::f64::consts::TAU / (SHEEN_Q * SHEEN_Q) as f64) as f32;
         }
     }
-    let least = (0..NS).map(|j| (0..NS).map(|i| e[i * NS + j]).fold(f32::INFINITY, f32::min)).collect();
+    let least = (0..N).map(|j| (0..N).map(|i| e[i * N + j]).fold(f32::INFINITY, f32::min)).collect();
     SheenTable { e, least }
 });
 
 /// Fractional grid coordinate of sheen alpha (= roughness^2).
 fn sheen_coord(alpha: f32) -> (usize, f32) {
     let r0 = crate::layered::MIN_SHEEN_ROUGHNESS;
-    let x = ((alpha.max(0.0).sqrt() - r0) / (1.0 - r0)).clamp(0.0, 1.0) * (NS - 1) as f32;
-    let j = (x as usize).min(NS - 2);
-    (j, x - j as f32)
+    grid_coord((alpha.max(0.0).sqrt() - r0) / (1.0 - r0))
 }
 
 /// Directional albedo of the Charlie sheen lobe of white colour at cos(theta) =
 /// `mu` and sheen alpha `alpha`, in [0, 1].
 pub(crate) fn sheen_albedo(mu: f32, alpha: f32) -> f32 {
-    let t = &*SHEEN;
-    let x = mu.clamp(0.0, 1.0) * (NS - 1) as f32;
-    let i = (x as usize).min(NS - 2);
-    let fx = x - i as f32;
-    let (j, fy) = sheen_coord(alpha);
-    let v = |ii: usize, jj: usize| t.e[ii * NS + jj];
-    let at =
-        (v(i, j) * (1.0 - fx) + v(i + 1, j) * fx) * (1.0 - fy) + (v(i, j + 1) * (1.0 - fx) + v(i + 1, j + 1) * fx) * fy;
-    at.clamp(0.0, 1.0)
+    bilinear(&SHEEN.e, mu, sheen_coord(alpha)).clamp(0.0, 1.0)
 }
 
 /// The least value over mu of [`sheen_albedo`] (a lower bound: the two

@@ -28,7 +28,10 @@
 //! layers' albedos rise together toward grazing and a white dielectric under a
 //! coat and sheen reflected 1.017 at normal incidence.)
 
-use crate::{BsdfSample, Lobe, MIN_ALPHA, Pbr, albedo, ggx_d, ggx_f, ggx_pdf, ggx_sample_h, reflect, schlick};
+use crate::{
+    BsdfSample, Lobe, MIN_ALPHA, Pbr, albedo, ggx_d, ggx_f, ggx_pdf, ggx_sample_h, layer_tint, reflect, schlick,
+    to_local, to_world,
+};
 use glam::{Vec2, Vec3};
 use pm_color::Rgb;
 use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
@@ -77,17 +80,42 @@ pub struct Layered {
     pub sheen: Rgb,
     /// Sheen alpha = sheenRoughness^2 (roughness at least [`MIN_SHEEN_ROUGHNESS`]).
     pub sheen_alpha: f32,
-    /// K = 2 int P(mu) mu dmu, the diffuse base's normalisation (module doc): set by
-    /// [`Layered::normalised`], which whoever changes the fields above calls.
-    pub diffuse_norm: f32,
+    /// K = 2 int P(mu) mu dmu, the diffuse base's normalisation, and the glossy
+    /// lobes' k_c and k_s (module doc): set by [`Layered::normalised`], which
+    /// whoever changes the fields above calls.
+    pub norms: Norms,
 }
 
-/// Local frames and cosines of one (wo, wi) pair, on wo's side of the surface.
+/// What [`Layered::normalised`] computes once from a model's fields rather than
+/// at every evaluation (k_c alone is a minimum over 32 table lookups).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Norms {
+    /// K = 2 int P(mu) mu dmu.
+    pub diffuse: f32,
+    /// k_c = 1 / (1 - c E_c,min).
+    pub coat: f32,
+    /// k_s = 1 / (1 - s E_s,min).
+    pub sheen: f32,
+}
+
+/// The two local frames at one wo, on wo's side of the surface, and wo in them.
 struct Frames {
-    /// wo in the base frame (z = normal, x = anisotropy direction), z > 0.
+    /// The base frame: x along the anisotropy direction, z the normal on wo's side.
+    base: [Vec3; 3],
+    /// The coat's frame: z its normal on wo's side.
+    coat: [Vec3; 3],
+    /// wo in the base frame, z > 0.
     lo: Vec3,
-    /// wo in the coat's frame (z = coat normal).
+    /// wo in the coat's frame.
     co: Vec3,
+}
+
+impl Frames {
+    /// A direction in both frames.
+    fn local(&self, w: Vec3) -> (Vec3, Vec3) {
+        let ([t, b, n], [tc, bc, nc]) = (self.base, self.coat);
+        (to_local(w, t, b, n), to_local(w, tc, bc, nc))
+    }
 }
 
 /// Per-lobe sampling probabilities at one wo (coat, sheen, specular, diffuse).
@@ -131,13 +159,14 @@ impl Layered {
             coat_normal: unit(p.coat_normal),
             sheen: p.sheen.clamp(Rgb::ZERO, Rgb::ONE),
             sheen_alpha: sr * sr,
-            diffuse_norm: 1.0,
+            norms: Norms { diffuse: 1.0, coat: 1.0, sheen: 1.0 },
         }
         .normalised()
     }
 
-    /// The same model with [`Self::diffuse_norm`] computed for its fields: K = 2
-    /// int P(mu) mu dmu by the midpoint rule at 32 cosines.
+    /// The same model with [`Self::norms`] computed for its fields: K = 2 int
+    /// P(mu) mu dmu by the midpoint rule at 32 cosines, k_c and k_s from the
+    /// layers' least albedos.
     pub fn normalised(self) -> Layered {
         const M: usize = 32;
         let k: f32 = (0..M)
@@ -148,7 +177,9 @@ impl Layered {
             .sum::<f32>()
             * 2.0
             / M as f32;
-        Layered { diffuse_norm: k.max(1e-4), ..self }
+        let coat = 1.0 / (1.0 - self.coat * albedo::layer_albedo_min(COAT_F0, self.coat_alpha)).max(1e-4);
+        let sheen = 1.0 / (1.0 - self.sheen_max() * albedo::sheen_albedo_min(self.sheen_alpha)).max(1e-4);
+        Layered { norms: Norms { diffuse: k.max(1e-4), coat, sheen }, ..self }
     }
 
     /// P(mu): what the coat, the sheen and the dielectric's own specular layer
@@ -199,19 +230,9 @@ impl Layered {
         1.0 - self.coat * albedo::layer_albedo(COAT_F0, mu, self.coat_alpha)
     }
 
-    /// k_c = 1 / (1 - c E_min) (module doc).
-    fn coat_k(&self) -> f32 {
-        1.0 / (1.0 - self.coat * albedo::layer_albedo_min(COAT_F0, self.coat_alpha)).max(1e-4)
-    }
-
     /// What the sheen leaves at cosine `mu`: 1 - s E_s(mu).
     fn sheen_leaves(&self, mu: f32) -> f32 {
         1.0 - self.sheen_max() * albedo::sheen_albedo(mu, self.sheen_alpha)
-    }
-
-    /// k_s = 1 / (1 - s E_min) (module doc).
-    fn sheen_k(&self) -> f32 {
-        1.0 / (1.0 - self.sheen_max() * albedo::sheen_albedo_min(self.sheen_alpha)).max(1e-4)
     }
 
     /// The dielectric's specular layer albedo L(mu) (its weight included).
@@ -219,18 +240,18 @@ impl Layered {
         self.spec_weight * albedo::layer_albedo(self.f0.max_element(), mu, self.alpha_iso())
     }
 
-    /// Local directions of wo (z > 0 after flipping to its side); None at grazing.
-    fn frames(&self, wo: Vec3, n: Vec3) -> Option<(Frames, f32)> {
-        let (t, b) = self.base_frame(n);
-        let side = wo.dot(n).signum();
+    /// The frames at wo, turned to its side of the surface; None at grazing.
+    fn frames(&self, wo: Vec3, n: Vec3) -> Option<Frames> {
         if wo.dot(n) == 0.0 || !wo.is_finite() {
             return None;
         }
-        let lo = Vec3::new(wo.dot(t), wo.dot(b), wo.dot(n)) * Vec3::new(1.0, 1.0, side);
+        let side = wo.dot(n).signum();
+        let (t, b) = self.base_frame(n);
         let nc = self.coat_n(n) * side;
         let (tc, bc) = basis(nc);
-        let co = Vec3::new(wo.dot(tc), wo.dot(bc), wo.dot(nc));
-        Some((Frames { lo, co }, side))
+        let mut f = Frames { base: [t, b, n * side], coat: [tc, bc, nc], lo: Vec3::ZERO, co: Vec3::ZERO };
+        (f.lo, f.co) = f.local(wo);
+        Some(f)
     }
 
     /// The lobes' sampling probabilities at wo: each lobe's share of what the
@@ -273,11 +294,11 @@ impl Layered {
         // The glossy lobes, each under what the layers above it leave.
         let mut glossy = aniso_ggx_f(lo, li, self.alpha, self.f0) * self.spec_weight;
         if self.sheen_max() > 0.0 {
-            glossy *= self.sheen_leaves(mu_o) * self.sheen_leaves(mu_i) * self.sheen_k();
+            glossy *= self.sheen_leaves(mu_o) * self.sheen_leaves(mu_i) * self.norms.sheen;
             glossy += self.sheen * charlie_f(lo, li, self.sheen_alpha);
         }
         if self.coat > 0.0 {
-            glossy *= self.coat_leaves(mu_o) * self.coat_leaves(mu_i) * self.coat_k();
+            glossy *= self.coat_leaves(mu_o) * self.coat_leaves(mu_i) * self.norms.coat;
             if co.z > 0.0 && ci.z > 0.0 {
                 glossy += ggx_f(co, ci, self.coat_alpha, Rgb::splat(COAT_F0)) * self.coat;
             }
@@ -285,7 +306,7 @@ impl Layered {
         if self.metal {
             return glossy;
         }
-        glossy + self.rho * (FRAC_1_PI * self.leaves(mu_o) * self.leaves(mu_i) / self.diffuse_norm)
+        glossy + self.rho * (FRAC_1_PI * self.leaves(mu_o) * self.leaves(mu_i) / self.norms.diffuse)
     }
 
     /// The mixture pdf [sr^-1] of the lobes at `probs`.
@@ -302,42 +323,31 @@ impl Layered {
         pdf
     }
 
-    /// wi in both local frames.
-    fn locals(&self, wi: Vec3, n: Vec3, side: f32) -> (Vec3, Vec3) {
-        let (t, b) = self.base_frame(n);
-        let li = Vec3::new(wi.dot(t), wi.dot(b), wi.dot(n)) * Vec3::new(1.0, 1.0, side);
-        let nc = self.coat_n(n) * side;
-        let (tc, bc) = basis(nc);
-        (li, Vec3::new(wi.dot(tc), wi.dot(bc), wi.dot(nc)))
-    }
-
     /// BSDF value f(wo, wi) [sr^-1] about shading normal `n`.
     pub fn f(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
-        let Some((fr, side)) = self.frames(wo, n) else { return Rgb::ZERO };
-        let (li, ci) = self.locals(wi, n, side);
+        let Some(fr) = self.frames(wo, n) else { return Rgb::ZERO };
+        let (li, ci) = fr.local(wi);
         self.f_local(fr.lo, li, fr.co, ci)
     }
 
     /// Solid-angle density of [`Self::sample`] drawing `wi` [sr^-1].
     pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
-        let Some((fr, side)) = self.frames(wo, n) else { return 0.0 };
-        let (li, ci) = self.locals(wi, n, side);
+        let Some(fr) = self.frames(wo, n) else { return 0.0 };
+        let (li, ci) = fr.local(wi);
         self.pdf_local(self.probs(&fr), fr.lo, li, fr.co, ci)
     }
 
     /// Draw wi: a lobe chosen by `uc` with [`Self::probs`], its direction by `u`;
     /// the weight is the whole f cos / the mixture pdf (one-sample MIS).
     pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        let (fr, side) = self.frames(wo, n)?;
+        let fr = self.frames(wo, n)?;
         let p = self.probs(&fr);
         let [pc, ps, pg, _] = p.0;
-        let (t, b) = self.base_frame(n);
-        let base_world = |l: Vec3| (t * l.x + b * l.y + n * (l.z * side)).normalize_or_zero();
+        let ([t, b, ns], [tc, bc, nc]) = (fr.base, fr.coat);
+        let base_world = |l: Vec3| to_world(l, t, b, ns);
         let (wi, lobe) = if uc < pc {
-            let nc = self.coat_n(n) * side;
-            let (tc, bc) = basis(nc);
             let ci = reflect(fr.co, ggx_sample_h(u, self.coat_alpha));
-            ((tc * ci.x + bc * ci.y + nc * ci.z).normalize_or_zero(), Lobe::Glossy)
+            (to_world(ci, tc, bc, nc), Lobe::Glossy)
         } else if uc < pc + ps {
             (base_world(cosine_hemisphere(u)), Lobe::Diffuse)
         } else if uc < pc + ps + pg {
@@ -345,7 +355,7 @@ impl Layered {
         } else {
             (base_world(cosine_hemisphere(u)), Lobe::Diffuse)
         };
-        let (li, ci) = self.locals(wi, n, side);
+        let (li, ci) = fr.local(wi);
         if li.z <= 0.0 {
             return None;
         }
@@ -363,29 +373,25 @@ impl Layered {
     /// base; each glossy lobe's share is its directional albedo at wo, a little
     /// above what it keeps under the layers above it.
     pub fn albedo(&self, wo: Vec3, n: Vec3) -> Rgb {
-        let Some((fr, _)) = self.frames(wo, n) else { return Rgb::ZERO };
+        let Some(fr) = self.frames(wo, n) else { return Rgb::ZERO };
         let (mu, mu_c) = (fr.lo.z.clamp(0.0, 1.0), fr.co.z.clamp(0.0, 1.0));
         let coat = self.coat * albedo::layer_albedo(COAT_F0, mu_c, self.coat_alpha);
         let e_s = albedo::sheen_albedo(mu, self.sheen_alpha);
-        let spec = if self.metal {
-            self.f0
-        } else {
-            let m = self.f0.max_element();
-            let tint = if m > 0.0 { self.f0 / m } else { Rgb::ONE };
-            tint * self.spec_albedo(mu)
-        };
+        let spec = if self.metal { self.f0 } else { layer_tint(self.f0) * self.spec_albedo(mu) };
         let glossy = Rgb::splat(coat) + (self.sheen * e_s + spec * self.sheen_leaves(mu)) * self.coat_leaves(mu);
-        glossy + self.diffuse_albedo(wo, n)
+        glossy + self.diffuse_albedo_at(mu)
     }
 
     /// The diffuse base's share of [`Self::albedo`] toward `wo`: rho P(mu_o)
     /// (zero for a metal).
     pub fn diffuse_albedo(&self, wo: Vec3, n: Vec3) -> Rgb {
-        let Some((fr, _)) = self.frames(wo, n) else { return Rgb::ZERO };
-        if self.metal {
-            return Rgb::ZERO;
-        }
-        self.rho * self.leaves(fr.lo.z.clamp(0.0, 1.0))
+        let Some(fr) = self.frames(wo, n) else { return Rgb::ZERO };
+        self.diffuse_albedo_at(fr.lo.z.clamp(0.0, 1.0))
+    }
+
+    /// rho P(mu) at the base's cosine `mu` (zero for a metal).
+    fn diffuse_albedo_at(&self, mu: f32) -> Rgb {
+        if self.metal { Rgb::ZERO } else { self.rho * self.leaves(mu) }
     }
 
     /// The sharpest GGX alpha among the lobes that reflect toward a direction

@@ -21,7 +21,7 @@ mod albedo;
 mod layered;
 mod phase;
 
-pub use layered::{COAT_F0, Layered, MIN_SHEEN_ROUGHNESS};
+pub use layered::{COAT_F0, Layered, MIN_SHEEN_ROUGHNESS, Norms};
 pub use phase::{HenyeyGreenstein, PhaseSample};
 
 /// One scattering model. Built once per material by the scene crate.
@@ -233,9 +233,7 @@ impl Bsdf {
             Bsdf::Lambert { rho } => rho,
             Bsdf::Plastic { f0, .. } => {
                 let Some(l) = self.layers(wo, n) else { return Rgb::ZERO };
-                let m = f0.max_element();
-                let tint = if m > 0.0 { f0 / m } else { Rgb::ONE };
-                l.base_albedo + tint * l.layer_albedo
+                l.base_albedo + layer_tint(f0) * l.layer_albedo
             }
             Bsdf::Conductor { f0, .. } => f0,
             Bsdf::Layered(l) => l.albedo(wo, n),
@@ -395,6 +393,14 @@ impl Bsdf {
         };
         (s.wi.is_finite() && s.weight.is_finite()).then_some(s)
     }
+}
+
+/// The colour of a specular layer of reflectance `f0`: F0 over its largest channel
+/// (white for a black F0). Its directional albedo, tabulated for that channel,
+/// times this is the layer's albedo per channel.
+fn layer_tint(f0: Rgb) -> Rgb {
+    let m = f0.max_element();
+    if m > 0.0 { f0 / m } else { Rgb::ONE }
 }
 
 #[inline]
