@@ -86,16 +86,17 @@ pub(crate) fn decode(
         let n = acc.dimensions().multiplicity();
         let mut values = att.read_f32s(vertices, n);
         if acc.normalized() {
-            // Integer components as the accessor's normalised type.
-            let scale = match att.data_type() {
-                DataType::Uint8 => Some((1.0 / 255.0, 0.0)),
-                DataType::Uint16 => Some((1.0 / 65535.0, 0.0)),
-                DataType::Int8 => Some((1.0 / 127.0, -1.0)),
-                DataType::Int16 => Some((1.0 / 32767.0, -1.0)),
+            // Integer components as the accessor's normalised type, by glTF's rule.
+            use gltf::accessor::DataType as Gl;
+            let ty = match att.data_type() {
+                DataType::Uint8 => Some(Gl::U8),
+                DataType::Uint16 => Some(Gl::U16),
+                DataType::Int8 => Some(Gl::I8),
+                DataType::Int16 => Some(Gl::I16),
                 _ => None,
             };
-            if let Some((s, least)) = scale {
-                values.iter_mut().for_each(|v| *v = (*v * s).max(least));
+            if let Some(ty) = ty {
+                values.iter_mut().for_each(|v| *v = crate::gltf_load::normalised(*v, ty));
             }
         }
         attributes.insert(name.clone(), (values, n));

@@ -1200,18 +1200,15 @@ fn read_floats<const N: usize>(acc: &gltf::Accessor, buffers: &[gltf::buffer::Da
     let stride = view.stride().unwrap_or(acc.size());
     let base = view.offset() + acc.offset();
     let component = |b: &[u8]| -> f32 {
-        match ty {
+        let c = match ty {
             DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
             DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
-            DataType::I8 if norm => (b[0] as i8 as f32 / 127.0).max(-1.0),
             DataType::I8 => b[0] as i8 as f32,
-            DataType::U8 if norm => b[0] as f32 / 255.0,
             DataType::U8 => b[0] as f32,
-            DataType::I16 if norm => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32767.0).max(-1.0),
             DataType::I16 => i16::from_le_bytes([b[0], b[1]]) as f32,
-            DataType::U16 if norm => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
             DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32,
-        }
+        };
+        if norm { normalised(c, ty) } else { c }
     };
     (0..acc.count())
         .map(|i| {
@@ -1219,6 +1216,20 @@ fn read_floats<const N: usize>(acc: &gltf::Accessor, buffers: &[gltf::buffer::Da
             std::array::from_fn(|k| component(&data[at + k * comp..at + (k + 1) * comp]))
         })
         .collect()
+}
+
+/// Integer component `c` of type `ty` as a normalised accessor reads it (glTF 2.0
+/// section 3.11): c / 255 or c / 65535 unsigned, max(c / 127, -1) or
+/// max(c / 32767, -1) signed; float and 32-bit components as they are.
+pub(crate) fn normalised(c: f32, ty: gltf::accessor::DataType) -> f32 {
+    use gltf::accessor::DataType;
+    match ty {
+        DataType::I8 => (c / 127.0).max(-1.0),
+        DataType::U8 => c / 255.0,
+        DataType::I16 => (c / 32767.0).max(-1.0),
+        DataType::U16 => c / 65535.0,
+        DataType::F32 | DataType::U32 => c,
+    }
 }
 
 /// Append a decoded primitive's triangles placed by `world` (normals by `normal_m`,
