@@ -34,8 +34,8 @@ import sys
 
 import bpy
 import room
-from material_room import image, sphere
-from room import principled, quad
+from material_room import ceiling_light, image, sphere
+from room import principled
 
 # The tile's texture: which texels are yellow. Blender's default cube UVs put
 # the top face (+Z) on u in [0.625, 0.875], v in [0.5, 0.75]: texel columns 2
@@ -85,11 +85,7 @@ def main(out, cycles_px, draco, webp, gltf_anisotropy):
     obj.scale = (0.5, 0.5, 0.01)
     obj.data.materials.append(tile_mat)
 
-    light_mat, bsdf = principled("ceiling_light", (0.0, 0.0, 0.0))
-    bsdf.inputs["Emission Color"].default_value = (1.0, 0.95, 0.85, 1.0)
-    bsdf.inputs["Emission Strength"].default_value = 12.0
-    lz = z - 0.01
-    quad("ceiling_light", [(-0.5, -0.5, lz), (-0.5, 0.5, lz), (0.5, 0.5, lz), (0.5, -0.5, lz)], light_mat)
+    ceiling_light(z)
 
     room.camera(scene)
     scene.render.resolution_x = scene.render.resolution_y = max(cycles_px, 128)

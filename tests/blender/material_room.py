@@ -69,6 +69,17 @@ def sphere(name, loc, radius, mat):
     return obj
 
 
+def ceiling_light(z):
+    """The room's light: an emissive 1 m quad 1 cm under the ceiling at height `z`
+    (what a Blender user's area light must become in glTF, which has none),
+    facing down."""
+    light_mat, bsdf = principled("ceiling_light", (0.0, 0.0, 0.0))
+    bsdf.inputs["Emission Color"].default_value = (1.0, 0.95, 0.85, 1.0)
+    bsdf.inputs["Emission Strength"].default_value = 12.0
+    lz = z - 0.01
+    quad("ceiling_light", [(-0.5, -0.5, lz), (-0.5, 0.5, lz), (0.5, 0.5, lz), (0.5, -0.5, lz)], light_mat)
+
+
 def main(out, cycles_px):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     os.makedirs(out, exist_ok=True)
@@ -109,14 +120,8 @@ def main(out, cycles_px):
     bsdf.inputs["IOR"].default_value = 1.5
     sphere("glass_sphere", (1.1, 0.4, 0.45), 0.45, glass)
 
-    # The room's light: an emissive quad under the ceiling (what a Blender user's
-    # area light must become in glTF, which has none), facing down. A point lamp
-    # would make the glass sphere's caustic a path no path tracer samples.
-    light_mat, bsdf = principled("ceiling_light", (0.0, 0.0, 0.0))
-    bsdf.inputs["Emission Color"].default_value = (1.0, 0.95, 0.85, 1.0)
-    bsdf.inputs["Emission Strength"].default_value = 12.0
-    lz = z - 0.01
-    quad("ceiling_light", [(-0.5, -0.5, lz), (-0.5, 0.5, lz), (0.5, 0.5, lz), (0.5, -0.5, lz)], light_mat)
+    # A point lamp would make the glass sphere's caustic a path no path tracer samples.
+    ceiling_light(z)
 
     room.camera(scene)
     # The exporter derives yfov from the render's aspect ratio: square, as ours renders.
