@@ -8,6 +8,20 @@ use pm_render::RenderParams;
 use pm_scene::Scene;
 use std::path::{Path, PathBuf};
 
+/// `image` against `reference` (both `width` wide) in 8 x 8 blocks, leaving out
+/// the reference's pixels above radiance 8 [W sr^-1 m^-2] and their neighbours:
+/// the Blender rooms' ceiling light (12), which no renderer draws alike at its
+/// edges; an emissive panel (6 at most) is kept.
+pub fn agreement_off_the_light(
+    image: &[glam::Vec3],
+    reference: &[glam::Vec3],
+    width: usize,
+) -> pm_image::accuracy::Agreement {
+    let bright: Vec<bool> = reference.iter().map(|p| p.max_element() > 8.0).collect();
+    let keep = pm_image::accuracy::left_out_with_neighbours(&bright, width, reference.len() / width);
+    pm_image::accuracy::agreement(image, reference, width, &keep, 8)
+}
+
 /// Path of a scene in the repository's `scenes/` folder.
 pub fn scene_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)

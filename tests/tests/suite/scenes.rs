@@ -106,9 +106,7 @@ fn gltfpacks_quantised_scenes_load_and_render_as_their_originals() {
         let (a, b) = (pm_scene::load(original).unwrap(), pm_scene::load(packed).unwrap());
         let (ia, _) = pm_tests::render(&a, &none, &cfg);
         let (ib, _) = pm_tests::render(&b, &none, &cfg);
-        let bright: Vec<bool> = ia.total().iter().map(|p| p.max_element() > 8.0).collect();
-        let keep = pm_image::accuracy::left_out_with_neighbours(&bright, 32, 32);
-        let g = pm_image::accuracy::agreement(&ib.total().to_vec(), &ia.total().to_vec(), 32, &keep, 8);
+        let g = pm_tests::agreement_off_the_light(ib.total(), ia.total(), 32);
         eprintln!("{} against the original: {g}", packed.display());
         assert!(g.mean.abs() < 0.005 && g.worst_block < 0.03, "{}: {g}", packed.display());
     }
@@ -148,8 +146,6 @@ fn blenders_draco_and_webp_exports_render_as_the_uncompressed_one() {
         pm_tests::render(&s, &none, &cfg).0
     };
     let plain = image("blender_coated.gltf");
-    let bright: Vec<bool> = plain.total().iter().map(|p| p.max_element() > 8.0).collect();
-    let keep = pm_image::accuracy::left_out_with_neighbours(&bright, 32, 32);
     for (name, mean, worst) in [
         ("blender_coated_draco.gltf", 0.003, 0.03),
         ("blender_coated_draco_webp.gltf", 0.015, 0.10),
@@ -157,7 +153,7 @@ fn blenders_draco_and_webp_exports_render_as_the_uncompressed_one() {
         // come back exactly, so the image is the PNG twin's.
         ("blender_coated_ktx2.gltf", 1e-6, 1e-6),
     ] {
-        let g = pm_image::accuracy::agreement(&image(name).total().to_vec(), &plain.total().to_vec(), 32, &keep, 8);
+        let g = pm_tests::agreement_off_the_light(image(name).total(), plain.total(), 32);
         eprintln!("{name} against the uncompressed export: {g}");
         assert!(g.mean.abs() < mean && g.worst_block < worst, "{name}: {g}");
     }
