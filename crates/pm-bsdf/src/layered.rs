@@ -29,7 +29,7 @@
 //! coat and sheen reflected 1.017 at normal incidence.)
 
 use crate::{
-    BsdfSample, Lobe, MIN_ALPHA, Pbr, albedo, ggx_d, ggx_f, ggx_pdf, ggx_sample_h, layer_tint, reflect, schlick,
+    BsdfSample, Film, Lobe, MIN_ALPHA, Pbr, albedo, ggx_d, ggx_f, ggx_g1, ggx_pdf, ggx_sample_h, reflect, schlick,
     to_local, to_world,
 };
 use glam::{Vec2, Vec3};
@@ -80,6 +80,8 @@ pub struct Layered {
     pub sheen: Rgb,
     /// Sheen alpha = sheenRoughness^2 (roughness at least [`MIN_SHEEN_ROUGHNESS`]).
     pub sheen_alpha: f32,
+    /// A thin film over the base's specular lobe ([`Film::NONE`]: none).
+    pub film: Film,
     /// K = 2 int P(mu) mu dmu, the diffuse base's normalisation, and the glossy
     /// lobes' k_c and k_s (module doc): set by [`Layered::normalised`], which
     /// whoever changes the fields above calls.
@@ -90,12 +92,16 @@ pub struct Layered {
 /// at every evaluation (k_c alone is a minimum over 32 table lookups).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Norms {
-    /// K = 2 int P(mu) mu dmu.
-    pub diffuse: f32,
+    /// K = 2 int P(mu) mu dmu, per channel.
+    pub diffuse: Rgb,
     /// k_c = 1 / (1 - c E_c,min).
     pub coat: f32,
     /// k_s = 1 / (1 - s E_s,min).
     pub sheen: f32,
+    /// The F0 per channel whose Schlick lobe stands for the base's specular lobe
+    /// in the albedo tables: [`Layered::f0`], or under a thin film the least F0
+    /// whose Schlick curve bounds the film's Fresnel.
+    pub f0: Rgb,
 }
 
 /// The two local frames at one wo, on wo's side of the surface, and wo in them.
@@ -159,7 +165,16 @@ impl Layered {
             coat_normal: unit(p.coat_normal),
             sheen: p.sheen.clamp(Rgb::ZERO, Rgb::ONE),
             sheen_alpha: sr * sr,
-            norms: Norms { diffuse: 1.0, coat: 1.0, sheen: 1.0 },
+            film: if p.iridescence > 0.0 {
+                Film {
+                    weight: p.iridescence.clamp(0.0, 1.0),
+                    ior: p.iridescence_ior.max(1.0),
+                    thickness: p.iridescence_thickness.max(0.0),
+                }
+            } else {
+                Film::NONE
+            },
+            norms: Norms { diffuse: Rgb::ONE, coat: 1.0, sheen: 1.0, f0 },
         }
         .normalised()
     }
@@ -169,23 +184,36 @@ impl Layered {
     /// layers' least albedos.
     pub fn normalised(self) -> Layered {
         const M: usize = 32;
-        let k: f32 = (0..M)
+        let f0 = if self.film.weight > 0.0 { self.lobe_f0(1.0) } else { self.f0 };
+        let this = Layered { norms: Norms { f0, ..self.norms }, ..self };
+        let k: Rgb = (0..M)
             .map(|i| {
                 let mu = (i as f32 + 0.5) / M as f32;
-                self.leaves(mu) * mu
+                this.leaves(mu) * mu
             })
-            .sum::<f32>()
+            .sum::<Rgb>()
             * 2.0
             / M as f32;
         let coat = 1.0 / (1.0 - self.coat * albedo::layer_albedo_min(COAT_F0, self.coat_alpha)).max(1e-4);
         let sheen = 1.0 / (1.0 - self.sheen_max() * albedo::sheen_albedo_min(self.sheen_alpha)).max(1e-4);
-        Layered { norms: Norms { diffuse: k.max(1e-4), coat, sheen }, ..self }
+        Layered { norms: Norms { diffuse: k.max(Rgb::splat(1e-4)), coat, sheen, f0 }, ..self }
     }
 
-    /// P(mu): what the coat, the sheen and the dielectric's own specular layer
-    /// leave for the diffuse base at cosine `mu` (module doc).
-    fn leaves(&self, mu: f32) -> f32 {
-        (1.0 - self.spec_albedo(mu)) * self.sheen_leaves(mu) * self.coat_leaves(mu)
+    /// The base's specular Fresnel at cosine `cos` to the half vector: Schlick's
+    /// of [`Self::f0`], mixed toward the film's by its weight. The film is lit from
+    /// air under a clear coat too: glTF's coat does not refract what reaches the
+    /// base (the base's Schlick term keeps its grazing rise under it), and the
+    /// film follows it, as the Khronos sample viewer does; the extension's
+    /// non-normative note would put the coat's index above the film.
+    fn fresnel(&self, cos: f32) -> Rgb {
+        let f = schlick(self.f0, cos);
+        if self.film.weight > 0.0 { f.lerp(self.film.reflectance(cos, 1.0, self.f0), self.film.weight) } else { f }
+    }
+
+    /// P(mu) per channel: what the coat, the sheen and the dielectric's own
+    /// specular layer leave for the diffuse base at cosine `mu` (module doc).
+    fn leaves(&self, mu: f32) -> Rgb {
+        (Rgb::ONE - self.spec_albedo(mu)) * (self.sheen_leaves(mu) * self.coat_leaves(mu))
     }
 
     /// The base frame at normal `n`: x along the anisotropy direction (without
@@ -235,9 +263,32 @@ impl Layered {
         1.0 - self.sheen_max() * albedo::sheen_albedo(mu, self.sheen_alpha)
     }
 
-    /// The dielectric's specular layer albedo L(mu) (its weight included).
-    fn spec_albedo(&self, mu: f32) -> f32 {
-        self.spec_weight * albedo::layer_albedo(self.f0.max_element(), mu, self.alpha_iso())
+    /// The F0 per channel whose Schlick curve meets the base's Fresnel at cosine
+    /// `mu`: [`Self::f0`], or under a thin film the film's reflectance at `mu`
+    /// with Schlick's grazing term taken out. The film's reflectance oscillates
+    /// with angle and the albedo tables know Schlick's curve only, so each cosine
+    /// takes the lobe of its own F0 (the split-sum approximation: the Fresnel at
+    /// the viewing angle, not at every half vector).
+    fn lobe_f0(&self, mu: f32) -> Rgb {
+        if self.film.weight > 0.0 {
+            let m = (1.0 - mu.clamp(0.0, 1.0)).powi(5);
+            ((self.fresnel(mu) - Rgb::splat(m)) / (1.0 - m).max(1e-6)).clamp(Rgb::ZERO, Rgb::ONE)
+        } else {
+            self.f0
+        }
+    }
+
+    /// The dielectric's specular layer albedo L(mu) per channel (its weight
+    /// included), each channel's from the layer table at its own F0.
+    fn spec_albedo(&self, mu: f32) -> Rgb {
+        let f0 = self.lobe_f0(mu);
+        let a = self.alpha_iso();
+        let l = if f0.x == f0.y && f0.y == f0.z {
+            Rgb::splat(albedo::layer_albedo(f0.x, mu, a))
+        } else {
+            f0.map(|f| albedo::layer_albedo(f, mu, a))
+        };
+        l * self.spec_weight
     }
 
     /// The frames at wo, turned to its side of the surface; None at grazing.
@@ -268,7 +319,7 @@ impl Layered {
         let (spec, diffuse) = if self.metal {
             (base, 0.0)
         } else {
-            let l = self.spec_albedo(mu);
+            let l = self.spec_albedo(mu).max_element();
             (base * l, base * (1.0 - l) * self.rho.max_element())
         };
         let mut p = [coat, sheen, spec, diffuse];
@@ -292,7 +343,10 @@ impl Layered {
         }
         let (mu_o, mu_i) = (lo.z.min(1.0), li.z.min(1.0));
         // The glossy lobes, each under what the layers above it leave.
-        let mut glossy = aniso_ggx_f(lo, li, self.alpha, self.f0) * self.spec_weight;
+        let mut glossy = match aniso_ggx_dg(lo, li, self.alpha) {
+            Some((dg, cos_h)) => self.fresnel(cos_h) * dg * self.spec_weight,
+            None => Rgb::ZERO,
+        };
         if self.sheen_max() > 0.0 {
             glossy *= self.sheen_leaves(mu_o) * self.sheen_leaves(mu_i) * self.norms.sheen;
             glossy += self.sheen * charlie_f(lo, li, self.sheen_alpha);
@@ -306,7 +360,7 @@ impl Layered {
         if self.metal {
             return glossy;
         }
-        glossy + self.rho * (FRAC_1_PI * self.leaves(mu_o) * self.leaves(mu_i) / self.norms.diffuse)
+        glossy + self.rho * self.leaves(mu_o) * self.leaves(mu_i) / self.norms.diffuse * FRAC_1_PI
     }
 
     /// The mixture pdf [sr^-1] of the lobes at `probs`.
@@ -377,7 +431,7 @@ impl Layered {
         let (mu, mu_c) = (fr.lo.z.clamp(0.0, 1.0), fr.co.z.clamp(0.0, 1.0));
         let coat = self.coat * albedo::layer_albedo(COAT_F0, mu_c, self.coat_alpha);
         let e_s = albedo::sheen_albedo(mu, self.sheen_alpha);
-        let spec = if self.metal { self.f0 } else { layer_tint(self.f0) * self.spec_albedo(mu) };
+        let spec = if self.metal { self.norms.f0 } else { self.spec_albedo(mu) };
         let glossy = Rgb::splat(coat) + (self.sheen * e_s + spec * self.sheen_leaves(mu)) * self.coat_leaves(mu);
         glossy + self.diffuse_albedo_at(mu)
     }
@@ -419,17 +473,20 @@ fn aniso_ggx_g1(v: Vec3, a: Vec2) -> f32 {
     2.0 / (1.0 + (1.0 + t2).sqrt())
 }
 
-/// Anisotropic GGX reflection D G F / (4 cos_o cos_i), Schlick's F at the half vector.
-fn aniso_ggx_f(lo: Vec3, li: Vec3, a: Vec2, f0: Rgb) -> Rgb {
-    if a.x == a.y {
-        return ggx_f(lo, li, a.x, f0);
-    }
+/// Anisotropic GGX reflection without its Fresnel, D G / (4 cos_o cos_i), and the
+/// cosine lo.h at which the Fresnel is taken; None when no half vector lies above
+/// the surface. Isotropic alphas take [`crate::ggx_f`]'s terms.
+fn aniso_ggx_dg(lo: Vec3, li: Vec3, a: Vec2) -> Option<(f32, f32)> {
     let h = (lo + li).normalize_or_zero();
     if h == Vec3::ZERO || lo.z <= 0.0 || li.z <= 0.0 {
-        return Rgb::ZERO;
+        return None;
     }
-    let g = aniso_ggx_g1(lo, a) * aniso_ggx_g1(li, a);
-    schlick(f0, lo.dot(h)) * (aniso_ggx_d(h, a) * g / (4.0 * lo.z * li.z))
+    let (d, g) = if a.x == a.y {
+        (ggx_d(h.z, a.x), ggx_g1(lo.z, a.x) * ggx_g1(li.z, a.x))
+    } else {
+        (aniso_ggx_d(h, a), aniso_ggx_g1(lo, a) * aniso_ggx_g1(li, a))
+    };
+    Some((d * g / (4.0 * lo.z * li.z), lo.dot(h)))
 }
 
 /// A half vector drawn from D(h) cos(theta_h): an isotropic slope of alpha 1

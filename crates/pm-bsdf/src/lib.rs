@@ -18,9 +18,11 @@ use pm_sampling::{basis, cosine_hemisphere, cosine_hemisphere_pdf};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 mod albedo;
+mod film;
 mod layered;
 mod phase;
 
+pub use film::{FILM_IOR, Film};
 pub use layered::{COAT_F0, Layered, MIN_SHEEN_ROUGHNESS, Norms};
 pub use phase::{HenyeyGreenstein, PhaseSample};
 
@@ -612,6 +614,13 @@ pub struct Pbr {
     /// anisotropyRotation, or the anisotropy texture's direction); zero when the
     /// surface has no tangents.
     pub anisotropy_dir: Vec3,
+    /// KHR_materials_iridescence's weight in [0, 1] (iridescenceFactor x
+    /// texture; 0 without the extension).
+    pub iridescence: f32,
+    /// The thin film's index of refraction (iridescenceIor).
+    pub iridescence_ior: f32,
+    /// The thin film's thickness [nm].
+    pub iridescence_thickness: f32,
 }
 
 impl Pbr {
@@ -634,13 +643,16 @@ impl Pbr {
             sheen_roughness: 0.0,
             anisotropy: 0.0,
             anisotropy_dir: Vec3::ZERO,
+            iridescence: 0.0,
+            iridescence_ior: FILM_IOR,
+            iridescence_thickness: 400.0,
         }
     }
 
-    /// True when the point has a clear coat, sheen or anisotropy: its model is
+    /// True when the point has a clear coat, sheen, anisotropy or a thin film: its model is
     /// [`Bsdf::Layered`].
     pub fn is_layered(&self) -> bool {
-        self.coat > 0.0 || self.sheen.max_element() > 0.0 || self.anisotropy > 0.0
+        self.coat > 0.0 || self.sheen.max_element() > 0.0 || self.anisotropy > 0.0 || self.iridescence > 0.0
     }
 }
 

@@ -10,7 +10,7 @@ use crate::{
     Triangle, Wrap,
 };
 use glam::{DMat4, DVec3, Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
-use pm_bsdf::{Bsdf, Pbr};
+use pm_bsdf::{Bsdf, FILM_IOR, Pbr};
 use pm_color::Rgb;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -56,7 +56,7 @@ pub enum SceneError {
     },
 }
 
-const SUPPORTED_EXTENSIONS: [&str; 16] = [
+const SUPPORTED_EXTENSIONS: [&str; 17] = [
     "KHR_lights_punctual",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -73,12 +73,18 @@ const SUPPORTED_EXTENSIONS: [&str; 16] = [
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_materials_anisotropy",
+    "KHR_materials_iridescence",
 ];
 
 /// The material extensions read from a material's own JSON (the glTF crate does
 /// not model them): not said to be ignored.
-const READ_MATERIAL_EXTENSIONS: &[&str] =
-    &["KHR_materials_volume_scatter", "KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_anisotropy"];
+const READ_MATERIAL_EXTENSIONS: &[&str] = &[
+    "KHR_materials_volume_scatter",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_anisotropy",
+    "KHR_materials_iridescence",
+];
 
 /// What an extension this renderer does not read holds, and how to get a file
 /// without it: said when a file requires it ([`SceneError::Unsupported`]).
@@ -95,7 +101,6 @@ fn unsupported_needs(ext: &str) -> &'static str {
 /// renderer does not read: said in the warning that names it.
 fn ignored_loses(ext: &str) -> &'static str {
     match ext {
-        "KHR_materials_iridescence" => "iridescence is not drawn",
         "KHR_materials_diffuse_transmission" => "light through thin diffuse surfaces is not drawn",
         "KHR_materials_dispersion" => "glass does not disperse light",
         "KHR_materials_unlit" => "unlit materials are lit as the base colour's diffuse",
@@ -318,7 +323,7 @@ fn read_material(
 ) -> Result<ReadMaterial, String> {
     let name = m.name().map_or_else(|| format!("material #{i}"), str::to_owned);
     let mut factors = read_factors(&m, &name, warnings)?;
-    let rotation = read_layer_factors(&m, &mut factors).map_err(|e| format!("material '{name}': {e}"))?;
+    let (rotation, film_min) = read_layer_factors(&m, &mut factors).map_err(|e| format!("material '{name}': {e}"))?;
     let bsdf = Bsdf::from_pbr(&factors);
     let pbr = m.pbr_metallic_roughness();
     let doc = loader.doc;
@@ -364,6 +369,9 @@ fn read_material(
         sheen_roughness: layer_texture("KHR_materials_sheen", "sheenRoughnessTexture", false)?,
         anisotropy: layer_texture("KHR_materials_anisotropy", "anisotropyTexture", false)?,
         anisotropy_rotation: rotation,
+        iridescence: layer_texture("KHR_materials_iridescence", "iridescenceTexture", false)?,
+        iridescence_thickness: layer_texture("KHR_materials_iridescence", "iridescenceThicknessTexture", false)?,
+        film_thickness_min: film_min,
     };
     if let Some(scale) = ext("KHR_materials_clearcoat").and_then(|c| c.get("clearcoatNormalTexture")) {
         layers.coat_normal_scale = json_number(scale, "scale", 1.0, f32::MIN..=f32::MAX)
@@ -514,9 +522,11 @@ fn json_number(
     }
 }
 
-/// The factors of KHR_materials_clearcoat, _sheen and _anisotropy into `pbr`, and
-/// their rotation (textures are read by the caller).
-fn read_layer_factors(m: &gltf::Material, pbr: &mut Pbr) -> Result<f32, String> {
+/// The factors of KHR_materials_clearcoat, _sheen, _anisotropy and _iridescence
+/// into `pbr` (the film's greatest thickness as its thickness), and the
+/// anisotropy's rotation and the film's least thickness [nm] (textures are read
+/// by the caller).
+fn read_layer_factors(m: &gltf::Material, pbr: &mut Pbr) -> Result<(f32, f32), String> {
     let ext = |k: &str| m.extensions().and_then(|e| e.get(k));
     let mut rotation = 0.0;
     if let Some(c) = ext("KHR_materials_clearcoat") {
@@ -542,7 +552,18 @@ fn read_layer_factors(m: &gltf::Material, pbr: &mut Pbr) -> Result<f32, String> 
         pbr.anisotropy = json_number(a, "anisotropyStrength", 0.0, 0.0..=1.0).map_err(err)?;
         rotation = json_number(a, "anisotropyRotation", 0.0, f32::MIN..=f32::MAX).map_err(err)?;
     }
-    Ok(rotation)
+    let mut film_min = 100.0;
+    if let Some(f) = ext("KHR_materials_iridescence") {
+        let err = |e: String| format!("KHR_materials_iridescence: {e}");
+        pbr.iridescence = json_number(f, "iridescenceFactor", 0.0, 0.0..=1.0).map_err(err)?;
+        // The ratified key, or the drafts' spelling.
+        let ior_key = if f.get("iridescenceIOR").is_some() { "iridescenceIOR" } else { "iridescenceIor" };
+        pbr.iridescence_ior = json_number(f, ior_key, FILM_IOR, 1.0..=f32::MAX).map_err(err)?;
+        film_min = json_number(f, "iridescenceThicknessMinimum", 100.0, 0.0..=f32::MAX).map_err(err)?;
+        pbr.iridescence_thickness =
+            json_number(f, "iridescenceThicknessMaximum", 400.0, 0.0..=f32::MAX).map_err(err)?;
+    }
+    Ok((rotation, film_min))
 }
 
 /// The material's alpha mode, its cutoff checked.

@@ -143,8 +143,10 @@ impl Texture {
     }
 }
 
-/// The textures of KHR_materials_clearcoat, _sheen and _anisotropy, and the
-/// anisotropy's rotation: each multiplies its factor in [`Material::pbr`].
+/// The textures of KHR_materials_clearcoat, _sheen, _anisotropy and
+/// _iridescence, the anisotropy's rotation and the film's least thickness: each
+/// texture multiplies its factor in [`Material::pbr`] (the film's thickness
+/// texture blends between the least and the factor's greatest).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LayerTextures {
     /// clearcoatTexture: R multiplies the coat's weight.
@@ -165,6 +167,13 @@ pub struct LayerTextures {
     pub anisotropy: Option<TextureRef>,
     /// anisotropyRotation [rad], counter-clockwise from the tangent.
     pub anisotropy_rotation: f32,
+    /// iridescenceTexture: R multiplies the film's weight.
+    pub iridescence: Option<TextureRef>,
+    /// iridescenceThicknessTexture: G blends the film's thickness from
+    /// [`Self::film_thickness_min`] to iridescenceThicknessMaximum.
+    pub iridescence_thickness: Option<TextureRef>,
+    /// iridescenceThicknessMinimum [nm].
+    pub film_thickness_min: f32,
 }
 
 impl LayerTextures {
@@ -176,6 +185,8 @@ impl LayerTextures {
             || self.sheen_color.is_some()
             || self.sheen_roughness.is_some()
             || self.anisotropy.is_some()
+            || self.iridescence.is_some()
+            || self.iridescence_thickness.is_some()
     }
 }
 
@@ -439,7 +450,7 @@ impl Scene {
         Bsdf::from_pbr(&pbr)
     }
 
-    /// The clear coat's, sheen's and anisotropy's textures at a hit, and the two
+    /// The clear coat's, sheen's, anisotropy's and film's textures at a hit, and the two
     /// directions they set in world space: the anisotropy direction
     /// (KHR_materials_anisotropy: the texture's direction, or the tangent, rotated
     /// by anisotropyRotation in the tangent plane of the shading normal) and the
@@ -458,6 +469,13 @@ impl Scene {
         }
         if let Some(t) = &lt.sheen_roughness {
             pbr.sheen_roughness *= self.lookup(t, hit).w;
+        }
+        if let Some(t) = &lt.iridescence {
+            pbr.iridescence *= self.lookup(t, hit).x;
+        }
+        if let Some(t) = &lt.iridescence_thickness {
+            let g = self.lookup(t, hit).y;
+            pbr.iridescence_thickness = lt.film_thickness_min + (pbr.iridescence_thickness - lt.film_thickness_min) * g;
         }
         let tr = &self.triangles[hit.tri as usize];
         if pbr.anisotropy > 0.0

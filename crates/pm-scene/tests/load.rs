@@ -200,9 +200,10 @@ fn extensions_not_read_are_named_with_what_they_need_or_lose() {
     let path = with_extensions(&[gloss, ibl], &[gloss, ibl]);
     let err = load(&path).err().unwrap().to_string();
     assert!(err.contains("KHR_materials_pbrSpecularGlossiness (and 1 more: EXT_lights_image_based)"), "{err}");
-    let s = load(&with_extensions(&[], &["KHR_materials_iridescence"])).unwrap();
-    let warned: Vec<&String> = s.warnings.iter().filter(|w| w.contains("KHR_materials_iridescence")).collect();
-    assert!(warned.len() == 1 && warned[0].contains("iridescence is not drawn"), "{:?}", s.warnings);
+    let dt = "KHR_materials_diffuse_transmission";
+    let s = load(&with_extensions(&[], &[dt])).unwrap();
+    let warned: Vec<&String> = s.warnings.iter().filter(|w| w.contains(dt)).collect();
+    assert!(warned.len() == 1 && warned[0].contains("thin diffuse surfaces"), "{:?}", s.warnings);
 }
 
 /// Blender's coat, sheen and anisotropy as its exporter writes them (issue 54's
@@ -246,6 +247,32 @@ fn blenders_coat_sheen_and_anisotropy_are_read() {
         assert!((t.length() - 1.0).abs() < 1e-4 && t.dot(h.ns).abs() < 1e-3 && t.y.abs() < 1e-3, "{t} at ns {}", h.ns);
     }
     assert!(hits > 60, "{hits} hits on the brushed sphere");
+}
+
+/// KHR_materials_iridescence as tests/blender/film_room.py writes it for
+/// Blender's Thin Film: each film material is the layered model with the file's
+/// film (the ratified key iridescenceIor, read; the drafts' iridescenceIOR too),
+/// and nothing about it is said to be ignored.
+#[test]
+fn a_thin_film_is_read() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/scenes/blender_film/blender_film.gltf");
+    let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let film = |s: &pm_scene::Scene, name: &str| match s.materials.iter().find(|m| m.name == name).map(|m| m.bsdf) {
+        Some(pm_bsdf::Bsdf::Layered(l)) => (l.metal, l.film),
+        other => panic!("{name}: {other:?}"),
+    };
+    let (metal, f) = film(&s, "film_dielectric");
+    assert!(!metal && f.weight == 1.0 && (f.ior - 1.8).abs() < 1e-6 && f.thickness == 320.0, "{f:?}");
+    let (metal, f) = film(&s, "film_metal");
+    assert!(metal && (f.ior - 1.5).abs() < 1e-6 && f.thickness == 250.0, "{f:?}");
+    let text = std::fs::read_to_string(&path).unwrap().replace("iridescenceIor", "iridescenceIOR");
+    let draft = tempfile::tempdir().unwrap();
+    let copy = draft.path().join("blender_film.gltf");
+    std::fs::write(&copy, text).unwrap();
+    std::fs::copy(path.with_extension("bin"), copy.with_extension("bin")).unwrap();
+    let (_, f) = film(&load(&copy).unwrap(), "film_dielectric");
+    assert!((f.ior - 1.8).abs() < 1e-6, "the draft key: {f:?}");
 }
 
 /// Blender's Draco export of the coated room (`coated_room.py --draco`: its
@@ -388,6 +415,28 @@ fn layer_textures_are_read_with_their_channels_and_transforms() {
     assert!(matches!(bsdf(&g, 0.25), pm_bsdf::Bsdf::Conductor { .. }), "{:?}", bsdf(&g, 0.25));
     let right = probe(&g, 0.75);
     assert!(right.alpha.x > right.alpha.y, "{:?}", right.alpha);
+    // KHR_materials_iridescence: iridescenceTexture's R multiplies the weight,
+    // iridescenceThicknessTexture's G blends the thickness from the minimum
+    // (G 0 on both texels: the minimum) to the maximum.
+    g["materials"][0]["pbrMetallicRoughness"]["metallicFactor"] = serde_json::json!(0.0);
+    g["materials"][0]["extensions"] = serde_json::json!({
+        "KHR_materials_iridescence": {
+            "iridescenceFactor": 0.8, "iridescenceTexture": {"index": 0}, "iridescenceIor": 1.6,
+            "iridescenceThicknessMinimum": 150.0, "iridescenceThicknessMaximum": 500.0,
+            "iridescenceThicknessTexture": {"index": 0}
+        }
+    });
+    g["extensionsUsed"] = serde_json::json!(["KHR_materials_iridescence"]);
+    let left = probe(&g, 0.25);
+    assert_eq!((left.film.weight, left.film.ior, left.film.thickness), (0.8, 1.6, 150.0), "{:?}", left.film);
+    // No film where R is 0 (the blue texel): the plain dielectric.
+    assert!(matches!(bsdf(&g, 0.75), pm_bsdf::Bsdf::Plastic { .. }), "{:?}", bsdf(&g, 0.75));
+    g["materials"][0]["extensions"]["KHR_materials_iridescence"]
+        .as_object_mut()
+        .unwrap()
+        .retain(|k, _| !k.ends_with("Texture"));
+    let plain = probe(&g, 0.75);
+    assert_eq!((plain.film.weight, plain.film.thickness), (0.8, 500.0), "without textures: {:?}", plain.film);
 }
 
 /// KHR_materials_anisotropy's rotation turns the direction counter-clockwise in
@@ -627,16 +676,16 @@ fn ignored_material_features_are_warned_naming_the_material() {
         "KHR_materials_transmission": {"transmissionFactor": 1.0},
         "KHR_materials_volume": {"thicknessFactor": 0.1, "attenuationDistance": 0.5, "attenuationColor": [1.0, 1.0, 1.0]}
     });
-    m["extensions"]["KHR_materials_iridescence"] = serde_json::json!({"iridescenceFactor": 1.0});
+    m["extensions"]["KHR_materials_diffuse_transmission"] = serde_json::json!({"diffuseTransmissionFactor": 1.0});
     g["extensionsUsed"] =
-        serde_json::json!(["KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_iridescence"]);
+        serde_json::json!(["KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_diffuse_transmission"]);
     // COLOR_0: accessor 0 (the positions, a valid VEC3 float colour accessor).
     g["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = 0.into();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("ignored.gltf");
     std::fs::write(&path, g.to_string()).unwrap();
     let s = load(&path).unwrap_or_else(|e| panic!("{e}"));
-    for what in ["occlusion texture", "extension KHR_materials_iridescence ignored"] {
+    for what in ["occlusion texture", "extension KHR_materials_diffuse_transmission ignored"] {
         let n = s.warnings.iter().filter(|w| w.contains(what) && w.contains("material 'checker'")).count();
         assert_eq!(n, 1, "{what}: {:?}", s.warnings);
     }

@@ -115,10 +115,12 @@ pub fn scene(seed: u64, index: u32) -> (Doc, Recipe) {
     (doc, recipe)
 }
 
-/// Clear coats, sheen and anisotropy (KHR_materials_clearcoat, _sheen,
-/// _anisotropy) on the scene's objects: the rough metal brushed (its direction
-/// whatever the surface's frame is: the generated meshes have no texture
-/// coordinates), each diffuse object coated or velvet half the time.
+/// Clear coats, sheen, anisotropy and thin films (KHR_materials_clearcoat,
+/// _sheen, _anisotropy, _iridescence) on the scene's objects: the rough metal
+/// brushed (its direction whatever the surface's frame is: the generated meshes
+/// have no texture coordinates), each diffuse object coated or velvet half the
+/// time, then the rough metal under a thin film half the time (drawn last, so
+/// that the other layers are what they were before films were added).
 fn layers(doc: &mut Doc, r: &mut Rng) -> Vec<String> {
     let mut out = Vec::new();
     for i in 0..doc.materials.len() {
@@ -142,6 +144,16 @@ fn layers(doc: &mut Doc, r: &mut Rng) -> Vec<String> {
         };
         doc.materials[i]["extensions"][ext.0] = ext.1;
         doc.extensions.push(ext.0);
+    }
+    let metal = doc.materials.iter().position(|m| m["name"] == "rough_metal");
+    if let Some(i) = metal
+        && r.chance(0.5)
+    {
+        let (ior, d) = (r.range(1.2, 2.2), r.range(150.0, 700.0));
+        out.push(format!("rough_metal: thin film of ior {ior:.2}, {d:.0} nm"));
+        doc.materials[i]["extensions"]["KHR_materials_iridescence"] =
+            json!({"iridescenceFactor": 1.0, "iridescenceIor": ior, "iridescenceThicknessMaximum": d});
+        doc.extensions.push("KHR_materials_iridescence");
     }
     out
 }

@@ -170,7 +170,11 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
         // frame's dp/du, which the PLY's texture coordinates give, as ours follows
         // the tangents generated from them (KHR_materials_anisotropy).
         Bsdf::Layered(l)
-            if l.metal && l.f0 == pm_color::Rgb::ONE && l.coat == 0.0 && l.sheen == pm_color::Rgb::ZERO =>
+            if l.metal
+                && l.f0 == pm_color::Rgb::ONE
+                && l.coat == 0.0
+                && l.sheen == pm_color::Rgb::ZERO
+                && l.film.weight == 0.0 =>
         {
             format!(
                 "<bsdf type=\"twosided\"><bsdf type=\"roughconductor\"><string name=\"distribution\" value=\"ggx\"/><float name=\"alpha_u\" value=\"{}\"/><float name=\"alpha_v\" value=\"{}\"/><string name=\"material\" value=\"none\"/></bsdf></bsdf>",
@@ -179,7 +183,7 @@ fn bsdf_xml(scene: &pm_scene::Scene, m: &pm_scene::Material) -> Result<String, S
         }
         Bsdf::Conductor { .. } | Bsdf::Plastic { .. } | Bsdf::Layered(_) => {
             return Err(format!(
-                "material {}: rough conductors, the glTF dielectric and its coat, sheen and anisotropy have no equal in Mitsuba (its Fresnel terms differ)",
+                "material {}: rough conductors, the glTF dielectric and its coat, sheen, anisotropy and thin film have no equal in Mitsuba (its Fresnel terms differ)",
                 m.name
             ));
         }

@@ -723,6 +723,50 @@ fn the_pipeline_on_defaults_agrees_with_the_path_tracer_on_blenders_coat_sheen_a
     assert!(a.worst_block < 0.15, "{a}");
 }
 
+/// Thin-film iridescence (KHR_materials_iridescence) on Blender's Thin Film
+/// (tests/blender/film_room.py: a dark dielectric sphere under a film of ior 1.8
+/// and 320 nm, a silver metal one under ior 1.5 and 250 nm, single-scattering
+/// GGX), against Cycles (tests/scenes/blender_film/cycles_64.exr, 4096 samples),
+/// whose thin film is its own (exact Fresnel at both interfaces, its own
+/// spectral integration). `cargo xtask run` on defaults at 64 x 64 agrees with
+/// the path tracer (512 a pixel) within the batch pipeline's 2% and 15% (light
+/// left out); the path tracer's sphere means, per channel, with Cycles': the
+/// dielectric's within 6% (at 256 x 256: 0.99, 1.02, 0.97), the metal's red and
+/// green within 6% and its blue within 16% (0.88 at 256 x 256: glTF's film takes
+/// a metal for a dielectric of the index its F0 gives, no extinction, as the
+/// extension says; Cycles changes this metal's colour by under 1% with its film,
+/// ours by 12% in blue). Without the film the dielectric is 31% darker in red and
+/// 44% in blue than with it (Cycles: 29% and 45%): a film ignored or with a
+/// wrong phase fails.
+#[test]
+fn a_thin_film_colours_blenders_spheres_as_cycles_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = "../tests/scenes/blender_film/blender_film.gltf";
+    let (_, ours, path) = pm_tests::defaults_and_path_tracer(dir.path(), scene, 64, 512, |_| {});
+    let a = pm_tests::agreement_off_the_light(&ours.pixels(None), &path.pixels(None), 64);
+    eprintln!("blender_film full: {a}");
+    assert!(a.mean.abs() < 0.02 && a.worst_block < 0.15, "{a}");
+    let (w, h, cycles) =
+        pm_image::read_radiance_image(Path::new("../tests/scenes/blender_film/cycles_64.exr")).unwrap();
+    assert_eq!((w, h), (64, 64));
+    // A sphere's pixels: a disc inside its outline (centres in pixels).
+    let disc = |px: &[Vec3], cx: f32, cy: f32| {
+        let inside = |i: usize| {
+            let (x, y) = ((i % 64) as f32 + 0.5 - cx, (i / 64) as f32 + 0.5 - cy);
+            x * x + y * y < 5.5 * 5.5
+        };
+        let (sum, n) =
+            px.iter().enumerate().filter(|(i, _)| inside(*i)).fold((Vec3::ZERO, 0), |(s, n), (_, p)| (s + *p, n + 1));
+        sum / n as f32
+    };
+    let path = path.pixels(None);
+    for (name, cx, most) in [("dielectric", 17.6, Vec3::splat(0.06)), ("metal", 48.0, Vec3::new(0.06, 0.06, 0.16))] {
+        let ratio = disc(&path, cx, 46.0) / disc(&cycles, cx, 46.0);
+        eprintln!("{name} sphere, path tracer over Cycles: {ratio}");
+        assert!(((ratio - Vec3::ONE).abs() - most).max_element() < 0.0, "{name}: {ratio}");
+    }
+}
+
 /// The floor tile of tests/scenes/blender_coated (tests/blender/coated_room.py,
 /// Blender's own exporter): a thin scaled cube with Blender's default cube UVs
 /// and a 4 x 4 base-colour texture read with "Closest" interpolation, exported as
