@@ -4,7 +4,8 @@
 //! closed-form unoccluded light with stochastic shadows (Heitz, Hill and McGuire
 //! 2018).
 
-use crate::LightSelector;
+use crate::tree::Chosen;
+use crate::{LightSelector, LightTree};
 use glam::Vec3;
 use pm_bsdf::Bsdf;
 use pm_color::Rgb;
@@ -33,8 +34,8 @@ pub struct DirectLighting<'a> {
     /// The delta lights taken at every estimate (empty when the scene has more than
     /// [`EVERY_DELTA_LIGHT`]).
     every: Vec<usize>,
-    /// Light choice by power among the other lights; `None` when there are none.
-    sampled: Option<LightSelector>,
+    /// The choice among the other lights; `None` when there are none.
+    sampled: Option<Choice>,
     /// The net a shading point's light samples are scrambled copies of.
     nets: pm_sampling::NetTable,
     /// Bounding boxes [m] of the area lights that enclose space (positive extent on
@@ -80,7 +81,7 @@ impl<'a> DirectLighting<'a> {
         let every = if delta.len() <= EVERY_DELTA_LIGHT { delta } else { Vec::new() };
         Ok(DirectLighting {
             scene,
-            sampled: lights.excluding(&every),
+            sampled: Choice::among(scene, &lights, &every),
             every,
             lights,
             nets: pm_sampling::NetTable::new(NET_POINTS),
@@ -135,7 +136,7 @@ impl<'a> DirectLighting<'a> {
     fn every_delta(&self, at: &Lit, medium: Option<MediumId>) -> Rgb {
         let mut sum = Rgb::ZERO;
         for &li in &self.every {
-            if let Some((c, ray)) = self.unshadowed_on((li, 1.0), at, [0.5; 4], false) {
+            if let Some((c, ray)) = self.unshadowed_on((Chosen::whole(li), 1.0), at, [0.5; 4], false) {
                 sum += c * ray.transmittance(self.scene, medium);
             }
         }
@@ -171,11 +172,10 @@ impl<'a> DirectLighting<'a> {
         let u = light_numbers(s);
         let mut sum = Rgb::ZERO;
         for &li in &self.every {
-            sum += self.medium_sample_on((li, 1.0), (p, wo), phase, medium, [0.5; 4], false);
+            sum += self.medium_sample_on((Chosen::whole(li), 1.0), (p, wo), phase, medium, [0.5; 4], false);
         }
-        if let Some(sampled) = &self.sampled {
-            let (li, p_sel) = sampled.pick(u[3]);
-            sum += self.medium_sample_on((li, p_sel as f32), (p, wo), phase, medium, u, mis);
+        if let Some(chosen) = self.sampled.as_ref().and_then(|c| c.pick(p, Vec3::ZERO, u[3])) {
+            sum += self.medium_sample_on(chosen, (p, wo), phase, medium, u, mis);
         }
         sum
     }
@@ -184,7 +184,7 @@ impl<'a> DirectLighting<'a> {
     /// point `p` toward `wo`.
     fn medium_sample_on(
         &self,
-        (li, p_sel): (usize, f32),
+        (c, p_sel): (Chosen, f32),
         (p, wo): (Vec3, Vec3),
         phase: &pm_bsdf::HenyeyGreenstein,
         medium: Option<MediumId>,
@@ -192,7 +192,7 @@ impl<'a> DirectLighting<'a> {
         mis: bool,
     ) -> Rgb {
         let scene = self.scene;
-        let Some(ls) = scene.lights[li].sample_li(scene, p, Vec3::ZERO, u[2], glam::Vec2::new(u[0], u[1])) else {
+        let Some(ls) = self.sample_chosen(c, p, Vec3::ZERO, u) else {
             return Rgb::ZERO;
         };
         let f = phase.p(wo, ls.wi);
@@ -208,18 +208,29 @@ impl<'a> DirectLighting<'a> {
     /// shadow ray; `None` where it contributes nothing.
     #[inline]
     fn unshadowed(&self, hit: &Hit, bsdf: &Bsdf, wo: Vec3, u: [f32; 4], mis: bool) -> Option<(usize, Rgb, ShadowRay)> {
-        let (li, p_sel) = self.sampled.as_ref()?.pick(u[3]);
-        let (c, ray) = self.unshadowed_on((li, p_sel as f32), &Lit { hit, bsdf, wo }, u, mis)?;
-        Some((li, c, ray))
+        let chosen = self.sampled.as_ref()?.pick(hit.p, pm_scene::facing(hit.ng, wo), u[3])?;
+        let (c, ray) = self.unshadowed_on(chosen, &Lit { hit, bsdf, wo }, u, mis)?;
+        Some((chosen.0.light, c, ray))
     }
 
-    /// [`Self::unshadowed`] on light `li`, chosen with probability `p_sel`.
+    /// A sample toward what was chosen: the whole light (its triangle by `u[2]`),
+    /// or the chosen triangle alone; the point by `u[0]`, `u[1]`.
     #[inline]
-    fn unshadowed_on(&self, (li, p_sel): (usize, f32), at: &Lit, u: [f32; 4], mis: bool) -> Option<(Rgb, ShadowRay)> {
+    fn sample_chosen(&self, c: Chosen, p: Vec3, n: Vec3, u: [f32; 4]) -> Option<pm_scene::LightSample> {
+        let light = &self.scene.lights[c.light];
+        let uv = glam::Vec2::new(u[0], u[1]);
+        match c.tri {
+            Some(i) => light.sample_triangle(self.scene, p, i as usize, true, uv),
+            None => light.sample_li(self.scene, p, n, u[2], uv),
+        }
+    }
+
+    /// [`Self::unshadowed`] on what was chosen, with probability `p_sel`.
+    #[inline]
+    fn unshadowed_on(&self, (c, p_sel): (Chosen, f32), at: &Lit, u: [f32; 4], mis: bool) -> Option<(Rgb, ShadowRay)> {
         let Lit { hit, bsdf, wo } = *at;
         let scene = self.scene;
-        let (u_tri, u) = (u[2], glam::Vec2::new(u[0], u[1]));
-        let ls = scene.lights[li].sample_li(scene, hit.p, pm_scene::facing(hit.ng, wo), u_tri, u)?;
+        let ls = self.sample_chosen(c, hit.p, pm_scene::facing(hit.ng, wo), u)?;
         if !pm_scene::same_side(hit.ng, ls.wi, wo) {
             return None;
         }
@@ -280,7 +291,7 @@ impl<'a> DirectLighting<'a> {
                     Some(net) => net.point(&self.nets, n, k),
                     None => light_numbers(s),
                 };
-                let Some((c, ray)) = self.unshadowed_on((li, 1.0), at, u, false) else { continue };
+                let Some((c, ray)) = self.unshadowed_on((Chosen::whole(li), 1.0), at, u, false) else { continue };
                 let (w, v) = (c.element_sum(), ray.transmittance(scene, medium));
                 (seen, all) = (seen + v * w, all + w);
             }
@@ -389,14 +400,23 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl DirectLighting<'_> {
-    /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p` picks
+    /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p`
+    /// (geometric normal `n` turned toward the viewer; zero in a medium) picks
     /// direction `wi` toward the emitting triangle `tri` seen at distance `t` (light
-    /// choice included); `None`
-    /// when the triangle belongs to no light. For MIS weights of BSDF-sampled emission.
-    pub fn pdf_emitter(&self, p: Vec3, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
+    /// choice included); `None` when the triangle belongs to no light. For MIS
+    /// weights of BSDF-sampled emission.
+    pub fn pdf_emitter(&self, p: Vec3, n: Vec3, tri: u32, wi: Vec3, t: f32) -> Option<f32> {
         let li = self.scene.light_of_triangle[tri as usize];
-        (li != u32::MAX)
-            .then(|| self.scene.lights[li as usize].pdf_li(self.scene, p, wi, t, tri) * self.sampled_prob(li as usize))
+        if li == u32::MAX {
+            return None;
+        }
+        let light = &self.scene.lights[li as usize];
+        Some(match &self.sampled {
+            Some(Choice::Tree(tree)) if tree.is_split(li as usize) => {
+                light.pdf_triangle(self.scene, p, wi, t, tri, true) * tree.prob_triangle(tri, p, n)
+            }
+            _ => light.pdf_li(self.scene, p, wi, t, tri) * self.sampled_prob(li as usize, p, n),
+        })
     }
 
     /// The density [sr^-1] with which [`Self::light_sample`] at shading point `p`
@@ -406,15 +426,15 @@ impl DirectLighting<'_> {
     pub fn pdf_escaped(&self, p: Vec3, n: Vec3, wi: Vec3) -> f32 {
         let mut pdf = 0.0;
         for &i in &self.scene.infinite_lights {
-            pdf += self.scene.lights[i as usize].pdf_escaped(p, n, wi) * self.sampled_prob(i as usize);
+            pdf += self.scene.lights[i as usize].pdf_escaped(p, n, wi) * self.sampled_prob(i as usize, p, n);
         }
         pdf
     }
 
-    /// The probability that a light sample picks light `li` (0 for the delta
-    /// lights taken every time).
-    fn sampled_prob(&self, li: usize) -> f32 {
-        self.sampled.as_ref().map_or(0.0, |s| s.probs[li] as f32)
+    /// The probability that a light sample at `p` with normal `n` picks light `li`
+    /// (0 for the delta lights taken every time).
+    fn sampled_prob(&self, li: usize, p: Vec3, n: Vec3) -> f32 {
+        self.sampled.as_ref().map_or(0.0, |c| c.prob(li, p, n))
     }
 
     /// Reflected direct radiance L_o [W sr^-1 m^-2] toward `wo` at a non-specular hit:
@@ -489,7 +509,8 @@ impl DirectLighting<'_> {
                         Some(h) => {
                             let le = scene.emitted(&h, -bs.wi) * tr;
                             if le.max_element() > 0.0
-                                && let Some(p_l) = self.pdf_emitter(hit.p, h.tri, bs.wi, t)
+                                && let Some(p_l) =
+                                    self.pdf_emitter(hit.p, pm_scene::facing(hit.ng, wo), h.tri, bs.wi, t)
                             {
                                 sum += bs.weight * le * power_heuristic(bs.pdf, p_l);
                             }
@@ -515,4 +536,44 @@ struct Lit<'a> {
     hit: &'a Hit,
     bsdf: &'a Bsdf,
     wo: Vec3,
+}
+
+/// How a light sample chooses among the lights not taken every time: the one
+/// there is, or the light tree ([`LightTree`]: by each light's importance at the
+/// shading point; Conty Estevez and Kulla 2018).
+#[derive(Clone, Debug)]
+enum Choice {
+    One(usize),
+    Tree(LightTree),
+}
+
+impl Choice {
+    /// The choice among the lights of `all` with power, less `every`; None when
+    /// none is left.
+    fn among(scene: &Scene, all: &LightSelector, every: &[usize]) -> Option<Choice> {
+        let rest: Vec<usize> = (0..scene.lights.len()).filter(|i| all.probs[*i] > 0.0 && !every.contains(i)).collect();
+        match rest.as_slice() {
+            [] => None,
+            [one] => Some(Choice::One(*one)),
+            _ => LightTree::new(scene, &rest).map(Choice::Tree),
+        }
+    }
+
+    /// The light chosen by `u` at `p` with normal `n`, and its probability.
+    #[inline]
+    fn pick(&self, p: Vec3, n: Vec3, u: f32) -> Option<(Chosen, f32)> {
+        match self {
+            Choice::One(li) => Some((Chosen::whole(*li), 1.0)),
+            Choice::Tree(t) => t.pick(p, n, u),
+        }
+    }
+
+    /// The probability that [`Self::pick`] at `p`, `n` chooses `li`.
+    #[inline]
+    fn prob(&self, li: usize, p: Vec3, n: Vec3) -> f32 {
+        match self {
+            Choice::One(one) => (li == *one) as u8 as f32,
+            Choice::Tree(t) => t.prob(li, p, n),
+        }
+    }
 }

@@ -24,11 +24,13 @@ mod effects;
 mod media;
 mod select;
 mod shadow;
+mod tree;
 
 pub use direct::{CLOSED_FORM_LIGHTS, DirectLighting, power_heuristic};
 pub use effects::{Decision, Effects, analyze};
 pub use select::{LightSelectError, LightSelector};
 pub use shadow::{LitPoint, ShadowMaps};
+pub use tree::{Chosen, LightTree};
 
 #[cfg(test)]
 mod tests;

@@ -257,7 +257,8 @@ impl Path {
         if le.max_element() > 0.0 {
             if self.prev_specular {
                 self.l.add_to(self.emission_layer, self.beta * self.w * le);
-            } else if let Some(p_l) = light.pdf_emitter(self.prev_p, hit.tri, -wo, self.travelled + hit.t) {
+            } else if let Some(p_l) = light.pdf_emitter(self.prev_p, self.prev_n, hit.tri, -wo, self.travelled + hit.t)
+            {
                 self.l.add_to(self.emission_layer, self.beta * self.w * le * power_heuristic(self.prev_pdf, p_l));
             }
         }

@@ -805,36 +805,7 @@ impl Light {
     /// for `n` zero (a point in a medium) the whole sphere uniformly.
     pub fn sample_li(&self, scene: &Scene, p: Vec3, n: Vec3, u_sel: f32, u: glam::Vec2) -> Option<LightSample> {
         match &self.kind {
-            LightKind::Area { tris, cdf, area, emission, area_per_pick, spheres, two_sided, .. } => {
-                let i = sample_cdf(cdf, u_sel);
-                let tri = &scene.triangles[(tris.start + i as u32) as usize];
-                let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) else {
-                    // Far from the triangle: a point on it, uniform by area.
-                    return self.sample_from(&self.area_point(scene, i, u)?.into(), p);
-                };
-                let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
-                let ng = tri.ng();
-                let cos_l = -wi.dot(ng);
-                if !(if *two_sided { cos_l.abs() } else { cos_l } > 0.0) {
-                    return None;
-                }
-                // Where the direction meets the triangle's plane.
-                let dist = (tri.p[0] - p).dot(ng) / -cos_l;
-                if !(dist > 0.0 && dist.is_finite()) {
-                    return None;
-                }
-                let id = tris.start + i as u32;
-                let b = barycentrics(tri, p + wi * dist);
-                let (le, per_pick) = pick_radiance(scene, id, i, b, *emission, *area, area_per_pick);
-                (le != Rgb::ZERO).then(|| LightSample {
-                    wi,
-                    dist,
-                    li: le,
-                    pdf: tri.area() / (per_pick * omega),
-                    delta: false,
-                    normal: ng,
-                })
-            }
+            LightKind::Area { cdf, .. } => self.sample_triangle(scene, p, sample_cdf(cdf, u_sel), false, u),
             LightKind::Point { position, intensity } => {
                 let d = *position - p;
                 let dist2 = d.length_squared();
@@ -993,10 +964,66 @@ impl Light {
         }
     }
 
+    /// A sample of direction toward the `i`-th triangle of an area light from `p`
+    /// (None for other lights): by the solid angle it subtends when near, else a
+    /// point on it uniform by area. The pdf [sr^-1] includes the triangle's choice
+    /// by the light's own weights, or with `chosen` (the caller chose it, and
+    /// multiplies in its probability) none.
+    pub fn sample_triangle(
+        &self,
+        scene: &Scene,
+        p: Vec3,
+        i: usize,
+        chosen: bool,
+        u: glam::Vec2,
+    ) -> Option<LightSample> {
+        let LightKind::Area { tris, area, emission, area_per_pick, spheres, two_sided, .. } = &self.kind else {
+            return None;
+        };
+        let tri = &scene.triangles[(tris.start + i as u32) as usize];
+        let Some((omega, v)) = near_solid_angle(tri, spheres[i], p) else {
+            // Far from the triangle: a point on it, uniform by area.
+            let mut pick: AreaPoint = self.area_point(scene, i, u)?.into();
+            if chosen {
+                pick.area = tri.area();
+            }
+            return self.sample_from(&pick, p);
+        };
+        let wi = pm_sampling::sample_spherical_triangle(v[0], v[1], v[2], omega, u)?;
+        let ng = tri.ng();
+        let cos_l = -wi.dot(ng);
+        if !(if *two_sided { cos_l.abs() } else { cos_l } > 0.0) {
+            return None;
+        }
+        // Where the direction meets the triangle's plane.
+        let dist = (tri.p[0] - p).dot(ng) / -cos_l;
+        if !(dist > 0.0 && dist.is_finite()) {
+            return None;
+        }
+        let id = tris.start + i as u32;
+        let b = barycentrics(tri, p + wi * dist);
+        let (le, per_pick) = pick_radiance(scene, id, i, b, *emission, *area, area_per_pick);
+        let per_pick = if chosen { tri.area() } else { per_pick };
+        (le != Rgb::ZERO).then(|| LightSample {
+            wi,
+            dist,
+            li: le,
+            pdf: tri.area() / (per_pick * omega),
+            delta: false,
+            normal: ng,
+        })
+    }
+
     /// Solid-angle density with which [`Light::sample_li`] would pick direction `wi`
     /// landing on triangle `tri` at distance `dist` (for MIS); 0 for
     /// punctual lights and triangles that are not part of this light.
     pub fn pdf_li(&self, scene: &Scene, p: Vec3, wi: Vec3, dist: f32, tri: u32) -> f32 {
+        self.pdf_triangle(scene, p, wi, dist, tri, false)
+    }
+
+    /// [`Self::pdf_li`] for [`Self::sample_triangle`]: with `chosen`, the density
+    /// given that triangle `tri` was chosen.
+    pub fn pdf_triangle(&self, scene: &Scene, p: Vec3, wi: Vec3, dist: f32, tri: u32, chosen: bool) -> f32 {
         match &self.kind {
             LightKind::Area { tris, area, area_per_pick, spheres, two_sided, .. } => {
                 if !tris.contains(&tri) {
@@ -1005,7 +1032,8 @@ impl Light {
                 let t = &scene.triangles[tri as usize];
                 let cos_l = -wi.dot(t.ng());
                 let cos_l = if *two_sided { cos_l.abs() } else { cos_l };
-                let area = *area_per_pick.get((tri - tris.start) as usize).unwrap_or(area);
+                let area =
+                    if chosen { t.area() } else { *area_per_pick.get((tri - tris.start) as usize).unwrap_or(area) };
                 if cos_l <= 0.0 {
                     0.0
                 } else if let Some((omega, _)) = near_solid_angle(t, spheres[(tri - tris.start) as usize], p) {

@@ -234,8 +234,14 @@ impl Doc {
     /// candela as the glTF specification asks (x 683 lm/W, the loader's
     /// [`pm_scene::LUMINOUS_EFFICACY`]). Returns the light's node.
     pub fn point_light(&mut self, name: &str, w_per_sr: f64, at: [f64; 3]) -> usize {
+        self.coloured_point_light(name, w_per_sr, [1.0; 3], at)
+    }
+
+    /// [`Self::point_light`] of colour `rgb` (linear; the intensity per channel is
+    /// `w_per_sr` times it).
+    pub fn coloured_point_light(&mut self, name: &str, w_per_sr: f64, rgb: [f64; 3], at: [f64; 3]) -> usize {
         let candela = w_per_sr * pm_scene::LUMINOUS_EFFICACY as f64;
-        self.lights.push(json!({"name": name, "type": "point", "intensity": candela, "color": [1.0, 1.0, 1.0]}));
+        self.lights.push(json!({"name": name, "type": "point", "intensity": candela, "color": rgb}));
         let light = self.lights.len() - 1;
         self.nodes
             .push(json!({"name": name, "translation": at, "extensions": {"KHR_lights_punctual": {"light": light}}}));

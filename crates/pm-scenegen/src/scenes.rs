@@ -711,6 +711,49 @@ fn jozwowski_room(n: usize) -> Doc {
     doc
 }
 
+/// Many lights (issue 55): Jozwowski's room ([-2, 2] x [0, 2.5] x [-2, 2] m, red
+/// left and green right wall, two boxes) lit by 48 small coloured point lamps in
+/// a 6 x 8 grid 20 cm under the ceiling, of intensities 0.01-0.05 W/sr per
+/// channel, and a glowing sphere (radius 0.15 m, radiance 4) on the floor: a
+/// room a light tree is for, where choosing lights by power alone sends most
+/// light samples to lamps far from the point being lit.
+fn lamps_room() -> Doc {
+    let mut doc = Doc::default();
+    let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
+    let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
+    let green = doc.material(diffuse("green", [0.15, 0.6, 0.15]));
+    let boxes = doc.material(diffuse("box", [0.7, 0.65, 0.5]));
+    let (l, h) = (2.0, 2.5);
+    let room = merge(&[
+        quad([-l, 0.0, l], [l, 0.0, l], [l, 0.0, -l], [-l, 0.0, -l]),
+        quad([-l, h, -l], [l, h, -l], [l, h, l], [-l, h, l]),
+        quad([-l, 0.0, -l], [l, 0.0, -l], [l, h, -l], [-l, h, -l]),
+        quad([-l, 0.0, l], [-l, h, l], [l, h, l], [l, 0.0, l]),
+    ]);
+    doc.mesh_node("room", &room, white);
+    doc.mesh_node("left_wall", &quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l]), red);
+    doc.mesh_node("right_wall", &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]), green);
+    doc.mesh_node(
+        "boxes",
+        &merge(&[block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4), block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3)]),
+        boxes,
+    );
+    let glow = emitter(&mut doc, "glow", 4.0);
+    doc.mesh_node("glowing_sphere", &sphere([0.2, 0.15, 0.9], 0.15, 24, 12, false), glow);
+    const COLOURS: [[f64; 3]; 6] =
+        [[1.0, 0.55, 0.3], [0.35, 0.6, 1.0], [1.0, 0.9, 0.6], [0.5, 1.0, 0.5], [1.0, 0.4, 0.7], [0.9, 0.9, 0.9]];
+    for i in 0..6 {
+        for j in 0..8 {
+            let k = i * 8 + j;
+            let at = [-1.75 + 0.7 * i as f64, 2.3, -1.75 + 0.5 * j as f64];
+            let w = 0.01 + 0.04 * ((k * 7) % 11) as f64 / 10.0;
+            doc.coloured_point_light(&format!("lamp_{i}_{j}"), w, COLOURS[(i + j) % 6], at);
+        }
+    }
+    doc.camera([0.0, 1.4, 1.9], Some([-0.0871557, 0.0, 0.0, 0.9961947]), 1.3, 1.0);
+    doc
+}
+
 /// The memory benchmark's scenes (issue 36): the Cornell room with 100 unique
 /// spheres (10 x 10 on the floor, each its own mesh, smooth normals) of `seg` x
 /// `seg / 2` segments: seg = 100 makes 994,092 triangles, seg = 316 makes 9,954,212.
@@ -866,6 +909,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("jozwowski_room_4096", jozwowski_room(16)),
         ("hdri_spheres", hdri_spheres()),
         ("window_room", window_room()),
+        ("lamps_room", lamps_room()),
     ] {
         doc.write(dir, name, check)?;
         println!("{} {name}", if check { "up to date:" } else { "wrote" });
