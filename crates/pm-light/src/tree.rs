@@ -81,29 +81,23 @@ impl LightBounds {
 
     /// The bounds of emitting triangles `t` of power `phi` [W], one- or two-sided.
     fn of_triangles(t: &[pm_scene::Triangle], phi: f32, two_sided: bool) -> LightBounds {
-        {
-            {
-                let b = pm_scene::bounds_of(t);
-                // The cone of the emitting faces' normals: about their area-weighted
-                // mean, as wide as the farthest normal from it.
-                let normals: Vec<Vec3> = t.iter().map(|tr| tr.ng()).collect();
-                let sum: Vec3 = t.iter().map(|tr| tr.ng() * tr.area()).sum();
-                let w = sum.normalize_or_zero();
-                let cos_o = if w == Vec3::ZERO {
-                    -1.0
-                } else {
-                    normals.iter().map(|n| n.dot(w)).fold(1.0f32, f32::min).clamp(-1.0, 1.0)
-                };
-                LightBounds {
-                    lo: b.min,
-                    hi: b.max,
-                    phi,
-                    w: if w == Vec3::ZERO { Vec3::Z } else { w },
-                    cos_o,
-                    cos_e: 0.0,
-                    two_sided,
-                }
-            }
+        let b = pm_scene::bounds_of(t);
+        // The cone of the emitting faces' normals: about their area-weighted mean,
+        // as wide as the farthest normal from it.
+        let w = t.iter().map(|tr| tr.ng() * tr.area()).sum::<Vec3>().normalize_or_zero();
+        let cos_o = if w == Vec3::ZERO {
+            -1.0
+        } else {
+            t.iter().map(|tr| tr.ng().dot(w)).fold(1.0f32, f32::min).clamp(-1.0, 1.0)
+        };
+        LightBounds {
+            lo: b.min,
+            hi: b.max,
+            phi,
+            w: if w == Vec3::ZERO { Vec3::Z } else { w },
+            cos_o,
+            cos_e: 0.0,
+            two_sided,
         }
     }
 
