@@ -98,10 +98,6 @@ pub struct Norms {
     pub coat: f32,
     /// k_s = 1 / (1 - s E_s,min).
     pub sheen: f32,
-    /// The F0 per channel whose Schlick lobe stands for the base's specular lobe
-    /// in the albedo tables: [`Layered::f0`], or under a thin film the least F0
-    /// whose Schlick curve bounds the film's Fresnel.
-    pub f0: Rgb,
 }
 
 /// The two local frames at one wo, on wo's side of the surface, and wo in them.
@@ -174,7 +170,7 @@ impl Layered {
             } else {
                 Film::NONE
             },
-            norms: Norms { diffuse: Rgb::ONE, coat: 1.0, sheen: 1.0, f0 },
+            norms: Norms { diffuse: Rgb::ONE, coat: 1.0, sheen: 1.0 },
         }
         .normalised()
     }
@@ -184,19 +180,17 @@ impl Layered {
     /// layers' least albedos.
     pub fn normalised(self) -> Layered {
         const M: usize = 32;
-        let f0 = if self.film.weight > 0.0 { self.lobe_f0(1.0) } else { self.f0 };
-        let this = Layered { norms: Norms { f0, ..self.norms }, ..self };
         let k: Rgb = (0..M)
             .map(|i| {
                 let mu = (i as f32 + 0.5) / M as f32;
-                this.leaves(mu) * mu
+                self.leaves(mu) * mu
             })
             .sum::<Rgb>()
             * 2.0
             / M as f32;
         let coat = 1.0 / (1.0 - self.coat * albedo::layer_albedo_min(COAT_F0, self.coat_alpha)).max(1e-4);
         let sheen = 1.0 / (1.0 - self.sheen_max() * albedo::sheen_albedo_min(self.sheen_alpha)).max(1e-4);
-        Layered { norms: Norms { diffuse: k.max(Rgb::splat(1e-4)), coat, sheen, f0 }, ..self }
+        Layered { norms: Norms { diffuse: k.max(Rgb::splat(1e-4)), coat, sheen }, ..self }
     }
 
     /// The base's specular Fresnel at cosine `cos` to the half vector: Schlick's
@@ -431,7 +425,7 @@ impl Layered {
         let (mu, mu_c) = (fr.lo.z.clamp(0.0, 1.0), fr.co.z.clamp(0.0, 1.0));
         let coat = self.coat * albedo::layer_albedo(COAT_F0, mu_c, self.coat_alpha);
         let e_s = albedo::sheen_albedo(mu, self.sheen_alpha);
-        let spec = if self.metal { self.norms.f0 } else { self.spec_albedo(mu) };
+        let spec = if self.metal { self.lobe_f0(1.0) } else { self.spec_albedo(mu) };
         let glossy = Rgb::splat(coat) + (self.sheen * e_s + spec * self.sheen_leaves(mu)) * self.coat_leaves(mu);
         glossy + self.diffuse_albedo_at(mu)
     }
