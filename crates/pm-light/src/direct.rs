@@ -548,10 +548,11 @@ enum Choice {
 }
 
 impl Choice {
-    /// The choice among the lights of `all` with power, less `every`; None when
-    /// none is left.
+    /// The choice among the lights `all` can choose, less `every`; None when none
+    /// is left.
     fn among(scene: &Scene, all: &LightSelector, every: &[usize]) -> Option<Choice> {
-        let rest: Vec<usize> = (0..scene.lights.len()).filter(|i| all.probs[*i] > 0.0 && !every.contains(i)).collect();
+        let rest = all.excluding(every)?;
+        let rest: Vec<usize> = (0..rest.probs.len()).filter(|&i| rest.probs[i] > 0.0).collect();
         match rest.as_slice() {
             [] => None,
             [one] => Some(Choice::One(*one)),

@@ -101,6 +101,17 @@ impl LightBounds {
         }
     }
 
+    /// No lights: what [`Self::union`] leaves unchanged.
+    const EMPTY: LightBounds = LightBounds {
+        lo: Vec3::INFINITY,
+        hi: Vec3::NEG_INFINITY,
+        phi: 0.0,
+        w: Vec3::Z,
+        cos_o: 1.0,
+        cos_e: 1.0,
+        two_sided: false,
+    };
+
     fn centroid(&self) -> Vec3 {
         (self.lo + self.hi) * 0.5
     }
@@ -461,36 +472,27 @@ fn split<K>(lights: &mut [(K, LightBounds)]) -> usize {
         let area = 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
         b.phi * orientation_cost(b) * area.max(1e-12)
     };
+    // The bin of a light's centroid along axis `a`: the one expression both the
+    // cost sweep and the partition use, so they agree on every light.
+    let bucket =
+        |b: &LightBounds, a: usize| (((b.centroid()[a] - clo[a]) / cext[a] * BUCKETS as f32) as usize).min(BUCKETS - 1);
     let mut best: Option<(f32, usize, usize)> = None;
     for a in 0..3 {
         if !(cext[a] > 0.0) {
             continue;
         }
-        let bucket =
-            |b: &LightBounds| (((b.centroid()[a] - clo[a]) / cext[a] * BUCKETS as f32) as usize).min(BUCKETS - 1);
-        let empty = LightBounds {
-            lo: Vec3::INFINITY,
-            hi: Vec3::NEG_INFINITY,
-            phi: 0.0,
-            w: Vec3::Z,
-            cos_o: 1.0,
-            cos_e: 1.0,
-            two_sided: false,
-        };
-        let mut bins = [empty; BUCKETS];
+        let mut bins = [LightBounds::EMPTY; BUCKETS];
         for (_, b) in lights.iter() {
-            let k = bucket(b);
+            let k = bucket(b, a);
             bins[k] = bins[k].union(b);
         }
         let kr = ext.max_element() / ext[a].max(1e-12 * ext.max_element()).max(f32::MIN_POSITIVE);
+        // Neither side is ever empty: the first bin holds the least centroid, the
+        // last the greatest.
         for k in 0..BUCKETS - 1 {
-            let left = bins[..=k].iter().fold(empty, |acc, b| acc.union(b));
-            let right = bins[k + 1..].iter().fold(empty, |acc, b| acc.union(b));
-            if left.phi == 0.0 && right.phi == 0.0 {
-                continue;
-            }
-            let cost = kr
-                * (cost_of(&left) * (left.phi > 0.0) as u8 as f32 + cost_of(&right) * (right.phi > 0.0) as u8 as f32);
+            let left = bins[..=k].iter().fold(LightBounds::EMPTY, |acc, b| acc.union(b));
+            let right = bins[k + 1..].iter().fold(LightBounds::EMPTY, |acc, b| acc.union(b));
+            let cost = kr * (cost_of(&left) + cost_of(&right));
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, a, k));
             }
@@ -498,11 +500,9 @@ fn split<K>(lights: &mut [(K, LightBounds)]) -> usize {
     }
     let mid = match best {
         Some((_, a, k)) => {
-            let bucket =
-                |b: &LightBounds| (((b.centroid()[a] - clo[a]) / cext[a] * BUCKETS as f32) as usize).min(BUCKETS - 1);
             let mut i = 0;
             for j in 0..lights.len() {
-                if bucket(&lights[j].1) <= k {
+                if bucket(&lights[j].1, a) <= k {
                     lights.swap(i, j);
                     i += 1;
                 }
