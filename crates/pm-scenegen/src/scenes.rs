@@ -654,13 +654,10 @@ fn grid_quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], n: usize) -> Me
     merge(&parts)
 }
 
-/// Jozwowski 2002's test scene (Figure 28): a room with two smaller boxes and a point
-/// light circling the room (a glTF animation, 8 s per turn, looping). The room is
-/// [-2, 2] x [0, 2.5] x [-2, 2] m with a red left and a green right wall; at
-/// `n` = 1 it has 16 surfaces (6 room faces and 5 faces per box), and every face is
-/// split into n x n quads, so the scene has 16 n^2 surfaces.
-fn jozwowski_room(n: usize) -> Doc {
-    let mut doc = Doc::default();
+/// The thesis room without its light: [-2, 2] x [0, 2.5] x [-2, 2] m, white with
+/// a red left and a green right wall, and two boxes, every face split into n x n
+/// quads.
+fn thesis_room(doc: &mut Doc, n: usize) {
     let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
     let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
     let green = doc.material(diffuse("green", [0.15, 0.6, 0.15]));
@@ -689,6 +686,16 @@ fn jozwowski_room(n: usize) -> Doc {
         &merge(&[split(block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4)), split(block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3))]),
         boxes,
     );
+}
+
+/// Jozwowski 2002's test scene (Figure 28): a room with two smaller boxes and a point
+/// light circling the room (a glTF animation, 8 s per turn, looping). The room is
+/// [-2, 2] x [0, 2.5] x [-2, 2] m with a red left and a green right wall; at
+/// `n` = 1 it has 16 surfaces (6 room faces and 5 faces per box), and every face is
+/// split into n x n quads, so the scene has 16 n^2 surfaces.
+fn jozwowski_room(n: usize) -> Doc {
+    let mut doc = Doc::default();
+    thesis_room(&mut doc, n);
     let light_node = doc.point_light("bulb", 6.0, [1.2, 2.0, 0.0]);
     // The light's path: 33 keys around a circle of radius 1.2 m at 2 m height, linear
     // between them, 8 s per turn.
@@ -711,7 +718,7 @@ fn jozwowski_room(n: usize) -> Doc {
     doc
 }
 
-/// Many lights (issue 55): Jozwowski's room ([-2, 2] x [0, 2.5] x [-2, 2] m, red
+/// Many lights (issue 55): the thesis room ([`thesis_room`]: [-2, 2] x [0, 2.5] x [-2, 2] m, red
 /// left and green right wall, two boxes) lit by 48 small coloured point lamps in
 /// a 6 x 8 grid 20 cm under the ceiling, of intensities 0.01-0.05 W/sr per
 /// channel, and a glowing sphere (radius 0.15 m, radiance 4) on the floor: a
@@ -719,25 +726,7 @@ fn jozwowski_room(n: usize) -> Doc {
 /// light samples to lamps far from the point being lit.
 fn lamps_room() -> Doc {
     let mut doc = Doc::default();
-    let white = doc.material(diffuse("white", [0.75, 0.75, 0.75]));
-    let red = doc.material(diffuse("red", [0.75, 0.15, 0.12]));
-    let green = doc.material(diffuse("green", [0.15, 0.6, 0.15]));
-    let boxes = doc.material(diffuse("box", [0.7, 0.65, 0.5]));
-    let (l, h) = (2.0, 2.5);
-    let room = merge(&[
-        quad([-l, 0.0, l], [l, 0.0, l], [l, 0.0, -l], [-l, 0.0, -l]),
-        quad([-l, h, -l], [l, h, -l], [l, h, l], [-l, h, l]),
-        quad([-l, 0.0, -l], [l, 0.0, -l], [l, h, -l], [-l, h, -l]),
-        quad([-l, 0.0, l], [-l, h, l], [l, h, l], [l, 0.0, l]),
-    ]);
-    doc.mesh_node("room", &room, white);
-    doc.mesh_node("left_wall", &quad([-l, 0.0, l], [-l, 0.0, -l], [-l, h, -l], [-l, h, l]), red);
-    doc.mesh_node("right_wall", &quad([l, 0.0, -l], [l, 0.0, l], [l, h, l], [l, h, -l]), green);
-    doc.mesh_node(
-        "boxes",
-        &merge(&[block(-0.8, -0.5, 0.8, 0.8, 0.8, 0.4), block(1.0, -0.8, 0.7, 1.4, 0.7, -0.3)]),
-        boxes,
-    );
+    thesis_room(&mut doc, 1);
     let glow = emitter(&mut doc, "glow", 4.0);
     doc.mesh_node("glowing_sphere", &sphere([0.2, 0.15, 0.9], 0.15, 24, 12, false), glow);
     const COLOURS: [[f64; 3]; 6] =
