@@ -55,16 +55,9 @@ def main(out, cycles_px, samples):
         export_apply=True,
     )
     if cycles_px:
-        room.cycles(scene, samples)
-        scene.render.image_settings.color_mode = "RGB"
-        scene.render.image_settings.color_depth = "16"
-        scene.render.image_settings.exr_codec = "ZIP"
-        scene.render.filepath = os.path.join(out, "cycles.exr")
-        bpy.ops.render.render(write_still=True)
+        room.render_reference(scene, out, samples)
 
 
 if __name__ == "__main__":
     args = sys.argv[1:]
-    px = int(args[args.index("--cycles") + 1]) if "--cycles" in args else 0
-    samples = int(args[args.index("--samples") + 1]) if "--samples" in args else 512
-    main(args[0], px, samples)
+    main(args[0], *room.reference_args(args))

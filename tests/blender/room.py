@@ -6,6 +6,7 @@ exporter turns it into glTF's Y-up.
 """
 
 import math
+import os
 
 import bpy
 
@@ -80,3 +81,22 @@ def cycles(scene, samples):
     scene.cycles.sample_clamp_indirect = 0.0
     scene.view_settings.view_transform = "Standard"
     scene.render.image_settings.file_format = "OPEN_EXR"
+
+
+def reference_args(args):
+    """--cycles PX and --samples N (default 512) from a script's arguments: the
+    reference's size (0: no render) and samples."""
+    px = int(args[args.index("--cycles") + 1]) if "--cycles" in args else 0
+    samples = int(args[args.index("--samples") + 1]) if "--samples" in args else 512
+    return px, samples
+
+
+def render_reference(scene, out, samples):
+    """Render `scene` with `cycles` at `samples` to OUT/cycles.exr as half-float
+    RGB with ZIP compression, so that a committed test reference stays small."""
+    cycles(scene, samples)
+    scene.render.image_settings.color_mode = "RGB"
+    scene.render.image_settings.color_depth = "16"
+    scene.render.image_settings.exr_codec = "ZIP"
+    scene.render.filepath = os.path.join(out, "cycles.exr")
+    bpy.ops.render.render(write_still=True)
