@@ -1,13 +1,13 @@
-//! Ray queries: the BVH over the triangles (`bvh4` builds and traverses it),
+//! Ray queries: the BVH over the triangles (`bvh` builds and traverses it),
 //! closest hit, shadow-ray occlusion, hit records and ray-origin offsets.
 
 use crate::geometry::{self, TriangleRay, facing, offset_ray_origin};
-use crate::{Bounds, Hit, Scene, Triangle, bvh4};
+use crate::{Bounds, Hit, Scene, Triangle, bvh};
 use glam::{Vec2, Vec3};
 
 /// The triangles' positions in the BVH's slot order, four slots to a
 /// [`geometry::Tri4`]. A leaf lies within one group but need not start it: small
-/// leaves share groups (see `Bvh4::node`), and a leaf's lanes are a mask.
+/// leaves share groups (see `Bvh::node`), and a leaf's lanes are a mask.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BvhTris {
     tri4: Vec<geometry::Tri4>,
@@ -21,7 +21,7 @@ impl BvhTris {
 
     /// The group of four that holds a leaf's slots `first..first + count`, the mask
     /// of their lanes in it, and its first slot. A leaf never straddles two groups
-    /// (`Bvh4::node` pads the slots so), so it takes one four-wide test.
+    /// (`Bvh::node` pads the slots so), so it takes one four-wide test.
     #[inline(always)]
     fn group(&self, first: u32, count: u32) -> (&geometry::Tri4, u32, u32) {
         let (g, lo) = (first / 4, first % 4);
@@ -32,21 +32,21 @@ impl BvhTris {
 
 /// The BVH over `triangles` (whose bounds are `bounds`), and the triangles in its
 /// slot order.
-pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh4::Bvh4, BvhTris) {
+pub(crate) fn build_bvh(triangles: &[Triangle], bounds: &Bounds) -> (bvh::Bvh, BvhTris) {
     if triangles.is_empty() {
-        return (bvh4::Bvh4::default(), BvhTris::default());
+        return (bvh::Bvh::default(), BvhTris::default());
     }
     // Each triangle's box is padded by 2e-7 of the scene's size: with exact boxes,
     // slab tests missed rays that pass exactly through an edge lying on a node
     // boundary (30 of 13,000 rays aimed at a sphere's vertices and edge midpoints
-    // slipped through obvhs's; tests/tests/suite/hard_cases.rs). Our own four-wide
+    // slipped through obvhs's; tests/tests/suite/hard_cases.rs). Our own eight-wide
     // tree and build, not obvhs's compressed wide BVH (CWBVH), whose 8-bit
     // quantised child boxes lost rays that start a few hundredths of a millimetre
     // from a surface and hit it at once (13 of 200,000 gather rays from the walls of
     // cornell_spheres, born near the floor, went through it; tests.rs), nor its PLOC
     // build, whose scratch (about 190 bytes a triangle) set the load's peak memory.
     let diag = bounds.diagonal().max(f32::MIN_POSITIVE);
-    let bvh = bvh4::Bvh4::build(triangles, 2e-7 * diag);
+    let bvh = bvh::Bvh::build(triangles, 2e-7 * diag);
     let tri4 = bvh
         .slots()
         .chunks(4)
@@ -220,8 +220,8 @@ impl Scene {
     pub fn make_hit(&self, tri: u32, t: f32, b: [f32; 3]) -> Hit {
         let b = off_the_boundary(b);
         let tr = &self.triangles[tri as usize];
-        let (p, ns) = tr.point_normal(b);
         let ng = tr.ng();
+        let (p, ns) = (tr.point(b), tr.shading_normal(b, ng));
         let lerp = |uv: &[Vec2; 3]| uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
         let uv = tr.uv().map_or(Vec2::ZERO, lerp);
         let uv1 = tr.uv1().map_or(Vec2::ZERO, lerp);

@@ -1,6 +1,6 @@
 //! The scene: triangles, materials, lights and camera loaded from glTF 2.0, and the
 //! ray queries every stage needs (closest hit and shadow-ray occlusion on a
-//! four-wide BVH built by the binned surface area heuristic: `bvh4`).
+//! eight-wide BVH built by the binned surface area heuristic: `bvh`).
 //!
 //! Units (see README): lengths are the glTF file's metres; emission of emissive
 //! triangles is radiance L_e [W sr^-1 m^-2 per channel] = emissiveFactor x
@@ -16,7 +16,7 @@
 
 mod accel;
 mod anim;
-mod bvh4;
+mod bvh;
 mod camera;
 mod draco;
 mod environment;
@@ -151,7 +151,7 @@ pub struct Scene {
     pub bvh_seconds: f64,
     /// Some material has an alpha mode: ray queries test alpha at candidate hits.
     any_alpha: bool,
-    bvh: bvh4::Bvh4,
+    bvh: bvh::Bvh,
     /// The triangles in the BVH's slot order.
     bvh_tris: BvhTris,
     /// 1 / the diagonal of the BVH's bounds [m^-1] (the scale of ray-origin offsets).

@@ -11,7 +11,7 @@ pub struct MemoryUse {
     /// The triangles' shading records ([`Triangle`]: positions, normals, material)
     /// and the extras of those that have any (texture coordinates, colours, tangents).
     pub triangles: usize,
-    /// The BVH: four-wide nodes, the triangles' positions in slot order (four to a
+    /// The BVH: eight-wide nodes, the triangles' positions in slot order (four to a
     /// SIMD group, padded), and the triangle id of each slot.
     pub bvh: usize,
     /// Which area light each triangle belongs to.

@@ -56,10 +56,21 @@ impl Triangle {
     /// barycentrics `b`.
     #[inline]
     pub fn point_normal(&self, b: [f32; 3]) -> (Vec3, Vec3) {
-        let p = self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2];
-        let ng = self.ng();
-        let ns = self.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng));
-        (p, ns)
+        (self.point(b), self.shading_normal(b, self.ng()))
+    }
+
+    /// The point at barycentrics `b` \[m\].
+    #[inline]
+    pub fn point(&self, b: [f32; 3]) -> Vec3 {
+        self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2]
+    }
+
+    /// The interpolated unit vertex normal at barycentrics `b`, or `ng` (the unit
+    /// geometric normal, [`Self::ng`], which a hit record has at hand) without
+    /// vertex normals.
+    #[inline]
+    pub fn shading_normal(&self, b: [f32; 3], ng: Vec3) -> Vec3 {
+        self.n.map_or(ng, |n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or(ng))
     }
 
     /// Texture coordinates TEXCOORD_0, when present.

@@ -487,7 +487,7 @@ fn lopsided_and_coincident_triangles_are_hit_as_by_every_triangle() {
         assert!(want.is_finite() && got == want, "ray onto {c}: {got} against {want}");
         assert!(scene.occluded(o, d, f32::INFINITY));
     }
-    assert!(scene.bvh.depth() <= bvh4::MAX_SAH_LEVEL + 12, "depth {}", scene.bvh.depth());
+    assert!(scene.bvh.depth() <= bvh::MAX_SAH_LEVEL + 12, "depth {}", scene.bvh.depth());
 }
 
 /// The four-lane triangle test reports what testing the lanes one after another

@@ -1,23 +1,37 @@
-//! A four-wide BVH for single rays: nodes of four children whose boxes one ray
-//! tests together (Wald et al. 2008, "Getting Rid of Packets"), built top-down by
-//! the binned surface area heuristic and traversed nearest child first. The boxes
-//! bound the triangles in world coordinates, padded, and are tested with Ize's
-//! (2013) conservative slab test, so a ray through an edge on a node's boundary is
-//! not lost.
+//! An eight-wide BVH for single rays: nodes of eight children whose boxes one ray
+//! tests together (Wald et al. 2008, "Getting Rid of Packets"; Embree's BVH8 for
+//! AVX2), built top-down by the binned surface area heuristic and traversed
+//! nearest child first. The boxes bound the triangles in world coordinates,
+//! padded, and are tested with Ize's (2013) conservative slab test, so a ray
+//! through an edge on a node's boundary is not lost.
+//!
+//! The box test runs on `wide::f32x8`: one AVX register per box row on the
+//! x86-64-v3 build, two SSE registers on a baseline x86-64 build (the portable
+//! fallback). Both do the same IEEE operations (`maxps`/`minps`, no fused or
+//! reordered arithmetic), so both find the same hits; no `unsafe` here. (Plain
+//! lane arrays left to the compiler's vectoriser came out as AVX in one
+//! traversal and as shuffled SSE in the other.) Eight lanes rather than four
+//! shorten the serial chain of node loads a ray waits on (BENCHMARKS.md, issue
+//! 55).
 
 use crate::{Bounds, Triangle};
-use glam::{Vec3, Vec4};
+use glam::Vec3;
+use wide::f32x8;
 
-/// Four children: the box of each (by axis, its min and max, one lane a child;
+/// Children per node: one AVX2 register of f32 per box row.
+pub(crate) const WIDTH: usize = 8;
+
+/// Eight children: the box of each (by axis, its min and max, one lane a child;
 /// an empty lane's box is inverted so that no ray hits it), and what each is:
 /// `count` 0 with `child` a node index, or a leaf of `count` triangle slots from
-/// `child` (within one group of four: see `Bvh4::node`).
+/// `child` (within one group of four: see `Bvh::node`). 232 bytes, four cache
+/// lines with the alignment.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Node4 {
-    b: [[Vec4; 2]; 3],
-    child: [u32; 4],
-    count: [u32; 4],
+struct Node {
+    b: [[f32x8; 2]; 3],
+    child: [u32; WIDTH],
+    count: [u8; WIDTH],
 }
 
 /// Slab-test margin: distances are computed with at most 3 roundings, so the far
@@ -173,6 +187,30 @@ fn split(prims: &mut [PrimRef], s: &Span, median: bool) -> (Span, Span) {
     (span_of(l, s.start), span_of(r, s.start + mid))
 }
 
+/// The lanes set in `hit`, ordered by entry distance `t0` (ties in lane order),
+/// and how many there are. An insertion sort: most nodes meet one or two
+/// children and its branches predict well. (A sorting network over four children
+/// took the closest-hit ray 1.1-1.2x as long; picking the least of eight keys
+/// that hold distance and lane, one minimum at a time, 1.05-1.2x.)
+#[inline(always)]
+fn nearest_first(t0: &[f32; WIDTH], hit: u32) -> ([usize; WIDTH], usize) {
+    let mut order = [0usize; WIDTH];
+    let mut k = 0;
+    let mut m = hit;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let mut j = k;
+        while j > 0 && t0[order[j - 1]] > t0[i] {
+            order[j] = order[j - 1];
+            j -= 1;
+        }
+        order[j] = i;
+        k += 1;
+    }
+    (order, k)
+}
+
 /// Run `f` with a traversal stack of at least `need` entries: on the call stack in
 /// one of a few sizes (a fixed large array cost a 1.5 kB memset per ray, 5% of a
 /// ray's time), on the heap past them.
@@ -189,14 +227,15 @@ fn with_stack<T: Copy + Default, R>(need: usize, f: impl FnOnce(&mut [T]) -> R) 
     }
 }
 
-/// The tree; leaves refer to triangle slots, whose order [`Bvh4::slots`] gives.
+/// The tree; leaves refer to triangle slots, whose order [`Bvh::slots`] gives.
 /// The default is the empty tree, which no ray hits.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct Bvh4 {
-    nodes: Vec<Node4>,
+pub(crate) struct Bvh {
+    nodes: Vec<Node>,
     /// Index into the caller's triangles of each slot.
     slots: Vec<u32>,
-    /// Most stack entries a traversal can need (3 per level below the root, plus one).
+    /// Most stack entries a traversal can need (WIDTH - 1 per level below the
+    /// root, plus one).
     stack_need: usize,
 }
 
@@ -216,39 +255,40 @@ impl BoxRay {
         BoxRay { o: o.to_array(), inv, near }
     }
 
-    /// Entry distances of the four children and which of them the ray meets within
+    /// Entry distances of the children and which of them the ray meets within
     /// (0, t_max], as a bit mask (bit i: child i).
     #[inline(always)]
-    fn test(&self, n: &Node4, t_max: f32) -> (Vec4, u32) {
-        let mut t0 = Vec4::ZERO;
-        let mut t1 = Vec4::splat(t_max);
+    fn test(&self, n: &Node, t_max: f32) -> ([f32; WIDTH], u32) {
+        let mut t0 = f32x8::ZERO;
+        let mut t1 = f32x8::splat(t_max);
         for a in 0..3 {
-            let (o, inv) = (Vec4::splat(self.o[a]), Vec4::splat(self.inv[a]));
+            let (o, inv) = (f32x8::splat(self.o[a]), f32x8::splat(self.inv[a]));
+            let near = self.near[a] & 1;
             // No NaN arises (the rows are finite or infinite, the origin finite), so
             // max and min pick as comparisons would, up to the sign of a zero.
-            let near = self.near[a] & 1;
-            t0 = t0.max((n.b[a][near] - o) * inv);
-            t1 = t1.min((n.b[a][near ^ 1] - o) * inv);
+            t0 = t0.fast_max((n.b[a][near] - o) * inv);
+            t1 = t1.fast_min((n.b[a][near ^ 1] - o) * inv);
         }
-        (t0, t0.cmple(t1 * ROBUST).bitmask())
+        (t0.to_array(), t0.simd_le(t1 * f32x8::splat(ROBUST)).to_bitmask())
     }
 }
 
-impl Bvh4 {
+impl Bvh {
     /// Bytes its nodes and slot ids hold (their capacities).
     pub(crate) fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node4>() + self.slots.capacity() * 4
+        self.nodes.capacity() * std::mem::size_of::<Node>() + self.slots.capacity() * 4
     }
 
     /// The tree over `tris`, built top-down by the surface area heuristic (see
-    /// [`split`]) straight into four-wide nodes: a node's span is split in two, then
-    /// the lane of largest surface area with more than [`LEAF`] triangles is split
-    /// again, until there are four lanes or only leaves (as Embree's wide builders
-    /// and Wald et al. 2008 collapse a binary tree). Child boxes bound the triangles'
-    /// vertices padded by `pad` [m]. The build holds 28 bytes a triangle of scratch
-    /// beside the tree (issue 36: obvhs's PLOC build held about 190).
-    pub(crate) fn build(tris: &[Triangle], pad: f32) -> Bvh4 {
-        let mut out = Bvh4 { nodes: Vec::new(), slots: Vec::new(), stack_need: 1 };
+    /// [`split`]) straight into eight-wide nodes: a node's span is split in two,
+    /// then the lane of largest surface area with more than [`LEAF`] triangles is
+    /// split again, until there are [`WIDTH`] lanes or only leaves (as Embree's
+    /// wide builders and Wald et al. 2008 collapse a binary tree). Child boxes bound
+    /// the triangles' vertices padded by `pad` [m]. The build holds 28 bytes a
+    /// triangle of scratch beside the tree (issue 36: obvhs's PLOC build held about
+    /// 190).
+    pub(crate) fn build(tris: &[Triangle], pad: f32) -> Bvh {
+        let mut out = Bvh { nodes: Vec::new(), slots: Vec::new(), stack_need: 1 };
         if tris.is_empty() {
             return out;
         }
@@ -260,8 +300,9 @@ impl Bvh4 {
                 PrimRef { lo: a.min(b).min(c) - pad, hi: a.max(b).max(c) + pad, id: i as u32 }
             })
             .collect();
-        // A four-wide tree over n leaves has at most (n - 1) / 3 + 1 inner nodes.
-        out.nodes.reserve_exact(tris.len().div_ceil(3) + 1);
+        // Every inner node has at least two lanes, so there are fewer inner nodes
+        // than leaves; a full tree has about (leaves - 1) / (WIDTH - 1).
+        out.nodes.reserve(tris.len().div_ceil(LEAF * (WIDTH - 1)) + 1);
         out.slots.reserve_exact(tris.len() + tris.len() / 4);
         let root = span_of(&prims, 0);
         let mut depth = 0;
@@ -269,14 +310,14 @@ impl Bvh4 {
         drop(prims);
         out.nodes.shrink_to_fit();
         out.slots.shrink_to_fit();
-        out.stack_need = 3 * depth + 1;
+        out.stack_need = (WIDTH - 1) * depth + 1;
         out
     }
 
     /// Levels below and including the root.
     #[cfg(test)]
     pub(crate) fn depth(&self) -> usize {
-        (self.stack_need - 1) / 3
+        (self.stack_need - 1) / (WIDTH - 1)
     }
 
     /// Index into the caller's triangles of each slot.
@@ -296,7 +337,7 @@ impl Bvh4 {
             let (l, r) = split(prims, &s, deep);
             vec![l, r]
         };
-        while lanes.len() < 4 {
+        while lanes.len() < WIDTH {
             let open = lanes
                 .iter()
                 .enumerate()
@@ -309,7 +350,8 @@ impl Bvh4 {
             lanes.insert(i, l);
         }
         let index = self.nodes.len();
-        self.nodes.push(Node4 { b: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], child: [0; 4], count: [0; 4] });
+        let empty = [f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY)];
+        self.nodes.push(Node { b: [empty; 3], child: [0; WIDTH], count: [0; WIDTH] });
         for (lane, l) in lanes.iter().enumerate() {
             let (child, count) = if l.len <= LEAF {
                 // A leaf (at most four triangles) never straddles two groups of four,
@@ -325,7 +367,7 @@ impl Bvh4 {
                 }
                 let first = self.slots.len() as u32;
                 self.slots.extend(prims[l.start..l.start + l.len].iter().map(|p| p.id));
-                (first, l.len as u32)
+                (first, l.len as u8)
             } else {
                 (self.node(prims, *l, level + 1, depth), 0)
             };
@@ -333,8 +375,8 @@ impl Bvh4 {
             n.child[lane] = child;
             n.count[lane] = count;
             for a in 0..3 {
-                n.b[a][0][lane] = l.bounds.min[a];
-                n.b[a][1][lane] = l.bounds.max[a];
+                n.b[a][0].as_mut_array()[lane] = l.bounds.min[a];
+                n.b[a][1].as_mut_array()[lane] = l.bounds.max[a];
             }
         }
         index as u32
@@ -369,38 +411,23 @@ impl Bvh4 {
                 }
                 let n = &self.nodes[node as usize];
                 let (t0, hit) = ray.test(n, t_best);
-                // Children met, nearest first (ties in lane order): leaves are tested
-                // at once, inner nodes pushed so the nearest is popped next. (An
-                // insertion sort: most nodes meet one or two children, and a sorting
-                // network over all four took the closest-hit ray 1.1-1.2x as long.)
-                let t0 = t0.to_array();
-                let mut order = [0usize; 4];
-                let mut k = 0;
-                for i in 0..4 {
-                    if hit & (1 << i) == 0 {
-                        continue;
-                    }
-                    let mut j = k;
-                    while j > 0 && t0[order[j - 1]] > t0[i] {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = i;
-                    k += 1;
-                }
-                for &i in order[..k].iter().rev() {
-                    if n.count[i] == 0 {
-                        stack[top] = (n.child[i], t0[i]);
-                        top += 1;
-                    }
-                }
+                // Leaves are tested as they come, nearest first (each hit
+                // shortens the reach); inner nodes within reach are pushed after,
+                // so that the nearest is popped next.
+                let (order, k) = nearest_first(&t0, hit);
                 for &i in &order[..k] {
                     if n.count[i] > 0
                         && t0[i] <= t_best * ROBUST
-                        && let Some((s, t)) = test(n.child[i], n.count[i], t_best)
+                        && let Some((s, t)) = test(n.child[i], n.count[i] as u32, t_best)
                     {
                         t_best = t;
                         best = Some((s, t));
+                    }
+                }
+                for &i in order[..k].iter().rev() {
+                    if n.count[i] == 0 && t0[i] <= t_best * ROBUST {
+                        stack[top] = (n.child[i], t0[i]);
+                        top += 1;
                     }
                 }
             }
@@ -424,6 +451,8 @@ impl Bvh4 {
             while top > 0 {
                 top -= 1;
                 let n = &self.nodes[stack[top] as usize];
+                // Any order will do: sorting the children by distance, as the
+                // closest hit does, took shadow rays 1.25-1.4x as long.
                 let (_, mut hit) = ray.test(n, t_max);
                 while hit != 0 {
                     let i = hit.trailing_zeros() as usize;
@@ -431,7 +460,7 @@ impl Bvh4 {
                     if n.count[i] == 0 {
                         stack[top] = n.child[i];
                         top += 1;
-                    } else if test(n.child[i], n.count[i], t_max) {
+                    } else if test(n.child[i], n.count[i] as u32, t_max) {
                         return true;
                     }
                 }
@@ -439,5 +468,114 @@ impl Bvh4 {
             false
         };
         with_stack(self.stack_need, visit)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The eight-lane box test gives, lane by lane and bit for bit, what the slab
+    /// test computed one child at a time in scalar f32 gives (entry distance and
+    /// hit), for boxes that are thin, empty (inverted), unbounded or behind the
+    /// ray, and for directions along an axis (reciprocal 1e30). That is what makes
+    /// an AVX, an SSE (the baseline x86-64 build of `wide`) and a scalar build
+    /// find the same children.
+    #[test]
+    fn eight_lane_box_test_equals_scalar_slabs_bit_for_bit() {
+        let mut s = pm_sampling::Sampler::hashed(21, 0);
+        let mut u = || 4.0 * s.next_1d() - 2.0;
+        let mut hits = 0;
+        for case in 0..20_000 {
+            let mut n = Node {
+                b: [[f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY)]; 3],
+                child: [0; WIDTH],
+                count: [0; WIDTH],
+            };
+            for lane in 0..WIDTH {
+                for a in 0..3 {
+                    let (x, w) = (u(), u().abs() * [1.0, 0.0, 1e-7, 3.0][(case + lane + a) % 4]);
+                    let (lo, hi) = match (case + lane) % 11 {
+                        0 => (f32::INFINITY, f32::NEG_INFINITY),
+                        1 => (f32::NEG_INFINITY, f32::INFINITY),
+                        _ => (x, x + w),
+                    };
+                    n.b[a][0].as_mut_array()[lane] = lo;
+                    n.b[a][1].as_mut_array()[lane] = hi;
+                }
+            }
+            let o = Vec3::new(u(), u(), u());
+            let mut d = Vec3::new(u(), u(), u());
+            if case % 5 == 0 {
+                d[case % 3] = 0.0;
+            }
+            let t_max = if case % 3 == 0 { f32::INFINITY } else { u().abs() * 3.0 };
+            let ray = BoxRay::new(o, d);
+            let (t0, hit) = ray.test(&n, t_max);
+            for (lane, &t0) in t0.iter().enumerate() {
+                let (mut e, mut x) = (0.0f32, t_max);
+                for a in 0..3 {
+                    let row = |r: usize| n.b[a][r].as_array()[lane];
+                    let near = ray.near[a];
+                    let (te, tx) = ((row(near) - ray.o[a]) * ray.inv[a], (row(near ^ 1) - ray.o[a]) * ray.inv[a]);
+                    e = if e > te { e } else { te };
+                    x = if x < tx { x } else { tx };
+                }
+                assert_eq!(t0.to_bits(), e.to_bits(), "case {case}, lane {lane}: entry");
+                assert_eq!(hit >> lane & 1 == 1, e <= x * ROBUST, "case {case}, lane {lane}: hit");
+                hits += hit >> lane & 1;
+            }
+        }
+        assert!(hits > 10_000, "too few lanes hit to mean anything: {hits}");
+    }
+
+    /// A tree whose nodes use all eight lanes, over randomly placed triangles of
+    /// many sizes: closest hits and occlusion of random segments equal a test of
+    /// every triangle.
+    #[test]
+    fn full_eight_lane_nodes_find_what_every_triangle_test_finds() {
+        let mut s = pm_sampling::Sampler::hashed(22, 0);
+        let mut u = || 2.0 * s.next_1d() - 1.0;
+        let tris: Vec<Triangle> = (0..600)
+            .filter_map(|i| {
+                let c = Vec3::new(u(), u(), u()) * 3.0;
+                let size = [0.02, 0.2, 1.0][i % 3];
+                Triangle::new([0, 1, 2].map(|_| c + Vec3::new(u(), u(), u()) * size), 0)
+            })
+            .collect();
+        let bvh = Bvh::build(&tris, 0.0);
+        let full = |n: &Node| n.b[0][0].as_array().iter().all(|x| x.is_finite());
+        let n_full = bvh.nodes.iter().filter(|n| full(n)).count();
+        assert!(full(&bvh.nodes[0]) && n_full >= 5, "{n_full} of {} nodes have all eight lanes", bvh.nodes.len());
+        let (slots, tris) = (bvh.slots(), &tris);
+        let leaf_test = |o: Vec3, d: Vec3| {
+            let ray = crate::TriangleRay::new(o, d);
+            move |first: u32, count: u32, t_max: f32| {
+                let mut best: Option<(u32, f32)> = None;
+                for slot in first..first + count {
+                    let limit = best.map_or(t_max, |b| b.1);
+                    if let Some((t, _)) = ray.hit(&tris[slots[slot as usize] as usize].p, limit) {
+                        best = Some((slot, t));
+                    }
+                }
+                best
+            }
+        };
+        let mut blocked = 0;
+        for _ in 0..3000 {
+            let o = Vec3::new(u(), u(), u()) * 4.0;
+            let d = Vec3::new(u(), u(), u()).normalize_or(Vec3::X);
+            let ray = crate::TriangleRay::new(o, d);
+            let want =
+                tris.iter().filter_map(|t| ray.hit(&t.p, f32::INFINITY)).map(|h| h.0).fold(f32::INFINITY, f32::min);
+            let got = bvh.closest(o, d, f32::INFINITY, leaf_test(o, d)).map_or(f32::INFINITY, |h| h.1);
+            assert_eq!(got, want, "ray from {o} along {d}");
+            let t = 2.0 * u().abs();
+            let any = leaf_test(o, d);
+            let occluded = bvh.any(o, d, t, |first, count, t_max| any(first, count, t_max).is_some());
+            assert_eq!(occluded, want < t, "segment from {o} along {d} to {t}");
+            blocked += occluded as u32;
+        }
+        assert!(blocked > 300, "too few segments blocked to mean anything: {blocked}");
     }
 }
