@@ -624,8 +624,9 @@ impl Light {
         let id = tris.start + i as u32;
         let tri = &scene.triangles[id as usize];
         let b = pm_sampling::uniform_triangle(u);
-        let p = tri.p[0] * b.x + tri.p[1] * b.y + tri.p[2] * (1.0 - b.x - b.y);
-        let (le, area) = pick_radiance(scene, id, i, [b.x, b.y, 1.0 - b.x - b.y], *emission, *area, area_per_pick);
+        let b = [b.x, b.y, 1.0 - b.x - b.y];
+        let p = tri.point(b);
+        let (le, area) = pick_radiance(scene, id, i, b, *emission, *area, area_per_pick);
         (le != Rgb::ZERO).then_some(AreaPick { tri, p, le, area })
     }
 }
@@ -1072,7 +1073,7 @@ mod tests {
                 for a in 0..=n {
                     for b in 0..=(n - a) {
                         let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
-                        let g = tri.p[0] * (1.0 - u - v) + tri.p[1] * u + tri.p[2] * v;
+                        let g = tri.point([1.0 - u - v, u, v]);
                         best = best.min((g - p).length());
                     }
                 }

@@ -300,7 +300,7 @@ impl Scene {
                     let b = corners.map(|c| c.1.to_array());
                     let p = match local {
                         None => corners.map(|c| c.0),
-                        Some(_) => b.map(|w| parent.p[0] * w[0] + parent.p[1] * w[1] + parent.p[2] * w[2]),
+                        Some(_) => b.map(|w| parent.point(w)),
                     };
                     out.extend(parent.piece(p, b));
                 }
