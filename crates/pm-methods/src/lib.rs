@@ -18,6 +18,7 @@
 
 pub mod live;
 
+pub use pm_bdpt::BdptParams;
 use pm_render::{
     Image, IndirectView, Integrator, Lookup, PathTracer, PhotonMapping, PhotonsView, RadianceView, RenderParams,
     RenderStats, View,
@@ -45,6 +46,10 @@ pm_params::value_enum! {
         /// with shrinking radii, the batch pipeline's consistent limit (needs no
         /// photon maps; Hachisuka and Jensen 2009; the pm-sppm crate).
         Sppm,
+        /// Bidirectional path tracing: eye and light subpaths joined in every way,
+        /// weighed by the power heuristic (needs no photon maps; Veach 1997; the
+        /// pm-bdpt crate).
+        Bdpt,
     }
 }
 
@@ -90,7 +95,7 @@ impl Method {
             Method::Indirect => Needs { photon_maps: true, volume: true, cache: true, irradiance: true, ..none },
             Method::Radiance => Needs { photon_maps: true, irradiance: true, ..none },
             Method::Photons => Needs { photon_maps: true, ..none },
-            Method::Path => none,
+            Method::Path | Method::Bdpt => none,
             Method::Sppm => Needs { progressive: true, ..none },
         }
     }
@@ -104,7 +109,7 @@ impl Method {
     pub fn agreement(self) -> Option<Agreement> {
         match self {
             Method::Full | Method::Sppm => Some(Agreement { mean: 0.02, worst_block: 0.15 }),
-            Method::Indirect | Method::Radiance | Method::Photons | Method::Path => None,
+            Method::Indirect | Method::Radiance | Method::Photons | Method::Path | Method::Bdpt => None,
         }
     }
 
@@ -141,6 +146,9 @@ pub struct Settings {
     /// Progressive photon mapping's (`--mode sppm`; pm-sppm).
     #[command(flatten, next_help_heading = "Progressive photon mapping (--mode sppm)")]
     pub sppm: SppmParams,
+    /// Bidirectional path tracing's (`--mode bdpt`; pm-bdpt).
+    #[command(flatten, next_help_heading = "Bidirectional path tracing (--mode bdpt)")]
+    pub bdpt: BdptParams,
 }
 
 impl Settings {
@@ -149,7 +157,8 @@ impl Settings {
         use pm_params::Naming;
         let naming = |section| if cli { Naming::Cli } else { Naming::File(section) };
         self.render.check(naming("render"))?;
-        self.sppm.validate(naming("sppm"))
+        self.sppm.validate(naming("sppm"))?;
+        self.bdpt.validate(naming("bdpt"))
     }
 
     /// The passes a progressive method is asked for (none for the others).
@@ -167,6 +176,7 @@ impl Settings {
         let mut a = vec!["--mode".to_string(), self.mode.to_string()];
         a.extend(self.render.to_args());
         a.extend(self.sppm.to_args());
+        a.extend(self.bdpt.to_args());
         a
     }
 }
@@ -265,6 +275,10 @@ pub fn render<G: pm_format::PhotonRecord>(
                 }
             };
             Ok(Rendered { image, stats, passes: Some(done) })
+        }
+        (Method::Bdpt, Input::Scene(scene)) => {
+            let (image, stats) = pm_bdpt::render(scene, &settings.bdpt, view, progress)?;
+            Ok(Rendered { image, stats, passes: None })
         }
         (Method::Path, Input::Scene(scene)) => {
             let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;

@@ -3,7 +3,7 @@
 use anyhow::{Context, Result, bail};
 use pm_estimate::IrradianceParams;
 use pm_methods::live::LiveParams;
-use pm_methods::{Method, Settings, SppmParams};
+use pm_methods::{BdptParams, Method, Settings, SppmParams};
 use pm_params::Naming;
 use pm_photon::TraceParams;
 use pm_render::RenderParams;
@@ -69,6 +69,9 @@ pub struct Pipeline {
     /// Progressive photon mapping's own settings (mode sppm).
     #[serde(default)]
     pub sppm: SppmParams,
+    /// Bidirectional path tracing's own settings (mode bdpt).
+    #[serde(default)]
+    pub bdpt: BdptParams,
     /// The scene `cargo xtask live` renders, relative to the pipeline file
     /// (default: `scene`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -247,8 +250,8 @@ impl Pipeline {
         Ok(p)
     }
 
-    /// Set `section.key` (a stage section: trace, irradiance, render, sppm or
-    /// live; `live.vertex` and `live.ispm` are live's tables).
+    /// Set `section.key` (a stage section: trace, irradiance, render, sppm, bdpt
+    /// or live; `live.vertex` and `live.ispm` are live's tables).
     pub fn set(&mut self, section: &str, key: &str, value: toml::Value) -> Result<()> {
         match section {
             "trace" => set_key(&mut self.trace, key, value),
@@ -259,6 +262,7 @@ impl Pipeline {
             }
             "render" => set_key(&mut self.render, key, value),
             "sppm" => set_key(&mut self.sppm, key, value),
+            "bdpt" => set_key(&mut self.bdpt, key, value),
             "live" => set_key(&mut self.live, key, value),
             "live.vertex" => set_key(&mut self.live.vertex, key, value),
             "live.ispm" => set_key(&mut self.live.ispm, key, value),
@@ -299,9 +303,9 @@ impl Pipeline {
         Ok((p, moved))
     }
 
-    /// Every method's settings (`[render]` with its mode, `[sppm]`).
+    /// Every method's settings (`[render]` with its mode, `[sppm]`, `[bdpt]`).
     pub fn settings(&self) -> Settings {
-        Settings { mode: self.mode, render: self.render.clone(), sppm: self.sppm }
+        Settings { mode: self.mode, render: self.render.clone(), sppm: self.sppm, bdpt: self.bdpt }
     }
 
     /// The scene of the batch pipeline: `scene` relative to the pipeline file

@@ -650,6 +650,120 @@ fn pick_radiance(
     }
 }
 
+/// A point a light emits from, picked as a light path's start is, with its area
+/// density: what the methods that weigh every way a path could have been made
+/// (bidirectional path tracing, vertex connection and merging) need of a light
+/// (pbrt-v4's `Light::SampleLe` and `PDF_Le`, position and direction kept apart).
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterPoint {
+    /// The point \[m\].
+    pub p: Vec3,
+    /// Unit geometric normal of its triangle (winding order); zero for a point or
+    /// spot light.
+    pub n: Vec3,
+    /// Emitted radiance L_e there [W sr^-1 m^-2 per channel] on an emitting side
+    /// (area lights), or the radiant intensity on the axis I [W sr^-1 per channel]
+    /// (point and spot lights).
+    pub le: Rgb,
+    /// Area density of the point given the light [m^-2]: 1 / the area a pick
+    /// stands for; 1 for a point or spot light (a delta in position).
+    pub pdf_pos: f32,
+}
+
+impl Light {
+    /// The point a light path starts from ([`Light::pick_area_point`] for an area
+    /// light: by area, or by power for a textured one), `u_sel` choosing the
+    /// triangle and `u` the point on it. `None` for lights at infinity and where
+    /// the point emits nothing.
+    pub fn emitter_point(&self, scene: &Scene, u_sel: f32, u: glam::Vec2) -> Option<EmitterPoint> {
+        match &self.kind {
+            LightKind::Area { .. } => {
+                let a = self.pick_area_point(scene, u_sel, u)?;
+                Some(EmitterPoint { p: a.p, n: a.tri.ng(), le: a.le, pdf_pos: 1.0 / a.area })
+            }
+            LightKind::Point { position, intensity } | LightKind::Spot { position, intensity, .. } => {
+                Some(EmitterPoint { p: *position, n: Vec3::ZERO, le: *intensity, pdf_pos: 1.0 })
+            }
+            LightKind::Directional { .. } | LightKind::Environment { .. } => None,
+        }
+    }
+
+    /// The point of an area light's triangle `tri` at barycentrics `b`, as
+    /// [`Light::emitter_point`] would have picked it (for a point an eye path found
+    /// on the light); `None` when the triangle is not this light's.
+    pub fn emitter_point_at(&self, scene: &Scene, tri: u32, b: [f32; 3]) -> Option<EmitterPoint> {
+        let LightKind::Area { tris, area, emission, area_per_pick, .. } = &self.kind else { return None };
+        if !tris.contains(&tri) {
+            return None;
+        }
+        let t = &scene.triangles[tri as usize];
+        let i = (tri - tris.start) as usize;
+        let (le, per_pick) = pick_radiance(scene, tri, i, b, *emission, *area, area_per_pick);
+        Some(EmitterPoint { p: t.point(b), n: t.ng(), le, pdf_pos: 1.0 / per_pick })
+    }
+
+    /// What the light sends from `q` along unit direction `dir`: radiance L_e
+    /// [W sr^-1 m^-2] from an area light's emitting side (zero behind a one-sided
+    /// one), radiant intensity [W sr^-1] from a point or spot light (the cone's
+    /// falloff applied).
+    pub fn emitted_toward(&self, q: &EmitterPoint, dir: Vec3) -> Rgb {
+        match &self.kind {
+            LightKind::Area { two_sided, .. } => {
+                let cos = dir.dot(q.n);
+                if cos > 0.0 || (*two_sided && cos < 0.0) { q.le } else { Rgb::ZERO }
+            }
+            LightKind::Point { intensity, .. } => *intensity,
+            LightKind::Spot { direction, intensity, cos_inner, cos_outer, .. } => {
+                *intensity * spot_falloff(dir.dot(*direction), *cos_inner, *cos_outer)
+            }
+            LightKind::Directional { .. } | LightKind::Environment { .. } => Rgb::ZERO,
+        }
+    }
+
+    /// A direction for a light path leaving `q` and its solid-angle density
+    /// [sr^-1]: cosine-weighted about the emitting side's normal (a two-sided
+    /// light's side chosen by `u_side`, each with probability 1/2), uniform over
+    /// the sphere for a point light and over the outer cone for a spot light, as
+    /// [`Light::sample_emission`] draws them.
+    pub fn sample_emitted_dir(&self, q: &EmitterPoint, u_side: f32, u: glam::Vec2) -> Option<(Vec3, f32)> {
+        let dir = match &self.kind {
+            LightKind::Area { two_sided, .. } => {
+                let n = if *two_sided && u_side < 0.5 { -q.n } else { q.n };
+                to_world(cosine_hemisphere(u), n)
+            }
+            LightKind::Point { .. } => uniform_sphere(u),
+            LightKind::Spot { direction, cos_outer, .. } => to_world(uniform_cone(u, *cos_outer), *direction),
+            LightKind::Directional { .. } | LightKind::Environment { .. } => return None,
+        };
+        let pdf = self.pdf_emitted_dir(q, dir);
+        (pdf > 0.0).then_some((dir, pdf))
+    }
+
+    /// The solid-angle density [sr^-1] with which [`Light::sample_emitted_dir`]
+    /// leaves `q` along unit `dir`.
+    pub fn pdf_emitted_dir(&self, q: &EmitterPoint, dir: Vec3) -> f32 {
+        match &self.kind {
+            LightKind::Area { two_sided, .. } => {
+                let cos = dir.dot(q.n);
+                if *two_sided {
+                    0.5 * pm_sampling::cosine_hemisphere_pdf(cos.abs())
+                } else {
+                    pm_sampling::cosine_hemisphere_pdf(cos.max(0.0))
+                }
+            }
+            LightKind::Point { .. } => 1.0 / FOUR_PI,
+            LightKind::Spot { direction, cos_outer, .. } => {
+                if dir.dot(*direction) > *cos_outer {
+                    uniform_cone_pdf(*cos_outer)
+                } else {
+                    0.0
+                }
+            }
+            LightKind::Directional { .. } | LightKind::Environment { .. } => 0.0,
+        }
+    }
+}
+
 /// The cone from `o` that bounds target `t`: its axis and the cos of its
 /// half-angle; the whole sphere of directions (cos -1) from inside the target.
 fn cone_to(o: Vec3, t: &Target) -> (Vec3, f32) {

@@ -2,6 +2,7 @@
 //! as one test binary (one link of the whole stack instead of one per file). Each
 //! module is one area; TESTING.md says what each test compares against.
 
+mod bdpt;
 mod differential;
 mod effects;
 mod environment;

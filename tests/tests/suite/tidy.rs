@@ -20,7 +20,7 @@ use std::path::PathBuf;
 /// (pm-runner: the pipeline and job plans; pm-study: the trade-off and peer
 /// studies); 10 the test crate. pm-scenegen (the glTF writer and the
 /// project's scenes) sits with the pieces at 2.
-const LAYERS: [(&str, u8); 30] = [
+const LAYERS: [(&str, u8); 31] = [
     ("pm-color", 0),
     ("pm-sampling", 0),
     ("pm-params", 0),
@@ -37,6 +37,7 @@ const LAYERS: [(&str, u8); 30] = [
     ("pm-render", 3),
     ("pm-live", 4),
     ("pm-sppm", 4),
+    ("pm-bdpt", 4),
     ("pm-vertex", 5),
     ("pm-ispm", 5),
     ("pm-methods", 6),
