@@ -38,8 +38,18 @@
 //! traced in fixed chunks, each chunk's splats kept in order and added chunk by
 //! chunk after the pass, so any thread count gives the same image.
 //!
-//! Not yet: participating media along connections and at vertices, and lights
-//! at infinity (an environment, a sun); a scene with either is refused.
+//! Participating media: subpaths scatter in them by the path tracer's free
+//! flights (a hero channel a subpath, the balance heuristic over channels), a
+//! point in a medium is a vertex like a surface's (its phase function for the
+//! BSDF, no cosines), and joins carry the transmittance between their ends
+//! through media and index-matched boundaries. The MIS densities leave out the
+//! distance sampling, as pbrt-v3's volumetric BDPT does: the weights still add
+//! up to one for every path, so the estimate stays unbiased.
+//!
+//! Lights at infinity (an environment, suns) start no light subpath: the eye
+//! subpaths find them by the path tracer's two strategies, leaving the scene
+//! and sampling them at each vertex, weighed by the power heuristic. Their
+//! light through glass (a sky's caustics) is then the path tracer's to find.
 
 use glam::Vec3;
 use pm_bsdf::{Bsdf, HenyeyGreenstein};
@@ -203,6 +213,24 @@ impl Lens {
     }
 }
 
+/// Where a random walk goes on from: the ray (origin \[m\], unit direction), the
+/// throughput so far, the direction's density at the subpath's last vertex
+/// [sr^-1] and the medium the ray starts in.
+struct Leaving {
+    o: Vec3,
+    d: Vec3,
+    beta: Rgb,
+    pdf: f32,
+    medium: Option<MediumId>,
+}
+
+/// How a random walk ended: cut by the vertex limit, and (eye subpaths) what it
+/// found leaving the scene, weighed [W sr^-1 m^-2].
+struct Walked {
+    cut: bool,
+    escaped: Rgb,
+}
+
 /// One splatted light-tracing contribution: the pixel, the layer, the value.
 type Splat = (u32, u8, Rgb);
 
@@ -223,7 +251,12 @@ struct Chunk {
 /// A bidirectional path tracer's state: its passes and the image so far.
 pub struct Bdpt<'a> {
     scene: &'a Scene,
-    lights: LightSelector,
+    /// The choice among the lights that light subpaths start from (every light
+    /// but those at infinity), by power; none when all are at infinity.
+    lights: Option<LightSelector>,
+    /// The choice among the lights at infinity (an environment, suns), by power,
+    /// for the eye subpaths' samples of them; none when there are none.
+    sky: Option<LightSelector>,
     lens: Lens,
     /// The medium the pinhole is in.
     eye_medium: Option<MediumId>,
@@ -248,9 +281,8 @@ pub struct Bdpt<'a> {
 
 impl<'a> Bdpt<'a> {
     /// A bidirectional path tracer of `scene` seen by `camera` on a film of
-    /// `width` x `height` pixels. Refused (with the reason) for a scene without
-    /// lights, or with what it does not carry yet: participating media and lights
-    /// at infinity.
+    /// `width` x `height` pixels; refused (with the reason) for a scene without
+    /// lights.
     pub fn new(
         scene: &'a Scene,
         camera: &Camera,
@@ -259,21 +291,14 @@ impl<'a> Bdpt<'a> {
         seed: u64,
         params: BdptParams,
     ) -> Result<Bdpt<'a>, String> {
-        if let Some(l) = scene
-            .lights
-            .iter()
-            .find(|l| matches!(l.kind, LightKind::Directional { .. } | LightKind::Environment { .. }))
-        {
-            return Err(format!(
-                "--mode bdpt does not carry lights at infinity yet (light '{}': an environment or sun; use --mode path or sppm)",
-                l.name
-            ));
-        }
-        let lights = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
+        let all = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
+        let at_infinity: Vec<usize> = (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect();
+        let finite: Vec<usize> = (0..scene.lights.len()).filter(|i| !at_infinity.contains(i)).collect();
         let n = width as usize * height as usize;
         Ok(Bdpt {
             scene,
-            lights,
+            lights: all.excluding(&at_infinity),
+            sky: all.excluding(&finite),
             lens: Lens::new(camera, width, height),
             eye_medium: scene.eye_medium(camera.position),
             width,
@@ -420,7 +445,11 @@ impl<'a> Bdpt<'a> {
         let mut se = Sampler::salted(self.seed, pixel_salt(i), k as u64);
         let j = se.next_2d();
         let d = self.lens.rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
-        out.cut += self.eye_subpath(d, &mut se, eye) as u64;
+        let walked = self.eye_subpath(d, &mut se, eye);
+        out.cut += walked.cut as u64;
+        if walked.escaped.max_element() > 0.0 {
+            out.pixels[i - out.start][layer_of(eye, &[], 0, eye.len() + 1)] += walked.escaped;
+        }
         let mut sl = Sampler::salted(self.seed, LIGHT_SALT ^ i as u64, k as u64);
         out.cut += self.light_subpath(&mut sl, light) as u64;
         // s = 1 picks its own light point, so it is tried even when the light
@@ -429,6 +458,13 @@ impl<'a> Bdpt<'a> {
             for s in 0..=light.len().max(1) {
                 if s + t < 2 || (s == 1 && t == 1) {
                     continue;
+                }
+                if s == 0 && t >= 2 && self.sky.is_some() {
+                    // The lights at infinity, sampled from z_{t-1}.
+                    let u = (se.next_1d(), se.next_1d(), se.next_2d());
+                    if let Some(c) = self.sky_sample(&eye[t - 1], u) {
+                        out.pixels[i - out.start][layer_of(eye, &[], 0, t + 1)] += c;
+                    }
                 }
                 // s = 1's light point takes the eye stream's next numbers.
                 let u = if s == 1 { Some((se.next_1d(), se.next_1d(), se.next_2d())) } else { None };
@@ -456,11 +492,19 @@ impl<'a> Bdpt<'a> {
     }
 
     /// The eye subpath through unit direction `d` from the pinhole into `path`
-    /// (the pinhole first). True when the vertex limit cut it.
-    fn eye_subpath(&self, d: Vec3, s: &mut Sampler, path: &mut Vec<Vertex>) -> bool {
+    /// (the pinhole first): whether the vertex limit cut it, and what it found
+    /// leaving the scene.
+    fn eye_subpath(&self, d: Vec3, s: &mut Sampler, path: &mut Vec<Vertex>) -> Walked {
         path.clear();
         path.push(self.camera_vertex());
-        self.walk(self.lens.camera.position, d, Rgb::ONE, self.lens.pdf_dir(d), self.eye_medium, true, s, path)
+        let from = Leaving {
+            o: self.lens.camera.position,
+            d,
+            beta: Rgb::ONE,
+            pdf: self.lens.pdf_dir(d),
+            medium: self.eye_medium,
+        };
+        self.walk(from, true, s, path)
     }
 
     /// The light subpath into `path` (the light's point first): a light chosen by
@@ -481,7 +525,7 @@ impl<'a> Bdpt<'a> {
             return false;
         }
         let o = if q.n == Vec3::ZERO { q.p } else { self.scene.offset_origin(q.p, q.n, dir) };
-        self.walk(o, dir, beta, pdf_dir, y0.media[0], false, s, path)
+        self.walk(Leaving { o, d: dir, beta, pdf: pdf_dir, medium: y0.media[0] }, false, s, path).cut
     }
 
     /// Extend a subpath from `o` along unit `d` (sampled with density `pdf_dir`
@@ -491,28 +535,20 @@ impl<'a> Bdpt<'a> {
     /// subpath, weighed by the balance heuristic over channels, `Flights`),
     /// index-matched boundaries passed without a vertex, and Russian roulette:
     /// radiance on the eye side (`eye`), power on the light side. True when the
-    /// vertex limit cut it.
-    #[allow(clippy::too_many_arguments)]
-    fn walk(
-        &self,
-        o: Vec3,
-        d: Vec3,
-        beta: Rgb,
-        pdf_dir: f32,
-        medium: Option<MediumId>,
-        eye: bool,
-        s: &mut Sampler,
-        path: &mut Vec<Vertex>,
-    ) -> bool {
+    /// vertex limit cut it, and for an eye subpath what it found leaving the
+    /// scene (weighed against the samples of lights at infinity).
+    fn walk(&self, from: Leaving, eye: bool, s: &mut Sampler, path: &mut Vec<Vertex>) -> Walked {
         let scene = self.scene;
+        let Leaving { o, d, beta, pdf: pdf_dir, medium } = from;
         let (mut o, mut d, mut beta, mut pdf_fwd, mut medium) = (o, d, beta, pdf_dir, medium);
+        let ended = |cut: bool| Walked { cut, escaped: Rgb::ZERO };
         let start = beta.max_element();
         let mut eta_scale = 1.0f32;
         let mut flights = Flights::new(if scene.has_media() { s.next_1d() } else { 0.0 });
         let limit = self.params.bdpt_max_vertices as usize + 1;
         loop {
             if path.len() >= limit {
-                return true;
+                return ended(true);
             }
             let hit = scene.intersect(o, d, f32::INFINITY);
             let prev = *path.last().expect("a subpath starts with its first vertex");
@@ -551,12 +587,15 @@ impl<'a> Bdpt<'a> {
                 path[at - 1].pdf_rev = v.area_density(ps.pdf, &prev);
                 pdf_fwd = ps.pdf;
                 if !self.survives(&mut beta, flights.weight(), start, eta_scale, at, s) {
-                    return false;
+                    return ended(false);
                 }
                 (o, d) = (p, ps.wi);
                 continue;
             }
-            let Some(hit) = hit else { return false };
+            let Some(hit) = hit else {
+                let escaped = if eye { self.escaped(&prev, pdf_fwd, d, beta * flights.weight()) } else { Rgb::ZERO };
+                return Walked { cut: false, escaped };
+            };
             if let Some(tint) = scene.index_matched(&hit) {
                 // Straight through into the medium beyond: no vertex.
                 beta *= tint;
@@ -593,9 +632,9 @@ impl<'a> Bdpt<'a> {
             let at = path.len();
             path.push(v);
             let (u, uc) = (s.next_2d(), s.next_1d());
-            let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return false };
+            let Some(bs) = bsdf.sample(wo, hit.ns, u, uc) else { return ended(false) };
             if pm_scene::same_side(hit.ng, bs.wi, wo) == bs.transmitted {
-                return false;
+                return ended(false);
             }
             let weight = if eye {
                 eta_scale *= bs.eta * bs.eta;
@@ -605,7 +644,7 @@ impl<'a> Bdpt<'a> {
                 let num = wo.dot(hit.ns).abs() * bs.wi.dot(hit.ng).abs();
                 let den = wo.dot(hit.ng).abs() * bs.wi.dot(hit.ns).abs();
                 if !(den > 0.0) {
-                    return false;
+                    return ended(false);
                 }
                 bs.weight * (num / den)
             };
@@ -615,12 +654,72 @@ impl<'a> Bdpt<'a> {
             path[at - 1].pdf_rev = path[at].area_density(rev, &prev);
             pdf_fwd = fwd;
             if !self.survives(&mut beta, flights.weight(), start, if eye { eta_scale } else { 1.0 }, at, s) {
-                return false;
+                return ended(false);
             }
             medium = v.medium_toward(bs.wi);
             o = scene.offset_origin(hit.p, hit.ng, bs.wi);
             d = bs.wi;
         }
+    }
+
+    /// What an eye subpath finds leaving the scene along unit `d` from its last
+    /// vertex `prev` (which sampled `d` with density `pdf` [sr^-1]; zero after a
+    /// delta lobe) with throughput `beta`: the environment's and sun discs'
+    /// radiance [W sr^-1 m^-2], weighed by the power heuristic against
+    /// [`Self::sky_sample`] at `prev` (the path tracer's two strategies for light
+    /// at infinity: light subpaths do not start there).
+    fn escaped(&self, prev: &Vertex, pdf: f32, d: Vec3, beta: Rgb) -> Rgb {
+        let le = self.scene.escaped(d);
+        if le.max_element() <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let w = if matches!(prev.kind, Kind::Camera) || prev.delta {
+            1.0
+        } else {
+            pm_light::power_heuristic(pdf, self.pdf_sky(prev, d))
+        };
+        beta * le * w
+    }
+
+    /// The unit normal a vertex samples lights at infinity about: the geometric
+    /// normal on the side `wo` is on; zero in a medium.
+    fn sky_normal(v: &Vertex) -> Vec3 {
+        if v.ng == Vec3::ZERO { Vec3::ZERO } else { pm_scene::facing(v.ng, v.wo) }
+    }
+
+    /// The density [sr^-1] with which [`Self::sky_sample`] at `v` picks unit
+    /// direction `d` (every light at infinity's, by its choice).
+    fn pdf_sky(&self, v: &Vertex, d: Vec3) -> f32 {
+        let Some(sky) = &self.sky else { return 0.0 };
+        let n = Self::sky_normal(v);
+        (0..self.scene.lights.len())
+            .filter(|&i| sky.probs[i] > 0.0)
+            .map(|i| sky.probs[i] as f32 * self.scene.lights[i].pdf_escaped(v.p, n, d))
+            .sum()
+    }
+
+    /// Light from a light at infinity at eye vertex `z`: one light chosen by power
+    /// (`u.0`), a direction sampled on it (`u.1`, `u.2`: `Light::sample_li`), a
+    /// shadow ray to the sky through the media and index-matched boundaries on the
+    /// way, weighed by the power heuristic against the eye subpath's own
+    /// direction leaving the scene ([`Self::escaped`]); a parallel sun is taken
+    /// whole. What it adds to the pixel [W sr^-1 m^-2].
+    fn sky_sample(&self, z: &Vertex, u: (f32, f32, glam::Vec2)) -> Option<Rgb> {
+        if z.delta || !z.scatters() {
+            return None;
+        }
+        let sky = self.sky.as_ref()?;
+        let (li, prob) = sky.pick(u.0);
+        let ls = self.scene.lights[li].sample_li(self.scene, z.p, Self::sky_normal(z), u.1, u.2)?;
+        let f = z.f(z.wo, ls.wi) * z.cos_at(ls.wi);
+        let c = z.beta * f * ls.li / (prob as f32 * ls.pdf);
+        if c.max_element() <= 0.0 || !c.is_finite() {
+            return None;
+        }
+        let o = if z.ng == Vec3::ZERO { z.p } else { self.scene.offset_origin(z.p, z.ng, ls.wi) };
+        let tr = self.scene.transmittance_along(o, ls.wi, f32::INFINITY, z.medium_toward(ls.wi));
+        let w = if ls.delta { 1.0 } else { pm_light::power_heuristic(self.pdf_sky(z, ls.wi), z.pdf_dir(z.wo, ls.wi)) };
+        Some(c * tr * w)
     }
 
     /// Russian roulette after the vertex at index `at` (from the fourth on; the
@@ -721,7 +820,7 @@ impl<'a> Bdpt<'a> {
     /// A point on a light picked as a light subpath's first vertex is (`u_light`
     /// the light, `u_sel` its triangle, `u_pos` the point), for strategy s = 1.
     fn light_point(&self, u_light: f32, u_sel: f32, u_pos: glam::Vec2) -> Option<Vertex> {
-        let (li, prob) = self.lights.pick(u_light);
+        let (li, prob) = self.lights.as_ref()?.pick(u_light);
         let q = self.scene.lights[li].emitter_point(self.scene, u_sel, u_pos)?;
         let pdf = prob as f32 * q.pdf_pos;
         (pdf > 0.0).then(|| Vertex {
@@ -802,7 +901,7 @@ impl<'a> Bdpt<'a> {
             let Kind::Surface { emitter: Some((li, q)), .. } = &z.kind else { return 0.0 };
             let light = &self.scene.lights[*li as usize];
             let fix = Fix {
-                z_rev: self.lights.probs[*li as usize] as f32 * q.pdf_pos,
+                z_rev: self.lights.as_ref().map_or(0.0, |l| l.probs[*li as usize] as f32) * q.pdf_pos,
                 z_prev_rev: z.area_density(light.pdf_emitted_dir(q, z.wo), &eye[t - 2]),
                 ..Fix::default()
             };
@@ -895,6 +994,12 @@ impl<'a> Bdpt<'a> {
             _ => false,
         }
     }
+}
+
+/// True for a light at infinity (an environment, a sun): no light subpath starts
+/// there; eye subpaths find it by leaving the scene or by sampling it.
+fn at_infinity(l: &pm_scene::Light) -> bool {
+    matches!(l.kind, LightKind::Directional { .. } | LightKind::Environment { .. })
 }
 
 /// The densities a join changes, for [`Bdpt::mis`]: the reverse densities of the

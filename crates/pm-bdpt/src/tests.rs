@@ -50,7 +50,7 @@ impl Whole {
         let n = self.n();
         let (li, q) = self.light;
         let pdf = if i == n {
-            return one_if_zero(b.lights.probs[li as usize] as f32 * q.pdf_pos);
+            return one_if_zero(b.lights.as_ref().unwrap().probs[li as usize] as f32 * q.pdf_pos);
         } else if i + 1 == n {
             b.scene.lights[li as usize].pdf_emitted_dir(&q, self.dir(n, i))
         } else if self.x[i + 1].delta {
