@@ -176,6 +176,22 @@ fn cornell_glass_panel() -> Doc {
     doc
 }
 
+/// Light reaching the room only through glass, with a mirror and a glossy floor
+/// (issue 56's scene for the bidirectional methods): cornell_glass_panel's ceiling
+/// light behind its clear panel, the chrome and glass spheres, and the floor
+/// covered 1 mm above it by a polished dielectric (roughness 0.2: GGX alpha 0.04)
+/// that shows the light's caustic and the spheres in a blurred reflection. Every
+/// direct path is a caustic (a shadow ray cannot refract), and the floor's
+/// glossy reflection of it is what photon maps blur and path tracers miss.
+fn glass_lit_room() -> Doc {
+    let mut doc = cornell_glass_panel();
+    let polished = doc.material(json!({"name": "polished_floor", "pbrMetallicRoughness": {
+        "baseColorFactor": [0.6, 0.6, 0.6, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.2}}));
+    let h = 0.999;
+    doc.mesh_node("polished_floor", &quad([-h, 0.001, h], [h, 0.001, h], [h, 0.001, -h], [-h, 0.001, -h]), polished);
+    doc
+}
+
 fn cornell_boxes() -> Doc {
     let mut doc = Doc::default();
     cornell_shell(&mut doc);
@@ -884,6 +900,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         ("cornell_fog", cornell_fog()),
         ("cornell_fogbox", cornell_fogbox()),
         ("cornell_glass_panel", cornell_glass_panel()),
+        ("glass_lit_room", glass_lit_room()),
         ("volumetric_caustic", volumetric_caustic()),
         ("furnace", furnace()),
         ("plane_point", plane_point()),

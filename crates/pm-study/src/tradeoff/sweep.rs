@@ -82,6 +82,10 @@ pm_params::value_enum! {
         #[value(name = "sppm no probes")]
         #[serde(rename = "sppm no probes")]
         SppmNoProbes,
+        /// Bidirectional path tracing at several pass counts.
+        #[value(name = "bdpt")]
+        #[serde(rename = "bdpt")]
+        Bdpt,
         /// Jozwowski's vertex method (one frame of photon-live).
         #[value(name = "live vertex")]
         #[serde(rename = "live vertex")]
@@ -101,7 +105,7 @@ impl Axis {
     /// A method of its own (drawn as its own line) rather than a setting varied
     /// about the defaults (whose line passes through the defaults' point).
     pub fn is_method(self) -> bool {
-        matches!(self, Axis::Path | Axis::Sppm | Axis::SppmNoProbes | Axis::LiveVertex | Axis::LiveIspm)
+        matches!(self, Axis::Path | Axis::Sppm | Axis::SppmNoProbes | Axis::Bdpt | Axis::LiveVertex | Axis::LiveIspm)
     }
 }
 
@@ -229,6 +233,14 @@ pub fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media:
         v.push(with(Axis::SppmNoProbes, format!("sppm {passes} passes no probes"), &|s| {
             s.render.mode = Method::Sppm;
             (s.render.sppm.passes, s.render.sppm.sppm_boundary_probes) = (passes, 0)
+        }));
+    }
+    // Bidirectional path tracing (issue 56): passes of one eye and one light
+    // subpath a pixel, unbiased like the path tracer.
+    for passes in [16u32, 64, 256, 1024] {
+        v.push(with(Axis::Bdpt, format!("bdpt {passes} passes"), &|s| {
+            s.render.mode = Method::Bdpt;
+            s.render.render.spp = passes
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
