@@ -80,27 +80,29 @@ pub struct Cli {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Progressive photon mapping (`--mode sppm`): write the image (`--out`, its
+    /// Progressive methods (`--mode sppm`, `bdpt`): write the image (`--out`, its
     /// layers as usual) after every K passes, so a long render can be looked at
     /// while it runs.
     #[arg(long, value_name = "K")]
     pub checkpoint: Option<u32>,
-    /// Progressive photon mapping: stop after the pass that takes the render past
-    /// this many seconds (the image holds the passes done; the pass count, and so
-    /// the image, then depends on the machine: `--passes` alone is deterministic).
+    /// Progressive methods: stop after the pass that takes the render past this
+    /// many seconds (the image holds the passes done; the pass count, and so the
+    /// image, then depends on the machine: `--passes` (sppm) or `--spp` (bdpt)
+    /// alone is deterministic).
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
-    /// Progressive photon mapping: keep the pixels' state (radii, photon counts,
-    /// fluxes: 108 bytes a pixel) in this file. When it exists the render
-    /// continues from the passes it holds (refused if it was made from another
-    /// scene or with other settings; --passes is the total); it is written at
+    /// Progressive methods: keep the pixels' state in this file (sppm: radii,
+    /// photon counts, fluxes, 120 bytes a pixel; bdpt: the layers' sums over the
+    /// passes, 68 bytes a pixel). When it exists the render continues from the
+    /// passes it holds (refused if it was made from another scene or with other
+    /// settings; --passes or --spp is the total); it is written at
     /// every checkpoint and when the render stops. A render that --time-budget
     /// stops before --passes then exits with code 75 (sysexits' EX_TEMPFAIL):
     /// run the same command again to continue (a Slurm job re-queues itself so).
     /// A stop and a resume equal one run bit for bit.
     #[arg(long, value_name = "FILE")]
     pub state: Option<PathBuf>,
-    /// Progressive photon mapping: run K of N independent runs, K/N (seed + K;
+    /// Progressive methods: run K of N independent runs, K/N (seed + K;
     /// `cargo xtask assemble --average` averages the runs' images, which is still
     /// consistent).
     #[arg(long, value_parser = parse_run, value_name = "K/N")]
@@ -412,7 +414,7 @@ impl Job<'_> {
         let total = cli.settings.passes().unwrap_or(0);
         let start = match &cli.state {
             Some(path) if path.exists() => {
-                Some((path.as_path(), pm_format::read_state(path).map_err(|e| e.to_string())?))
+                Some((path.as_path(), pm_methods::State::read(self.mode, path).map_err(|e| e.to_string())?))
             }
             _ => None,
         };
@@ -423,10 +425,14 @@ impl Job<'_> {
         let region =
             (self.rect != self.film.rect()).then_some([self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1]);
         let t0 = std::time::Instant::now();
-        let per_pass = cli.settings.photons_per_pass().unwrap_or(0);
+        let per_pass = cli.settings.photons_per_pass();
         let mut after_pass = |s: &dyn Progressive| -> Result<bool, String> {
             let done = s.passes();
-            let photons = done as u64 * per_pass;
+            // What the passes traced: photon paths (SPPM), or samples a pixel.
+            let traced = match per_pass {
+                Some(n) => format!("{} photon paths", done as u64 * n),
+                None => format!("{done} samples a pixel"),
+            };
             let go_on = cli.time_budget.is_none_or(|b| t0.elapsed().as_secs_f64() < b);
             let checkpoint = cli.checkpoint.is_some_and(|k| k > 0 && done.is_multiple_of(k));
             // The noise estimate reads the whole image: only where it is shown.
@@ -435,18 +441,15 @@ impl Job<'_> {
                 .flatten()
                 .map_or(String::new(), |n| format!(", noise ~{:.1}% (bias not included)", 100.0 * n));
             progress.set(done as u64);
-            progress.message(&format!("{photons} photon paths{noise}"));
+            progress.message(&format!("{traced}{noise}"));
             if (checkpoint || !go_on || done == total)
                 && let Some(path) = &cli.state
             {
-                pm_format::write_state(path, &s.state()).map_err(|e| e.to_string())?;
+                s.state().write(path).map_err(|e| e.to_string())?;
             }
             if let (true, Some(out)) = (checkpoint && done < total, &cli.out) {
                 write_exr(cli, out, region, &layers_of(s.region_image(self.rect))).map_err(|e| format!("{e:#}"))?;
-                eprintln!(
-                    "photon-render: checkpoint: {done} passes written to {} ({photons} photon paths{noise})",
-                    out.display()
-                );
+                eprintln!("photon-render: checkpoint: {done} passes written to {} ({traced}{noise})", out.display());
             }
             Ok(go_on)
         };
@@ -455,7 +458,7 @@ impl Job<'_> {
         let r = pm_methods::render(&cli.settings, input, view, Some(passes), &|_, _| {});
         progress.finish();
         if let (Some((path, file)), Ok(_)) = (&start, &r) {
-            eprintln!("photon-render: continued from the {} passes in {}", file.passes, path.display());
+            eprintln!("photon-render: continued from the {} passes in {}", file.passes(), path.display());
         }
         let r = r?;
         self.unfinished.set(r.passes.is_some_and(|done| done < total) && cli.state.is_some());

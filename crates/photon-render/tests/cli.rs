@@ -416,3 +416,81 @@ fn sppm_state_resumes_bit_for_bit() {
     ok(sppm("seed.exr", &["--passes", "4", "--seed", "3"]));
     assert_eq!(read("run.exr"), read("seed.exr"));
 }
+
+/// Bidirectional path tracing runs in passes as SPPM does: 4 passes, a stop, and
+/// 4 more from the state file (`--spp 8` is the total) equal 8 passes in one run
+/// bit for bit, image and state; `--time-budget` with a state exits with code 75
+/// and the same command finishes the one-run image; a checkpoint does not change
+/// the image; an SPPM state, another seed and another size are refused naming the
+/// file.
+#[test]
+fn bdpt_state_resumes_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_spheres.gltf");
+    let p = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    let bdpt_of = |width: &str, out: &str, extra: &[&str]| {
+        let out = p(out);
+        let mut a = vec!["--scene", s.to_str().unwrap(), "--mode", "bdpt"];
+        a.extend(["--width", width, "--height", "12", "--out", &out]);
+        a.extend_from_slice(extra);
+        render(&a)
+    };
+    let bdpt = |out: &str, extra: &[&str]| bdpt_of("16", out, extra);
+    let ok = |o: std::process::Output| {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    ok(bdpt("one.exr", &["--spp", "8", "--state", &p("one.state")]));
+    ok(bdpt("plain.exr", &["--spp", "8"]));
+    ok(bdpt("two.exr", &["--spp", "4", "--state", &p("two.state")]));
+    let said = ok(bdpt("two.exr", &["--spp", "8", "--state", &p("two.state")]));
+    assert!(said.contains("continued from the 4 passes"), "{said}");
+    let read = |f: &str| std::fs::read(p(f)).unwrap();
+    assert_eq!(read("one.exr"), read("two.exr"), "4 + 4 passes against 8");
+    assert_eq!(read("one.exr"), read("plain.exr"), "a state file does not change the image");
+    assert_eq!(read("one.state"), read("two.state"));
+    assert_eq!(pm_format::read_pass_state(Path::new(&p("one.state"))).unwrap().passes, 8);
+    let said = ok(bdpt("k.exr", &["--spp", "8", "--checkpoint", "2"]));
+    assert!(said.contains("checkpoint: 4 passes written"), "{said}");
+    assert_eq!(read("one.exr"), read("k.exr"));
+    let o = bdpt("b.exr", &["--spp", "8", "--state", &p("b.state"), "--time-budget", "0.000001"]);
+    assert_eq!(o.status.code(), Some(75), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unfinished: 1 of 8 passes"));
+    ok(bdpt("b.exr", &["--spp", "8", "--state", &p("b.state")]));
+    assert_eq!(read("one.exr"), read("b.exr"));
+    // Refusals: one line naming the state file and what differs.
+    let refused = |width: &str, state: &str, extra: &[&str], what: &str| {
+        let state = p(state);
+        let mut a = vec!["--state", state.as_str()];
+        a.extend_from_slice(extra);
+        let o = bdpt_of(width, "refused.exr", &a);
+        let said = String::from_utf8_lossy(&o.stderr);
+        let e = said.lines().find(|l| l.contains("error:")).unwrap_or_default();
+        assert!(!o.status.success() && e.contains(".state") && e.contains(what), "{said}");
+        assert!(!dir.path().join("refused.exr").exists());
+    };
+    refused("16", "one.state", &["--spp", "16", "--seed", "2"], "seed=2");
+    refused("20", "one.state", &["--spp", "16"], "16x12");
+    refused("16", "one.state", &["--spp", "4"], "holds 8 passes");
+    let sppm_state = p("sppm.state");
+    let o = render(&[
+        "--scene",
+        s.to_str().unwrap(),
+        "--mode",
+        "sppm",
+        "--passes",
+        "1",
+        "--photons-per-pass",
+        "100",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--state",
+        &sppm_state,
+        "--out",
+        &p("sppm.exr"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    refused("16", "sppm.state", &["--spp", "4"], "not a usable progressive pass sums");
+}

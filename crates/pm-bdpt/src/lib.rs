@@ -319,6 +319,61 @@ impl<'a> Bdpt<'a> {
         self.passes
     }
 
+    /// The settings that shape the state, as "name=value" words (the state file's
+    /// key: a state made with other settings is refused).
+    pub fn key(&self) -> String {
+        format!(
+            "method=bdpt width={} height={} seed={} bdpt_max_vertices={}",
+            self.width, self.height, self.seed, self.params.bdpt_max_vertices
+        )
+    }
+
+    /// The state as its file holds it.
+    pub fn to_file(&self) -> pm_format::PassStateFile {
+        let records = (0..self.sum.len())
+            .map(|i| pm_format::PassRecord {
+                sum: self.sum[i].map(<[f32; 3]>::from),
+                l_sum: self.l_sum[i],
+                l_sq: self.l_sq[i],
+            })
+            .collect();
+        pm_format::PassStateFile {
+            width: self.width,
+            height: self.height,
+            passes: self.passes,
+            scene_hash: self.scene.content_hash,
+            params: self.key(),
+            records,
+        }
+    }
+
+    /// Continue from a state file's passes: refused when it was made from another
+    /// scene, for another image size or with other settings (naming the first
+    /// that differs), or holds more passes than `most`.
+    pub fn resume(&mut self, file: &pm_format::PassStateFile, most: u32) -> Result<(), String> {
+        if (file.width, file.height) != (self.width, self.height) {
+            return Err(format!(
+                "a state of a {}x{} image, this render is {}x{}",
+                file.width, file.height, self.width, self.height
+            ));
+        }
+        if file.scene_hash != self.scene.content_hash {
+            return Err("made from another scene".into());
+        }
+        if let Some((had, has)) = pm_format::key_difference(&file.params, &self.key()) {
+            return Err(format!("made with {had}, this render has {has}"));
+        }
+        if file.passes > most {
+            return Err(format!("holds {} passes, more than the {most} asked for", file.passes));
+        }
+        for (i, r) in file.records.iter().enumerate() {
+            self.sum[i] = r.sum.map(Rgb::from_array);
+            (self.l_sum[i], self.l_sq[i]) = (r.l_sum, r.l_sq);
+        }
+        self.passes = file.passes;
+        Ok(())
+    }
+
     /// Keep, from the next pass on, every strategy's contributions apart (see
     /// [`Bdpt::strategies`]): for checking that each strategy alone is unbiased.
     pub fn tally_strategies(&mut self) {
@@ -1050,12 +1105,38 @@ pub fn render(
     view: View,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
+    let passes = view.film.spp as u64;
+    let (image, stats, _) = render_with(scene, params, view, None, &mut |b| {
+        progress(b.passes() as u64, passes);
+        Ok(true)
+    })?;
+    Ok((image, stats))
+}
+
+/// [`render`], continuing from the passes of `start` when given (a state file,
+/// read from the path it names, of the same scene and settings: see
+/// [`Bdpt::resume`]; a refusal names the file) and calling `after_pass` after
+/// each pass with the state so far (to write a checkpoint image or state, or
+/// stop: `Ok(false)` ends the render with the passes done). Returns the image,
+/// its statistics and the passes it holds.
+pub fn render_with(
+    scene: &Scene,
+    params: &BdptParams,
+    view: View,
+    start: Option<(&std::path::Path, &pm_format::PassStateFile)>,
+    after_pass: &mut dyn FnMut(&Bdpt) -> Result<bool, String>,
+) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
     let film = view.film;
     let mut b = Bdpt::new(scene, view.camera, film.width, film.height, film.seed, *params)?;
+    if let Some((path, file)) = start {
+        b.resume(file, film.spp).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     while b.passes() < film.spp {
         b.pass();
-        progress(b.passes() as u64, film.spp as u64);
+        if !after_pass(&b)? {
+            break;
+        }
     }
     let image = b.region_image(view.rect);
     let stats = pm_render::RenderStats {
@@ -1064,8 +1145,5 @@ pub fn render(
         terminated_paths: b.cut_paths(),
         ..Default::default()
     };
-    Ok((image, stats))
+    Ok((image, stats, b.passes()))
 }
-
-#[cfg(test)]
-mod tests;

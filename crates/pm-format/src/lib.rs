@@ -25,6 +25,7 @@ mod direction;
 mod framed;
 pub mod header;
 pub mod icache;
+pub mod passes;
 mod record;
 pub mod sppm;
 
@@ -32,6 +33,7 @@ pub use atomic::write_atomically;
 pub use direction::{DIRECTION_MAX_ERROR_RAD, decode_direction, encode_direction};
 pub use header::{FormatError, Header, Layout, MapKind, Order, ReadExpect};
 pub use icache::{CacheFile, CacheRecord, read_cache, write_cache};
+pub use passes::{PassRecord, PassStateFile, read_pass_state, write_pass_state};
 pub use record::{CompactIrrPhoton, CompactPhoton, FullIrrPhoton, FullPhoton, Photon, PhotonRecord, flags};
 pub use sppm::{StateFile, StateRecord, read_state, write_state};
 

@@ -95,8 +95,8 @@ impl Method {
             Method::Indirect => Needs { photon_maps: true, volume: true, cache: true, irradiance: true, ..none },
             Method::Radiance => Needs { photon_maps: true, irradiance: true, ..none },
             Method::Photons => Needs { photon_maps: true, ..none },
-            Method::Path | Method::Bdpt => none,
-            Method::Sppm => Needs { progressive: true, ..none },
+            Method::Path => none,
+            Method::Sppm | Method::Bdpt => Needs { progressive: true, ..none },
         }
     }
 
@@ -161,9 +161,15 @@ impl Settings {
         self.bdpt.validate(naming("bdpt"))
     }
 
-    /// The passes a progressive method is asked for (none for the others).
+    /// The passes a progressive method is asked for (none for the others): SPPM's
+    /// `--passes`; bidirectional path tracing's `--spp` (a pass is one eye and
+    /// one light subpath a pixel).
     pub fn passes(&self) -> Option<u32> {
-        (self.mode == Method::Sppm).then_some(self.sppm.passes)
+        match self.mode {
+            Method::Sppm => Some(self.sppm.passes),
+            Method::Bdpt => Some(self.render.spp),
+            _ => None,
+        }
     }
 
     /// The photon paths a progressive method traces per pass (none for the others).
@@ -203,7 +209,45 @@ pub trait Progressive {
     /// the pixels the accuracy study compares; none before two passes.
     fn noise(&self) -> Option<f64>;
     /// The state as its file holds it.
-    fn state(&self) -> pm_format::StateFile;
+    fn state(&self) -> State;
+}
+
+/// A progressive method's state as its file holds it: SPPM's per-pixel radii,
+/// counts and fluxes, or the plain sums over passes of the methods whose pixels
+/// are averages of their passes (bidirectional path tracing).
+#[derive(Clone, Debug, PartialEq)]
+pub enum State {
+    /// `--mode sppm`'s.
+    Sppm(pm_format::StateFile),
+    /// `--mode bdpt`'s.
+    Passes(pm_format::PassStateFile),
+}
+
+impl State {
+    /// Passes the state holds.
+    pub fn passes(&self) -> u32 {
+        match self {
+            State::Sppm(f) => f.passes,
+            State::Passes(f) => f.passes,
+        }
+    }
+
+    /// Write it to `path` atomically.
+    pub fn write(&self, path: &std::path::Path) -> Result<(), pm_format::FormatError> {
+        match self {
+            State::Sppm(f) => pm_format::write_state(path, f),
+            State::Passes(f) => pm_format::write_pass_state(path, f),
+        }
+    }
+
+    /// Read the state file of `method` at `path` (a file of another kind is
+    /// refused by its signature, naming the file).
+    pub fn read(method: Method, path: &std::path::Path) -> Result<State, pm_format::FormatError> {
+        Ok(match method {
+            Method::Sppm => State::Sppm(pm_format::read_state(path)?),
+            _ => State::Passes(pm_format::read_pass_state(path)?),
+        })
+    }
 }
 
 impl Progressive for Sppm<'_> {
@@ -226,8 +270,32 @@ impl Progressive for Sppm<'_> {
         Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
     }
 
-    fn state(&self) -> pm_format::StateFile {
-        self.to_file()
+    fn state(&self) -> State {
+        State::Sppm(self.to_file())
+    }
+}
+
+impl Progressive for pm_bdpt::Bdpt<'_> {
+    fn passes(&self) -> u32 {
+        pm_bdpt::Bdpt::passes(self)
+    }
+
+    fn region_image(&self, rect: pm_render::Rect) -> Image {
+        pm_bdpt::Bdpt::region_image(self, rect)
+    }
+
+    /// Each pixel's variance from its passes' spread, over all pixels but the
+    /// light seen directly and its neighbours.
+    fn noise(&self) -> Option<f64> {
+        let var = self.variances()?;
+        let image = self.image();
+        let (w, h) = (image.width as usize, image.height as usize);
+        let keep = pm_image::accuracy::keep_mask(&image.total, w, h, None);
+        Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
+    }
+
+    fn state(&self) -> State {
+        State::Passes(self.to_file())
     }
 }
 
@@ -236,7 +304,7 @@ impl Progressive for Sppm<'_> {
 /// (`Ok(false)` stops with the passes done).
 pub struct Passes<'a> {
     /// A state to continue from, and the file it was read from.
-    pub start: Option<(&'a std::path::Path, &'a pm_format::StateFile)>,
+    pub start: Option<(&'a std::path::Path, &'a State)>,
     /// Called after each pass.
     pub after_pass: &'a mut dyn FnMut(&dyn Progressive) -> Result<bool, String>,
 }
@@ -267,6 +335,11 @@ pub fn render<G: pm_format::PhotonRecord>(
             let (render, sppm) = (&settings.render, &settings.sppm);
             let (image, stats, done) = match passes {
                 Some(Passes { start, after_pass }) => {
+                    let start = match start {
+                        Some((path, State::Sppm(f))) => Some((path, f)),
+                        Some((path, _)) => return Err(format!("{}: not a state of --mode sppm", path.display())),
+                        None => None,
+                    };
                     pm_sppm::render_with(scene, render, sppm, view, start, &mut |s| after_pass(s))?
                 }
                 None => {
@@ -277,8 +350,21 @@ pub fn render<G: pm_format::PhotonRecord>(
             Ok(Rendered { image, stats, passes: Some(done) })
         }
         (Method::Bdpt, Input::Scene(scene)) => {
-            let (image, stats) = pm_bdpt::render(scene, &settings.bdpt, view, progress)?;
-            Ok(Rendered { image, stats, passes: None })
+            let (image, stats, done) = match passes {
+                Some(Passes { start, after_pass }) => {
+                    let start = match start {
+                        Some((path, State::Passes(f))) => Some((path, f)),
+                        Some((path, _)) => return Err(format!("{}: not a state of --mode bdpt", path.display())),
+                        None => None,
+                    };
+                    pm_bdpt::render_with(scene, &settings.bdpt, view, start, &mut |b| after_pass(b))?
+                }
+                None => {
+                    let (image, stats) = pm_bdpt::render(scene, &settings.bdpt, view, progress)?;
+                    (image, stats, view.film.spp)
+                }
+            };
+            Ok(Rendered { image, stats, passes: Some(done) })
         }
         (Method::Path, Input::Scene(scene)) => {
             let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;

@@ -49,6 +49,11 @@ pub struct Args {
     /// seeds); cached in the output folder by scene content, size and count.
     #[arg(long, default_value_t = 16384)]
     reference_spp: u32,
+    /// The unbiased method that renders the reference: `path`, or `bdpt` where
+    /// the path tracer cannot find the light (a lamp behind glass: every direct
+    /// path a caustic); `--reference-spp` is then its passes.
+    #[arg(long, default_value_t = Method::Path)]
+    reference_mode: Method,
     /// Copy results.json, results.csv, results.md, the plots and the error map here.
     #[arg(long)]
     docs: Option<PathBuf>,
@@ -109,30 +114,37 @@ fn live_frame(
     Ok((pm_image::read_exr(&exr)?, mean))
 }
 
-/// The reference: two path-traced halves of `spp / 2` paths per pixel with their
-/// own seeds, cached by the content of the scene and every file it reads (its
-/// environment too), the scene options, size and count. Returns their layers.
+/// The reference: two halves of `spp / 2` samples per pixel with their own seeds
+/// by the unbiased method `mode` (the path tracer, or bidirectional path
+/// tracing), cached by the content of the scene and every file it reads (its
+/// environment too), the scene options, method, size and count. Returns their
+/// layers.
 fn reference_halves(
     bins: &Bins,
     base: &pm_pipeline::Pipeline,
     (scene, scene_args): (&Path, &[String]),
     out: &Path,
-    size: u32,
-    spp: u32,
+    (mode, size, spp): (Method, u32, u32),
 ) -> Result<[pm_image::Layers; 2]> {
+    anyhow::ensure!(
+        matches!(mode, Method::Path | Method::Bdpt),
+        "--reference-mode {mode}: the reference is rendered by an unbiased method (path or bdpt)"
+    );
+    // The path tracer's files keep the names they had before there was a choice.
+    let tag = if mode == Method::Path { String::new() } else { format!("{mode}-") };
     let mut h = blake3::Hasher::new();
     for f in pm_pipeline::steps::scene_inputs(scene)? {
         h.update(&std::fs::read(&f).with_context(|| format!("{}: cannot read", f.display()))?);
     }
     h.update(scene_args.join(" ").as_bytes());
-    let key = format!("{}-{size}-{spp}", h.finalize().to_hex());
-    let key_file = out.join(format!("reference-{size}-{spp}.key"));
-    let halves = [0, 1].map(|h| out.join(format!("reference-{size}-{spp}-{h}.exr")));
+    let key = format!("{}-{tag}{size}-{spp}", h.finalize().to_hex());
+    let key_file = out.join(format!("reference-{tag}{size}-{spp}.key"));
+    let halves = [0, 1].map(|h| out.join(format!("reference-{tag}{size}-{spp}-{h}.exr")));
     if std::fs::read_to_string(&key_file).ok().as_deref() != Some(key.as_str()) || !halves.iter().all(|p| p.exists()) {
         for (h, exr) in halves.iter().enumerate() {
-            println!("rendering reference half {} of 2 ({size}x{size}, path tracing, {} spp) ...", h + 1, spp / 2);
+            println!("rendering reference half {} of 2 ({size}x{size}, --mode {mode}, {} spp) ...", h + 1, spp / 2);
             let render = RenderParams { spp: (spp / 2).max(1), width: size, height: size, ..base.render.clone() };
-            let p = Settings { mode: Method::Path, render, ..base.settings() };
+            let p = Settings { mode, render, ..base.settings() };
             let mut a = scene_args.to_vec();
             a.extend(["--seed".into(), (1001 + h).to_string()]);
             a.extend(["--out".into(), exr.display().to_string()]);
@@ -233,7 +245,8 @@ fn prepare(args: &Args, root: &Path, base: &pm_pipeline::Pipeline) -> Result<(St
         None => None,
     };
     let size = args.size;
-    let [half_a, half_b] = reference_halves(&bins, base, (&scene, &scene_args), &out, size, args.reference_spp)?;
+    let [half_a, half_b] =
+        reference_halves(&bins, base, (&scene, &scene_args), &out, (args.reference_mode, size, args.reference_spp))?;
     let (a, b) = (half_a.pixels(None), half_b.pixels(None));
     let keep = accuracy::keep_mask_of_halves(&a, &b, size as usize, size as usize, args.mask_above_mean);
     let references: Vec<(Vec<Vec3>, f64)> = COMPARED
