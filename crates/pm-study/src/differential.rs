@@ -41,9 +41,9 @@ pub struct Args {
     /// Image width and height [pixels].
     #[arg(long, default_value_t = 48)]
     pub size: u32,
-    /// Methods to check (those with a stated bound: full, sppm, and the real-time
-    /// vertex and ispm, each on the frame it settles at).
-    #[arg(long, value_delimiter = ',', default_value = "full,sppm,vertex,ispm", value_parser = Checked::parse)]
+    /// Methods to check (those with a stated bound: full, sppm, bdpt, and the
+    /// real-time vertex and ispm, each on the frame it settles at).
+    #[arg(long, value_delimiter = ',', default_value = "full,sppm,bdpt,vertex,ispm", value_parser = Checked::parse)]
     pub methods: Vec<Checked>,
     /// Path-traced samples per pixel of each of the reference's two halves.
     #[arg(long, default_value_t = 512)]
