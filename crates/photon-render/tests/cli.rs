@@ -418,7 +418,7 @@ fn sppm_state_resumes_bit_for_bit() {
 }
 
 /// Bidirectional path tracing runs in passes as SPPM does: 4 passes, a stop, and
-/// 4 more from the state file (`--spp 8` is the total) equal 8 passes in one run
+/// 4 more from the state file (`--bdpt-passes 8` is the total) equal 8 passes in one run
 /// bit for bit, image and state; `--time-budget` with a state exits with code 75
 /// and the same command finishes the one-run image; a checkpoint does not change
 /// the image; an SPPM state, another seed and another size are refused naming the
@@ -440,23 +440,23 @@ fn bdpt_state_resumes_bit_for_bit() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
-    ok(bdpt("one.exr", &["--spp", "8", "--state", &p("one.state")]));
-    ok(bdpt("plain.exr", &["--spp", "8"]));
-    ok(bdpt("two.exr", &["--spp", "4", "--state", &p("two.state")]));
-    let said = ok(bdpt("two.exr", &["--spp", "8", "--state", &p("two.state")]));
+    ok(bdpt("one.exr", &["--bdpt-passes", "8", "--state", &p("one.state")]));
+    ok(bdpt("plain.exr", &["--bdpt-passes", "8"]));
+    ok(bdpt("two.exr", &["--bdpt-passes", "4", "--state", &p("two.state")]));
+    let said = ok(bdpt("two.exr", &["--bdpt-passes", "8", "--state", &p("two.state")]));
     assert!(said.contains("continued from the 4 passes"), "{said}");
     let read = |f: &str| std::fs::read(p(f)).unwrap();
     assert_eq!(read("one.exr"), read("two.exr"), "4 + 4 passes against 8");
     assert_eq!(read("one.exr"), read("plain.exr"), "a state file does not change the image");
     assert_eq!(read("one.state"), read("two.state"));
     assert_eq!(pm_format::read_pass_state(Path::new(&p("one.state"))).unwrap().passes, 8);
-    let said = ok(bdpt("k.exr", &["--spp", "8", "--checkpoint", "2"]));
+    let said = ok(bdpt("k.exr", &["--bdpt-passes", "8", "--checkpoint", "2"]));
     assert!(said.contains("checkpoint: 4 passes written"), "{said}");
     assert_eq!(read("one.exr"), read("k.exr"));
-    let o = bdpt("b.exr", &["--spp", "8", "--state", &p("b.state"), "--time-budget", "0.000001"]);
+    let o = bdpt("b.exr", &["--bdpt-passes", "8", "--state", &p("b.state"), "--time-budget", "0.000001"]);
     assert_eq!(o.status.code(), Some(75), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("unfinished: 1 of 8 passes"));
-    ok(bdpt("b.exr", &["--spp", "8", "--state", &p("b.state")]));
+    ok(bdpt("b.exr", &["--bdpt-passes", "8", "--state", &p("b.state")]));
     assert_eq!(read("one.exr"), read("b.exr"));
     // Refusals: one line naming the state file and what differs.
     let refused = |width: &str, state: &str, extra: &[&str], what: &str| {
@@ -469,9 +469,9 @@ fn bdpt_state_resumes_bit_for_bit() {
         assert!(!o.status.success() && e.contains(".state") && e.contains(what), "{said}");
         assert!(!dir.path().join("refused.exr").exists());
     };
-    refused("16", "one.state", &["--spp", "16", "--seed", "2"], "seed=2");
-    refused("20", "one.state", &["--spp", "16"], "16x12");
-    refused("16", "one.state", &["--spp", "4"], "holds 8 passes");
+    refused("16", "one.state", &["--bdpt-passes", "16", "--seed", "2"], "seed=2");
+    refused("20", "one.state", &["--bdpt-passes", "16"], "16x12");
+    refused("16", "one.state", &["--bdpt-passes", "4"], "holds 8 passes");
     let sppm_state = p("sppm.state");
     let o = render(&[
         "--scene",
@@ -492,5 +492,5 @@ fn bdpt_state_resumes_bit_for_bit() {
         &p("sppm.exr"),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    refused("16", "sppm.state", &["--spp", "4"], "not a usable progressive pass sums");
+    refused("16", "sppm.state", &["--bdpt-passes", "4"], "not a usable progressive pass sums");
 }

@@ -64,10 +64,14 @@ use pm_params::between;
 
 pm_params::params! {
     /// Bidirectional path tracing's own settings, defined once: `photon-render
-    /// --mode bdpt`'s options and pipeline.toml's `[bdpt]` section. A pass is one
-    /// eye and one light subpath a pixel; `[render] spp` is the number of passes.
+    /// --mode bdpt`'s options and pipeline.toml's `[bdpt]` section (keys without
+    /// the `bdpt_` of the options). The image size is `[render]`'s.
     #[derive(Copy)]
     pub struct BdptParams {
+        /// Passes, each one eye and one light subpath a pixel (at 16, the
+        /// differential checker's fog and glass scenes were off by their noise
+        /// alone in 3 of 20).
+        bdpt_passes as "passes": u32 = 64 => between(1, 1 << 24);
         /// Most vertices of a subpath after its first (the pinhole or the light's
         /// point), the path tracer's limit; Russian roulette ends nearly every
         /// subpath long before, and the cut ones are counted. (At 64, the
@@ -1097,7 +1101,7 @@ fn layer_of(eye: &[Vertex], light: &[Vertex], s: usize, t: usize) -> usize {
     layer.index()
 }
 
-/// Render `view.rect` of `view.film` by `film.spp` passes (the whole film is
+/// Render `view.rect` of `view.film` by `params.bdpt_passes` passes (the whole film is
 /// traced: light subpaths land anywhere), reporting passes done as progress.
 pub fn render(
     scene: &Scene,
@@ -1105,7 +1109,7 @@ pub fn render(
     view: View,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
-    let passes = view.film.spp as u64;
+    let passes = params.bdpt_passes as u64;
     let (image, stats, _) = render_with(scene, params, view, None, &mut |b| {
         progress(b.passes() as u64, passes);
         Ok(true)
@@ -1130,9 +1134,9 @@ pub fn render_with(
     let film = view.film;
     let mut b = Bdpt::new(scene, view.camera, film.width, film.height, film.seed, *params)?;
     if let Some((path, file)) = start {
-        b.resume(file, film.spp).map_err(|e| format!("{}: {e}", path.display()))?;
+        b.resume(file, params.bdpt_passes).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    while b.passes() < film.spp {
+    while b.passes() < params.bdpt_passes {
         b.pass();
         if !after_pass(&b)? {
             break;

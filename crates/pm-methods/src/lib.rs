@@ -163,12 +163,11 @@ impl Settings {
     }
 
     /// The passes a progressive method is asked for (none for the others): SPPM's
-    /// `--passes`; bidirectional path tracing's `--spp` (a pass is one eye and
-    /// one light subpath a pixel).
+    /// `--passes`, bidirectional path tracing's `--bdpt-passes`.
     pub fn passes(&self) -> Option<u32> {
         match self.mode {
             Method::Sppm => Some(self.sppm.passes),
-            Method::Bdpt => Some(self.render.spp),
+            Method::Bdpt => Some(self.bdpt.bdpt_passes),
             _ => None,
         }
     }
@@ -362,7 +361,7 @@ pub fn render<G: pm_format::PhotonRecord>(
                 }
                 None => {
                     let (image, stats) = pm_bdpt::render(scene, &settings.bdpt, view, progress)?;
-                    (image, stats, view.film.spp)
+                    (image, stats, settings.bdpt.bdpt_passes)
                 }
             };
             Ok(Rendered { image, stats, passes: Some(done) })

@@ -240,7 +240,7 @@ pub fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media:
     for passes in [16u32, 64, 256, 1024] {
         v.push(with(Axis::Bdpt, format!("bdpt {passes} passes"), &|s| {
             s.render.mode = Method::Bdpt;
-            s.render.render.spp = passes
+            s.render.bdpt.bdpt_passes = passes
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
