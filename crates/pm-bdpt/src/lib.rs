@@ -1151,3 +1151,6 @@ pub fn render_with(
     };
     Ok((image, stats, b.passes()))
 }
+
+#[cfg(test)]
+mod tests;
