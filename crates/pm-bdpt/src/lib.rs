@@ -452,16 +452,8 @@ impl<'a> Bdpt<'a> {
     /// Each pixel's variance of its mean over the passes so far [(W sr^-1 m^-2)^2],
     /// from the passes' spread; none before two passes.
     pub fn variances(&self) -> Option<Vec<f32>> {
-        let p = self.passes as f32;
         (self.passes >= 2).then(|| {
-            self.l_sum
-                .iter()
-                .zip(&self.l_sq)
-                .map(|(s, q)| {
-                    let mean = s / p;
-                    ((q / p - mean * mean).max(0.0) / (p - 1.0)).max(0.0)
-                })
-                .collect()
+            self.l_sum.iter().zip(&self.l_sq).map(|(&s, &q)| pm_render::variance_of_mean(s, q, self.passes)).collect()
         })
     }
 
@@ -645,7 +637,9 @@ impl<'a> Bdpt<'a> {
                 // density is the forward one.
                 path[at - 1].pdf_rev = v.area_density(ps.pdf, &prev);
                 pdf_fwd = ps.pdf;
-                if !self.survives(&mut beta, flights.weight(), start, eta_scale, at, s) {
+                // The path tracer's roulette on the throughput relative to the
+                // subpath's start, eta^2 folded in on the eye side.
+                if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
                     return ended(false);
                 }
                 (o, d) = (p, ps.wi);
@@ -712,7 +706,7 @@ impl<'a> Bdpt<'a> {
             path[at].delta = bs.specular;
             path[at - 1].pdf_rev = path[at].area_density(rev, &prev);
             pdf_fwd = fwd;
-            if !self.survives(&mut beta, flights.weight(), start, if eye { eta_scale } else { 1.0 }, at, s) {
+            if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
                 return ended(false);
             }
             medium = v.medium_toward(bs.wi);
@@ -779,24 +773,6 @@ impl<'a> Bdpt<'a> {
         let tr = self.scene.transmittance_along(o, ls.wi, f32::INFINITY, z.medium_toward(ls.wi));
         let w = if ls.delta { 1.0 } else { pm_light::power_heuristic(self.pdf_sky(z, ls.wi), z.pdf_dir(z.wo, ls.wi)) };
         Some(c * tr * w)
-    }
-
-    /// Russian roulette after the vertex at index `at` (from the fourth on; the
-    /// path tracer's rule): survive with probability the throughput `beta` times
-    /// `w` (the media's spectral weight) and `eta_scale` (eta^2 folded in on the
-    /// eye side) relative to the subpath's start `start`, and `beta` divided by it.
-    /// False when the subpath ends (or its throughput is not finite).
-    fn survives(&self, beta: &mut Rgb, w: f32, start: f32, eta_scale: f32, at: usize, s: &mut Sampler) -> bool {
-        if at >= 3 {
-            let q = beta.max_element() * w * eta_scale / start;
-            if q < 1.0 {
-                if !(q > 0.0) || s.next_1d() >= q {
-                    return false;
-                }
-                *beta /= q;
-            }
-        }
-        beta.is_finite()
     }
 
     /// What passes along the segment from vertex `a` to vertex `b` (each end

@@ -250,6 +250,15 @@ impl State {
     }
 }
 
+/// A progressive image's estimated noise (relative RMS) from each pixel's
+/// variance `var` over its passes' spread, over all pixels but the light seen
+/// directly and its neighbours (whose anti-aliased edge would decide the figure).
+fn noise_of(image: &Image, var: &[f32]) -> f64 {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let keep = pm_image::accuracy::keep_mask(&image.total, w, h, None);
+    pm_image::accuracy::noise_of_variances(&image.total, var, &keep)
+}
+
 impl Progressive for Sppm<'_> {
     fn passes(&self) -> u32 {
         Sppm::passes(self)
@@ -259,15 +268,8 @@ impl Progressive for Sppm<'_> {
         Sppm::region_image(self, rect)
     }
 
-    /// Each pixel's variance from its passes' spread, over all pixels but the
-    /// light seen directly and its neighbours (whose anti-aliased edge would decide
-    /// the figure).
     fn noise(&self) -> Option<f64> {
-        let var = self.variances()?;
-        let image = self.image();
-        let (w, h) = (image.width as usize, image.height as usize);
-        let keep = pm_image::accuracy::keep_mask(&image.total, w, h, None);
-        Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
+        Some(noise_of(&self.image(), &self.variances()?))
     }
 
     fn state(&self) -> State {
@@ -284,14 +286,8 @@ impl Progressive for pm_bdpt::Bdpt<'_> {
         pm_bdpt::Bdpt::region_image(self, rect)
     }
 
-    /// Each pixel's variance from its passes' spread, over all pixels but the
-    /// light seen directly and its neighbours.
     fn noise(&self) -> Option<f64> {
-        let var = self.variances()?;
-        let image = self.image();
-        let (w, h) = (image.width as usize, image.height as usize);
-        let keep = pm_image::accuracy::keep_mask(&image.total, w, h, None);
-        Some(pm_image::accuracy::noise_of_variances(&image.total, &var, &keep))
+        Some(noise_of(&self.image(), &self.variances()?))
     }
 
     fn state(&self) -> State {

@@ -339,3 +339,11 @@ pub(crate) fn pixel_seed(seed: u64, i: usize) -> u64 {
 pub fn pixel_salt(i: usize) -> u64 {
     0x7069_7865_6c00 ^ i as u64
 }
+
+/// The variance of the mean of `n` (at least 2) independent estimates from their
+/// sum and the sum of their squares: the progressive methods' per-pixel noise
+/// from the spread of their passes [(W sr^-1 m^-2)^2].
+pub fn variance_of_mean(sum: f32, sum_sq: f32, n: u32) -> f32 {
+    let (s, s2, p) = (sum as f64, sum_sq as f64, n as f64);
+    (((s2 - s * s / p) / (p - 1.0)).max(0.0) / p) as f32
+}

@@ -31,8 +31,10 @@ mod render;
 
 pub use coverage::{MIN_COVERAGE, Probe, SAME_SURFACE_COS, disc_coverage, in_view};
 pub use icache::IrradianceCache;
-pub use integrator::{Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt};
-pub use path::PathTracer;
+pub use integrator::{
+    Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt, variance_of_mean,
+};
+pub use path::{PathTracer, roulette};
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;
 pub use render::{

@@ -348,9 +348,10 @@ fn layer_of_light_at(specular_before_d1: bool, n_diffuse: u32) -> Layer {
 /// cap below 1 (as this code once had, 0.95) makes weights grow geometrically on
 /// bright paths and the long tail is then undersampled: the albedo-0.99 furnace
 /// came out 13% dark at 1024 spp. The throughput is `beta` times `w` (the spectral
-/// MIS factor in media, one elsewhere). False when the path ends (or its weight is
-/// not finite).
-fn roulette(beta: &mut Rgb, w: f32, depth: u32, s: &mut Sampler) -> bool {
+/// MIS factor in media, one elsewhere; bidirectional path tracing folds in its
+/// subpaths' eta^2 and their start's throughput there). `depth` counts vertices
+/// from the path's start. False when the path ends (or its weight is not finite).
+pub fn roulette(beta: &mut Rgb, w: f32, depth: u32, s: &mut Sampler) -> bool {
     if depth >= 3 {
         let q = beta.max_element() * w;
         if q < 1.0 {

@@ -408,16 +408,8 @@ impl<'a> Sppm<'a> {
     /// passes are independent). It leaves out the bias, which shrinks with the
     /// radius (Hachisuka and Jensen 2009, section 4). None before two passes.
     pub fn variances(&self) -> Option<Vec<f32>> {
-        let p = self.passes as f64;
-        (self.passes >= 2).then(|| {
-            self.pixels
-                .iter()
-                .map(|px| {
-                    let (s, s2) = (px.l_sum as f64, px.l_sq as f64);
-                    (((s2 - s * s / p) / (p - 1.0)).max(0.0) / p) as f32
-                })
-                .collect()
-        })
+        (self.passes >= 2)
+            .then(|| self.pixels.iter().map(|px| pm_render::variance_of_mean(px.l_sum, px.l_sq, self.passes)).collect())
     }
 
     /// The settings that shape the state, as "name=value" words (the state file's
