@@ -80,22 +80,22 @@ pub struct Cli {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Progressive methods (`--mode sppm`, `bdpt`): write the image (`--out`, its
+    /// Progressive methods (`--mode sppm`, `bdpt`, `vcm`): write the image (`--out`, its
     /// layers as usual) after every K passes, so a long render can be looked at
     /// while it runs.
     #[arg(long, value_name = "K")]
     pub checkpoint: Option<u32>,
     /// Progressive methods: stop after the pass that takes the render past this
     /// many seconds (the image holds the passes done; the pass count, and so the
-    /// image, then depends on the machine: `--passes` or `--bdpt-passes` alone
-    /// is deterministic).
+    /// image, then depends on the machine: `--passes`, `--bdpt-passes` or
+    /// `--vcm-passes` alone is deterministic).
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
     /// Progressive methods: keep the pixels' state in this file (sppm: radii,
-    /// photon counts, fluxes, 120 bytes a pixel; bdpt: the layers' sums over the
+    /// photon counts, fluxes, 120 bytes a pixel; bdpt and vcm: the layers' sums over the
     /// passes, 68 bytes a pixel). When it exists the render continues from the
     /// passes it holds (refused if it was made from another scene or with other
-    /// settings; --passes or --bdpt-passes is the total); it is written at
+    /// settings; --passes, --bdpt-passes or --vcm-passes is the total); it is written at
     /// every checkpoint and when the render stops. A render that --time-budget
     /// stops before --passes then exits with code 75 (sysexits' EX_TEMPFAIL):
     /// run the same command again to continue (a Slurm job re-queues itself so).

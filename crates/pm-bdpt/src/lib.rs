@@ -19,12 +19,25 @@
 //! - otherwise z_{t-1} and y_{s-1} are joined by a shadow ray.
 //!
 //! Every strategy's contribution is weighed by the power heuristic over all the
-//! strategies that could have made the same path, from the densities of
-//! generating each vertex from either side (Veach 1997, section 10.2; the ratio
-//! recursion of pbrt-v3's `MISWeight`): each vertex keeps its forward and reverse
-//! densities in area measure, and the weight is 1 / (1 + sum r_i^2) over the
-//! density ratios r_i of the other strategies. A path of one segment (an emitter
-//! seen directly) has only the strategy s = 0, t = 2.
+//! strategies that could have made the same path (Veach 1997, section 10.2),
+//! computed in O(1) a join from three running sums each vertex keeps, the
+//! recursive quantities d_VCM, d_VC and d_VM of Georgiev, Krivanek, Davidovic and
+//! Slusallek's technical report ("Implementing vertex connection and merging",
+//! 2012, eqs. 31-50; [`Partial`]). A path of one segment (an emitter seen
+//! directly) has only the strategy s = 0, t = 2.
+//!
+//! **Vertex connection and merging** ([`Bdpt::vcm`]; Georgiev et al. 2012,
+//! "Light transport simulation with vertex connection and merging") is the same
+//! pass with one more strategy at every diffuse or glossy eye vertex: merging it
+//! with the light vertices of *every* light subpath of the pass within radius
+//! r_i = r_0 i^((alpha - 1) / 2) (pass i), a photon density estimate whose
+//! weight against the connections comes from the same sums. The pass first
+//! traces all its light subpaths (one a pixel), stores their vertices (sized
+//! per pass: nothing grows with passes) and splats light tracing, then traces
+//! the eye subpaths; eye subpath i joins light subpath i. With merging off it
+//! is bidirectional path tracing, the same code; with connections off it is a
+//! progressive photon mapper with the merges weighed against each other
+//! (SmallVCM's "BPM").
 //!
 //! Radiance [W sr^-1 m^-2 per RGB channel] is carried along eye subpaths as the
 //! path tracer carries it (its 1 / eta^2 through glass); light subpaths carry
@@ -44,7 +57,8 @@
 //! BSDF, no cosines), and joins carry the transmittance between their ends
 //! through media and index-matched boundaries. The MIS densities leave out the
 //! distance sampling, as pbrt-v3's volumetric BDPT does: the weights still add
-//! up to one for every path, so the estimate stays unbiased.
+//! up to one for every path, so the estimate stays unbiased. Points in a medium
+//! are not merged (no strategy counts them).
 //!
 //! Lights at infinity (an environment, suns) start no light subpath: the eye
 //! subpaths find them by the path tracer's two strategies, leaving the scene
@@ -54,13 +68,14 @@
 use glam::Vec3;
 use pm_bsdf::{Bsdf, HenyeyGreenstein};
 use pm_color::{Layer, Rgb};
+use pm_kdtree::RadiusGrid;
 use pm_light::LightSelector;
 use pm_render::{Image, View, pixel_salt};
 use pm_sampling::Sampler;
 use pm_scene::{Camera, CameraRays, EmitterPoint, Flights, FreeFlight, LightKind, MediumId, Scene};
 use rayon::prelude::*;
 
-use pm_params::between;
+use pm_params::{Any, above, between};
 
 pm_params::params! {
     /// Bidirectional path tracing's own settings, defined once: `photon-render
@@ -77,6 +92,137 @@ pm_params::params! {
         /// subpath long before, and the cut ones are counted. (At 64, the
         /// furnace filled with a dense conservative medium lost 3% of its light.)
         bdpt_max_vertices as "max_vertices": u32 = 1000 => between(1, 1 << 16);
+    }
+}
+
+pm_params::params! {
+    /// Vertex connection and merging's own settings, defined once: `photon-render
+    /// --mode vcm`'s options and pipeline.toml's `[vcm]` section (keys without
+    /// the `vcm_` of the options). The image size is `[render]`'s.
+    #[derive(Copy)]
+    pub struct VcmParams {
+        /// Passes, each one light subpath a pixel (all traced and stored first)
+        /// and one eye subpath a pixel.
+        vcm_passes as "passes": u32 = 64 => between(1, 1 << 24);
+        /// Most vertices of a subpath after its first, as for `bdpt`.
+        vcm_max_vertices as "max_vertices": u32 = 1000 => between(1, 1 << 16);
+        /// The first pass's merging radius r_0, as a fraction of the scene
+        /// diagonal (SmallVCM takes 0.003 of the bounding sphere's radius).
+        vcm_radius_rel_diag as "radius_rel_diag": f32 = 0.005 => above(0.0);
+        /// The radius of pass i is r_0 i^((alpha - 1) / 2): the variance of the
+        /// merges falls as i^-alpha, their bias as i^(alpha - 1) (Georgiev et al.
+        /// 2012, section 5; SmallVCM's 0.75).
+        vcm_alpha as "alpha": f32 = 0.75 => between(0.01, 1.0);
+        /// Merge eye vertices with the pass's light vertices (off: bidirectional
+        /// path tracing, the same image as `--mode bdpt` with the same passes).
+        vcm_merge as "merge": bool = true => Any;
+        /// Join eye and light subpaths by shadow rays and light tracing (off: a
+        /// progressive photon mapper weighing its merges along the path; needs
+        /// `merge`).
+        vcm_connect as "connect": bool = true => Any;
+    }
+}
+
+/// What a pass of [`Bdpt`] does: bidirectional path tracing's strategies, vertex
+/// merging's, or both.
+#[derive(Clone, Copy, Debug)]
+struct Config {
+    /// The method's name in the state file's key.
+    method: &'static str,
+    max_vertices: u32,
+    /// Merging's first radius \[m\] and alpha, when it merges.
+    merge: Option<(f32, f32)>,
+    connect: bool,
+}
+
+/// The per-pass constants of the weights (Georgiev et al.'s technical report,
+/// eq. 20, with n_VC = 1 join a pixel and n_VM = N light subpaths a pass):
+/// eta = pi r^2 N and under the power heuristic `vm` = eta^2 (zero without
+/// merging), `vc` = eta^-2 (zero without connections); merging's radius r \[m\]
+/// and its normalization 1 / (pi r^2 N) \[m^-2\].
+#[derive(Clone, Copy, Debug, Default)]
+struct Factors {
+    vm: f32,
+    vc: f32,
+    radius: f32,
+    normalization: f32,
+}
+
+/// The power heuristic's "Mis" of a density ratio: its square.
+fn mis(x: f32) -> f32 {
+    x * x
+}
+
+/// The recursive quantities of a subpath at a vertex (Georgiev et al.'s technical
+/// report, eqs. 31-36, as SmallVCM computes them, under the power heuristic):
+/// sums over the strategies that would make the subpath's part beyond the vertex
+/// with fewer of its own vertices, each over this strategy's density, so that a
+/// join's weight needs only the densities at its ends. `vcm` stands for the
+/// strategy one vertex shorter \[m^2\], `vc` for the connections beyond it and
+/// `vm` for the merges (both per reverse solid-angle density at the vertex,
+/// \[m^2 sr\] under Mis). Geometric cosines convert between solid angle and area
+/// (1 at a point in a medium); the BSDFs' densities are about the shading normal;
+/// Russian roulette is left out of every density (common to all strategies).
+#[derive(Clone, Copy, Debug, Default)]
+struct Partial {
+    vcm: f32,
+    vc: f32,
+    vm: f32,
+}
+
+impl Partial {
+    /// Leaving the pinhole along a direction of solid-angle density `pdf_lens`
+    /// [sr^-1] over the whole film (one light subpath a pixel: the light tracing
+    /// strategy's N samples cancel the film's N pixels).
+    fn camera(pdf_lens: f32) -> Partial {
+        Partial { vcm: mis(1.0 / pdf_lens), vc: 0.0, vm: 0.0 }
+    }
+
+    /// Leaving a light's point picked with area density `pdf_a` [m^-2] (the
+    /// light's choice included) along a direction of density `pdf_dir` [sr^-1] at
+    /// cosine `cos` to its normal (1 at a point); `delta` for a point or spot
+    /// light, which no eye subpath can hit (eqs. 31-33, 48-50).
+    fn light(pdf_a: f32, pdf_dir: f32, cos: f32, delta: bool, f: &Factors) -> Partial {
+        let vc = if delta { 0.0 } else { mis(cos / (pdf_a * pdf_dir)) };
+        Partial { vcm: mis(1.0 / pdf_dir), vc, vm: vc * f.vc }
+    }
+
+    /// Arriving at a vertex `d2` \[m^2\] from the last at cosine `cos` to its
+    /// geometric normal (1 in a medium).
+    fn arrive(&mut self, d2: f32, cos: f32) {
+        let c = mis(cos);
+        self.vcm = self.vcm * mis(d2) / c;
+        self.vc /= c;
+        self.vm /= c;
+    }
+
+    /// Leaving a vertex along a direction at cosine `cos_out` to its geometric
+    /// normal, sampled with solid-angle density `pdf_fwd`, whose reverse is
+    /// `pdf_rev` [sr^-1]; `specular` when a delta lobe chose it (eqs. 34-36,
+    /// 53-55), `merges` when the vertex is one merging can use.
+    fn leave(&mut self, cos_out: f32, pdf_fwd: f32, pdf_rev: f32, specular: bool, merges: bool, f: &Factors) {
+        if specular {
+            self.vcm = 0.0;
+            self.vc *= mis(cos_out);
+            self.vm *= mis(cos_out);
+            return;
+        }
+        let g = mis(cos_out / pdf_fwd);
+        let (vm_here, one) = if merges { (f.vm, 1.0) } else { (0.0, 0.0) };
+        let vc = g * (self.vc * mis(pdf_rev) + self.vcm + vm_here);
+        self.vm = g * (self.vm * mis(pdf_rev) + self.vcm * f.vc + one);
+        self.vc = vc;
+        self.vcm = mis(1.0 / pdf_fwd);
+    }
+
+    /// The sum, over the strategies that make the path with fewer vertices on
+    /// this side, of their densities over the join's, for a join whose other
+    /// end makes this vertex with area density `p_from_other` [m^-2] and whose
+    /// direction this vertex would sample with reverse density `pdf_rev` [sr^-1]
+    /// (eqs. 40, 41, 45, 46); `merges` as in [`Partial::leave`].
+    fn toward(&self, p_from_other: f32, pdf_rev: f32, merges: bool, f: &Factors) -> f32 {
+        let vm = if merges { f.vm } else { 0.0 };
+        mis(p_from_other) * (vm + self.vcm + self.vc * mis(pdf_rev))
     }
 }
 
@@ -106,9 +252,7 @@ enum Kind {
     Medium { phase: HenyeyGreenstein },
 }
 
-/// A vertex of a subpath, with the densities of generating it from either side
-/// in area measure [m^-2] (zero after a delta lobe: no strategy can connect
-/// there, and the ratios skip them).
+/// A vertex of a subpath, with its subpath's recursive MIS quantities there.
 #[derive(Clone, Copy, Debug)]
 struct Vertex {
     kind: Kind,
@@ -123,10 +267,8 @@ struct Vertex {
     /// Throughput of the subpath up to and including the density of this vertex:
     /// radiance weight on the eye side, power on the light side.
     beta: Rgb,
-    /// Density of this vertex given its subpath's previous one.
-    pdf_fwd: f32,
-    /// Density of this vertex given the next one, as the other side would make it.
-    pdf_rev: f32,
+    /// The subpath's MIS sums on arriving here.
+    mis: Partial,
     /// Scattered by a delta lobe (mirror, glass).
     delta: bool,
     /// The medium on each side: in front of the geometric normal and behind it
@@ -139,6 +281,12 @@ impl Vertex {
     /// where a join may end.
     fn scatters(&self) -> bool {
         matches!(self.kind, Kind::Surface { .. } | Kind::Medium { .. })
+    }
+
+    /// True at a surface that merging can use: one with a lobe that is not a
+    /// Dirac delta.
+    fn merges(&self) -> bool {
+        matches!(&self.kind, Kind::Surface { bsdf, .. } if !bsdf.is_specular())
     }
 
     /// |cos| between unit `w` and the geometric normal; 1 where there is no
@@ -226,6 +374,8 @@ struct Leaving {
     beta: Rgb,
     pdf: f32,
     medium: Option<MediumId>,
+    /// The subpath's MIS sums on leaving its last vertex.
+    mis: Partial,
 }
 
 /// How a random walk ended: cut by the vertex limit, and (eye subpaths) what it
@@ -238,10 +388,16 @@ struct Walked {
 /// One splatted light-tracing contribution: the pixel, the layer, the value.
 type Splat = (u32, u8, Rgb);
 
-/// What a chunk of a pass's pixels made.
+/// What a chunk of a pass's pixels made (their light subpaths in the first
+/// phase, their eye subpaths in the second).
+#[derive(Default)]
 struct Chunk {
     /// Its first pixel.
     start: usize,
+    /// The light subpaths' vertices, path after path (first phase).
+    vertices: Vec<Vertex>,
+    /// Where each pixel's light subpath ends in `vertices`.
+    ends: Vec<u32>,
     /// What landed on each of its pixels, by layer.
     pixels: Vec<[Rgb; LAYERS]>,
     /// Light tracing's splats, in the order they were made.
@@ -252,7 +408,38 @@ struct Chunk {
     tally: Vec<[f64; 2]>,
 }
 
-/// A bidirectional path tracer's state: its passes and the image so far.
+impl Chunk {
+    /// Empty, for the pixels from `start`, its buffers kept for reuse.
+    fn reset(&mut self, start: usize, tallying: bool) {
+        self.start = start;
+        self.vertices.clear();
+        self.ends.clear();
+        self.pixels.clear();
+        self.splats.clear();
+        self.cut = 0;
+        self.tally.clear();
+        if tallying {
+            self.tally.resize(TALLY * TALLY, [0.0; 2]);
+        }
+    }
+
+    /// Its pixel `j`'s light subpath (first phase).
+    fn path(&self, j: usize) -> &[Vertex] {
+        let start = if j == 0 { 0 } else { self.ends[j - 1] as usize };
+        &self.vertices[start..self.ends[j] as usize]
+    }
+}
+
+/// The pass's light vertices merging can use: a grid over their positions and,
+/// per grid point, its chunk, its index in the chunk's vertices and where its
+/// path starts there.
+struct Merging {
+    grid: RadiusGrid,
+    ids: Vec<[u32; 3]>,
+}
+
+/// A bidirectional path tracer's (or vertex connection and merging's) state:
+/// its passes and the image so far.
 pub struct Bdpt<'a> {
     scene: &'a Scene,
     /// The choice among the lights that light subpaths start from (every light
@@ -267,8 +454,12 @@ pub struct Bdpt<'a> {
     width: u32,
     height: u32,
     seed: u64,
-    params: BdptParams,
+    config: Config,
     passes: u32,
+    /// The last pass's light subpaths, chunk by chunk (sized by the pass, reused
+    /// by the next), and the buffers of its eye subpaths' chunks.
+    light_chunks: Vec<Chunk>,
+    eye_chunks: Vec<Chunk>,
     /// Per pixel, the sum over passes of each surface layer's radiance.
     sum: Vec<[Rgb; LAYERS]>,
     /// Per pixel, the sums over passes of the pass's mean radiance and its square
@@ -295,6 +486,42 @@ impl<'a> Bdpt<'a> {
         seed: u64,
         params: BdptParams,
     ) -> Result<Bdpt<'a>, String> {
+        let config = Config { method: "bdpt", max_vertices: params.bdpt_max_vertices, merge: None, connect: true };
+        Bdpt::with(scene, camera, width, height, seed, config)
+    }
+
+    /// Vertex connection and merging of `scene` seen by `camera` on a film of
+    /// `width` x `height` pixels; refused (with the reason) for a scene without
+    /// lights or with both merging and connections off.
+    pub fn vcm(
+        scene: &'a Scene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        seed: u64,
+        params: VcmParams,
+    ) -> Result<Bdpt<'a>, String> {
+        if !params.vcm_merge && !params.vcm_connect {
+            return Err("vcm with neither merging nor connections has no strategies".into());
+        }
+        let r0 = params.vcm_radius_rel_diag * scene.bounds.diagonal();
+        let config = Config {
+            method: "vcm",
+            max_vertices: params.vcm_max_vertices,
+            merge: params.vcm_merge.then_some((r0, params.vcm_alpha)),
+            connect: params.vcm_connect,
+        };
+        Bdpt::with(scene, camera, width, height, seed, config)
+    }
+
+    fn with(
+        scene: &'a Scene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        seed: u64,
+        config: Config,
+    ) -> Result<Bdpt<'a>, String> {
         let all = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
         let at_infinity: Vec<usize> = (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect();
         let finite: Vec<usize> = (0..scene.lights.len()).filter(|i| !at_infinity.contains(i)).collect();
@@ -308,8 +535,10 @@ impl<'a> Bdpt<'a> {
             width,
             height,
             seed,
-            params,
+            config,
             passes: 0,
+            light_chunks: Vec::new(),
+            eye_chunks: Vec::new(),
             sum: vec![[Rgb::ZERO; LAYERS]; n],
             l_sum: vec![0.0; n],
             l_sq: vec![0.0; n],
@@ -326,10 +555,16 @@ impl<'a> Bdpt<'a> {
     /// The settings that shape the state, as "name=value" words (the state file's
     /// key: a state made with other settings is refused).
     pub fn key(&self) -> String {
-        format!(
-            "method=bdpt width={} height={} seed={} bdpt_max_vertices={}",
-            self.width, self.height, self.seed, self.params.bdpt_max_vertices
-        )
+        let c = &self.config;
+        let mut key = format!(
+            "method={} width={} height={} seed={} {}_max_vertices={}",
+            c.method, self.width, self.height, self.seed, c.method, c.max_vertices
+        );
+        if c.method == "vcm" {
+            let (r0, alpha) = c.merge.unwrap_or((0.0, 0.0));
+            key += &format!(" vcm_merge={} vcm_connect={} vcm_r0={r0} vcm_alpha={alpha}", c.merge.is_some(), c.connect);
+        }
+        key
     }
 
     /// The state as its file holds it.
@@ -401,31 +636,75 @@ impl<'a> Bdpt<'a> {
         self.cut
     }
 
-    /// One pass: an eye and a light subpath per pixel, every strategy joined.
+    /// The weights' constants of pass `k` (from 0) and its merging radius.
+    fn factors(&self, k: u32) -> Factors {
+        let Some((r0, alpha)) = self.config.merge else {
+            return Factors::default();
+        };
+        let radius = (r0 * ((k + 1) as f32).powf(0.5 * (alpha - 1.0))).max(1e-7);
+        let n = self.width as f32 * self.height as f32;
+        let eta = std::f32::consts::PI * radius * radius * n;
+        Factors {
+            vm: mis(eta),
+            vc: if self.config.connect { mis(1.0 / eta) } else { 0.0 },
+            radius,
+            normalization: 1.0 / eta,
+        }
+    }
+
+    /// One pass: a light subpath per pixel, traced and stored first (light tracing
+    /// splatted as they go), then an eye subpath per pixel joined to its pixel's
+    /// light subpath in every way and merged with every light subpath's vertices
+    /// nearby.
     pub fn pass(&mut self) {
         let n = self.width as usize * self.height as usize;
         let k = self.passes;
+        let f = self.factors(k);
         let tallying = !self.tally.is_empty();
-        let chunks: Vec<Chunk> = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let range = c * CHUNK..((c + 1) * CHUNK).min(n);
-                let mut out = Chunk {
-                    start: range.start,
-                    pixels: vec![[Rgb::ZERO; LAYERS]; range.len()],
-                    splats: Vec::new(),
-                    cut: 0,
-                    tally: if tallying { vec![[0.0; 2]; TALLY * TALLY] } else { Vec::new() },
-                };
-                let mut paths = (Vec::new(), Vec::new());
-                for i in range {
-                    self.sample(i, k, &mut paths, &mut out);
+        let chunks = n.div_ceil(CHUNK);
+        let (mut lights, mut eyes) = (std::mem::take(&mut self.light_chunks), std::mem::take(&mut self.eye_chunks));
+        lights.resize_with(chunks, Chunk::default);
+        eyes.resize_with(chunks, Chunk::default);
+        lights.par_iter_mut().enumerate().for_each(|(c, out)| {
+            out.reset(c * CHUNK, tallying);
+            let mut path = Vec::new();
+            for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                let mut sl = Sampler::salted(self.seed, LIGHT_SALT ^ i as u64, k as u64);
+                out.cut += self.light_subpath(&mut sl, &f, &mut path) as u64;
+                if self.config.connect {
+                    self.light_trace(&path, &f, out);
                 }
-                out
-            })
-            .collect();
+                out.vertices.extend_from_slice(&path);
+                out.ends.push(out.vertices.len() as u32);
+            }
+        });
+        let merging = self.config.merge.is_some().then(|| {
+            let mut ids = Vec::new();
+            for (c, chunk) in lights.iter().enumerate() {
+                for j in 0..chunk.ends.len() {
+                    let (a, b) = (if j == 0 { 0 } else { chunk.ends[j - 1] }, chunk.ends[j]);
+                    // Not the light's own point: merging needs a segment of light path.
+                    let mergeable = (a + 1..b).filter(|&g| chunk.vertices[g as usize].merges());
+                    ids.extend(mergeable.map(|g| [c as u32, g, a]));
+                }
+            }
+            let points: Vec<Vec3> = ids.iter().map(|&[c, g, _]| lights[c as usize].vertices[g as usize].p).collect();
+            // About as many cells as points: built every pass, the grid costs
+            // its points, not empty space (at 64 x 64 in a box, a cell a radius
+            // wide made two million cells a pass).
+            Merging { grid: RadiusGrid::with_cells_at_most(&points, f.radius, points.len().max(64)), ids }
+        });
+        eyes.par_iter_mut().enumerate().for_each(|(c, out)| {
+            out.reset(c * CHUNK, tallying);
+            let end = ((c + 1) * CHUNK).min(n);
+            out.pixels.resize(end - out.start, [Rgb::ZERO; LAYERS]);
+            let mut eye = Vec::new();
+            for i in out.start..end {
+                self.sample(i, k, &f, &lights, merging.as_ref(), &mut eye, out);
+            }
+        });
         let mut pass = Vec::with_capacity(n);
-        for c in &chunks {
+        for c in lights.iter().chain(&eyes) {
             pass.extend_from_slice(&c.pixels);
             self.cut += c.cut;
             for (a, b) in self.tally.iter_mut().zip(&c.tally) {
@@ -433,7 +712,7 @@ impl<'a> Bdpt<'a> {
                 a[1] += b[1];
             }
         }
-        for c in &chunks {
+        for c in lights.iter().chain(&eyes) {
             for &(px, layer, v) in &c.splats {
                 pass[px as usize][layer as usize] += v;
             }
@@ -446,7 +725,28 @@ impl<'a> Bdpt<'a> {
             self.l_sum[i] += l;
             self.l_sq[i] += l * l;
         }
+        (self.light_chunks, self.eye_chunks) = (lights, eyes);
         self.passes += 1;
+    }
+
+    /// The bytes the last pass's light subpaths held per pixel (their vertices
+    /// and path ends; merging's grid, built over them for the pass, adds 20
+    /// bytes a merging vertex and its cells).
+    pub fn store_bytes_per_pixel(&self) -> f64 {
+        let bytes: usize =
+            self.light_chunks.iter().map(|c| c.vertices.len() * std::mem::size_of::<Vertex>() + c.ends.len() * 4).sum();
+        bytes as f64 / (self.width as f64 * self.height as f64)
+    }
+
+    /// Light tracing (t = 1) from every vertex of light subpath `light` after its
+    /// first, splatted into `out` (and tallied).
+    fn light_trace(&self, light: &[Vertex], f: &Factors, out: &mut Chunk) {
+        for s in 2..=light.len() {
+            if let Some((px, c, w)) = self.splat(&light[..s], f) {
+                out.splats.push((px, layer_of(&[self.camera_vertex()], light, s, 1) as u8, c * w));
+                tally(out, s, 1, c, w);
+            }
+        }
     }
 
     /// Each pixel's variance of its mean over the passes so far [(W sr^-1 m^-2)^2],
@@ -487,81 +787,130 @@ impl<'a> Bdpt<'a> {
         }
     }
 
-    /// Pixel `i`'s sample of pass `k` into `out`: its eye and light subpaths
-    /// (kept in `paths` between samples) joined in every way; what lands on the
-    /// pixel goes to its entry, light tracing's splats to the chunk's list.
-    fn sample(&self, i: usize, k: u32, paths: &mut (Vec<Vertex>, Vec<Vertex>), out: &mut Chunk) {
-        let (eye, light) = paths;
+    /// Pixel `i`'s sample of pass `k` into `out`: its eye subpath (kept in `eye`
+    /// between samples) joined in every way to the pixel's light subpath and
+    /// merged with the light vertices near its vertices (`merging`).
+    #[allow(clippy::too_many_arguments)]
+    fn sample(
+        &self,
+        i: usize,
+        k: u32,
+        f: &Factors,
+        lights: &[Chunk],
+        merging: Option<&Merging>,
+        eye: &mut Vec<Vertex>,
+        out: &mut Chunk,
+    ) {
+        let light = lights[i / CHUNK].path(i % CHUNK);
         let (w, h) = (self.width as usize, self.height as usize);
+        let px = i - out.start;
         let mut se = Sampler::salted(self.seed, pixel_salt(i), k as u64);
         let j = se.next_2d();
         let d = self.lens.rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
-        let walked = self.eye_subpath(d, &mut se, eye);
+        let walked = self.eye_subpath(d, &mut se, f, eye);
         out.cut += walked.cut as u64;
         if walked.escaped.max_element() > 0.0 {
-            out.pixels[i - out.start][layer_of(eye, &[], 0, eye.len() + 1)] += walked.escaped;
+            out.pixels[px][layer_of(eye, &[], 0, eye.len() + 1)] += walked.escaped;
         }
-        let mut sl = Sampler::salted(self.seed, LIGHT_SALT ^ i as u64, k as u64);
-        out.cut += self.light_subpath(&mut sl, light) as u64;
-        // s = 1 picks its own light point, so it is tried even when the light
-        // subpath did not start.
-        for t in 1..=eye.len() {
-            for s in 0..=light.len().max(1) {
-                if s + t < 2 || (s == 1 && t == 1) {
-                    continue;
-                }
-                if s == 0 && t >= 2 && self.sky.is_some() {
-                    // The lights at infinity, sampled from z_{t-1}.
-                    let u = (se.next_1d(), se.next_1d(), se.next_2d());
-                    if let Some(c) = self.sky_sample(&eye[t - 1], u) {
-                        out.pixels[i - out.start][layer_of(eye, &[], 0, t + 1)] += c;
-                    }
-                }
-                // s = 1's light point takes the eye stream's next numbers.
-                let u = if s == 1 { Some((se.next_1d(), se.next_1d(), se.next_2d())) } else { None };
-                let found = if t == 1 {
-                    self.splat(&light[..s]).map(|(px, c, w)| {
-                        out.splats.push((px, layer_of(eye, light, s, t) as u8, c * w));
-                        (c, w)
-                    })
-                } else {
-                    self.connect(&eye[..t], &light[..s.min(light.len())], s, u).inspect(|&(c, w)| {
-                        out.pixels[i - out.start][layer_of(eye, light, s, t)] += c * w;
-                    })
-                };
-                if let Some((c, w)) = found
-                    && s < TALLY
-                    && t < TALLY
-                    && let Some(v) = out.tally.get_mut(s * TALLY + t)
-                {
-                    let l = c.element_sum() as f64 / 3.0;
-                    v[0] += l;
-                    v[1] += l * w as f64;
+        let connect = self.config.connect;
+        for t in 2..=eye.len() {
+            if self.sky.is_some() {
+                // The lights at infinity, sampled from z_{t-1}.
+                let u = (se.next_1d(), se.next_1d(), se.next_2d());
+                if let Some(c) = self.sky_sample(&eye[t - 1], u) {
+                    out.pixels[px][layer_of(eye, &[], 0, t + 1)] += c;
                 }
             }
+            // s = 0; without connections only where no merge could make the path
+            // (an emitter seen directly or through delta lobes alone).
+            if (connect || eye[1..t - 1].iter().all(|v| v.delta))
+                && let Some((c, w)) = self.emitted(f, &eye[..t])
+            {
+                out.pixels[px][layer_of(eye, &[], 0, t)] += c * w;
+                tally(out, 0, t, c, w);
+            }
+            if connect {
+                // s = 1 picks its own light point (with the eye stream's next
+                // numbers), so it is tried even when the light subpath did not start.
+                for s in 1..=light.len().max(1) {
+                    let u = if s == 1 { Some((se.next_1d(), se.next_1d(), se.next_2d())) } else { None };
+                    if let Some((c, w)) = self.connect(f, &eye[..t], &light[..s.min(light.len())], s, u) {
+                        out.pixels[px][layer_of(eye, light, s, t)] += c * w;
+                        tally(out, s, t, c, w);
+                    }
+                }
+            }
+            if let Some(m) = merging {
+                self.merge(f, m, lights, &eye[..t], &mut out.pixels[px]);
+            }
         }
+    }
+
+    /// Vertex merging at the eye subpath's last vertex z = `eye[t - 1]`: the light
+    /// vertices of the pass within the radius on the same surface (stored
+    /// normals within [`pm_estimate::SAME_SURFACE_COS`], each seen from its own
+    /// side), each a photon of the density estimate
+    /// z.beta f(z.wo, y.wo) y.beta / (pi r^2 N), weighed against every other
+    /// strategy (tech. rep. eqs. 37-39), added to `pixel` by layer.
+    fn merge(&self, f: &Factors, m: &Merging, lights: &[Chunk], eye: &[Vertex], pixel: &mut [Rgb; LAYERS]) {
+        let t = eye.len();
+        let z = &eye[t - 1];
+        if !z.merges() {
+            return;
+        }
+        let nz = pm_scene::facing(z.ng, z.wo);
+        let mut sum = [Rgb::ZERO; LAYERS];
+        m.grid.for_each_within(z.p, f.radius * f.radius, |gi, _| {
+            let [c, g, start] = m.ids[gi as usize];
+            let vertices = &lights[c as usize].vertices;
+            let y = &vertices[g as usize];
+            if pm_scene::facing(y.ng, y.wo).dot(nz) <= pm_estimate::SAME_SURFACE_COS {
+                return;
+            }
+            let c = z.f(z.wo, y.wo) * y.beta;
+            if c.max_element() <= 0.0 || !c.is_finite() {
+                return;
+            }
+            let light = &vertices[start as usize..g as usize];
+            sum[layer_of(eye, light, light.len(), t)] += c * self.merge_weight(f, z, y);
+        });
+        for (p, v) in pixel.iter_mut().zip(sum) {
+            if v.max_element() > 0.0 {
+                *p += z.beta * v * f.normalization;
+            }
+        }
+    }
+
+    /// The MIS weight of merging eye vertex `z` with light vertex `y` (tech. rep.
+    /// eqs. 37-39; both densities at z's BSDF: the two points are taken as one).
+    fn merge_weight(&self, f: &Factors, z: &Vertex, y: &Vertex) -> f32 {
+        let w_light = y.mis.vcm * f.vc + y.mis.vm * mis(z.pdf_dir(z.wo, y.wo));
+        let w_eye = z.mis.vcm * f.vc + z.mis.vm * mis(z.pdf_dir(y.wo, z.wo));
+        finite_or_zero(1.0 / (w_light + 1.0 + w_eye))
     }
 
     /// The eye subpath through unit direction `d` from the pinhole into `path`
     /// (the pinhole first): whether the vertex limit cut it, and what it found
     /// leaving the scene.
-    fn eye_subpath(&self, d: Vec3, s: &mut Sampler, path: &mut Vec<Vertex>) -> Walked {
+    fn eye_subpath(&self, d: Vec3, s: &mut Sampler, f: &Factors, path: &mut Vec<Vertex>) -> Walked {
         path.clear();
         path.push(self.camera_vertex());
+        let pdf = self.lens.pdf_dir(d);
         let from = Leaving {
             o: self.lens.camera.position,
             d,
             beta: Rgb::ONE,
-            pdf: self.lens.pdf_dir(d),
+            pdf,
             medium: self.eye_medium,
+            mis: Partial::camera(pdf),
         };
-        self.walk(from, true, s, path)
+        self.walk(from, true, s, f, path)
     }
 
     /// The light subpath into `path` (the light's point first): a light chosen by
     /// power, a point on it and a direction from it as the photon tracer draws
     /// them. True when the vertex limit cut it.
-    fn light_subpath(&self, s: &mut Sampler, path: &mut Vec<Vertex>) -> bool {
+    fn light_subpath(&self, s: &mut Sampler, f: &Factors, path: &mut Vec<Vertex>) -> bool {
         path.clear();
         let (u_light, u_sel, u_pos) = (s.next_1d(), s.next_1d(), s.next_2d());
         let (u_side, u_dir) = (s.next_1d(), s.next_2d());
@@ -576,7 +925,9 @@ impl<'a> Bdpt<'a> {
             return false;
         }
         let o = if q.n == Vec3::ZERO { q.p } else { self.scene.offset_origin(q.p, q.n, dir) };
-        self.walk(Leaving { o, d: dir, beta, pdf: pdf_dir, medium: y0.media[0] }, false, s, path).cut
+        let pdf_a = self.light_pdf(li as usize, &q);
+        let mis = Partial::light(pdf_a, pdf_dir, cos, light.is_delta(), f);
+        self.walk(Leaving { o, d: dir, beta, pdf: pdf_dir, medium: y0.media[0], mis }, false, s, f, path).cut
     }
 
     /// Extend a subpath from `o` along unit `d` (sampled with density `pdf_dir`
@@ -588,15 +939,15 @@ impl<'a> Bdpt<'a> {
     /// radiance on the eye side (`eye`), power on the light side. True when the
     /// vertex limit cut it, and for an eye subpath what it found leaving the
     /// scene (weighed against the samples of lights at infinity).
-    fn walk(&self, from: Leaving, eye: bool, s: &mut Sampler, path: &mut Vec<Vertex>) -> Walked {
+    fn walk(&self, from: Leaving, eye: bool, s: &mut Sampler, f: &Factors, path: &mut Vec<Vertex>) -> Walked {
         let scene = self.scene;
-        let Leaving { o, d, beta, pdf: pdf_dir, medium } = from;
+        let Leaving { o, d, beta, pdf: pdf_dir, medium, mut mis } = from;
         let (mut o, mut d, mut beta, mut pdf_fwd, mut medium) = (o, d, beta, pdf_dir, medium);
         let ended = |cut: bool| Walked { cut, escaped: Rgb::ZERO };
         let start = beta.max_element();
         let mut eta_scale = 1.0f32;
         let mut flights = Flights::new(if scene.has_media() { s.next_1d() } else { 0.0 });
-        let limit = self.params.bdpt_max_vertices as usize + 1;
+        let limit = self.config.max_vertices as usize + 1;
         loop {
             if path.len() >= limit {
                 return ended(true);
@@ -624,18 +975,18 @@ impl<'a> Bdpt<'a> {
                     ns: Vec3::ZERO,
                     wo,
                     beta: beta * flights.weight(),
-                    pdf_fwd: 0.0,
-                    pdf_rev: 0.0,
+                    mis,
                     delta: false,
                     media: [medium; 2],
                 };
-                v.pdf_fwd = prev.area_density(pdf_fwd, &v);
+                v.mis.arrive(p.distance_squared(prev.p), 1.0);
+                mis = v.mis;
                 let at = path.len();
                 path.push(v);
                 let ps = phase.sample(wo, s.next_2d());
                 // Henyey-Greenstein depends on the angle alone: the reverse
-                // density is the forward one.
-                path[at - 1].pdf_rev = v.area_density(ps.pdf, &prev);
+                // density is the forward one. No merging in media.
+                mis.leave(1.0, ps.pdf, ps.pdf, false, false, f);
                 pdf_fwd = ps.pdf;
                 // The path tracer's roulette on the throughput relative to the
                 // subpath's start, eta^2 folded in on the eye side.
@@ -676,12 +1027,12 @@ impl<'a> Bdpt<'a> {
                 ns: hit.ns,
                 wo,
                 beta: beta * flights.weight(),
-                pdf_fwd: 0.0,
-                pdf_rev: 0.0,
+                mis,
                 delta: false,
                 media,
             };
-            v.pdf_fwd = prev.area_density(pdf_fwd, &v);
+            v.mis.arrive(hit.p.distance_squared(prev.p), hit.ng.dot(d).abs());
+            mis = v.mis;
             let at = path.len();
             path.push(v);
             let (u, uc) = (s.next_2d(), s.next_1d());
@@ -702,10 +1053,10 @@ impl<'a> Bdpt<'a> {
                 bs.weight * (num / den)
             };
             beta *= weight;
-            let (fwd, rev) = if bs.specular { (0.0, 0.0) } else { (bs.pdf, bsdf.pdf(bs.wi, wo, hit.ns)) };
+            let rev = if bs.specular { 0.0 } else { bsdf.pdf(bs.wi, wo, hit.ns) };
             path[at].delta = bs.specular;
-            path[at - 1].pdf_rev = path[at].area_density(rev, &prev);
-            pdf_fwd = fwd;
+            mis.leave(hit.ng.dot(bs.wi).abs(), bs.pdf, rev, bs.specular, v.merges(), f);
+            pdf_fwd = if bs.specular { 0.0 } else { bs.pdf };
             if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
                 return ended(false);
             }
@@ -793,12 +1144,21 @@ impl<'a> Bdpt<'a> {
         scene.transmittance_to(o, v / len, (len - ulps).max(0.0), b.ng, a.medium_toward(w))
     }
 
-    /// Strategy (s, t >= 2): the eye subpath `eye` (t vertices) joined to the light
-    /// subpath `light` (its first s vertices), or for s = 0 its last vertex on an
-    /// emitter, or for s = 1 a light point picked with `u` (light, triangle,
-    /// point): the contribution to the pixel [W sr^-1 m^-2] and its MIS weight.
+    /// Strategy s = 0 (t = `eye.len()` >= 2): the eye subpath's last vertex on an
+    /// emitter, what it adds [W sr^-1 m^-2] and its MIS weight.
+    fn emitted(&self, f: &Factors, eye: &[Vertex]) -> Option<(Rgb, f32)> {
+        let z = &eye[eye.len() - 1];
+        let Kind::Surface { le, emitter: Some(_), .. } = z.kind else { return None };
+        Some((z.beta * le, self.weight(f, eye, &[], 0, None)))
+    }
+
+    /// Strategy (s >= 1, t = `eye.len()` >= 2): the eye subpath joined to the light
+    /// subpath `light` (its first s vertices), or for s = 1 to a light point
+    /// picked with `u` (light, triangle, point): the contribution to the pixel
+    /// [W sr^-1 m^-2] and its MIS weight.
     fn connect(
         &self,
+        f: &Factors,
         eye: &[Vertex],
         light: &[Vertex],
         s: usize,
@@ -806,10 +1166,6 @@ impl<'a> Bdpt<'a> {
     ) -> Option<(Rgb, f32)> {
         let t = eye.len();
         let z = &eye[t - 1];
-        if s == 0 {
-            let Kind::Surface { le, emitter: Some(_), .. } = z.kind else { return None };
-            return Some((z.beta * le, self.weight(eye, &[], 0, None)));
-        }
         if z.delta || !z.scatters() {
             return None;
         }
@@ -849,15 +1205,21 @@ impl<'a> Bdpt<'a> {
         if c.max_element() <= 0.0 {
             return None;
         }
-        Some((c, self.weight(eye, light, s, picked.as_ref())))
+        Some((c, self.weight(f, eye, light, s, picked.as_ref())))
+    }
+
+    /// The area density [m^-2] with which light subpaths start at light `li`'s
+    /// point `q`: the light's choice times the point's density.
+    fn light_pdf(&self, li: usize, q: &EmitterPoint) -> f32 {
+        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * q.pdf_pos
     }
 
     /// A point on a light picked as a light subpath's first vertex is (`u_light`
     /// the light, `u_sel` its triangle, `u_pos` the point), for strategy s = 1.
     fn light_point(&self, u_light: f32, u_sel: f32, u_pos: glam::Vec2) -> Option<Vertex> {
-        let (li, prob) = self.lights.as_ref()?.pick(u_light);
+        let (li, _) = self.lights.as_ref()?.pick(u_light);
         let q = self.scene.lights[li].emitter_point(self.scene, u_sel, u_pos)?;
-        let pdf = prob as f32 * q.pdf_pos;
+        let pdf = self.light_pdf(li, &q);
         (pdf > 0.0).then(|| Vertex {
             kind: Kind::Light { light: li as u32, q },
             p: q.p,
@@ -865,8 +1227,7 @@ impl<'a> Bdpt<'a> {
             ns: q.n,
             wo: Vec3::ZERO,
             beta: Rgb::splat(1.0 / pdf),
-            pdf_fwd: pdf,
-            pdf_rev: 0.0,
+            mis: Partial::default(),
             delta: false,
             media: [self.scene.light_medium(li); 2],
         })
@@ -881,8 +1242,7 @@ impl<'a> Bdpt<'a> {
             ns: Vec3::ZERO,
             wo: Vec3::ZERO,
             beta: Rgb::ONE,
-            pdf_fwd: 1.0,
-            pdf_rev: 0.0,
+            mis: Partial::default(),
             delta: false,
             media: [self.eye_medium; 2],
         }
@@ -891,7 +1251,7 @@ impl<'a> Bdpt<'a> {
     /// Strategy t = 1: the light subpath's last vertex y_{s-1} (s >= 2) seen by the
     /// pinhole: the pixel it lands in, what it adds there [W sr^-1 m^-2] and its
     /// MIS weight.
-    fn splat(&self, light: &[Vertex]) -> Option<(u32, Rgb, f32)> {
+    fn splat(&self, light: &[Vertex], f: &Factors) -> Option<(u32, Rgb, f32)> {
         let s = light.len();
         let y = &light[s - 1];
         if y.delta || !y.scatters() {
@@ -921,113 +1281,75 @@ impl<'a> Bdpt<'a> {
         }
         let (w, h) = (self.width as f32, self.height as f32);
         let px = ((film.x * w) as u32).min(self.width - 1) + ((film.y * h) as u32).min(self.height - 1) * self.width;
-        Some((px, c, self.weight(std::slice::from_ref(&camera), light, s, None)))
+        Some((px, c, self.weight(f, std::slice::from_ref(&camera), light, s, None)))
     }
 
-    /// The MIS weight of strategy (s, t = `eye.len()`): the eye subpath joined to
-    /// the light subpath's first s vertices (`light`), to the light point
-    /// `picked` (s = 1), or for s = 0 ending on an emitter. Works out the
-    /// densities the join changes (pbrt-v3's `MISWeight`: the reverse densities
-    /// of both ends and of the vertices before them) and weighs by [`Self::mis`].
-    fn weight(&self, eye: &[Vertex], light: &[Vertex], s: usize, picked: Option<&Vertex>) -> f32 {
-        let t = eye.len();
-        let z = &eye[t - 1];
-        if s == 0 {
-            let Kind::Surface { emitter: Some((li, q)), .. } = &z.kind else { return 0.0 };
-            let light = &self.scene.lights[*li as usize];
-            let fix = Fix {
-                z_rev: self.lights.as_ref().map_or(0.0, |l| l.probs[*li as usize] as f32) * q.pdf_pos,
-                z_prev_rev: z.area_density(light.pdf_emitted_dir(q, z.wo), &eye[t - 2]),
-                ..Fix::default()
-            };
-            return self.mis(eye, &[], 0, &fix);
-        }
-        let y = picked.unwrap_or_else(|| &light[s - 1]);
-        let wi = (y.p - z.p).normalize_or_zero();
-        let y_prev_rev =
-            |from_z: Vec3| if s >= 2 { y.area_density(y.pdf_dir(from_z, y.wo), &light[s - 2]) } else { 0.0 };
-        let fix = if t == 1 {
-            Fix { y_rev: z.area_density(self.lens.pdf_dir(wi), y), y_prev_rev: y_prev_rev(-wi), ..Fix::default() }
-        } else {
-            let pdf_z_from_y = match &y.kind {
-                Kind::Light { light, q } => self.scene.lights[*light as usize].pdf_emitted_dir(q, -wi),
-                _ => y.pdf_dir(y.wo, -wi),
-            };
-            Fix {
-                z_rev: y.area_density(pdf_z_from_y, z),
-                z_prev_rev: z.area_density(z.pdf_dir(wi, z.wo), &eye[t - 2]),
-                y_rev: z.area_density(z.pdf_dir(z.wo, wi), y),
-                y_prev_rev: y_prev_rev(-wi),
-                y0: picked.copied(),
-            }
-        };
-        self.mis(eye, light, s, &fix)
-    }
-
-    /// The power-heuristic weight of strategy (s, t = `eye.len()`; `light` holds
-    /// the light subpath's first s vertices, all but y_0 for s = 1) for the path the two subpaths make when joined, with the
-    /// densities the join changes in `fix`: 1 / (1 + sum r_i^2) over the ratios
-    /// of every other strategy's density of the same path to this one's, walked
-    /// outward from the join on each side (Veach 1997, section 10.2.1; r_i
-    /// multiplies in p_rev / p_fwd at each vertex passed; a strategy that would
-    /// join at a delta vertex or hit a point light counts nothing).
-    fn mis(&self, eye: &[Vertex], light: &[Vertex], s: usize, fix: &Fix) -> f32 {
+    /// The power-heuristic weight of strategy (s, t = `eye.len()`): the eye
+    /// subpath joined to the light subpath's first s vertices (`light`), to the
+    /// light point `picked` (s = 1), or for s = 0 ending on an emitter; 1 / (1 +
+    /// w_light + w_eye) with each side's sum over the strategies that move the
+    /// join toward it from the MIS sums its end vertex stored and the densities
+    /// the join alone knows (tech. rep. eqs. 37, 40-47; a path of one segment has
+    /// one strategy).
+    fn weight(&self, f: &Factors, eye: &[Vertex], light: &[Vertex], s: usize, picked: Option<&Vertex>) -> f32 {
         let t = eye.len();
         if s + t == 2 {
             return 1.0;
         }
-        let remap = |p: f32| if p != 0.0 { p } else { 1.0 };
-        let mut sum = 0.0f32;
-        let z_rev = |i: usize| {
-            if i == t - 1 {
-                fix.z_rev
-            } else if i + 2 == t {
-                fix.z_prev_rev
-            } else {
-                eye[i].pdf_rev
-            }
-        };
-        let z_delta = |i: usize| i + 1 != t && eye[i].delta;
-        let mut r = 1.0f32;
-        for i in (1..t).rev() {
-            r *= remap(z_rev(i)) / remap(eye[i].pdf_fwd);
-            if !z_delta(i) && !z_delta(i - 1) {
-                sum += r * r;
-            }
+        let z = &eye[t - 1];
+        if s == 0 {
+            // Eqs. 42-43: the same path with its last vertex picked on the light
+            // (s = 1), and with more of it from the light's side.
+            let Kind::Surface { emitter: Some((li, q)), .. } = &z.kind else { return 0.0 };
+            let pdf_a = self.light_pdf(*li as usize, q);
+            let pdf_emit = pdf_a * self.scene.lights[*li as usize].pdf_emitted_dir(q, z.wo);
+            return finite_or_zero(1.0 / (1.0 + mis(pdf_a) * z.mis.vcm + mis(pdf_emit) * z.mis.vc));
         }
-        let y = |i: usize| match (i, &fix.y0) {
-            (0, Some(y0)) => y0,
-            _ => &light[i],
-        };
-        let y_rev = |i: usize| {
-            if i + 1 == s {
-                fix.y_rev
-            } else if i + 2 == s {
-                fix.y_prev_rev
-            } else {
-                y(i).pdf_rev
-            }
-        };
-        let y_delta = |i: usize| i + 1 != s && y(i).delta;
-        let mut r = 1.0f32;
-        for i in (0..s).rev() {
-            r *= remap(y_rev(i)) / remap(y(i).pdf_fwd);
-            let before = if i > 0 { y_delta(i - 1) } else { self.delta_light(y(0)) };
-            if !y_delta(i) && !before {
-                sum += r * r;
-            }
+        let y = picked.unwrap_or_else(|| &light[s - 1]);
+        let wi = (y.p - z.p).normalize_or_zero();
+        if t == 1 {
+            // Eqs. 46-47: the eye side has no other strategy.
+            let p_y = z.area_density(self.lens.pdf_dir(wi), y);
+            return finite_or_zero(1.0 / (1.0 + y.mis.toward(p_y, y.pdf_dir(-wi, y.wo), y.merges(), f)));
         }
-        let w = 1.0 / (1.0 + sum);
-        if w.is_finite() { w } else { 0.0 }
+        // The densities with which each end would make the other.
+        let pdf_z_to_y = z.pdf_dir(z.wo, wi);
+        let w_eye_side = |p_z_from_y: f32| z.mis.toward(p_z_from_y, z.pdf_dir(wi, z.wo), z.merges(), f);
+        let w = match &y.kind {
+            Kind::Light { light: li, q } => {
+                // Eqs. 44-45: the light point against the eye subpath hitting it
+                // (never a point or spot light) and against longer light subpaths.
+                let light = &self.scene.lights[*li as usize];
+                let hit = if light.is_delta() { 0.0 } else { z.area_density(pdf_z_to_y, y) };
+                let w_light = mis(hit / self.light_pdf(*li as usize, q));
+                let w_eye = w_eye_side(y.area_density(light.pdf_emitted_dir(q, -wi), z));
+                1.0 / (w_light + 1.0 + w_eye)
+            }
+            _ => {
+                // Eqs. 40-41.
+                let w_light = y.mis.toward(z.area_density(pdf_z_to_y, y), y.pdf_dir(-wi, y.wo), y.merges(), f);
+                let w_eye = w_eye_side(y.area_density(y.pdf_dir(y.wo, -wi), z));
+                1.0 / (w_light + 1.0 + w_eye)
+            }
+        };
+        finite_or_zero(w)
     }
+}
 
-    /// True for a light subpath's first vertex on a point or spot light (no eye
-    /// subpath can hit it).
-    fn delta_light(&self, y0: &Vertex) -> bool {
-        match &y0.kind {
-            Kind::Light { light, .. } => self.scene.lights[*light as usize].is_delta(),
-            _ => false,
-        }
+/// `w`, or 0 when it is not finite.
+fn finite_or_zero(w: f32) -> f32 {
+    if w.is_finite() { w } else { 0.0 }
+}
+
+/// Tally strategy (s, t)'s contribution `c` and weight `w` when asked.
+fn tally(out: &mut Chunk, s: usize, t: usize, c: Rgb, w: f32) {
+    if s < TALLY
+        && t < TALLY
+        && let Some(v) = out.tally.get_mut(s * TALLY + t)
+    {
+        let l = c.element_sum() as f64 / 3.0;
+        v[0] += l;
+        v[1] += l * w as f64;
     }
 }
 
@@ -1035,18 +1357,6 @@ impl<'a> Bdpt<'a> {
 /// there; eye subpaths find it by leaving the scene or by sampling it.
 fn at_infinity(l: &pm_scene::Light) -> bool {
     matches!(l.kind, LightKind::Directional { .. } | LightKind::Environment { .. })
-}
-
-/// The densities a join changes, for [`Bdpt::mis`]: the reverse densities of the
-/// eye side's last vertex and the one before it, of the light side's last and
-/// the one before it, and for s = 1 the light point picked in place of y_0.
-#[derive(Default)]
-struct Fix {
-    z_rev: f32,
-    z_prev_rev: f32,
-    y_rev: f32,
-    y_prev_rev: f32,
-    y0: Option<Vertex>,
 }
 
 /// The layer of the path strategy (s, t) makes, split as the path tracer splits
@@ -1077,15 +1387,42 @@ fn layer_of(eye: &[Vertex], light: &[Vertex], s: usize, t: usize) -> usize {
     layer.index()
 }
 
-/// Render `view.rect` of `view.film` by `params.bdpt_passes` passes (the whole film is
+/// The settings of either method this crate runs: [`BdptParams`] or
+/// [`VcmParams`].
+pub trait Method: Copy {
+    /// Passes to render.
+    fn passes(&self) -> u32;
+    /// The renderer's state before its first pass.
+    fn start<'a>(&self, scene: &'a Scene, camera: &Camera, film: &pm_render::Film) -> Result<Bdpt<'a>, String>;
+}
+
+impl Method for BdptParams {
+    fn passes(&self) -> u32 {
+        self.bdpt_passes
+    }
+    fn start<'a>(&self, scene: &'a Scene, camera: &Camera, film: &pm_render::Film) -> Result<Bdpt<'a>, String> {
+        Bdpt::new(scene, camera, film.width, film.height, film.seed, *self)
+    }
+}
+
+impl Method for VcmParams {
+    fn passes(&self) -> u32 {
+        self.vcm_passes
+    }
+    fn start<'a>(&self, scene: &'a Scene, camera: &Camera, film: &pm_render::Film) -> Result<Bdpt<'a>, String> {
+        Bdpt::vcm(scene, camera, film.width, film.height, film.seed, *self)
+    }
+}
+
+/// Render `view.rect` of `view.film` by the method's passes (the whole film is
 /// traced: light subpaths land anywhere), reporting passes done as progress.
 pub fn render(
     scene: &Scene,
-    params: &BdptParams,
+    params: &impl Method,
     view: View,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, pm_render::RenderStats), String> {
-    let passes = params.bdpt_passes as u64;
+    let passes = params.passes() as u64;
     let (image, stats, _) = render_with(scene, params, view, None, &mut |b| {
         progress(b.passes() as u64, passes);
         Ok(true)
@@ -1101,18 +1438,18 @@ pub fn render(
 /// its statistics and the passes it holds.
 pub fn render_with(
     scene: &Scene,
-    params: &BdptParams,
+    params: &impl Method,
     view: View,
     start: Option<(&std::path::Path, &pm_format::PassStateFile)>,
     after_pass: &mut dyn FnMut(&Bdpt) -> Result<bool, String>,
 ) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
     let film = view.film;
-    let mut b = Bdpt::new(scene, view.camera, film.width, film.height, film.seed, *params)?;
+    let mut b = params.start(scene, view.camera, film)?;
     if let Some((path, file)) = start {
-        b.resume(file, params.bdpt_passes).map_err(|e| format!("{}: {e}", path.display()))?;
+        b.resume(file, params.passes()).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    while b.passes() < params.bdpt_passes {
+    while b.passes() < params.passes() {
         b.pass();
         if !after_pass(&b)? {
             break;

@@ -26,6 +26,14 @@ const MAX_DIM: i32 = 512;
 impl RadiusGrid {
     /// The grid of `points` for queries of radius up to `radius` \[m\].
     pub fn new(points: &[Vec3], radius: f32) -> RadiusGrid {
+        RadiusGrid::with_cells_at_most(points, radius, usize::MAX)
+    }
+
+    /// The grid of `points` for queries of radius up to `radius` \[m\] with at
+    /// most about `most` cells (larger cells than the radius when the points are
+    /// few and the radius small: a grid rebuilt every pass then costs its points,
+    /// not its empty cells).
+    pub fn with_cells_at_most(points: &[Vec3], radius: f32, most: usize) -> RadiusGrid {
         let (lo, hi) = points
             .iter()
             .filter(|p| p.is_finite())
@@ -41,7 +49,12 @@ impl RadiusGrid {
             };
         }
         let extent = (hi - lo).max_element();
-        let cell = radius.max(extent / MAX_DIM as f32).max(f32::MIN_POSITIVE);
+        let mut cell = radius.max(extent / MAX_DIM as f32).max(f32::MIN_POSITIVE);
+        let cells = ((hi - lo) / cell).floor() + Vec3::ONE;
+        let n = cells.x as f64 * cells.y as f64 * cells.z as f64;
+        if n > most.max(1) as f64 {
+            cell *= (n / most.max(1) as f64).cbrt() as f32 * 1.01;
+        }
         let dims = (((hi - lo) / cell).floor().as_ivec3() + IVec3::ONE).clamp(IVec3::ONE, IVec3::splat(MAX_DIM));
         let mut g = RadiusGrid { origin: lo, cell, dims, start: Vec::new(), order: Vec::new(), pos: Vec::new() };
         let ncells = (dims.x * dims.y * dims.z) as usize;

@@ -18,7 +18,7 @@
 
 pub mod live;
 
-pub use pm_bdpt::BdptParams;
+pub use pm_bdpt::{BdptParams, VcmParams};
 use pm_render::{
     Image, IndirectView, Integrator, Lookup, PathTracer, PhotonMapping, PhotonsView, RadianceView, RenderParams,
     RenderStats, View,
@@ -50,6 +50,10 @@ pm_params::value_enum! {
         /// weighed by the power heuristic (needs no photon maps; Veach 1997; the
         /// pm-bdpt crate).
         Bdpt,
+        /// Vertex connection and merging: bidirectional path tracing's joins and
+        /// photon merging at every eye vertex with shrinking radii, under one
+        /// weighting (needs no photon maps; Georgiev et al. 2012; pm-bdpt).
+        Vcm,
     }
 }
 
@@ -96,7 +100,7 @@ impl Method {
             Method::Radiance => Needs { photon_maps: true, irradiance: true, ..none },
             Method::Photons => Needs { photon_maps: true, ..none },
             Method::Path => none,
-            Method::Sppm | Method::Bdpt => Needs { progressive: true, ..none },
+            Method::Sppm | Method::Bdpt | Method::Vcm => Needs { progressive: true, ..none },
         }
     }
 
@@ -109,7 +113,9 @@ impl Method {
     /// Christensen's Figure 1) and for the path tracer, which is the reference.
     pub fn agreement(self) -> Option<Agreement> {
         match self {
-            Method::Full | Method::Sppm | Method::Bdpt => Some(Agreement { mean: 0.02, worst_block: 0.15 }),
+            Method::Full | Method::Sppm | Method::Bdpt | Method::Vcm => {
+                Some(Agreement { mean: 0.02, worst_block: 0.15 })
+            }
             Method::Indirect | Method::Radiance | Method::Photons | Method::Path => None,
         }
     }
@@ -150,6 +156,9 @@ pub struct Settings {
     /// Bidirectional path tracing's (`--mode bdpt`; pm-bdpt).
     #[command(flatten, next_help_heading = "Bidirectional path tracing (--mode bdpt)")]
     pub bdpt: BdptParams,
+    /// Vertex connection and merging's (`--mode vcm`; pm-bdpt).
+    #[command(flatten, next_help_heading = "Vertex connection and merging (--mode vcm)")]
+    pub vcm: VcmParams,
 }
 
 impl Settings {
@@ -159,7 +168,8 @@ impl Settings {
         let naming = |section| if cli { Naming::Cli } else { Naming::File(section) };
         self.render.check(naming("render"))?;
         self.sppm.validate(naming("sppm"))?;
-        self.bdpt.validate(naming("bdpt"))
+        self.bdpt.validate(naming("bdpt"))?;
+        self.vcm.validate(naming("vcm"))
     }
 
     /// The passes a progressive method is asked for (none for the others): SPPM's
@@ -168,6 +178,7 @@ impl Settings {
         match self.mode {
             Method::Sppm => Some(self.sppm.passes),
             Method::Bdpt => Some(self.bdpt.bdpt_passes),
+            Method::Vcm => Some(self.vcm.vcm_passes),
             _ => None,
         }
     }
@@ -183,6 +194,7 @@ impl Settings {
         a.extend(self.render.to_args());
         a.extend(self.sppm.to_args());
         a.extend(self.bdpt.to_args());
+        a.extend(self.vcm.to_args());
         a
     }
 }
@@ -219,7 +231,7 @@ pub trait Progressive {
 pub enum State {
     /// `--mode sppm`'s.
     Sppm(pm_format::StateFile),
-    /// `--mode bdpt`'s.
+    /// `--mode bdpt`'s and `--mode vcm`'s.
     Passes(pm_format::PassStateFile),
 }
 
@@ -346,22 +358,9 @@ pub fn render<G: pm_format::PhotonRecord>(
             Ok(Rendered { image, stats, passes: Some(done) })
         }
         (Method::Bdpt, Input::Scene(scene)) => {
-            let (image, stats, done) = match passes {
-                Some(Passes { start, after_pass }) => {
-                    let start = match start {
-                        Some((path, State::Passes(f))) => Some((path, f)),
-                        Some((path, _)) => return Err(format!("{}: not a state of --mode bdpt", path.display())),
-                        None => None,
-                    };
-                    pm_bdpt::render_with(scene, &settings.bdpt, view, start, &mut |b| after_pass(b))?
-                }
-                None => {
-                    let (image, stats) = pm_bdpt::render(scene, &settings.bdpt, view, progress)?;
-                    (image, stats, settings.bdpt.bdpt_passes)
-                }
-            };
-            Ok(Rendered { image, stats, passes: Some(done) })
+            bidirectional(scene, &settings.bdpt, Method::Bdpt, view, passes, progress)
         }
+        (Method::Vcm, Input::Scene(scene)) => bidirectional(scene, &settings.vcm, Method::Vcm, view, passes, progress),
         (Method::Path, Input::Scene(scene)) => {
             let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;
             image(view, &pt, progress)
@@ -375,6 +374,33 @@ pub fn render<G: pm_format::PhotonRecord>(
             if m.needs().photon_maps { "renders from" } else { "traces its own paths, without" }
         )),
     }
+}
+
+/// Bidirectional path tracing or vertex connection and merging (`method`, with
+/// `params`), in passes.
+fn bidirectional(
+    scene: &pm_scene::Scene,
+    params: &impl pm_bdpt::Method,
+    method: Method,
+    view: View,
+    passes: Option<Passes>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Rendered, String> {
+    let (image, stats, done) = match passes {
+        Some(Passes { start, after_pass }) => {
+            let start = match start {
+                Some((path, State::Passes(f))) => Some((path, f)),
+                Some((path, _)) => return Err(format!("{}: not a state of --mode {method}", path.display())),
+                None => None,
+            };
+            pm_bdpt::render_with(scene, params, view, start, &mut |b| after_pass(b))?
+        }
+        None => {
+            let (image, stats) = pm_bdpt::render(scene, params, view, progress)?;
+            (image, stats, params.passes())
+        }
+    };
+    Ok(Rendered { image, stats, passes: Some(done) })
 }
 
 /// The image loop over an integrator.

@@ -3,7 +3,7 @@
 use anyhow::{Context, Result, bail};
 use pm_estimate::IrradianceParams;
 use pm_methods::live::LiveParams;
-use pm_methods::{BdptParams, Method, Settings, SppmParams};
+use pm_methods::{BdptParams, Method, Settings, SppmParams, VcmParams};
 use pm_params::Naming;
 use pm_photon::TraceParams;
 use pm_render::RenderParams;
@@ -72,6 +72,9 @@ pub struct Pipeline {
     /// Bidirectional path tracing's own settings (mode bdpt).
     #[serde(default)]
     pub bdpt: BdptParams,
+    /// Vertex connection and merging's own settings (mode vcm).
+    #[serde(default)]
+    pub vcm: VcmParams,
     /// The scene `cargo xtask live` renders, relative to the pipeline file
     /// (default: `scene`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -250,8 +253,8 @@ impl Pipeline {
         Ok(p)
     }
 
-    /// Set `section.key` (a stage section: trace, irradiance, render, sppm, bdpt
-    /// or live; `live.vertex` and `live.ispm` are live's tables).
+    /// Set `section.key` (a stage section: trace, irradiance, render, sppm, bdpt,
+    /// vcm or live; `live.vertex` and `live.ispm` are live's tables).
     pub fn set(&mut self, section: &str, key: &str, value: toml::Value) -> Result<()> {
         match section {
             "trace" => set_key(&mut self.trace, key, value),
@@ -263,6 +266,7 @@ impl Pipeline {
             "render" => set_key(&mut self.render, key, value),
             "sppm" => set_key(&mut self.sppm, key, value),
             "bdpt" => set_key(&mut self.bdpt, key, value),
+            "vcm" => set_key(&mut self.vcm, key, value),
             "live" => set_key(&mut self.live, key, value),
             "live.vertex" => set_key(&mut self.live.vertex, key, value),
             "live.ispm" => set_key(&mut self.live.ispm, key, value),
@@ -303,9 +307,10 @@ impl Pipeline {
         Ok((p, moved))
     }
 
-    /// Every method's settings (`[render]` with its mode, `[sppm]`, `[bdpt]`).
+    /// Every method's settings (`[render]` with its mode, `[sppm]`, `[bdpt]`,
+    /// `[vcm]`).
     pub fn settings(&self) -> Settings {
-        Settings { mode: self.mode, render: self.render.clone(), sppm: self.sppm, bdpt: self.bdpt }
+        Settings { mode: self.mode, render: self.render.clone(), sppm: self.sppm, bdpt: self.bdpt, vcm: self.vcm }
     }
 
     /// The scene of the batch pipeline: `scene` relative to the pipeline file
