@@ -144,7 +144,9 @@ fn reference_halves(
         for (h, exr) in halves.iter().enumerate() {
             println!("rendering reference half {} of 2 ({size}x{size}, --mode {mode}, {} spp) ...", h + 1, spp / 2);
             let render = RenderParams { spp: (spp / 2).max(1), width: size, height: size, ..base.render.clone() };
-            let p = Settings { mode, render, ..base.settings() };
+            let mut p = Settings { mode, render, ..base.settings() };
+            // BDPT's passes are its own setting: the half's share of --reference-spp.
+            p.bdpt.bdpt_passes = (spp / 2).max(1);
             let mut a = scene_args.to_vec();
             a.extend(["--seed".into(), (1001 + h).to_string()]);
             a.extend(["--out".into(), exr.display().to_string()]);

@@ -86,6 +86,10 @@ pm_params::value_enum! {
         #[value(name = "bdpt")]
         #[serde(rename = "bdpt")]
         Bdpt,
+        /// Vertex connection and merging at several pass counts.
+        #[value(name = "vcm")]
+        #[serde(rename = "vcm")]
+        Vcm,
         /// Jozwowski's vertex method (one frame of photon-live).
         #[value(name = "live vertex")]
         #[serde(rename = "live vertex")]
@@ -105,7 +109,10 @@ impl Axis {
     /// A method of its own (drawn as its own line) rather than a setting varied
     /// about the defaults (whose line passes through the defaults' point).
     pub fn is_method(self) -> bool {
-        matches!(self, Axis::Path | Axis::Sppm | Axis::SppmNoProbes | Axis::Bdpt | Axis::LiveVertex | Axis::LiveIspm)
+        matches!(
+            self,
+            Axis::Path | Axis::Sppm | Axis::SppmNoProbes | Axis::Bdpt | Axis::Vcm | Axis::LiveVertex | Axis::LiveIspm
+        )
     }
 }
 
@@ -241,6 +248,14 @@ pub fn sweep(base: &pm_pipeline::Pipeline, size: u32, base_diagonal: f32, media:
         v.push(with(Axis::Bdpt, format!("bdpt {passes} passes"), &|s| {
             s.render.mode = Method::Bdpt;
             s.render.bdpt.bdpt_passes = passes
+        }));
+    }
+    // Vertex connection and merging: BDPT's passes with merging, consistent
+    // like SPPM (its merging radius shrinks with the passes).
+    for passes in [16u32, 64, 256, 1024] {
+        v.push(with(Axis::Vcm, format!("vcm {passes} passes"), &|s| {
+            s.render.mode = Method::Vcm;
+            s.render.vcm.vcm_passes = passes
         }));
     }
     // The real-time methods on the same reference: Jozwowski's vertex estimates
