@@ -80,22 +80,25 @@ pub struct Cli {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Progressive methods (`--mode sppm`, `bdpt`, `vcm`): write the image (`--out`, its
-    /// layers as usual) after every K passes, so a long render can be looked at
-    /// while it runs.
+    /// Progressive methods (`--mode sppm`, `bdpt`, `vcm`; and `path`, which with
+    /// any of these four options runs in passes of one sample a pixel, --spp of
+    /// them): write the image (`--out`, its layers as usual) after every K
+    /// passes, so a long render can be looked at while it runs.
     #[arg(long, value_name = "K")]
     pub checkpoint: Option<u32>,
     /// Progressive methods: stop after the pass that takes the render past this
     /// many seconds (the image holds the passes done; the pass count, and so the
-    /// image, then depends on the machine: `--passes`, `--bdpt-passes` or
-    /// `--vcm-passes` alone is deterministic).
+    /// image, then depends on the machine: `--passes`, `--bdpt-passes`,
+    /// `--vcm-passes` or path's `--spp` alone is deterministic). Every method
+    /// compared at equal time takes this one option.
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
     /// Progressive methods: keep the pixels' state in this file (sppm: radii,
-    /// photon counts, fluxes, 120 bytes a pixel; bdpt and vcm: the layers' sums over the
-    /// passes, 68 bytes a pixel). When it exists the render continues from the
-    /// passes it holds (refused if it was made from another scene or with other
-    /// settings; --passes, --bdpt-passes or --vcm-passes is the total); it is written at
+    /// photon counts, fluxes, 120 bytes a pixel; bdpt, vcm and path: the layers'
+    /// sums over the passes, 68 bytes a pixel). When it exists the render
+    /// continues from the passes it holds (refused if it was made from another
+    /// scene or with other settings; --passes, --bdpt-passes, --vcm-passes or
+    /// path's --spp is the total); it is written at
     /// every checkpoint and when the render stops. A render that --time-budget
     /// stops before --passes then exits with code 75 (sysexits' EX_TEMPFAIL):
     /// run the same command again to continue (a Slurm job re-queues itself so).
@@ -158,16 +161,31 @@ fn parse_region(s: &str) -> Result<[u32; 4], String> {
     }
 }
 
+/// True when the render runs in passes: a progressive method, or the path tracer
+/// given a progressive option (then in passes of one sample a pixel, `--spp` of
+/// them).
+fn in_passes(cli: &Cli) -> bool {
+    let mode = cli.settings.mode;
+    mode.needs().progressive || (mode == Method::Path && cli.progressive_options())
+}
+
+impl Cli {
+    /// True when an option of the progressive methods is given.
+    fn progressive_options(&self) -> bool {
+        self.checkpoint.is_some() || self.time_budget.is_some() || self.state.is_some() || self.run.is_some()
+    }
+}
+
 /// Run the stage; returns the statistics.
 pub fn run(cli: &Cli) -> Result<RenderReport> {
     let p = &cli.settings.render;
     cli.settings.check(true).map_err(|e| anyhow::anyhow!(e))?;
-    let progressive = cli.checkpoint.is_some() || cli.time_budget.is_some() || cli.state.is_some() || cli.run.is_some();
-    if progressive && !cli.settings.mode.needs().progressive {
+    if cli.progressive_options() && !in_passes(cli) {
         let methods = <Method as clap::ValueEnum>::value_variants().iter();
-        let which: Vec<String> = methods.filter(|m| m.needs().progressive).map(|m| m.to_string()).collect();
+        let which: Vec<String> =
+            methods.filter(|m| m.needs().progressive || **m == Method::Path).map(|m| m.to_string()).collect();
         bail!(
-            "--checkpoint, --time-budget, --state and --run are for progressive methods (--mode {})",
+            "--checkpoint, --time-budget, --state and --run are for progressive methods and the path tracer (--mode {})",
             which.join(", ")
         );
     }
@@ -396,7 +414,7 @@ impl Job<'_> {
     /// its passes, checkpoints and time budget: [`Self::progressive`]).
     fn render<G: PhotonRecord>(&self, input: Input<'_, G>) -> Result<pm_methods::Rendered> {
         let view = View { camera: self.camera, film: &self.film, rect: self.rect };
-        let r = if self.mode.needs().progressive {
+        let r = if in_passes(self.cli) {
             self.progressive(input, view)
         } else {
             let progress = Progress::new("render", self.rect.area() as u64);

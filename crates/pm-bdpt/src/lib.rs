@@ -70,7 +70,7 @@ use pm_bsdf::{Bsdf, HenyeyGreenstein};
 use pm_color::{Layer, Rgb};
 use pm_kdtree::RadiusGrid;
 use pm_light::LightSelector;
-use pm_render::{Image, View, pixel_salt};
+use pm_render::{Image, LAYERS, View, pixel_salt};
 use pm_sampling::Sampler;
 use pm_scene::{Camera, CameraRays, EmitterPoint, Flights, FreeFlight, LightKind, MediumId, Scene};
 use rayon::prelude::*;
@@ -238,9 +238,6 @@ const CHUNK: usize = 256;
 
 /// Strategies (s, t) with s and t below this are tallied apart when asked.
 pub const TALLY: usize = 12;
-
-/// The layers a pass fills ([`Layer::ALL`]'s order).
-const LAYERS: usize = 5;
 
 /// What a vertex is.
 #[derive(Clone, Copy, Debug)]
@@ -459,17 +456,12 @@ pub struct Bdpt<'a> {
     height: u32,
     seed: u64,
     config: Config,
-    passes: u32,
     /// The last pass's light subpaths, chunk by chunk (sized by the pass, reused
     /// by the next), and the buffers of its eye subpaths' chunks.
     light_chunks: Vec<Chunk>,
     eye_chunks: Vec<Chunk>,
-    /// Per pixel, the sum over passes of each surface layer's radiance.
-    sum: Vec<[Rgb; LAYERS]>,
-    /// Per pixel, the sums over passes of the pass's mean radiance and its square
-    /// (for the noise estimate).
-    l_sum: Vec<f32>,
-    l_sq: Vec<f32>,
+    /// The passes' sums.
+    sums: pm_render::PassSums,
     /// Subpaths cut by the vertex limit.
     cut: u64,
     /// Per strategy (s, t), s and t below [`TALLY`], the sums over every sample
@@ -529,7 +521,6 @@ impl<'a> Bdpt<'a> {
         let all = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
         let at_infinity: Vec<usize> = (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect();
         let finite: Vec<usize> = (0..scene.lights.len()).filter(|i| !at_infinity.contains(i)).collect();
-        let n = width as usize * height as usize;
         Ok(Bdpt {
             scene,
             lights: all.excluding(&at_infinity),
@@ -540,12 +531,9 @@ impl<'a> Bdpt<'a> {
             height,
             seed,
             config,
-            passes: 0,
             light_chunks: Vec::new(),
             eye_chunks: Vec::new(),
-            sum: vec![[Rgb::ZERO; LAYERS]; n],
-            l_sum: vec![0.0; n],
-            l_sq: vec![0.0; n],
+            sums: pm_render::PassSums::new(width, height),
             cut: 0,
             tally: Vec::new(),
         })
@@ -553,7 +541,7 @@ impl<'a> Bdpt<'a> {
 
     /// Passes done.
     pub fn passes(&self) -> u32 {
-        self.passes
+        self.sums.passes()
     }
 
     /// The settings that shape the state, as "name=value" words (the state file's
@@ -573,48 +561,14 @@ impl<'a> Bdpt<'a> {
 
     /// The state as its file holds it.
     pub fn to_file(&self) -> pm_format::PassStateFile {
-        let records = (0..self.sum.len())
-            .map(|i| pm_format::PassRecord {
-                sum: self.sum[i].map(<[f32; 3]>::from),
-                l_sum: self.l_sum[i],
-                l_sq: self.l_sq[i],
-            })
-            .collect();
-        pm_format::PassStateFile {
-            width: self.width,
-            height: self.height,
-            passes: self.passes,
-            scene_hash: self.scene.content_hash,
-            params: self.key(),
-            records,
-        }
+        self.sums.to_file(self.scene.content_hash, self.key())
     }
 
     /// Continue from a state file's passes: refused when it was made from another
     /// scene, for another image size or with other settings (naming the first
     /// that differs), or holds more passes than `most`.
     pub fn resume(&mut self, file: &pm_format::PassStateFile, most: u32) -> Result<(), String> {
-        if (file.width, file.height) != (self.width, self.height) {
-            return Err(format!(
-                "a state of a {}x{} image, this render is {}x{}",
-                file.width, file.height, self.width, self.height
-            ));
-        }
-        if file.scene_hash != self.scene.content_hash {
-            return Err("made from another scene".into());
-        }
-        if let Some((had, has)) = pm_format::key_difference(&file.params, &self.key()) {
-            return Err(format!("made with {had}, this render has {has}"));
-        }
-        if file.passes > most {
-            return Err(format!("holds {} passes, more than the {most} asked for", file.passes));
-        }
-        for (i, r) in file.records.iter().enumerate() {
-            self.sum[i] = r.sum.map(Rgb::from_array);
-            (self.l_sum[i], self.l_sq[i]) = (r.l_sum, r.l_sq);
-        }
-        self.passes = file.passes;
-        Ok(())
+        self.sums.resume(file, self.scene.content_hash, &self.key(), most)
     }
 
     /// Keep, from the next pass on, every strategy's contributions apart (see
@@ -628,7 +582,7 @@ impl<'a> Bdpt<'a> {
     /// segments (unweighted: as if it were the only strategy) and its share of
     /// the image (MIS-weighted) [W sr^-1 m^-2, mean over pixels and channels].
     pub fn strategies(&self) -> Vec<((usize, usize), f64, f64)> {
-        let per = self.passes.max(1) as f64 * self.width as f64 * self.height as f64;
+        let per = self.passes().max(1) as f64 * self.width as f64 * self.height as f64;
         (0..TALLY * TALLY)
             .filter(|&i| self.tally.get(i).is_some_and(|v| v[0] != 0.0))
             .map(|i| ((i / TALLY, i % TALLY), self.tally[i][0] / per, self.tally[i][1] / per))
@@ -662,7 +616,7 @@ impl<'a> Bdpt<'a> {
     /// nearby.
     pub fn pass(&mut self) {
         let n = self.width as usize * self.height as usize;
-        let k = self.passes;
+        let k = self.passes();
         let f = self.factors(k);
         let tallying = !self.tally.is_empty();
         let chunks = n.div_ceil(CHUNK);
@@ -721,16 +675,8 @@ impl<'a> Bdpt<'a> {
                 pass[px as usize][layer as usize] += v;
             }
         }
-        for (i, p) in pass.iter().enumerate() {
-            for (a, b) in self.sum[i].iter_mut().zip(p) {
-                *a += *b;
-            }
-            let l = p.iter().copied().sum::<Rgb>().element_sum() / 3.0;
-            self.l_sum[i] += l;
-            self.l_sq[i] += l * l;
-        }
+        self.sums.add(&pass);
         (self.light_chunks, self.eye_chunks) = (lights, eyes);
-        self.passes += 1;
     }
 
     /// The bytes the last pass's light subpaths held per pixel (their vertices
@@ -756,9 +702,7 @@ impl<'a> Bdpt<'a> {
     /// Each pixel's variance of its mean over the passes so far [(W sr^-1 m^-2)^2],
     /// from the passes' spread; none before two passes.
     pub fn variances(&self) -> Option<Vec<f32>> {
-        (self.passes >= 2).then(|| {
-            self.l_sum.iter().zip(&self.l_sq).map(|(&s, &q)| pm_render::variance_of_mean(s, q, self.passes)).collect()
-        })
+        self.sums.variances()
     }
 
     /// The image after the passes done, by layer.
@@ -766,29 +710,10 @@ impl<'a> Bdpt<'a> {
         self.region_image(pm_raster::Rect::full(self.width, self.height))
     }
 
-    /// The image of `rect` after the passes done.
+    /// The image of `rect` after the passes done (only a scene with a scattering
+    /// medium has a volume layer).
     pub fn region_image(&self, rect: pm_raster::Rect) -> Image {
-        let p = self.passes.max(1) as f32;
-        let pixels: Vec<[Rgb; LAYERS]> = (rect.y0..rect.y1)
-            .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
-            .map(|(x, y)| self.sum[(y * self.width + x) as usize].map(|v| v / p))
-            .collect();
-        let layer = |l: usize| pixels.iter().map(|px| px[l]).collect::<Vec<Rgb>>();
-        Image {
-            rect,
-            width: rect.x1 - rect.x0,
-            height: rect.y1 - rect.y0,
-            total: pixels.iter().map(|px| px.iter().copied().sum()).collect(),
-            // Only a scene with a scattering medium has a volume layer.
-            layers: [
-                layer(0),
-                layer(1),
-                layer(2),
-                layer(3),
-                if self.scene.has_scattering_media() { layer(4) } else { Vec::new() },
-            ],
-            gbuffer: None,
-        }
+        self.sums.region_image(rect, self.scene.has_scattering_media())
     }
 
     /// Pixel `i`'s sample of pass `k` into `out`: its eye subpath (kept in `eye`

@@ -17,6 +17,7 @@
 //! needs and write what it makes.
 
 pub mod live;
+pub mod path_passes;
 
 pub use pm_bdpt::{BdptParams, VcmParams};
 use pm_render::{
@@ -106,8 +107,9 @@ impl Method {
 
     /// How closely the method's image agrees with the path tracer's on any scene,
     /// on its defaults (the one statement of it; `cargo xtask differential` judges
-    /// by it): the batch renderer (`full`), SPPM and bidirectional path tracing
-    /// (unbiased: only its noise at the default 16 passes) within 2% in the
+    /// by it): the batch renderer (`full`), SPPM, bidirectional path tracing
+    /// (unbiased: only its noise at the default 64 passes) and vertex connection
+    /// and merging (its noise and merging's shrinking bias) within 2% in the
     /// image's mean and 15% in every 8 x 8 block's, the light's pixels left out.
     /// None for the partial views (`indirect`, `radiance`, `photons`:
     /// Christensen's Figure 1) and for the path tracer, which is the reference.
@@ -173,12 +175,16 @@ impl Settings {
     }
 
     /// The passes a progressive method is asked for (none for the others): SPPM's
-    /// `--passes`, bidirectional path tracing's `--bdpt-passes`.
+    /// `--passes`, bidirectional path tracing's `--bdpt-passes`, VCM's
+    /// `--vcm-passes`, and the path tracer's `--spp` (its passes of one sample a
+    /// pixel when it runs progressively).
     pub fn passes(&self) -> Option<u32> {
         match self.mode {
             Method::Sppm => Some(self.sppm.passes),
             Method::Bdpt => Some(self.bdpt.bdpt_passes),
             Method::Vcm => Some(self.vcm.vcm_passes),
+            // In passes of one sample a pixel when run progressively.
+            Method::Path => Some(self.render.spp),
             _ => None,
         }
     }
@@ -289,6 +295,25 @@ impl Progressive for Sppm<'_> {
     }
 }
 
+impl Progressive for path_passes::PathPasses<'_> {
+    fn passes(&self) -> u32 {
+        path_passes::PathPasses::passes(self)
+    }
+
+    fn region_image(&self, rect: pm_render::Rect) -> Image {
+        path_passes::PathPasses::region_image(self, rect)
+    }
+
+    fn noise(&self) -> Option<f64> {
+        let full = pm_render::Rect { x0: 0, y0: 0, x1: self.width(), y1: self.height() };
+        Some(noise_of(&self.region_image(full), &self.variances()?))
+    }
+
+    fn state(&self) -> State {
+        State::Passes(self.to_file())
+    }
+}
+
 impl Progressive for pm_bdpt::Bdpt<'_> {
     fn passes(&self) -> u32 {
         pm_bdpt::Bdpt::passes(self)
@@ -361,6 +386,17 @@ pub fn render<G: pm_format::PhotonRecord>(
             bidirectional(scene, &settings.bdpt, Method::Bdpt, view, passes, progress)
         }
         (Method::Vcm, Input::Scene(scene)) => bidirectional(scene, &settings.vcm, Method::Vcm, view, passes, progress),
+        (Method::Path, Input::Scene(scene)) if passes.is_some() => {
+            let Some(Passes { start, after_pass }) = passes else { unreachable!() };
+            let start = match start {
+                Some((path, State::Passes(f))) => Some((path, f)),
+                Some((path, _)) => return Err(format!("{}: not a state of --mode path", path.display())),
+                None => None,
+            };
+            let total = settings.render.spp;
+            let (image, stats, done) = path_passes::render_with(scene, view, total, start, &mut |p| after_pass(p))?;
+            Ok(Rendered { image, stats, passes: Some(done) })
+        }
         (Method::Path, Input::Scene(scene)) => {
             let pt = PathTracer::new(scene).map_err(|e| e.to_string())?;
             image(view, &pt, progress)

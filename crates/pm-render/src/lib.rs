@@ -25,6 +25,7 @@
 mod coverage;
 mod icache;
 mod integrator;
+mod passes;
 mod path;
 mod photon_mapping;
 mod render;
@@ -34,6 +35,7 @@ pub use icache::IrradianceCache;
 pub use integrator::{
     Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt, variance_of_mean,
 };
+pub use passes::{LAYERS, PassSums};
 pub use path::{PathTracer, roulette};
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;

@@ -41,9 +41,9 @@ pub struct Args {
     /// Image width and height [pixels].
     #[arg(long, default_value_t = 48)]
     pub size: u32,
-    /// Methods to check (those with a stated bound: full, sppm, bdpt, and the
+    /// Methods to check (those with a stated bound: full, sppm, bdpt, vcm, and the
     /// real-time vertex and ispm, each on the frame it settles at).
-    #[arg(long, value_delimiter = ',', default_value = "full,sppm,bdpt,vertex,ispm", value_parser = Checked::parse)]
+    #[arg(long, value_delimiter = ',', default_value = "full,sppm,bdpt,vcm,vertex,ispm", value_parser = Checked::parse)]
     pub methods: Vec<Checked>,
     /// Path-traced samples per pixel of each of the reference's two halves.
     #[arg(long, default_value_t = 512)]
