@@ -494,3 +494,59 @@ fn bdpt_state_resumes_bit_for_bit() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     refused("16", "sppm.state", &["--bdpt-passes", "4"], "not a usable progressive pass sums");
 }
+
+/// Vertex connection and merging, and the path tracer in passes of one sample a
+/// pixel, stop and resume as BDPT does: 4 passes and 4 more from the state equal
+/// 8 in one run bit for bit (and the path tracer's passes hold --spp samples);
+/// a time budget stops them with exit 75; each refuses the other's state, naming
+/// the method it was made with.
+#[test]
+fn vcm_and_path_states_resume_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell_spheres.gltf");
+    let p = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    let read = |f: &str| std::fs::read(p(f)).unwrap();
+    for (mode, passes) in [("vcm", "--vcm-passes"), ("path", "--spp")] {
+        let run = |out: &str, n: &str, extra: &[&str]| {
+            let out = p(&format!("{mode}-{out}"));
+            let mut a = vec!["--scene", s.to_str().unwrap(), "--mode", mode, passes, n];
+            a.extend(["--width", "16", "--height", "12", "--out", &out]);
+            a.extend_from_slice(extra);
+            render(&a)
+        };
+        let ok = |o: std::process::Output| {
+            assert!(o.status.success(), "{mode}: {}", String::from_utf8_lossy(&o.stderr));
+            String::from_utf8_lossy(&o.stderr).into_owned()
+        };
+        let state = |f: &str| p(&format!("{mode}-{f}"));
+        ok(run("one.exr", "8", &["--state", &state("one.state")]));
+        ok(run("two.exr", "4", &["--state", &state("two.state")]));
+        let said = ok(run("two.exr", "8", &["--state", &state("two.state")]));
+        assert!(said.contains("continued from the 4 passes"), "{mode}: {said}");
+        assert_eq!(read(&format!("{mode}-one.exr")), read(&format!("{mode}-two.exr")), "{mode}: 4 + 4 against 8");
+        let file = pm_format::read_pass_state(Path::new(&state("one.state"))).unwrap();
+        assert!(file.passes == 8 && file.params.contains(&format!("method={mode}")), "{mode}: {}", file.params);
+        let o = run("b.exr", "8", &["--state", &state("b.state"), "--time-budget", "0.000001"]);
+        assert_eq!(o.status.code(), Some(75), "{mode}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    // A state of one method refused by the other, naming what it was made with.
+    let o = render(&[
+        "--scene",
+        s.to_str().unwrap(),
+        "--mode",
+        "bdpt",
+        "--bdpt-passes",
+        "8",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--state",
+        &p("vcm-one.state"),
+        "--out",
+        &p("refused.exr"),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && said.contains("vcm-one.state") && said.contains("method=vcm"), "{said}");
+    assert!(!dir.path().join("refused.exr").exists());
+}
