@@ -431,12 +431,49 @@ impl Chunk {
     }
 }
 
-/// The pass's light vertices merging can use: a grid over their positions and,
-/// per grid point, its chunk, its index in the chunk's vertices and where its
-/// path starts there.
+/// The pass's light vertices merging can use: a grid over their positions and
+/// each as merging reads it.
 struct Merging {
     grid: RadiusGrid,
-    ids: Vec<[u32; 3]>,
+    photons: Vec<Photon>,
+}
+
+/// A light vertex as merging reads it, in one cache line (a pass's queries
+/// visit tens of them each; the whole vertex is 272 bytes).
+#[derive(Clone, Copy, Debug)]
+struct Photon {
+    /// Position \[m\].
+    p: Vec3,
+    /// Unit geometric normal on the side the light arrived from.
+    n: Vec3,
+    /// Unit direction toward the light subpath's previous vertex.
+    wo: Vec3,
+    /// The light subpath's power up to here [W].
+    beta: Rgb,
+    /// The light subpath's MIS sums d_VCM and d_VM here.
+    vcm: f32,
+    vm: f32,
+    /// Its index k in the light subpath (y_k; the light's point is y_0).
+    k: u16,
+    /// Every vertex between the light's point and it is a delta one.
+    caustic: bool,
+}
+
+impl Photon {
+    /// Light subpath `path`'s vertex y_k as a photon.
+    fn of(path: &[Vertex], k: usize) -> Photon {
+        let y = &path[k];
+        Photon {
+            p: y.p,
+            n: pm_scene::facing(y.ng, y.wo),
+            wo: y.wo,
+            beta: y.beta,
+            vcm: y.mis.vcm,
+            vm: y.mis.vm,
+            k: k.min(u16::MAX as usize) as u16,
+            caustic: path[1..k].iter().all(|v| v.delta),
+        }
+    }
 }
 
 /// A bidirectional path tracer's (or vertex connection and merging's) state:
@@ -637,20 +674,21 @@ impl<'a> Bdpt<'a> {
             }
         });
         let merging = self.config.merge.is_some().then(|| {
-            let mut ids = Vec::new();
-            for (c, chunk) in lights.iter().enumerate() {
+            let mut photons = Vec::new();
+            for chunk in &lights {
                 for j in 0..chunk.ends.len() {
-                    let (a, b) = (if j == 0 { 0 } else { chunk.ends[j - 1] }, chunk.ends[j]);
+                    let path = chunk.path(j);
                     // Not the light's own point: merging needs a segment of light path.
-                    let mergeable = (a + 1..b).filter(|&g| chunk.vertices[g as usize].merges());
-                    ids.extend(mergeable.map(|g| [c as u32, g, a]));
+                    photons.extend((1..path.len()).filter(|&k| path[k].merges()).map(|k| Photon::of(path, k)));
                 }
             }
-            let points: Vec<Vec3> = ids.iter().map(|&[c, g, _]| lights[c as usize].vertices[g as usize].p).collect();
-            // About as many cells as points: built every pass, the grid costs
-            // its points, not empty space (at 64 x 64 in a box, a cell a radius
-            // wide made two million cells a pass).
-            Merging { grid: RadiusGrid::with_cells_at_most(&points, f.radius, points.len().max(64)), ids }
+            let points: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
+            // Cells a radius wide, but no more than 2 a point: built every pass,
+            // the grid must cost its points, not empty space (at 64 x 64 in a
+            // box, cells a radius wide made two million a pass; 4 and 16 a point
+            // were 5-10% slower on cornell_boxes at 96 x 96 than 2).
+            let most = (2 * points.len()).clamp(1 << 12, 1 << 22);
+            Merging { grid: RadiusGrid::with_cells_at_most(&points, f.radius, most), photons }
         });
         eyes.par_iter_mut().enumerate().for_each(|(c, out)| {
             out.reset(c * CHUNK, tallying);
@@ -770,7 +808,7 @@ impl<'a> Bdpt<'a> {
                 }
             }
             if let Some(m) = merging {
-                self.merge(f, m, lights, &eye[..t], &mut out.pixels[px]);
+                self.merge(f, m, &eye[..t], &mut out.pixels[px]);
             }
         }
     }
@@ -781,7 +819,7 @@ impl<'a> Bdpt<'a> {
     /// side), each a photon of the density estimate
     /// z.beta f(z.wo, y.wo) y.beta / (pi r^2 N), weighed against every other
     /// strategy (tech. rep. eqs. 37-39), added to `pixel` by layer.
-    fn merge(&self, f: &Factors, m: &Merging, lights: &[Chunk], eye: &[Vertex], pixel: &mut [Rgb; LAYERS]) {
+    fn merge(&self, f: &Factors, m: &Merging, eye: &[Vertex], pixel: &mut [Rgb; LAYERS]) {
         let t = eye.len();
         let z = &eye[t - 1];
         if !z.merges() {
@@ -790,18 +828,17 @@ impl<'a> Bdpt<'a> {
         let nz = pm_scene::facing(z.ng, z.wo);
         let mut sum = [Rgb::ZERO; LAYERS];
         m.grid.for_each_within(z.p, f.radius * f.radius, |gi, _| {
-            let [c, g, start] = m.ids[gi as usize];
-            let vertices = &lights[c as usize].vertices;
-            let y = &vertices[g as usize];
-            if pm_scene::facing(y.ng, y.wo).dot(nz) <= pm_estimate::SAME_SURFACE_COS {
+            let y = &m.photons[gi as usize];
+            if y.n.dot(nz) <= pm_estimate::SAME_SURFACE_COS {
                 return;
             }
             let c = z.f(z.wo, y.wo) * y.beta;
             if c.max_element() <= 0.0 || !c.is_finite() {
                 return;
             }
-            let light = &vertices[start as usize..g as usize];
-            sum[layer_of(eye, light, light.len(), t)] += c * self.merge_weight(f, z, y);
+            // The path x_0 .. x_{t-1} = y_k, y_{k-1} .. y_0: t - 1 + k segments.
+            let caustic = y.caustic && eye[2.min(t)..t].iter().all(|v| v.delta);
+            sum[layer(t - 1 + y.k as usize, &eye[1], caustic)] += c * self.merge_weight(f, z, y);
         });
         for (p, v) in pixel.iter_mut().zip(sum) {
             if v.max_element() > 0.0 {
@@ -812,8 +849,8 @@ impl<'a> Bdpt<'a> {
 
     /// The MIS weight of merging eye vertex `z` with light vertex `y` (tech. rep.
     /// eqs. 37-39; both densities at z's BSDF: the two points are taken as one).
-    fn merge_weight(&self, f: &Factors, z: &Vertex, y: &Vertex) -> f32 {
-        let w_light = y.mis.vcm * f.vc + y.mis.vm * mis(z.pdf_dir(z.wo, y.wo));
+    fn merge_weight(&self, f: &Factors, z: &Vertex, y: &Photon) -> f32 {
+        let w_light = y.vcm * f.vc + y.vm * mis(z.pdf_dir(z.wo, y.wo));
         let w_eye = z.mis.vcm * f.vc + z.mis.vm * mis(z.pdf_dir(y.wo, z.wo));
         finite_or_zero(1.0 / (w_light + 1.0 + w_eye))
     }
@@ -1298,17 +1335,26 @@ fn at_infinity(l: &pm_scene::Light) -> bool {
 fn layer_of(eye: &[Vertex], light: &[Vertex], s: usize, t: usize) -> usize {
     // Vertices after the pinhole, from the eye: x_1 .. x_n, x_n on the light.
     let n = t - 1 + s;
+    if n == 1 {
+        return Layer::Direct.index();
+    }
     let x = |j: usize| if j < t { &eye[j] } else { &light[s - 1 - (j - t)] };
-    let delta = |j: usize| x(j).delta;
+    layer(n, x(1), (2..n).all(|j| x(j).delta))
+}
+
+/// The layer of a path of `n` segments whose first vertex after the pinhole is
+/// `x1`, `caustic` when every vertex between x_1 and the light's is a delta one
+/// ([`layer_of`]'s rule).
+fn layer(n: usize, x1: &Vertex, caustic: bool) -> usize {
     let layer = if n == 1 {
         Layer::Direct
-    } else if delta(1) {
+    } else if x1.delta {
         Layer::Specular
-    } else if matches!(x(1).kind, Kind::Medium { .. }) {
+    } else if matches!(x1.kind, Kind::Medium { .. }) {
         Layer::Volume
     } else if n == 2 {
         Layer::Direct
-    } else if (2..n).all(delta) {
+    } else if caustic {
         Layer::Caustic
     } else {
         Layer::Indirect

@@ -96,10 +96,13 @@ impl RadiusGrid {
         if !(r2 >= 0.0) {
             return;
         }
-        let reach = (r2.sqrt() / self.cell).ceil().clamp(1.0, MAX_DIM as f32) as i32;
-        let c = self.key(x);
-        let lo = (c - IVec3::splat(reach)).max(IVec3::ZERO);
-        let hi = (c + IVec3::splat(reach)).min(self.dims - IVec3::ONE);
+        // Only the cells the query's bounding box touches (1 or 2 a side when
+        // cells are at least the radius wide, not 3): the cells skipped hold no
+        // point within reach, so the points and their order are those of the
+        // whole neighbourhood.
+        let r = r2.sqrt().min(self.cell * MAX_DIM as f32);
+        let lo = self.key(x - Vec3::splat(r)).max(IVec3::ZERO);
+        let hi = self.key(x + Vec3::splat(r)).min(self.dims - IVec3::ONE);
         if lo.cmpgt(hi).any() {
             return;
         }
