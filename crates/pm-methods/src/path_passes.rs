@@ -25,7 +25,7 @@ impl<'a> PathPasses<'a> {
     /// of `scene` seen by `camera`; refused for a scene without lights.
     pub fn new(scene: &'a pm_scene::Scene, camera: &'a pm_scene::Camera, film: &Film) -> Result<Self, String> {
         let tracer = PathTracer::new(scene).map_err(|e| e.to_string())?;
-        let film = Film { spp: 1, contrast: 0.0, ..film.clone() };
+        let film = Film { spp: 1, contrast: 0.0, ..*film };
         Ok(PathPasses { scene, tracer, camera, sums: PassSums::new(film.width, film.height), film })
     }
 
@@ -39,7 +39,7 @@ impl<'a> PathPasses<'a> {
 
     /// One pass: a path a pixel over the whole film.
     pub fn pass(&mut self) -> Result<(), String> {
-        let film = Film { seed: pass_seed(self.film.seed, self.sums.passes()), ..self.film.clone() };
+        let film = Film { seed: pass_seed(self.film.seed, self.sums.passes()), ..self.film };
         let (img, _) = pm_render::render_region(self.camera, &film, film.rect(), &self.tracer, false, &|_, _| {})?;
         let pass: Vec<[pm_color::Rgb; LAYERS]> = (0..img.total.len())
             .map(|i| std::array::from_fn(|l| img.layers[l].get(i).copied().unwrap_or_default()))
