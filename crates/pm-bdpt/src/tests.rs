@@ -192,7 +192,7 @@ impl Whole {
             }
             Err(i) => {
                 let (eye, light) = (self.eye_part(b, f, i + 1), self.light_part(b, f, n + 1 - i));
-                b.merge_weight(f, &eye[i], &Photon::of(&light, n - i))
+                b.merge_weight(f, &eye[i], &Photon::of(b.scene, &light, n - i))
             }
         }
     }
