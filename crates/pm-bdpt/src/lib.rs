@@ -55,10 +55,17 @@
 //! flights (a hero channel a subpath, the balance heuristic over channels), a
 //! point in a medium is a vertex like a surface's (its phase function for the
 //! BSDF, no cosines), and joins carry the transmittance between their ends
-//! through media and index-matched boundaries. The MIS densities leave out the
-//! distance sampling, as pbrt-v3's volumetric BDPT does: the weights still add
-//! up to one for every path, so the estimate stays unbiased. Points in a medium
-//! are not merged (no strategy counts them).
+//! through media and index-matched boundaries. The MIS densities of a point in
+//! a medium are per volume: its mean extinction takes the place of a surface's
+//! cosine ([`Vertex::measure`]); the transmittance before it is left out, as
+//! pbrt-v3's volumetric BDPT leaves out all of the distance sampling: the
+//! weights still add up to one for every path, so the estimate stays unbiased.
+//! VCM merges eye points in a medium with the pass's light vertices in media
+//! within the radius (a ball: Jensen and Christensen 1998's volume radiance
+//! estimate, eta_vol = 4/3 pi r^3 N in the weights), so that merging alone
+//! carries in-scattered light too; point-to-point merges in a volume are
+//! rare, and where connections can make the same path they take nearly all
+//! of its weight.
 //!
 //! Lights at infinity (an environment, suns) start no light subpath: the eye
 //! subpaths find them by the path tracer's two strategies, leaving the scene
@@ -141,15 +148,33 @@ struct Config {
 
 /// The per-pass constants of the weights (Georgiev et al.'s technical report,
 /// eq. 20, with n_VC = 1 join a pixel and n_VM = N light subpaths a pass):
-/// eta = pi r^2 N and under the power heuristic `vm` = eta^2 (zero without
-/// merging), `vc` = eta^-2 (zero without connections); merging's radius r \[m\]
-/// and its normalization 1 / (pi r^2 N) \[m^-2\].
+/// on surfaces eta = pi r^2 N \[m^2\] and under the power heuristic `vm` =
+/// eta^2 (zero without merging), `vc` = eta^-2 (zero without connections);
+/// merging's radius r \[m\] and its normalization 1 / (pi r^2 N) \[m^-2\]. In a
+/// medium the disc is a ball: eta_vol = 4/3 pi r^3 N \[m^3\] (`vm_vol` its
+/// square, `normalization_vol` its inverse), against the medium vertices'
+/// densities per volume ([`Vertex::measure`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct Factors {
     vm: f32,
     vc: f32,
     radius: f32,
     normalization: f32,
+    vm_vol: f32,
+    normalization_vol: f32,
+}
+
+impl Factors {
+    /// Mis(eta) of merging at vertex `v`: the disc's on a surface that merging
+    /// can use, the ball's in a medium; zero where it does not merge (or the
+    /// pass does not).
+    fn merge_at(&self, v: &Vertex) -> f32 {
+        match &v.kind {
+            Kind::Surface { bsdf, .. } if !bsdf.is_specular() => self.vm,
+            Kind::Medium { .. } => self.vm_vol,
+            _ => 0.0,
+        }
+    }
 }
 
 /// The power heuristic's "Mis" of a density ratio: its square.
@@ -164,9 +189,12 @@ fn mis(x: f32) -> f32 {
 /// join's weight needs only the densities at its ends. `vcm` stands for the
 /// strategy one vertex shorter \[m^2\], `vc` for the connections beyond it and
 /// `vm` for the merges (both per reverse solid-angle density at the vertex,
-/// \[m^2 sr\] under Mis). Geometric cosines convert between solid angle and area
-/// (1 at a point in a medium); the BSDFs' densities are about the shading normal;
-/// Russian roulette is left out of every density (common to all strategies).
+/// \[m^2 sr\] under Mis), `vm` relative to a merge on a surface (eta = pi r^2 N:
+/// a merge in a medium scales it by its own eta). Geometric cosines convert
+/// between solid angle and area, and in a medium the mean extinction between
+/// solid angle and volume ([`Vertex::measure`]); the BSDFs' densities are about
+/// the shading normal; Russian roulette is left out of every density (common
+/// to all strategies).
 #[derive(Clone, Copy, Debug, Default)]
 struct Partial {
     vcm: f32,
@@ -191,8 +219,9 @@ impl Partial {
         Partial { vcm: mis(1.0 / pdf_dir), vc, vm: vc * f.vc }
     }
 
-    /// Arriving at a vertex `d2` \[m^2\] from the last at cosine `cos` to its
-    /// geometric normal (1 in a medium).
+    /// Arriving at a vertex `d2` \[m^2\] from the last, whose measure along the
+    /// way is `cos` (the cosine to its geometric normal; its mean extinction
+    /// \[m^-1\] in a medium: [`Vertex::measure`]).
     fn arrive(&mut self, d2: f32, cos: f32) {
         let c = mis(cos);
         self.vcm = self.vcm * mis(d2) / c;
@@ -200,11 +229,12 @@ impl Partial {
         self.vm /= c;
     }
 
-    /// Leaving a vertex along a direction at cosine `cos_out` to its geometric
-    /// normal, sampled with solid-angle density `pdf_fwd`, whose reverse is
-    /// `pdf_rev` [sr^-1]; `specular` when a delta lobe chose it (eqs. 34-36,
-    /// 53-55), `merges` when the vertex is one merging can use.
-    fn leave(&mut self, cos_out: f32, pdf_fwd: f32, pdf_rev: f32, specular: bool, merges: bool, f: &Factors) {
+    /// Leaving a vertex along a direction where its measure is `cos_out` (as in
+    /// [`Partial::arrive`]), sampled with solid-angle density `pdf_fwd`, whose
+    /// reverse is `pdf_rev` [sr^-1]; `specular` when a delta lobe chose it (eqs.
+    /// 34-36, 53-55); `merge` Mis(eta) of merging at the vertex
+    /// ([`Factors::merge_at`]).
+    fn leave(&mut self, cos_out: f32, pdf_fwd: f32, pdf_rev: f32, specular: bool, merge: f32, f: &Factors) {
         if specular {
             self.vcm = 0.0;
             self.vc *= mis(cos_out);
@@ -212,7 +242,8 @@ impl Partial {
             return;
         }
         let g = mis(cos_out / pdf_fwd);
-        let (vm_here, one) = if merges { (f.vm, 1.0) } else { (0.0, 0.0) };
+        // Relative to a surface's merge: 1 on a surface, (eta_vol / eta)^2 in a medium.
+        let (vm_here, one) = if merge > 0.0 { (merge, merge / f.vm) } else { (0.0, 0.0) };
         let vc = g * (self.vc * mis(pdf_rev) + self.vcm + vm_here);
         self.vm = g * (self.vm * mis(pdf_rev) + self.vcm * f.vc + one);
         self.vc = vc;
@@ -223,10 +254,9 @@ impl Partial {
     /// this side, of their densities over the join's, for a join whose other
     /// end makes this vertex with area density `p_from_other` [m^-2] and whose
     /// direction this vertex would sample with reverse density `pdf_rev` [sr^-1]
-    /// (eqs. 40, 41, 45, 46); `merges` as in [`Partial::leave`].
-    fn toward(&self, p_from_other: f32, pdf_rev: f32, merges: bool, f: &Factors) -> f32 {
-        let vm = if merges { f.vm } else { 0.0 };
-        mis(p_from_other) * (vm + self.vcm + self.vc * mis(pdf_rev))
+    /// (eqs. 40, 41, 45, 46); `merge` as in [`Partial::leave`].
+    fn toward(&self, p_from_other: f32, pdf_rev: f32, merge: f32) -> f32 {
+        mis(p_from_other) * (merge + self.vcm + self.vc * mis(pdf_rev))
     }
 }
 
@@ -249,8 +279,11 @@ enum Kind {
     /// A surface: its BSDF, and for an eye vertex on an emitter what it emits
     /// toward `wo`, its light and the point as that light would have picked it.
     Surface { bsdf: Bsdf, le: Rgb, emitter: Option<(u32, EmitterPoint)> },
-    /// A scattering event in a medium, with the medium's phase function.
-    Medium { phase: HenyeyGreenstein },
+    /// A scattering event in a medium, with the medium's phase function, its
+    /// mean extinction over the channels \[m^-1\] (what the densities of points
+    /// in it per volume take: [`Vertex::measure`]) and its scattering
+    /// coefficient [m^-1 per channel].
+    Medium { phase: HenyeyGreenstein, sigma_t: f32, sigma_s: Rgb },
 }
 
 /// A vertex of a subpath, with its subpath's recursive MIS quantities there.
@@ -284,10 +317,14 @@ impl Vertex {
         matches!(self.kind, Kind::Surface { .. } | Kind::Medium { .. })
     }
 
-    /// True at a surface that merging can use: one with a lobe that is not a
-    /// Dirac delta.
+    /// True where merging can use the vertex: a surface with a lobe that is not a
+    /// Dirac delta, or a point in a medium.
     fn merges(&self) -> bool {
-        matches!(&self.kind, Kind::Surface { bsdf, .. } if !bsdf.is_specular())
+        match &self.kind {
+            Kind::Surface { bsdf, .. } => !bsdf.is_specular(),
+            Kind::Medium { .. } => true,
+            _ => false,
+        }
     }
 
     /// |cos| between unit `w` and the geometric normal; 1 where there is no
@@ -296,20 +333,41 @@ impl Vertex {
         if self.ng == Vec3::ZERO { 1.0 } else { self.ng.dot(w).abs() }
     }
 
+    /// What turns a solid-angle density [sr^-1] of the direction from another
+    /// point toward this vertex, along unit `w`, into the density of the vertex
+    /// (times 1 / d^2): on a surface |cos| to the geometric normal (a density per
+    /// area \[m^-2\]); in a medium its mean extinction sigma_t \[m^-1\], the
+    /// free flight's density of stopping there (a density per volume \[m^-3\],
+    /// which volume merging's eta_vol needs; the transmittance before it is left
+    /// out, as pbrt-v3's volumetric BDPT leaves out all of the distance
+    /// sampling: the weights still add up to one for every path); 1 at a point
+    /// light.
+    fn measure(&self, w: Vec3) -> f32 {
+        match self.kind {
+            Kind::Medium { sigma_t, .. } => sigma_t,
+            _ => self.cos_at(w),
+        }
+    }
+
     /// The medium a ray leaving along `w` starts in.
     fn medium_toward(&self, w: Vec3) -> Option<MediumId> {
         self.media[(w.dot(self.ng) < 0.0) as usize]
     }
 
-    /// The area density at `to` of a direction from this vertex with solid-angle
-    /// density `pdf` [sr^-1] (the cosine at `to` is 1 where it has no surface).
+    /// The density at `to` of a direction from this vertex with solid-angle
+    /// density `pdf` [sr^-1]: per area on a surface, per volume in a medium
+    /// ([`Vertex::measure`]).
     fn area_density(&self, pdf: f32, to: &Vertex) -> f32 {
         let v = to.p - self.p;
         let d2 = v.length_squared();
         if !(d2 > 0.0) {
             return 0.0;
         }
-        let cos = if to.ng == Vec3::ZERO { 1.0 } else { to.ng.dot(v).abs() / d2.sqrt() };
+        let cos = match to.kind {
+            Kind::Medium { sigma_t, .. } => sigma_t,
+            _ if to.ng == Vec3::ZERO => 1.0,
+            _ => to.ng.dot(v).abs() / d2.sqrt(),
+        };
         pdf * cos / d2
     }
 
@@ -318,7 +376,7 @@ impl Vertex {
     fn pdf_dir(&self, wo: Vec3, wi: Vec3) -> f32 {
         match &self.kind {
             Kind::Surface { bsdf, .. } => bsdf.pdf(wo, wi, self.ns),
-            Kind::Medium { phase } => phase.p(wo, wi),
+            Kind::Medium { phase, .. } => phase.p(wo, wi),
             _ => 0.0,
         }
     }
@@ -331,7 +389,7 @@ impl Vertex {
     fn f(&self, toward_eye: Vec3, toward_light: Vec3) -> Rgb {
         let bsdf = match &self.kind {
             Kind::Surface { bsdf, .. } => bsdf,
-            Kind::Medium { phase } => return Rgb::splat(phase.p(toward_eye, toward_light)),
+            Kind::Medium { phase, .. } => return Rgb::splat(phase.p(toward_eye, toward_light)),
             _ => return Rgb::ZERO,
         };
         let (ce, cl) = (toward_eye.dot(self.ng), toward_light.dot(self.ng));
@@ -399,6 +457,9 @@ struct Chunk {
     vertices: Vec<Vertex>,
     /// Where each pixel's light subpath ends in `vertices`.
     ends: Vec<u32>,
+    /// The light vertices merging can use, on surfaces and in media, in the
+    /// order of `vertices` (first phase, when the pass merges).
+    photons: [Vec<Photon>; 2],
     /// What landed on each of its pixels, by layer.
     pixels: Vec<[Rgb; LAYERS]>,
     /// Light tracing's splats, in the order they were made.
@@ -415,6 +476,7 @@ impl Chunk {
         self.start = start;
         self.vertices.clear();
         self.ends.clear();
+        self.photons.iter_mut().for_each(Vec::clear);
         self.pixels.clear();
         self.splats.clear();
         self.cut = 0;
@@ -431,12 +493,18 @@ impl Chunk {
     }
 }
 
-/// The pass's light vertices merging can use: a grid over their positions and
-/// each as merging reads it.
+/// The pass's light vertices that merging can use, on surfaces and in media
+/// (index [`SURFACE`], [`VOLUME`]): grids over their positions and each as
+/// merging reads it.
 struct Merging {
-    grid: RadiusGrid,
-    photons: Vec<Photon>,
+    grids: [RadiusGrid; 2],
+    photons: [Vec<Photon>; 2],
 }
+
+/// [`Merging`]'s and [`Chunk::photons`]' index of surfaces' light vertices.
+const SURFACE: usize = 0;
+/// Their index of media's.
+const VOLUME: usize = 1;
 
 /// A light vertex as merging reads it, in one cache line (a pass's queries
 /// visit tens of them each; the whole vertex is 272 bytes).
@@ -444,11 +512,15 @@ struct Merging {
 struct Photon {
     /// Position \[m\].
     p: Vec3,
-    /// Unit geometric normal on the side the light arrived from.
+    /// Unit geometric normal on the side the light arrived from (zero in a
+    /// medium).
     n: Vec3,
     /// Unit direction toward the light subpath's previous vertex.
     wo: Vec3,
-    /// The light subpath's power up to here [W].
+    /// The light subpath's power up to here [W]; in a medium over the medium's
+    /// scattering coefficient [W m per channel] (the free flight that stopped
+    /// there took it in, and the merged path has it once, in the eye
+    /// subpath's).
     beta: Rgb,
     /// The light subpath's MIS sums d_VCM and d_VM here.
     vcm: f32,
@@ -466,13 +538,23 @@ impl Photon {
     /// Light subpath `path`'s vertex y_k of `scene` as a photon.
     fn of(scene: &Scene, path: &[Vertex], k: usize) -> Photon {
         let y = &path[k];
-        let n = pm_scene::facing(y.ng, y.wo);
+        let (n, covered, beta) = match y.kind {
+            Kind::Medium { sigma_s, .. } => {
+                let over = |b: f32, s: f32| if s > 0.0 { b / s } else { 0.0 };
+                let beta = Rgb::new(over(y.beta.x, sigma_s.x), over(y.beta.y, sigma_s.y), over(y.beta.z, sigma_s.z));
+                (Vec3::ZERO, false, beta)
+            }
+            _ => {
+                let n = pm_scene::facing(y.ng, y.wo);
+                (n, pm_render::covered(scene, y.p, n), y.beta)
+            }
+        };
         Photon {
             p: y.p,
             n,
-            covered: pm_render::covered(scene, y.p, n),
+            covered,
             wo: y.wo,
-            beta: y.beta,
+            beta,
             vcm: y.mis.vcm,
             vm: y.mis.vm,
             k: k.min(u16::MAX as usize) as u16,
@@ -644,11 +726,14 @@ impl<'a> Bdpt<'a> {
         let radius = (r0 * ((k + 1) as f32).powf(0.5 * (alpha - 1.0))).max(1e-7);
         let n = self.width as f32 * self.height as f32;
         let eta = std::f32::consts::PI * radius * radius * n;
+        let eta_vol = 4.0 / 3.0 * eta * radius;
         Factors {
             vm: mis(eta),
             vc: if self.config.connect { mis(1.0 / eta) } else { 0.0 },
             radius,
             normalization: 1.0 / eta,
+            vm_vol: mis(eta_vol),
+            normalization_vol: 1.0 / eta_vol,
         }
     }
 
@@ -674,27 +759,31 @@ impl<'a> Bdpt<'a> {
                 if self.config.connect {
                     self.light_trace(&path, &f, out);
                 }
+                if self.config.merge.is_some() {
+                    // Not the light's own point: merging needs a segment of light path.
+                    for k in (1..path.len()).filter(|&k| path[k].merges()) {
+                        let at = if matches!(path[k].kind, Kind::Medium { .. }) { VOLUME } else { SURFACE };
+                        out.photons[at].push(Photon::of(self.scene, &path, k));
+                    }
+                }
                 out.vertices.extend_from_slice(&path);
                 out.ends.push(out.vertices.len() as u32);
             }
         });
         let merging = self.config.merge.is_some().then(|| {
-            let mut photons = Vec::new();
-            for chunk in &lights {
-                for j in 0..chunk.ends.len() {
-                    let path = chunk.path(j);
-                    // Not the light's own point: merging needs a segment of light path.
-                    let mergeable = (1..path.len()).filter(|&k| path[k].merges());
-                    photons.extend(mergeable.map(|k| Photon::of(self.scene, path, k)));
-                }
-            }
-            let points: Vec<Vec3> = photons.iter().map(|ph| ph.p).collect();
-            // Cells a radius wide, but no more than 2 a point: built every pass,
-            // the grid must cost its points, not empty space (at 64 x 64 in a
-            // box, cells a radius wide made two million a pass; 4 and 16 a point
-            // were 5-10% slower on cornell_boxes at 96 x 96 than 2).
-            let most = (2 * points.len()).clamp(1 << 12, 1 << 22);
-            Merging { grid: RadiusGrid::with_cells_at_most(&points, f.radius, most), photons }
+            let photons =
+                [SURFACE, VOLUME].map(|at| lights.iter().flat_map(|c| &c.photons[at]).copied().collect::<Vec<_>>());
+            let grids = [SURFACE, VOLUME].map(|at| {
+                let points: Vec<Vec3> = photons[at].iter().map(|ph| ph.p).collect();
+                // Cells a radius wide, but no more than 2 a point: built every
+                // pass, the grid must cost its points, not empty space (at 64 x
+                // 64 in a box, cells a radius wide made two million a pass; 4
+                // and 16 a point were 5-10% slower on cornell_boxes at 96 x 96
+                // than 2).
+                let most = (2 * points.len()).clamp(1 << 12, 1 << 22);
+                RadiusGrid::with_cells_at_most(&points, f.radius, most)
+            });
+            Merging { grids, photons }
         });
         eyes.par_iter_mut().enumerate().for_each(|(c, out)| {
             out.reset(c * CHUNK, tallying);
@@ -819,28 +908,38 @@ impl<'a> Bdpt<'a> {
         }
     }
 
-    /// Vertex merging at the eye subpath's last vertex z = `eye[t - 1]`: the light
-    /// vertices of the pass within the radius on the same surface (stored
-    /// normals within [`pm_estimate::SAME_SURFACE_COS`], each seen from its own
-    /// side, both under a cover or neither), each a photon of the density estimate
-    /// z.beta f(z.wo, y.wo) y.beta / (pi r^2 N), weighed against every other
-    /// strategy (tech. rep. eqs. 37-39), added to `pixel` by layer.
+    /// Vertex merging at the eye subpath's last vertex z = `eye[t - 1]`: on a
+    /// surface, the light vertices of the pass within the radius on the same
+    /// surface (stored normals within [`pm_estimate::SAME_SURFACE_COS`], each
+    /// seen from its own side, both under a cover or neither), each a photon of
+    /// the density estimate z.beta f(z.wo, y.wo) y.beta / (pi r^2 N); in a
+    /// medium, the light vertices in media within the radius, each of z.beta
+    /// f_p(z.wo, y.wo) y.beta / (sigma_s 4/3 pi r^3 N) (Jensen and Christensen
+    /// 1998's volume radiance estimate, the photon's sigma_s taken out as the
+    /// eye's free flight has it: [`Photon::beta`]). Each is weighed against every
+    /// other strategy (tech. rep. eqs. 37-39) and added to `pixel` by layer.
     fn merge(&self, f: &Factors, m: &Merging, eye: &[Vertex], pixel: &mut [Rgb; LAYERS]) {
         let t = eye.len();
         let z = &eye[t - 1];
         if !z.merges() {
             return;
         }
-        let nz = pm_scene::facing(z.ng, z.wo);
+        let volume = matches!(z.kind, Kind::Medium { .. });
+        let nz = if volume { Vec3::ZERO } else { pm_scene::facing(z.ng, z.wo) };
         // SPPM's rule: light in a gap (between a lamp's panel and the ceiling)
         // is not merged with points outside it, nor the other way round (at
         // 48 x 48, two-sided lamps a few millimetres under the ceiling leaked
-        // 4-7% into the indirect layer of 5 of 40 generated rooms).
-        let covered = pm_render::covered(self.scene, z.p, nz);
+        // 4-7% into the indirect layer of 5 of 40 generated rooms). The probe
+        // is cast at the first photon that passes the normal's test.
+        let mut covered = None;
+        let at = if volume { VOLUME } else { SURFACE };
         let mut sum = [Rgb::ZERO; LAYERS];
-        m.grid.for_each_within(z.p, f.radius * f.radius, |gi, _| {
-            let y = &m.photons[gi as usize];
-            if y.n.dot(nz) <= pm_estimate::SAME_SURFACE_COS || y.covered != covered {
+        m.grids[at].for_each_within(z.p, f.radius * f.radius, |gi, _| {
+            let y = &m.photons[at][gi as usize];
+            if !volume
+                && (y.n.dot(nz) <= pm_estimate::SAME_SURFACE_COS
+                    || y.covered != *covered.get_or_insert_with(|| pm_render::covered(self.scene, z.p, nz)))
+            {
                 return;
             }
             let c = z.f(z.wo, y.wo) * y.beta;
@@ -851,18 +950,22 @@ impl<'a> Bdpt<'a> {
             let caustic = y.caustic && eye[2.min(t)..t].iter().all(|v| v.delta);
             sum[layer(t - 1 + y.k as usize, &eye[1], caustic)] += c * self.merge_weight(f, z, y);
         });
+        let normalization = if volume { f.normalization_vol } else { f.normalization };
         for (p, v) in pixel.iter_mut().zip(sum) {
             if v.max_element() > 0.0 {
-                *p += z.beta * v * f.normalization;
+                *p += z.beta * v * normalization;
             }
         }
     }
 
     /// The MIS weight of merging eye vertex `z` with light vertex `y` (tech. rep.
-    /// eqs. 37-39; both densities at z's BSDF: the two points are taken as one).
+    /// eqs. 37-39; both densities at z's BSDF or phase function: the two points
+    /// are taken as one). The stored sums are relative to a surface's merge: in
+    /// a medium, to the ball's, they scale by (eta / eta_vol)^2.
     fn merge_weight(&self, f: &Factors, z: &Vertex, y: &Photon) -> f32 {
-        let w_light = y.vcm * f.vc + y.vm * mis(z.pdf_dir(z.wo, y.wo));
-        let w_eye = z.mis.vcm * f.vc + z.mis.vm * mis(z.pdf_dir(y.wo, z.wo));
+        let scale = if matches!(z.kind, Kind::Medium { .. }) { f.vm / f.vm_vol } else { 1.0 };
+        let w_light = (y.vcm * f.vc + y.vm * mis(z.pdf_dir(z.wo, y.wo))) * scale;
+        let w_eye = (z.mis.vcm * f.vc + z.mis.vm * mis(z.pdf_dir(y.wo, z.wo))) * scale;
         finite_or_zero(1.0 / (w_light + 1.0 + w_eye))
     }
 
@@ -939,14 +1042,20 @@ impl<'a> Bdpt<'a> {
                     FreeFlight::Through { weight, .. } => beta *= weight,
                     FreeFlight::Scatter { t, weight, .. } => {
                         beta *= weight;
-                        scattered = Some((o + d * t, m.phase));
+                        let kind = Kind::Medium {
+                            phase: m.phase,
+                            sigma_t: m.sigma_t().element_sum() / 3.0,
+                            sigma_s: m.sigma_s,
+                        };
+                        scattered = Some((o + d * t, kind));
                     }
                 }
             }
             let wo = -d;
-            if let Some((p, phase)) = scattered {
+            if let Some((p, kind)) = scattered {
+                let Kind::Medium { phase, .. } = kind else { unreachable!("a medium's event") };
                 let mut v = Vertex {
-                    kind: Kind::Medium { phase },
+                    kind,
                     p,
                     ng: Vec3::ZERO,
                     ns: Vec3::ZERO,
@@ -956,14 +1065,14 @@ impl<'a> Bdpt<'a> {
                     delta: false,
                     media: [medium; 2],
                 };
-                v.mis.arrive(p.distance_squared(prev.p), 1.0);
+                v.mis.arrive(p.distance_squared(prev.p), v.measure(wo));
                 mis = v.mis;
                 let at = path.len();
                 path.push(v);
                 let ps = phase.sample(wo, s.next_2d());
                 // Henyey-Greenstein depends on the angle alone: the reverse
-                // density is the forward one. No merging in media.
-                mis.leave(1.0, ps.pdf, ps.pdf, false, false, f);
+                // density is the forward one.
+                mis.leave(v.measure(ps.wi), ps.pdf, ps.pdf, false, f.merge_at(&v), f);
                 pdf_fwd = ps.pdf;
                 // The path tracer's roulette on the throughput relative to the
                 // subpath's start, eta^2 folded in on the eye side.
@@ -1032,7 +1141,7 @@ impl<'a> Bdpt<'a> {
             beta *= weight;
             let rev = if bs.specular { 0.0 } else { bsdf.pdf(bs.wi, wo, hit.ns) };
             path[at].delta = bs.specular;
-            mis.leave(hit.ng.dot(bs.wi).abs(), bs.pdf, rev, bs.specular, v.merges(), f);
+            mis.leave(hit.ng.dot(bs.wi).abs(), bs.pdf, rev, bs.specular, f.merge_at(&v), f);
             pdf_fwd = if bs.specular { 0.0 } else { bs.pdf };
             if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
                 return ended(false);
@@ -1287,11 +1396,11 @@ impl<'a> Bdpt<'a> {
         if t == 1 {
             // Eqs. 46-47: the eye side has no other strategy.
             let p_y = z.area_density(self.lens.pdf_dir(wi), y);
-            return finite_or_zero(1.0 / (1.0 + y.mis.toward(p_y, y.pdf_dir(-wi, y.wo), y.merges(), f)));
+            return finite_or_zero(1.0 / (1.0 + y.mis.toward(p_y, y.pdf_dir(-wi, y.wo), f.merge_at(y))));
         }
         // The densities with which each end would make the other.
         let pdf_z_to_y = z.pdf_dir(z.wo, wi);
-        let w_eye_side = |p_z_from_y: f32| z.mis.toward(p_z_from_y, z.pdf_dir(wi, z.wo), z.merges(), f);
+        let w_eye_side = |p_z_from_y: f32| z.mis.toward(p_z_from_y, z.pdf_dir(wi, z.wo), f.merge_at(z));
         let w = match &y.kind {
             Kind::Light { light: li, q } => {
                 // Eqs. 44-45: the light point against the eye subpath hitting it
@@ -1304,7 +1413,7 @@ impl<'a> Bdpt<'a> {
             }
             _ => {
                 // Eqs. 40-41.
-                let w_light = y.mis.toward(z.area_density(pdf_z_to_y, y), y.pdf_dir(-wi, y.wo), y.merges(), f);
+                let w_light = y.mis.toward(z.area_density(pdf_z_to_y, y), y.pdf_dir(-wi, y.wo), f.merge_at(y));
                 let w_eye = w_eye_side(y.area_density(y.pdf_dir(y.wo, -wi), z));
                 1.0 / (w_light + 1.0 + w_eye)
             }

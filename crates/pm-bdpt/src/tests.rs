@@ -94,9 +94,11 @@ impl Whole {
     }
 
     /// The density of the path by merging at x_i: the eye side makes x_1 .. x_i,
-    /// the light side x_n .. x_i, and eta = pi r^2 N counts the light subpaths
-    /// and the disc (Georgiev et al. 2012, eq. 20 with n_VC = 1).
-    fn p_merge(&self, b: &Bdpt, i: usize, eta: f32) -> f64 {
+    /// the light side x_n .. x_i, and eta counts the light subpaths and the disc
+    /// (pi r^2 N on a surface) or the ball (4/3 pi r^3 N in a medium; Georgiev
+    /// et al. 2012, eq. 20 with n_VC = 1).
+    fn p_merge(&self, b: &Bdpt, i: usize, f: &Factors) -> f64 {
+        let eta = f.merge_at(&self.x[i]).sqrt();
         self.p_connect(b, i + 1) * self.p_light(b, i) as f64 * eta as f64
     }
 
@@ -105,10 +107,9 @@ impl Whole {
     /// `Ok(t)` for the join (n + 1 - t, t), `Err(i)` for merging at x_i.
     fn direct_weights(&self, b: &Bdpt, f: &Factors) -> Vec<(Result<usize, usize>, f32)> {
         let n = self.n();
-        let eta = if f.vm > 0.0 { f.vm.sqrt() } else { 0.0 };
         let mut all: Vec<(Result<usize, usize>, f64)> =
             (1..=n + 1).filter(|&t| self.can(b, n + 1 - t, t)).map(|t| (Ok(t), self.p_connect(b, t).powi(2))).collect();
-        all.extend((1..n).filter(|&i| self.can_merge(i, eta > 0.0)).map(|i| (Err(i), self.p_merge(b, i, eta).powi(2))));
+        all.extend((1..n).filter(|&i| self.can_merge(i, f.vm > 0.0)).map(|i| (Err(i), self.p_merge(b, i, f).powi(2))));
         let sum: f64 = all.iter().map(|a| a.1).sum();
         all.into_iter().map(|(k, p)| (k, (p / sum) as f32)).collect()
     }
@@ -130,11 +131,11 @@ impl Whole {
                     v.kind = Kind::Surface { bsdf: Bsdf::Lambert { rho: Rgb::ZERO }, le, emitter: Some((li, q)) };
                 }
                 if i >= 1 {
-                    mis.arrive(v.p.distance_squared(self.x[i - 1].p), v.cos_at(v.wo));
+                    mis.arrive(v.p.distance_squared(self.x[i - 1].p), v.measure(v.wo));
                     v.mis = mis;
                     if i + 1 < t {
                         let w = self.dir(i, i + 1);
-                        mis.leave(v.cos_at(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, v.merges(), f);
+                        mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
                     }
                 }
                 v
@@ -167,11 +168,11 @@ impl Whole {
                     );
                 } else {
                     v.wo = self.dir(i, i + 1);
-                    mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.cos_at(v.wo));
+                    mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.measure(v.wo));
                     v.mis = mis;
                     if j + 1 < s {
                         let w = self.dir(i, i - 1);
-                        mis.leave(v.cos_at(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, v.merges(), f);
+                        mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
                     }
                 }
                 v
@@ -243,7 +244,7 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
         // The fourth pass's radius, and no merging.
         for (f, merging) in [(b.factors(3), "merging"), (Factors::default(), "no merging")] {
             let (mut paths, mut longest, mut worst_sum, mut worst_one, mut delta_paths) = (0, 0, 0.0f32, 0.0f32, 0);
-            let (mut medium_paths, mut merges) = (0, 0);
+            let (mut medium_paths, mut merges, mut volume_merges) = (0, 0, 0);
             let mut stored: Vec<f32> = Vec::new();
             let (mut eye, mut light) = (Vec::new(), Vec::new());
             for i in 0..24 * 24 {
@@ -329,6 +330,8 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
                             );
                             worst_one = worst_one.max((ours - direct).abs());
                             merges += strategy.is_err() as u32;
+                            volume_merges +=
+                                matches!(strategy, Err(i) if matches!(whole.x[i].kind, Kind::Medium { .. })) as u32;
                             sum += ours;
                         }
                         assert!(
@@ -347,7 +350,7 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
             let quantile = |q: f64| stored[((stored.len() - 1) as f64 * q) as usize];
             let (median, p99, worst) = (quantile(0.5), quantile(0.99), quantile(1.0));
             eprintln!(
-                "{name}, {merging}: {paths} paths ({delta_paths} through delta lobes, {medium_paths} scattered in a medium, {merges} merging strategies), up to {longest} segments; sums within {worst_sum:.1e}, weights within {worst_one:.1e}; stored MIS sums against the path's: median {median:.1e}, 99% {p99:.1e}, worst {worst:.1e}"
+                "{name}, {merging}: {paths} paths ({delta_paths} through delta lobes, {medium_paths} scattered in a medium, {merges} merging strategies, {volume_merges} of them in a medium), up to {longest} segments; sums within {worst_sum:.1e}, weights within {worst_one:.1e}; stored MIS sums against the path's: median {median:.1e}, 99% {p99:.1e}, worst {worst:.1e}"
             );
             assert!(
                 median < 1e-5 && p99 < 3e-2,
@@ -356,6 +359,9 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
             assert!(paths > 300, "{name}, {merging}: only {paths} paths");
             if f.vm > 0.0 {
                 assert!(merges > 100, "{name}: only {merges} merging strategies weighed");
+                if name.contains("fogbox") {
+                    assert!(volume_merges > 100, "{name}: only {volume_merges} merges in the fog weighed");
+                }
             }
         }
     }
