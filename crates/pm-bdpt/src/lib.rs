@@ -447,50 +447,78 @@ struct Walked {
 /// One splatted light-tracing contribution: the pixel, the layer, the value.
 type Splat = (u32, u8, Rgb);
 
-/// What a chunk of a pass's pixels made (their light subpaths in the first
-/// phase, their eye subpaths in the second).
+/// What a chunk of a pass's pixels tallies: its subpaths cut by the vertex
+/// limit and, when asked (see [`Bdpt::tally_strategies`]), each strategy's
+/// unweighted and weighted contributions.
 #[derive(Default)]
-struct Chunk {
-    /// Its first pixel.
-    start: usize,
-    /// The light subpaths' vertices, path after path (first phase).
+struct Tallies {
+    cut: u64,
+    strategies: Vec<[f64; 2]>,
+}
+
+impl Tallies {
+    /// Zero, with room for the strategies when `tallying`.
+    fn reset(&mut self, tallying: bool) {
+        self.cut = 0;
+        self.strategies.clear();
+        if tallying {
+            self.strategies.resize(TALLY * TALLY, [0.0; 2]);
+        }
+    }
+
+    /// Strategy (s, t)'s contribution `c` and weight `w`, when tallying.
+    fn add(&mut self, s: usize, t: usize, c: Rgb, w: f32) {
+        if s < TALLY
+            && t < TALLY
+            && let Some(v) = self.strategies.get_mut(s * TALLY + t)
+        {
+            let l = c.element_sum() as f64 / 3.0;
+            v[0] += l;
+            v[1] += l * w as f64;
+        }
+    }
+}
+
+/// What a chunk of a pass's pixels' light subpaths made in its first phase.
+#[derive(Default)]
+struct LightChunk {
+    /// The light subpaths' vertices, path after path.
     vertices: Vec<Vertex>,
     /// Where each pixel's light subpath ends in `vertices`.
     ends: Vec<u32>,
     /// The light vertices merging can use, on surfaces and in media, in the
-    /// order of `vertices` (first phase, when the pass merges).
+    /// order of `vertices` (when the pass merges).
     photons: [Vec<Photon>; 2],
-    /// What landed on each of its pixels, by layer.
-    pixels: Vec<[Rgb; LAYERS]>,
     /// Light tracing's splats, in the order they were made.
     splats: Vec<Splat>,
-    /// Subpaths cut by the vertex limit.
-    cut: u64,
-    /// Per strategy, when tallied (see [`Bdpt::tally_strategies`]).
-    tally: Vec<[f64; 2]>,
+    tallies: Tallies,
 }
 
-impl Chunk {
-    /// Empty, for the pixels from `start`, its buffers kept for reuse.
-    fn reset(&mut self, start: usize, tallying: bool) {
-        self.start = start;
+impl LightChunk {
+    /// Empty, its buffers kept for reuse.
+    fn reset(&mut self, tallying: bool) {
         self.vertices.clear();
         self.ends.clear();
         self.photons.iter_mut().for_each(Vec::clear);
-        self.pixels.clear();
         self.splats.clear();
-        self.cut = 0;
-        self.tally.clear();
-        if tallying {
-            self.tally.resize(TALLY * TALLY, [0.0; 2]);
-        }
+        self.tallies.reset(tallying);
     }
 
-    /// Its pixel `j`'s light subpath (first phase).
+    /// Its pixel `j`'s light subpath.
     fn path(&self, j: usize) -> &[Vertex] {
         let start = if j == 0 { 0 } else { self.ends[j - 1] as usize };
         &self.vertices[start..self.ends[j] as usize]
     }
+}
+
+/// What a chunk of a pass's pixels' eye subpaths made in its second phase.
+#[derive(Default)]
+struct EyeChunk {
+    /// Its first pixel.
+    start: usize,
+    /// What landed on each of its pixels, by layer.
+    pixels: Vec<[Rgb; LAYERS]>,
+    tallies: Tallies,
 }
 
 /// The pass's light vertices that merging can use, on surfaces and in media
@@ -501,7 +529,7 @@ struct Merging {
     photons: [Vec<Photon>; 2],
 }
 
-/// [`Merging`]'s and [`Chunk::photons`]' index of surfaces' light vertices.
+/// [`Merging`]'s and [`LightChunk::photons`]' index of surfaces' light vertices.
 const SURFACE: usize = 0;
 /// Their index of media's.
 const VOLUME: usize = 1;
@@ -582,8 +610,8 @@ pub struct Bdpt<'a> {
     config: Config,
     /// The last pass's light subpaths, chunk by chunk (sized by the pass, reused
     /// by the next), and the buffers of its eye subpaths' chunks.
-    light_chunks: Vec<Chunk>,
-    eye_chunks: Vec<Chunk>,
+    light_chunks: Vec<LightChunk>,
+    eye_chunks: Vec<EyeChunk>,
     /// The passes' sums.
     sums: pm_render::PassSums,
     /// Subpaths cut by the vertex limit.
@@ -668,6 +696,16 @@ impl<'a> Bdpt<'a> {
         self.sums.passes()
     }
 
+    /// The passes' sums.
+    pub fn sums(&self) -> &pm_render::PassSums {
+        &self.sums
+    }
+
+    /// The scene it renders.
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
     /// The settings that shape the state, as "name=value" words (the state file's
     /// key: a state made with other settings is refused).
     pub fn key(&self) -> String {
@@ -748,14 +786,14 @@ impl<'a> Bdpt<'a> {
         let tallying = !self.tally.is_empty();
         let chunks = n.div_ceil(CHUNK);
         let (mut lights, mut eyes) = (std::mem::take(&mut self.light_chunks), std::mem::take(&mut self.eye_chunks));
-        lights.resize_with(chunks, Chunk::default);
-        eyes.resize_with(chunks, Chunk::default);
+        lights.resize_with(chunks, LightChunk::default);
+        eyes.resize_with(chunks, EyeChunk::default);
         lights.par_iter_mut().enumerate().for_each(|(c, out)| {
-            out.reset(c * CHUNK, tallying);
+            out.reset(tallying);
             let mut path = Vec::new();
             for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
                 let mut sl = Sampler::salted(self.seed, LIGHT_SALT ^ i as u64, k as u64);
-                out.cut += self.light_subpath(&mut sl, &f, &mut path) as u64;
+                out.tallies.cut += self.light_subpath(&mut sl, &f, &mut path) as u64;
                 if self.config.connect {
                     self.light_trace(&path, &f, out);
                 }
@@ -786,8 +824,10 @@ impl<'a> Bdpt<'a> {
             Merging { grids, photons }
         });
         eyes.par_iter_mut().enumerate().for_each(|(c, out)| {
-            out.reset(c * CHUNK, tallying);
+            out.start = c * CHUNK;
+            out.tallies.reset(tallying);
             let end = ((c + 1) * CHUNK).min(n);
+            out.pixels.clear();
             out.pixels.resize(end - out.start, [Rgb::ZERO; LAYERS]);
             let mut eye = Vec::new();
             for i in out.start..end {
@@ -795,15 +835,17 @@ impl<'a> Bdpt<'a> {
             }
         });
         let mut pass = Vec::with_capacity(n);
-        for c in lights.iter().chain(&eyes) {
+        for c in &eyes {
             pass.extend_from_slice(&c.pixels);
-            self.cut += c.cut;
-            for (a, b) in self.tally.iter_mut().zip(&c.tally) {
+        }
+        for t in lights.iter().map(|c| &c.tallies).chain(eyes.iter().map(|c| &c.tallies)) {
+            self.cut += t.cut;
+            for (a, b) in self.tally.iter_mut().zip(&t.strategies) {
                 a[0] += b[0];
                 a[1] += b[1];
             }
         }
-        for c in lights.iter().chain(&eyes) {
+        for c in &lights {
             for &(px, layer, v) in &c.splats {
                 pass[px as usize][layer as usize] += v;
             }
@@ -823,11 +865,11 @@ impl<'a> Bdpt<'a> {
 
     /// Light tracing (t = 1) from every vertex of light subpath `light` after its
     /// first, splatted into `out` (and tallied).
-    fn light_trace(&self, light: &[Vertex], f: &Factors, out: &mut Chunk) {
+    fn light_trace(&self, light: &[Vertex], f: &Factors, out: &mut LightChunk) {
         for s in 2..=light.len() {
             if let Some((px, c, w)) = self.splat(&light[..s], f) {
                 out.splats.push((px, layer_of(&[self.camera_vertex()], light, s, 1) as u8, c * w));
-                tally(out, s, 1, c, w);
+                out.tallies.add(s, 1, c, w);
             }
         }
     }
@@ -858,10 +900,10 @@ impl<'a> Bdpt<'a> {
         i: usize,
         k: u32,
         f: &Factors,
-        lights: &[Chunk],
+        lights: &[LightChunk],
         merging: Option<&Merging>,
         eye: &mut Vec<Vertex>,
-        out: &mut Chunk,
+        out: &mut EyeChunk,
     ) {
         let light = lights[i / CHUNK].path(i % CHUNK);
         let (w, h) = (self.width as usize, self.height as usize);
@@ -870,7 +912,7 @@ impl<'a> Bdpt<'a> {
         let j = se.next_2d();
         let d = self.lens.rays.direction(((i % w) as f32 + j.x) / w as f32, ((i / w) as f32 + j.y) / h as f32);
         let walked = self.eye_subpath(d, &mut se, f, eye);
-        out.cut += walked.cut as u64;
+        out.tallies.cut += walked.cut as u64;
         if walked.escaped.max_element() > 0.0 {
             out.pixels[px][layer_of(eye, &[], 0, eye.len() + 1)] += walked.escaped;
         }
@@ -889,7 +931,7 @@ impl<'a> Bdpt<'a> {
                 && let Some((c, w)) = self.emitted(f, &eye[..t])
             {
                 out.pixels[px][layer_of(eye, &[], 0, t)] += c * w;
-                tally(out, 0, t, c, w);
+                out.tallies.add(0, t, c, w);
             }
             if connect {
                 // s = 1 picks its own light point (with the eye stream's next
@@ -898,7 +940,7 @@ impl<'a> Bdpt<'a> {
                     let u = if s == 1 { Some((se.next_1d(), se.next_1d(), se.next_2d())) } else { None };
                     if let Some((c, w)) = self.connect(f, &eye[..t], &light[..s.min(light.len())], s, u) {
                         out.pixels[px][layer_of(eye, light, s, t)] += c * w;
-                        tally(out, s, t, c, w);
+                        out.tallies.add(s, t, c, w);
                     }
                 }
             }
@@ -1427,18 +1469,6 @@ fn finite_or_zero(w: f32) -> f32 {
     if w.is_finite() { w } else { 0.0 }
 }
 
-/// Tally strategy (s, t)'s contribution `c` and weight `w` when asked.
-fn tally(out: &mut Chunk, s: usize, t: usize, c: Rgb, w: f32) {
-    if s < TALLY
-        && t < TALLY
-        && let Some(v) = out.tally.get_mut(s * TALLY + t)
-    {
-        let l = c.element_sum() as f64 / 3.0;
-        v[0] += l;
-        v[1] += l * w as f64;
-    }
-}
-
 /// True for a light at infinity (an environment, a sun): no light subpath starts
 /// there; eye subpaths find it by leaving the scene or by sampling it.
 fn at_infinity(l: &pm_scene::Light) -> bool {
@@ -1539,25 +1569,27 @@ pub fn render_with(
     after_pass: &mut dyn FnMut(&Bdpt) -> Result<bool, String>,
 ) -> Result<(Image, pm_render::RenderStats, u32), String> {
     let t0 = std::time::Instant::now();
-    let film = view.film;
-    let mut b = params.start(scene, view.camera, film)?;
+    let mut b = params.start(scene, view.camera, view.film)?;
     if let Some((path, file)) = start {
         b.resume(file, params.passes()).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    while b.passes() < params.passes() {
-        b.pass();
-        if !after_pass(&b)? {
-            break;
-        }
+    pm_render::run_passes(&mut b, &view, params.passes(), t0, after_pass)
+}
+
+impl pm_render::PassLoop for Bdpt<'_> {
+    fn passes_done(&self) -> u32 {
+        self.passes()
     }
-    let image = b.region_image(view.rect);
-    let stats = pm_render::RenderStats {
-        seconds: t0.elapsed().as_secs_f64(),
-        samples: b.passes() as u64 * image.total.len() as u64,
-        terminated_paths: b.cut_paths(),
-        ..Default::default()
-    };
-    Ok((image, stats, b.passes()))
+    fn next_pass(&mut self, _camera: &Camera) -> Result<(), String> {
+        self.pass();
+        Ok(())
+    }
+    fn image_of(&self, rect: pm_render::Rect) -> Image {
+        self.region_image(rect)
+    }
+    fn cut_paths(&self) -> u64 {
+        self.cut
+    }
 }
 
 #[cfg(test)]

@@ -295,40 +295,58 @@ impl Progressive for Sppm<'_> {
     }
 }
 
-impl Progressive for path_passes::PathPasses<'_> {
+/// A progressive method whose pixels are the means of its passes, kept in
+/// [`pm_render::PassSums`] (bidirectional path tracing, VCM, the path tracer in
+/// passes): its [`Progressive`] side comes from the sums alone.
+pub trait MeanOfPasses {
+    /// The passes' sums.
+    fn sums(&self) -> &pm_render::PassSums;
+    /// True when its images have a volume layer (a scene with a scattering medium).
+    fn volume(&self) -> bool;
+    /// The state as its file holds it.
+    fn to_file(&self) -> pm_format::PassStateFile;
+}
+
+impl<T: MeanOfPasses> Progressive for T {
     fn passes(&self) -> u32 {
-        path_passes::PathPasses::passes(self)
+        self.sums().passes()
     }
 
     fn region_image(&self, rect: pm_render::Rect) -> Image {
-        path_passes::PathPasses::region_image(self, rect)
+        self.sums().region_image(rect, self.volume())
     }
 
     fn noise(&self) -> Option<f64> {
-        let full = pm_render::Rect { x0: 0, y0: 0, x1: self.width(), y1: self.height() };
-        Some(noise_of(&self.region_image(full), &self.variances()?))
+        let sums = self.sums();
+        Some(noise_of(&sums.region_image(sums.full(), self.volume()), &sums.variances()?))
     }
 
     fn state(&self) -> State {
-        State::Passes(self.to_file())
+        State::Passes(MeanOfPasses::to_file(self))
     }
 }
 
-impl Progressive for pm_bdpt::Bdpt<'_> {
-    fn passes(&self) -> u32 {
-        pm_bdpt::Bdpt::passes(self)
+impl MeanOfPasses for path_passes::PathPasses<'_> {
+    fn sums(&self) -> &pm_render::PassSums {
+        path_passes::PathPasses::sums(self)
     }
-
-    fn region_image(&self, rect: pm_render::Rect) -> Image {
-        pm_bdpt::Bdpt::region_image(self, rect)
+    fn volume(&self) -> bool {
+        self.scene().has_scattering_media()
     }
-
-    fn noise(&self) -> Option<f64> {
-        Some(noise_of(&self.image(), &self.variances()?))
+    fn to_file(&self) -> pm_format::PassStateFile {
+        path_passes::PathPasses::to_file(self)
     }
+}
 
-    fn state(&self) -> State {
-        State::Passes(self.to_file())
+impl MeanOfPasses for pm_bdpt::Bdpt<'_> {
+    fn sums(&self) -> &pm_render::PassSums {
+        pm_bdpt::Bdpt::sums(self)
+    }
+    fn volume(&self) -> bool {
+        self.scene().has_scattering_media()
+    }
+    fn to_file(&self) -> pm_format::PassStateFile {
+        pm_bdpt::Bdpt::to_file(self)
     }
 }
 

@@ -48,14 +48,14 @@ impl<'a> PathPasses<'a> {
         Ok(())
     }
 
-    /// The film's width [pixels].
-    pub fn width(&self) -> u32 {
-        self.film.width
+    /// The scene it renders.
+    pub fn scene(&self) -> &pm_scene::Scene {
+        self.scene
     }
 
-    /// The film's height [pixels].
-    pub fn height(&self) -> u32 {
-        self.film.height
+    /// The passes' sums.
+    pub fn sums(&self) -> &PassSums {
+        &self.sums
     }
 
     /// Passes done.
@@ -66,11 +66,6 @@ impl<'a> PathPasses<'a> {
     /// The image of `rect` after the passes done.
     pub fn region_image(&self, rect: Rect) -> Image {
         self.sums.region_image(rect, self.scene.has_scattering_media())
-    }
-
-    /// Each pixel's variance of its mean over the passes (none before two).
-    pub fn variances(&self) -> Option<Vec<f32>> {
-        self.sums.variances()
     }
 
     /// The state as its file holds it.
@@ -96,17 +91,17 @@ pub fn render_with(
         let key = p.key();
         p.sums.resume(file, scene.content_hash, &key, passes).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    while p.passes() < passes {
-        p.pass()?;
-        if !after_pass(&p)? {
-            break;
-        }
+    pm_render::run_passes(&mut p, &view, passes, t0, after_pass)
+}
+
+impl pm_render::PassLoop for PathPasses<'_> {
+    fn passes_done(&self) -> u32 {
+        self.passes()
     }
-    let image = p.region_image(view.rect);
-    let stats = pm_render::RenderStats {
-        seconds: t0.elapsed().as_secs_f64(),
-        samples: p.passes() as u64 * image.total.len() as u64,
-        ..Default::default()
-    };
-    Ok((image, stats, p.passes()))
+    fn next_pass(&mut self, _camera: &pm_scene::Camera) -> Result<(), String> {
+        self.pass()
+    }
+    fn image_of(&self, rect: Rect) -> Image {
+        self.region_image(rect)
+    }
 }

@@ -35,7 +35,7 @@ pub use icache::IrradianceCache;
 pub use integrator::{
     Components, Counters, Film, FirstHit, Integrator, RenderStats, View, VisibleSurface, pixel_salt, variance_of_mean,
 };
-pub use passes::{LAYERS, PassSums};
+pub use passes::{LAYERS, PassLoop, PassSums, run_passes};
 pub use path::{PathTracer, roulette};
 pub use photon_mapping::{IndirectView, PhotonMapping, PhotonsView, RadianceView, Scratch};
 pub use pm_raster::Rect;

@@ -45,6 +45,11 @@ impl PassSums {
         self.passes
     }
 
+    /// The whole film.
+    pub fn full(&self) -> Rect {
+        Rect::full(self.width, self.height)
+    }
+
     /// Add a pass: every pixel's layers, in row order over the film.
     pub fn add(&mut self, pass: &[[Rgb; LAYERS]]) {
         for (i, p) in pass.iter().enumerate() {
@@ -138,4 +143,48 @@ impl PassSums {
         self.passes = file.passes;
         Ok(())
     }
+}
+
+/// A progressive renderer as [`run_passes`] drives it: SPPM, bidirectional
+/// path tracing and VCM, the path tracer in passes.
+pub trait PassLoop {
+    /// Passes done.
+    fn passes_done(&self) -> u32;
+    /// One more pass over the film, seen by `camera`.
+    fn next_pass(&mut self, camera: &pm_scene::Camera) -> Result<(), String>;
+    /// The image of `rect` after the passes done.
+    fn image_of(&self, rect: Rect) -> Image;
+    /// Paths cut by a vertex limit so far.
+    fn cut_paths(&self) -> u64 {
+        0
+    }
+}
+
+/// Run `state`'s passes over `view` until it holds `passes` (from those it
+/// already holds: a resumed state), calling `after_pass` after each with the
+/// state so far (to write a checkpoint image or state, or stop: `Ok(false)` ends
+/// the render with the passes done; an error ends it with that error). Returns
+/// the image of the view's rectangle, its statistics (the time from `t0`) and
+/// the passes it holds.
+pub fn run_passes<P: PassLoop>(
+    state: &mut P,
+    view: &crate::View,
+    passes: u32,
+    t0: std::time::Instant,
+    after_pass: &mut dyn FnMut(&P) -> Result<bool, String>,
+) -> Result<(Image, crate::RenderStats, u32), String> {
+    while state.passes_done() < passes {
+        state.next_pass(view.camera)?;
+        if !after_pass(state)? {
+            break;
+        }
+    }
+    let image = state.image_of(view.rect);
+    let stats = crate::RenderStats {
+        seconds: t0.elapsed().as_secs_f64(),
+        samples: state.passes_done() as u64 * image.total.len() as u64,
+        terminated_paths: state.cut_paths(),
+        ..Default::default()
+    };
+    Ok((image, stats, state.passes_done()))
 }

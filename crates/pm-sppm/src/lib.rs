@@ -118,19 +118,20 @@ pub fn render_with(
     if let Some((path, file)) = start {
         s.resume(file).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    while s.passes() < p.passes {
-        s.pass(view.camera);
-        if !after_pass(&s)? {
-            break;
-        }
+    pm_render::run_passes(&mut s, &view, p.passes, t0, after_pass)
+}
+
+impl pm_render::PassLoop for Sppm<'_> {
+    fn passes_done(&self) -> u32 {
+        self.passes()
     }
-    let image = s.region_image(view.rect);
-    let stats = pm_render::RenderStats {
-        seconds: t0.elapsed().as_secs_f64(),
-        samples: s.passes() as u64 * image.total.len() as u64,
-        ..Default::default()
-    };
-    Ok((image, stats, s.passes()))
+    fn next_pass(&mut self, camera: &Camera) -> Result<(), String> {
+        self.pass(camera);
+        Ok(())
+    }
+    fn image_of(&self, rect: pm_render::Rect) -> Image {
+        self.region_image(rect)
+    }
 }
 
 /// One pixel's progressive state: what a long render keeps between passes.
