@@ -14,7 +14,7 @@ use glam::Vec3;
 /// (its bounding-box diagonal), so scenes at scale 1e-3 and 1e4 behave alike (with
 /// fixed values, a 2 mm scene got offsets of 0.75% of its size).
 ///
-/// Each coordinate also steps 8 ulps times `w`'s component (half the normal's count)
+/// Each coordinate also steps 8 ulps times unit `w`'s component (half the normal's count)
 /// toward `w`. A hit at a concave edge, such as a wall a hair above the floor, is
 /// interpolated from the hit triangle's corners and can land an ulp on the far side
 /// of the neighbouring surface; the normal's offset runs parallel to that surface
@@ -24,6 +24,7 @@ use glam::Vec3;
 /// along a grazing `w` carried photons out of the furnace between its facets (4% of
 /// its indirect light).
 pub fn offset_ray_origin(p: Vec3, ng: Vec3, w: Vec3, scale: f32) -> Vec3 {
+    debug_assert!(w == Vec3::ZERO || (w.length_squared() - 1.0).abs() < 1e-3, "offset along a unit direction, not {w}");
     const INT_SCALE: f32 = 16.0;
     let origin = scale * (1.0 / 32.0);
     let float_scale = scale * (1.0 / 65536.0);
