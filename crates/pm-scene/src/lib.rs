@@ -38,8 +38,8 @@ pub use environment::{
 pub use geometry::{TriangleRay, facing, intersect_triangle, offset_ray_origin, same_side};
 pub use gltf_load::{SceneError, load, load_with};
 pub use light::{
-    AreaPoint, EmittedRay, EmitterPoint, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, Target,
-    spot_falloff, sun_radiance,
+    AreaPoint, EmittedRay, EmitterPoint, Light, LightKind, LightSample, OUTLINE_TRIANGLES, Outline, SkyDirection,
+    Target, spot_falloff, sun_radiance,
 };
 pub use material::{AlphaMode, Filter, LayerTextures, Material, Texture, TextureRef, Wrap};
 pub use medium::{Flights, FreeFlight, Medium, MediumId, Passage, single_scattering_albedo};

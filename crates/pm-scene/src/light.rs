@@ -316,21 +316,17 @@ impl Light {
                 let f = spot_falloff(d.dot(*direction), *cos_inner, *cos_outer);
                 (f > 0.0 && pdf > 0.0).then(|| EmittedRay { origin: *position, dir: d, power: *intensity * (f / pdf) })
             }
-            LightKind::Directional { direction, irradiance, cap, center, radius } => {
-                if *cap > 0.0 {
-                    // A direction in the disc, each carrying L / pdf = L 2 pi cap.
-                    let wi = to_world(uniform_cap(u_dir, *cap), -*direction);
-                    let e = sun_radiance(*irradiance, *cap) / uniform_cap_pdf(*cap);
-                    from_disc(-wi, e, *center, *radius, targets, u_pos, u_tgt)
-                } else {
-                    from_disc(*direction, *irradiance, *center, *radius, targets, u_pos, u_tgt)
-                }
+            LightKind::Directional { center, radius, .. } => {
+                // A direction in the disc, each carrying L / pdf = L 2 pi cap (E for
+                // parallel rays).
+                let sd = self.sample_sky_dir(u_dir)?;
+                from_disc(-sd.wi, sd.l / sd.pdf, *center, *radius, targets, u_pos, u_tgt)
             }
-            LightKind::Environment { env, center, radius, portals } if portals.is_empty() => {
+            LightKind::Environment { center, radius, portals, .. } if portals.is_empty() => {
                 // pbrt-v4's ImageInfiniteLight::SampleLe: a direction by the image's
                 // radiance, carrying L / pdf, then a point on the disc facing it.
-                let es = env.sample(u_dir)?;
-                from_disc(-es.wi, es.l / es.pdf, *center, *radius, targets, u_pos, u_tgt)
+                let sd = self.sample_sky_dir(u_dir)?;
+                from_disc(-sd.wi, sd.l / sd.pdf, *center, *radius, targets, u_pos, u_tgt)
             }
             LightKind::Environment { env, portals, .. } => {
                 // Through a portal (chosen by area, a point uniform on it): a
@@ -346,6 +342,80 @@ impl Light {
                 let origin = q + es.wi * (1e-4 * scene.bounds.diagonal());
                 Some(EmittedRay { origin, dir: -es.wi, power: es.l * (cos * total_area / es.pdf) })
             }
+        }
+    }
+}
+
+/// A direction a light at infinity sends light from, as its photons leave it
+/// ([`Light::sample_sky_dir`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SkyDirection {
+    /// Unit direction toward the sky (the light travels along -wi).
+    pub wi: Vec3,
+    /// Radiance along it [W sr^-1 m^-2 per channel]; for parallel rays their
+    /// irradiance E on a surface facing them [W m^-2 per channel].
+    pub l: Rgb,
+    /// Its solid-angle density [sr^-1]; 1 for parallel rays.
+    pub pdf: f32,
+    /// Parallel rays: one direction (a Dirac delta).
+    pub delta: bool,
+}
+
+impl Light {
+    /// For a light at infinity, a direction it sends light from, sampled as its
+    /// photons are emitted (`u` uniform): uniform over a sun's disc, by an
+    /// environment's radiance ([`crate::Environment::sample`], portals aside),
+    /// parallel rays' one direction; none for other lights.
+    pub fn sample_sky_dir(&self, u: glam::Vec2) -> Option<SkyDirection> {
+        match &self.kind {
+            LightKind::Directional { direction, irradiance, cap, .. } if *cap > 0.0 => {
+                let wi = to_world(uniform_cap(u, *cap), -*direction);
+                Some(SkyDirection { wi, l: sun_radiance(*irradiance, *cap), pdf: uniform_cap_pdf(*cap), delta: false })
+            }
+            LightKind::Directional { direction, irradiance, .. } => {
+                Some(SkyDirection { wi: -*direction, l: *irradiance, pdf: 1.0, delta: true })
+            }
+            LightKind::Environment { env, .. } => {
+                let es = env.sample(u)?;
+                Some(SkyDirection { wi: es.wi, l: es.l, pdf: es.pdf, delta: false })
+            }
+            _ => None,
+        }
+    }
+
+    /// The density [sr^-1] with which [`Self::sample_sky_dir`] gives unit `wi`
+    /// (toward the sky); zero for parallel rays and lights not at infinity.
+    pub fn pdf_sky_dir(&self, wi: Vec3) -> f32 {
+        match &self.kind {
+            LightKind::Directional { direction, cap, .. } if *cap > 0.0 && in_cap(wi, -*direction, *cap) => {
+                uniform_cap_pdf(*cap)
+            }
+            LightKind::Environment { env, .. } => env.pdf(wi),
+            _ => 0.0,
+        }
+    }
+
+    /// For a light at infinity, where a ray of it travelling along unit `dir`
+    /// starts: a point uniform (`u`) on the disc of the scene's bounding sphere
+    /// perpendicular to `dir`, outside the sphere (what [`Light::sample_emission`]
+    /// does without targets); none for other lights.
+    pub fn sky_origin(&self, dir: Vec3, u: glam::Vec2) -> Option<Vec3> {
+        let (LightKind::Directional { center, radius, .. } | LightKind::Environment { center, radius, .. }) =
+            &self.kind
+        else {
+            return None;
+        };
+        Some(disc_origin(dir, *center, *radius, *center, *radius, u))
+    }
+
+    /// The density [m^-2] of [`Self::sky_origin`]'s point on its disc, 1 / (pi
+    /// R^2); zero for lights not at infinity.
+    pub fn pdf_sky_origin(&self) -> f32 {
+        match &self.kind {
+            LightKind::Directional { radius, .. } | LightKind::Environment { radius, .. } => {
+                1.0 / (PI * radius * radius)
+            }
+            _ => 0.0,
         }
     }
 }
@@ -381,17 +451,13 @@ fn from_disc(
     u_pos: glam::Vec2,
     u_tgt: f32,
 ) -> Option<EmittedRay> {
-    let (t, b) = pm_sampling::basis(dir);
     let (disk_center, disk_radius) = if targets.is_empty() {
         (center, radius)
     } else {
         let tg = &targets[((u_tgt * targets.len() as f32) as usize).min(targets.len() - 1)];
         (tg.center, tg.radius)
     };
-    let q = concentric_disk(u_pos) * disk_radius;
-    // Start outside the scene's bounding sphere, on the plane through disk_center.
-    let along = (disk_center - center).dot(dir);
-    let origin = disk_center + t * q.x + b * q.y - dir * (along + radius * 1.01 + 1e-6);
+    let origin = disc_origin(dir, center, radius, disk_center, disk_radius, u_pos);
     let area_pdf = if targets.is_empty() {
         1.0 / (PI * radius * radius)
     } else {
@@ -407,6 +473,17 @@ fn from_disc(
         pdf / targets.len() as f32
     };
     (area_pdf > 0.0).then(|| EmittedRay { origin, dir, power: e / area_pdf })
+}
+
+/// A point uniform (`u_pos`) on the disc of centre `disk_center` and radius
+/// `disk_radius` perpendicular to unit `dir`, moved back along `dir` to start
+/// outside the scene's bounding sphere (`center`, `radius`) \[m\].
+fn disc_origin(dir: Vec3, center: Vec3, radius: f32, disk_center: Vec3, disk_radius: f32, u_pos: glam::Vec2) -> Vec3 {
+    let (t, b) = pm_sampling::basis(dir);
+    let q = concentric_disk(u_pos) * disk_radius;
+    // Start outside the scene's bounding sphere, on the plane through disk_center.
+    let along = (disk_center - center).dot(dir);
+    disk_center + t * q.x + b * q.y - dir * (along + radius * 1.01 + 1e-6)
 }
 
 /// Area-light triangles are sampled by solid angle from points nearer to them than
