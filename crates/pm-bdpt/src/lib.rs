@@ -67,10 +67,14 @@
 //! rare, and where connections can make the same path they take nearly all
 //! of its weight.
 //!
-//! Lights at infinity (an environment, suns) start no light subpath: the eye
-//! subpaths find them by the path tracer's two strategies, leaving the scene
-//! and sampling them at each vertex, weighed by the power heuristic. Their
-//! light through glass (a sky's caustics) is then the path tracer's to find.
+//! Lights at infinity (an environment, suns) start light subpaths too, as in
+//! SmallVCM: a direction by the light's emission (`Light::sample_sky_dir`) and a
+//! point on the disc of the scene's bounding sphere across it, density 1 / (pi
+//! R^2); their first segment has no 1 / d^2 and their "cosine" is 1. The eye
+//! subpaths find them by leaving the scene (s = 0) and by sampling them at a
+//! vertex (s = 1, `Light::sample_li`, the same choice of light as every other
+//! s = 1), each light weighed on its own in the same recursive sums, so a sun's
+//! light through glass (its caustics) has the light subpaths' strategies.
 
 use glam::Vec3;
 use pm_bsdf::{Bsdf, HenyeyGreenstein};
@@ -229,6 +233,19 @@ impl Partial {
         self.vm /= c;
     }
 
+    /// Arriving at a light subpath's first vertex from a light at infinity, whose
+    /// measure along the way is `cos` (as in [`Partial::arrive`]): no 1 / d^2,
+    /// and d_VCM takes `p_sample` [sr^-1], the density of the same direction by
+    /// strategy s = 1 at this vertex (SmallVCM's directPdf of an infinite
+    /// light, which here depends on the vertex: an environment of one colour is
+    /// sampled over its normal's hemisphere).
+    fn arrive_from_sky(&mut self, p_sample: f32, cos: f32) {
+        let c = mis(cos);
+        self.vcm = self.vcm * mis(p_sample) / c;
+        self.vc /= c;
+        self.vm /= c;
+    }
+
     /// Leaving a vertex along a direction where its measure is `cos_out` (as in
     /// [`Partial::arrive`]), sampled with solid-angle density `pdf_fwd`, whose
     /// reverse is `pdf_rev` [sr^-1]; `specular` when a delta lobe chose it (eqs.
@@ -276,6 +293,10 @@ enum Kind {
     Camera,
     /// A light subpath's start: light `light`'s point `q`.
     Light { light: u32, q: EmitterPoint },
+    /// A light subpath's start at light at infinity `light`, whose light travels
+    /// along -`wi` (unit; `wi` toward the sky); the vertex's position is where
+    /// the ray starts, on the disc outside the scene.
+    Sky { light: u32, wi: Vec3 },
     /// A surface: its BSDF, and for an eye vertex on an emitter what it emits
     /// toward `wo`, its light and the point as that light would have picked it.
     Surface { bsdf: Bsdf, le: Rgb, emitter: Option<(u32, EmitterPoint)> },
@@ -425,13 +446,11 @@ impl Lens {
 }
 
 /// Where a random walk goes on from: the ray (origin \[m\], unit direction), the
-/// throughput so far, the direction's density at the subpath's last vertex
-/// [sr^-1] and the medium the ray starts in.
+/// throughput so far and the medium the ray starts in.
 struct Leaving {
     o: Vec3,
     d: Vec3,
     beta: Rgb,
-    pdf: f32,
     medium: Option<MediumId>,
     /// The subpath's MIS sums on leaving its last vertex.
     mis: Partial,
@@ -595,12 +614,12 @@ impl Photon {
 /// its passes and the image so far.
 pub struct Bdpt<'a> {
     scene: &'a Scene,
-    /// The choice among the lights that light subpaths start from (every light
-    /// but those at infinity), by power; none when all are at infinity.
+    /// The choice among the lights, by power: where light subpaths start, and
+    /// which light an eye vertex samples (s = 1).
     lights: Option<LightSelector>,
-    /// The choice among the lights at infinity (an environment, suns), by power,
-    /// for the eye subpaths' samples of them; none when there are none.
-    sky: Option<LightSelector>,
+    /// The lights at infinity (an environment, suns), which rays leaving the
+    /// scene may find.
+    sky: Vec<usize>,
     lens: Lens,
     /// The medium the pinhole is in.
     eye_medium: Option<MediumId>,
@@ -671,12 +690,10 @@ impl<'a> Bdpt<'a> {
         config: Config,
     ) -> Result<Bdpt<'a>, String> {
         let all = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
-        let at_infinity: Vec<usize> = (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect();
-        let finite: Vec<usize> = (0..scene.lights.len()).filter(|i| !at_infinity.contains(i)).collect();
         Ok(Bdpt {
             scene,
-            lights: all.excluding(&at_infinity),
-            sky: all.excluding(&finite),
+            lights: Some(all),
+            sky: (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect(),
             lens: Lens::new(camera, width, height),
             eye_medium: scene.eye_medium(camera.position),
             width,
@@ -918,13 +935,6 @@ impl<'a> Bdpt<'a> {
         }
         let connect = self.config.connect;
         for t in 2..=eye.len() {
-            if self.sky.is_some() {
-                // The lights at infinity, sampled from z_{t-1}.
-                let u = (se.next_1d(), se.next_1d(), se.next_2d());
-                if let Some(c) = self.sky_sample(&eye[t - 1], u) {
-                    out.pixels[px][layer_of(eye, &[], 0, t + 1)] += c;
-                }
-            }
             // s = 0; without connections only where no merge could make the path
             // (an emitter seen directly or through delta lobes alone).
             if (connect || eye[1..t - 1].iter().all(|v| v.delta))
@@ -938,8 +948,10 @@ impl<'a> Bdpt<'a> {
                 // numbers), so it is tried even when the light subpath did not start.
                 for s in 1..=light.len().max(1) {
                     let u = if s == 1 { Some((se.next_1d(), se.next_1d(), se.next_2d())) } else { None };
-                    if let Some((c, w)) = self.connect(f, &eye[..t], &light[..s.min(light.len())], s, u) {
-                        out.pixels[px][layer_of(eye, light, s, t)] += c * w;
+                    if let Some((c, w, sky)) = self.connect(f, &eye[..t], &light[..s.min(light.len())], s, u) {
+                        // A light at infinity counts as a vertex past z_{t-1}.
+                        let layer = if sky { layer_of(eye, &[], 0, t + 1) } else { layer_of(eye, light, s, t) };
+                        out.pixels[px][layer] += c * w;
                         out.tallies.add(s, t, c, w);
                     }
                 }
@@ -1022,7 +1034,6 @@ impl<'a> Bdpt<'a> {
             o: self.lens.camera.position,
             d,
             beta: Rgb::ONE,
-            pdf,
             medium: self.eye_medium,
             mis: Partial::camera(pdf),
         };
@@ -1036,7 +1047,11 @@ impl<'a> Bdpt<'a> {
         path.clear();
         let (u_light, u_sel, u_pos) = (s.next_1d(), s.next_1d(), s.next_2d());
         let (u_side, u_dir) = (s.next_1d(), s.next_2d());
-        let Some(y0) = self.light_point(u_light, u_sel, u_pos) else { return false };
+        let Some((li, prob)) = self.lights.as_ref().map(|l| l.pick(u_light)) else { return false };
+        if at_infinity(&self.scene.lights[li]) {
+            return self.sky_subpath(li, prob as f32, u_pos, u_dir, s, f, path);
+        }
+        let Some(y0) = self.light_point(li, u_sel, u_pos) else { return false };
         let Kind::Light { light: li, q } = y0.kind else { return false };
         let light = &self.scene.lights[li as usize];
         path.push(y0);
@@ -1049,22 +1064,64 @@ impl<'a> Bdpt<'a> {
         let o = if q.n == Vec3::ZERO { q.p } else { self.scene.offset_origin(q.p, q.n, dir) };
         let pdf_a = self.light_pdf(li as usize, &q);
         let mis = Partial::light(pdf_a, pdf_dir, cos, light.is_delta(), f);
-        self.walk(Leaving { o, d: dir, beta, pdf: pdf_dir, medium: y0.media[0], mis }, false, s, f, path).cut
+        self.walk(Leaving { o, d: dir, beta, medium: y0.media[0], mis }, false, s, f, path).cut
     }
 
-    /// Extend a subpath from `o` along unit `d` (sampled with density `pdf_dir`
-    /// [sr^-1] at the path's last vertex, starting in medium `medium`) with
+    /// A light subpath from light at infinity `li` (chosen with probability
+    /// `prob`) into `path`: a direction by its emission (`u_dir`), a point on the
+    /// disc across it (`u_pos`), carrying L / (prob pdf_dir pdf_pos) [W]. Its MIS
+    /// sums start as SmallVCM's for an infinite light (cosine 1; d_VCM's density
+    /// of the direction by s = 1 is taken at the first vertex, which it depends
+    /// on: [`Partial::arrive_from_sky`]). True when the vertex limit cut it.
+    #[allow(clippy::too_many_arguments)]
+    fn sky_subpath(
+        &self,
+        li: usize,
+        prob: f32,
+        u_pos: glam::Vec2,
+        u_dir: glam::Vec2,
+        s: &mut Sampler,
+        f: &Factors,
+        path: &mut Vec<Vertex>,
+    ) -> bool {
+        let light = &self.scene.lights[li];
+        let Some(sd) = light.sample_sky_dir(u_dir) else { return false };
+        let Some(o) = light.sky_origin(-sd.wi, u_pos) else { return false };
+        let emission = prob * sd.pdf * light.pdf_sky_origin();
+        let beta = sd.l / emission;
+        if !(emission > 0.0) || beta.max_element() <= 0.0 || !beta.is_finite() {
+            return false;
+        }
+        let y0 = Vertex {
+            kind: Kind::Sky { light: li as u32, wi: sd.wi },
+            p: o,
+            ng: Vec3::ZERO,
+            ns: Vec3::ZERO,
+            wo: Vec3::ZERO,
+            beta: Rgb::splat(1.0 / (prob * light.pdf_sky_origin())),
+            mis: Partial::default(),
+            delta: false,
+            media: [self.scene.light_medium(li); 2],
+        };
+        path.clear();
+        path.push(y0);
+        let vc = if sd.delta { 0.0 } else { mis(1.0 / emission) };
+        let mis = Partial { vcm: mis(1.0 / emission), vc, vm: vc * f.vc };
+        self.walk(Leaving { o, d: -sd.wi, beta, medium: y0.media[0], mis }, false, s, f, path).cut
+    }
+
+    /// Extend a subpath from `o` along unit `d` (starting in medium `medium`) with
     /// throughput `beta`, by BSDF and phase-function sampling, free flights in
     /// media (the path tracer's: distances by a hero channel chosen once a
     /// subpath, weighed by the balance heuristic over channels, `Flights`),
     /// index-matched boundaries passed without a vertex, and Russian roulette:
     /// radiance on the eye side (`eye`), power on the light side. True when the
     /// vertex limit cut it, and for an eye subpath what it found leaving the
-    /// scene (weighed against the samples of lights at infinity).
+    /// scene ([`Self::escaped`]).
     fn walk(&self, from: Leaving, eye: bool, s: &mut Sampler, f: &Factors, path: &mut Vec<Vertex>) -> Walked {
         let scene = self.scene;
-        let Leaving { o, d, beta, pdf: pdf_dir, medium, mut mis } = from;
-        let (mut o, mut d, mut beta, mut pdf_fwd, mut medium) = (o, d, beta, pdf_dir, medium);
+        let Leaving { o, d, beta, medium, mut mis } = from;
+        let (mut o, mut d, mut beta, mut medium) = (o, d, beta, medium);
         let ended = |cut: bool| Walked { cut, escaped: Rgb::ZERO };
         let start = beta.max_element();
         let mut eta_scale = 1.0f32;
@@ -1107,7 +1164,7 @@ impl<'a> Bdpt<'a> {
                     delta: false,
                     media: [medium; 2],
                 };
-                v.mis.arrive(p.distance_squared(prev.p), v.measure(wo));
+                self.arrive(&mut v, &prev);
                 mis = v.mis;
                 let at = path.len();
                 path.push(v);
@@ -1115,7 +1172,6 @@ impl<'a> Bdpt<'a> {
                 // Henyey-Greenstein depends on the angle alone: the reverse
                 // density is the forward one.
                 mis.leave(v.measure(ps.wi), ps.pdf, ps.pdf, false, f.merge_at(&v), f);
-                pdf_fwd = ps.pdf;
                 // The path tracer's roulette on the throughput relative to the
                 // subpath's start, eta^2 folded in on the eye side.
                 if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
@@ -1125,7 +1181,7 @@ impl<'a> Bdpt<'a> {
                 continue;
             }
             let Some(hit) = hit else {
-                let escaped = if eye { self.escaped(&prev, pdf_fwd, d, beta * flights.weight()) } else { Rgb::ZERO };
+                let escaped = if eye { self.escaped(&prev, &mis, path, d, beta * flights.weight()) } else { Rgb::ZERO };
                 return Walked { cut: false, escaped };
             };
             if let Some(tint) = scene.index_matched(&hit) {
@@ -1159,7 +1215,7 @@ impl<'a> Bdpt<'a> {
                 delta: false,
                 media,
             };
-            v.mis.arrive(hit.p.distance_squared(prev.p), hit.ng.dot(d).abs());
+            self.arrive(&mut v, &prev);
             mis = v.mis;
             let at = path.len();
             path.push(v);
@@ -1184,7 +1240,6 @@ impl<'a> Bdpt<'a> {
             let rev = if bs.specular { 0.0 } else { bsdf.pdf(bs.wi, wo, hit.ns) };
             path[at].delta = bs.specular;
             mis.leave(hit.ng.dot(bs.wi).abs(), bs.pdf, rev, bs.specular, f.merge_at(&v), f);
-            pdf_fwd = if bs.specular { 0.0 } else { bs.pdf };
             if !pm_render::roulette(&mut beta, flights.weight() * eta_scale / start, at as u32, s) {
                 return ended(false);
             }
@@ -1194,23 +1249,47 @@ impl<'a> Bdpt<'a> {
         }
     }
 
-    /// What an eye subpath finds leaving the scene along unit `d` from its last
-    /// vertex `prev` (which sampled `d` with density `pdf` [sr^-1]; zero after a
-    /// delta lobe) with throughput `beta`: the environment's and sun discs'
-    /// radiance [W sr^-1 m^-2], weighed by the power heuristic against
-    /// [`Self::sky_sample`] at `prev` (the path tracer's two strategies for light
-    /// at infinity: light subpaths do not start there).
-    fn escaped(&self, prev: &Vertex, pdf: f32, d: Vec3, beta: Rgb) -> Rgb {
-        let le = self.scene.escaped(d);
-        if le.max_element() <= 0.0 {
-            return Rgb::ZERO;
-        }
-        let w = if matches!(prev.kind, Kind::Camera) || prev.delta {
-            1.0
+    /// The MIS sums of vertex `v`, reached from its subpath's last vertex `prev`
+    /// (its `wo` set), on arriving there.
+    fn arrive(&self, v: &mut Vertex, prev: &Vertex) {
+        let cos = v.measure(v.wo);
+        if let Kind::Sky { light, wi } = prev.kind {
+            v.mis.arrive_from_sky(self.p_sample_sky(light as usize, v, wi), cos);
         } else {
-            pm_light::power_heuristic(pdf, self.pdf_sky(prev, d))
-        };
-        beta * le * w
+            v.mis.arrive(v.p.distance_squared(prev.p), cos);
+        }
+    }
+
+    /// What an eye subpath finds leaving the scene along unit `d` from its last
+    /// vertex `prev` with throughput `beta` (`after`: its MIS sums on leaving
+    /// `prev`; `path` the subpath): each light at infinity's radiance [W sr^-1
+    /// m^-2] weighed by [`Self::escape_weight`].
+    fn escaped(&self, prev: &Vertex, after: &Partial, path: &[Vertex], d: Vec3, beta: Rgb) -> Rgb {
+        let mut sum = Rgb::ZERO;
+        for &li in &self.sky {
+            let le = self.scene.lights[li].radiance_escaped(d);
+            if le.max_element() > 0.0 {
+                sum += le * self.escape_weight(prev, after, path, li, d);
+            }
+        }
+        beta * sum
+    }
+
+    /// The weight of strategy s = 0 for light at infinity `li`: the eye subpath
+    /// `path` leaves the scene from `prev` along `d` (`after`: its sums on
+    /// leaving). Against the same direction sampled at `prev` (s = 1) and the
+    /// light subpaths from the sky (SmallVCM's background weight); the sky seen
+    /// directly has this strategy alone, and without connections so has a sky
+    /// seen through delta lobes only (merges make the rest).
+    fn escape_weight(&self, prev: &Vertex, after: &Partial, path: &[Vertex], li: usize, d: Vec3) -> f32 {
+        if matches!(prev.kind, Kind::Camera) {
+            return 1.0;
+        }
+        if !self.config.connect {
+            return if path[1..].iter().all(|v| v.delta) { 1.0 } else { 0.0 };
+        }
+        let w = mis(self.p_sample_sky(li, prev, d)) * after.vcm + mis(self.p_emit_sky(li, d)) * after.vc;
+        finite_or_zero(1.0 / (1.0 + w))
     }
 
     /// The unit normal a vertex samples lights at infinity about: the geometric
@@ -1219,39 +1298,51 @@ impl<'a> Bdpt<'a> {
         if v.ng == Vec3::ZERO { Vec3::ZERO } else { pm_scene::facing(v.ng, v.wo) }
     }
 
-    /// The density [sr^-1] with which [`Self::sky_sample`] at `v` picks unit
-    /// direction `d` (every light at infinity's, by its choice).
-    fn pdf_sky(&self, v: &Vertex, d: Vec3) -> f32 {
-        let Some(sky) = &self.sky else { return 0.0 };
-        let n = Self::sky_normal(v);
-        (0..self.scene.lights.len())
-            .filter(|&i| sky.probs[i] > 0.0)
-            .map(|i| sky.probs[i] as f32 * self.scene.lights[i].pdf_escaped(v.p, n, d))
-            .sum()
+    /// The density [sr^-1] with which strategy s = 1 at vertex `v` picks light at
+    /// infinity `li` and unit direction `wi` toward it (the light's choice times
+    /// `Light::sample_li`'s density; a parallel sun's direction counts 1).
+    fn p_sample_sky(&self, li: usize, v: &Vertex, wi: Vec3) -> f32 {
+        let light = &self.scene.lights[li];
+        let pdf = if light.is_delta() { 1.0 } else { light.pdf_escaped(v.p, Self::sky_normal(v), wi) };
+        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * pdf
     }
 
-    /// Light from a light at infinity at eye vertex `z`: one light chosen by power
-    /// (`u.0`), a direction sampled on it (`u.1`, `u.2`: `Light::sample_li`), a
-    /// shadow ray to the sky through the media and index-matched boundaries on the
-    /// way, weighed by the power heuristic against the eye subpath's own
-    /// direction leaving the scene ([`Self::escaped`]); a parallel sun is taken
-    /// whole. What it adds to the pixel [W sr^-1 m^-2].
-    fn sky_sample(&self, z: &Vertex, u: (f32, f32, glam::Vec2)) -> Option<Rgb> {
-        if z.delta || !z.scatters() {
-            return None;
-        }
-        let sky = self.sky.as_ref()?;
-        let (li, prob) = sky.pick(u.0);
-        let ls = self.scene.lights[li].sample_li(self.scene, z.p, Self::sky_normal(z), u.1, u.2)?;
-        let f = z.f(z.wo, ls.wi) * z.cos_at(ls.wi);
-        let c = z.beta * f * ls.li / (prob as f32 * ls.pdf);
+    /// The density with which a light subpath starts at light at infinity `li`
+    /// along unit -`wi`: its choice, the direction's density [sr^-1] (1 for a
+    /// parallel sun) and the disc point's [m^-2].
+    fn p_emit_sky(&self, li: usize, wi: Vec3) -> f32 {
+        let light = &self.scene.lights[li];
+        let pdf = if light.is_delta() { 1.0 } else { light.pdf_sky_dir(wi) };
+        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * pdf * light.pdf_sky_origin()
+    }
+
+    /// Strategy s = 1 for light at infinity `li` at eye vertex `z`: a direction
+    /// sampled on it (`u_sel`, `u`: `Light::sample_li`), a shadow ray to the sky
+    /// through the media and index-matched boundaries on the way. What it adds to
+    /// the pixel [W sr^-1 m^-2] and its weight ([`Self::sky_weight`]).
+    fn sky_connect(&self, f: &Factors, z: &Vertex, li: usize, u_sel: f32, u: glam::Vec2) -> Option<(Rgb, f32)> {
+        let ls = self.scene.lights[li].sample_li(self.scene, z.p, Self::sky_normal(z), u_sel, u)?;
+        let p = self.p_sample_sky(li, z, ls.wi);
+        let c = z.beta * z.f(z.wo, ls.wi) * z.cos_at(ls.wi) * ls.li / p;
         if c.max_element() <= 0.0 || !c.is_finite() {
             return None;
         }
         let o = if z.ng == Vec3::ZERO { z.p } else { self.scene.offset_origin(z.p, z.ng, ls.wi) };
-        let tr = self.scene.transmittance_along(o, ls.wi, f32::INFINITY, z.medium_toward(ls.wi));
-        let w = if ls.delta { 1.0 } else { pm_light::power_heuristic(self.pdf_sky(z, ls.wi), z.pdf_dir(z.wo, ls.wi)) };
-        Some(c * tr * w)
+        let c = c * self.scene.transmittance_along(o, ls.wi, f32::INFINITY, z.medium_toward(ls.wi));
+        (c.max_element() > 0.0).then(|| (c, self.sky_weight(f, z, li, ls.wi)))
+    }
+
+    /// The weight of strategy s = 1 toward light at infinity `li` along unit `wi`
+    /// from eye vertex `z`: against z's BSDF leaving the scene along `wi` (s = 0;
+    /// never for a parallel sun) and against the light subpaths from the sky
+    /// reaching z (SmallVCM's direct-illumination weight with an infinite
+    /// light's cosine of 1).
+    fn sky_weight(&self, f: &Factors, z: &Vertex, li: usize, wi: Vec3) -> f32 {
+        let p = self.p_sample_sky(li, z, wi);
+        let w_light = if self.scene.lights[li].is_delta() { 0.0 } else { mis(z.pdf_dir(z.wo, wi) / p) };
+        let p_z = self.p_emit_sky(li, wi) * z.measure(wi) / p;
+        let w_eye = z.mis.toward(p_z, z.pdf_dir(wi, z.wo), f.merge_at(z));
+        finite_or_zero(1.0 / (w_light + 1.0 + w_eye))
     }
 
     /// What passes along the segment from vertex `a` to vertex `b` (each end
@@ -1286,8 +1377,9 @@ impl<'a> Bdpt<'a> {
 
     /// Strategy (s >= 1, t = `eye.len()` >= 2): the eye subpath joined to the light
     /// subpath `light` (its first s vertices), or for s = 1 to a light point
-    /// picked with `u` (light, triangle, point): the contribution to the pixel
-    /// [W sr^-1 m^-2] and its MIS weight.
+    /// picked with `u` (light, triangle, point; for a light at infinity a
+    /// direction toward it, [`Self::sky_connect`]): the contribution to the pixel
+    /// [W sr^-1 m^-2], its MIS weight, and whether the light is at infinity.
     fn connect(
         &self,
         f: &Factors,
@@ -1295,7 +1387,7 @@ impl<'a> Bdpt<'a> {
         light: &[Vertex],
         s: usize,
         u: Option<(f32, f32, glam::Vec2)>,
-    ) -> Option<(Rgb, f32)> {
+    ) -> Option<(Rgb, f32, bool)> {
         let t = eye.len();
         let z = &eye[t - 1];
         if z.delta || !z.scatters() {
@@ -1304,7 +1396,11 @@ impl<'a> Bdpt<'a> {
         // The light-side end: y_{s-1}, or for s = 1 a new point on a light.
         let picked = if s == 1 {
             let (u_light, u_sel, u_pos) = u?;
-            Some(self.light_point(u_light, u_sel, u_pos)?)
+            let (li, _) = self.lights.as_ref()?.pick(u_light);
+            if at_infinity(&self.scene.lights[li]) {
+                return self.sky_connect(f, z, li, u_sel, u_pos).map(|(c, w)| (c, w, true));
+            }
+            Some(self.light_point(li, u_sel, u_pos)?)
         } else {
             None
         };
@@ -1337,7 +1433,7 @@ impl<'a> Bdpt<'a> {
         if c.max_element() <= 0.0 {
             return None;
         }
-        Some((c, self.weight(f, eye, light, s, picked.as_ref())))
+        Some((c, self.weight(f, eye, light, s, picked.as_ref()), false))
     }
 
     /// The area density [m^-2] with which light subpaths start at light `li`'s
@@ -1346,10 +1442,9 @@ impl<'a> Bdpt<'a> {
         self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * q.pdf_pos
     }
 
-    /// A point on a light picked as a light subpath's first vertex is (`u_light`
-    /// the light, `u_sel` its triangle, `u_pos` the point), for strategy s = 1.
-    fn light_point(&self, u_light: f32, u_sel: f32, u_pos: glam::Vec2) -> Option<Vertex> {
-        let (li, _) = self.lights.as_ref()?.pick(u_light);
+    /// A point on light `li` (not at infinity) picked as a light subpath's first
+    /// vertex is (`u_sel` its triangle, `u_pos` the point), for strategy s = 1.
+    fn light_point(&self, li: usize, u_sel: f32, u_pos: glam::Vec2) -> Option<Vertex> {
         let q = self.scene.lights[li].emitter_point(self.scene, u_sel, u_pos)?;
         let pdf = self.light_pdf(li, &q);
         (pdf > 0.0).then(|| Vertex {

@@ -8,11 +8,20 @@ fn scene(name: &str) -> Scene {
     pm_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// A whole path x_0 (the pinhole) .. x_n (on a light), as strategy (s, t) made it.
+/// Where a whole path ends.
+#[derive(Clone, Copy)]
+enum End {
+    /// On a light's point: its index and the point.
+    Point(u32, EmitterPoint),
+    /// At a light at infinity: its index and the unit direction toward it.
+    Sky(u32, Vec3),
+}
+
+/// A whole path x_0 (the pinhole) .. x_n (on a light, or the direction of a
+/// light at infinity), as strategy (s, t) made it.
 struct Whole {
     x: Vec<Vertex>,
-    /// The light's index and point at x_n.
-    light: (u32, EmitterPoint),
+    light: End,
 }
 
 /// x_n as a light subpath's first vertex.
@@ -25,9 +34,26 @@ impl Whole {
         self.x.len() - 1
     }
 
-    /// Unit direction from x_i to x_j.
+    /// Unit direction from x_i to x_j (toward a light at infinity, its own).
     fn dir(&self, i: usize, j: usize) -> Vec3 {
-        (self.x[j].p - self.x[i].p).normalize()
+        match self.light {
+            End::Sky(_, wi) if j == self.n() => wi,
+            End::Sky(_, wi) if i == self.n() => -wi,
+            _ => (self.x[j].p - self.x[i].p).normalize(),
+        }
+    }
+
+    /// The light's index.
+    fn li(&self) -> usize {
+        match self.light {
+            End::Point(li, _) | End::Sky(li, _) => li as usize,
+        }
+    }
+
+    /// x_{n-1} as the eye side reaches it (its `wo` toward x_{n-2}).
+    fn last_from_eye(&self) -> Vertex {
+        let n = self.n();
+        Vertex { wo: self.dir(n - 1, n - 2), ..self.x[n - 1] }
     }
 
     /// The density [m^-2] with which the eye side makes x_i from x_{i-1} (and
@@ -37,6 +63,13 @@ impl Whole {
     /// ratios, as they do in Georgiev et al.'s recursion (pbrt-v3 takes the area
     /// density itself as 1).
     fn p_eye(&self, b: &Bdpt, i: usize) -> f32 {
+        if let End::Sky(_, wi) = self.light
+            && i == self.n()
+        {
+            // Leaving the scene: a direction's density [sr^-1], no area.
+            let z = &self.x[i - 1];
+            return if z.delta { 1.0 } else { one_if_zero(z.pdf_dir(self.dir(i - 1, i - 2), wi)) };
+        }
         let pdf = if i == 1 {
             b.lens.pdf_dir(self.dir(0, 1))
         } else if self.x[i - 1].delta {
@@ -52,7 +85,25 @@ impl Whole {
     /// point's area density.
     fn p_light(&self, b: &Bdpt, i: usize) -> f32 {
         let n = self.n();
-        let (li, q) = self.light;
+        let (li, q) = match self.light {
+            End::Point(li, q) => (li, q),
+            End::Sky(li, wi) => {
+                let light = &b.scene.lights[li as usize];
+                let prob = b.lights.as_ref().unwrap().probs[li as usize] as f32;
+                // x_n: the direction [sr^-1]; x_{n-1}: the disc's point seen
+                // across it [m^-2] (no 1 / d^2 from infinity).
+                return one_if_zero(if i == n {
+                    prob * if light.is_delta() { 1.0 } else { light.pdf_sky_dir(wi) }
+                } else if i + 1 == n {
+                    light.pdf_sky_origin() * self.x[i].measure(wi)
+                } else if self.x[i + 1].delta {
+                    self.x[i + 1].area_density(1.0, &self.x[i])
+                } else {
+                    let pdf = self.x[i + 1].pdf_dir(self.dir(i + 1, i + 2), self.dir(i + 1, i));
+                    self.x[i + 1].area_density(pdf, &self.x[i])
+                });
+            }
+        };
         let pdf = if i == n {
             return one_if_zero(b.lights.as_ref().unwrap().probs[li as usize] as f32 * q.pdf_pos);
         } else if i + 1 == n {
@@ -75,7 +126,8 @@ impl Whole {
         match (s, t) {
             (1, 1) => false,
             (_, 1) => !x[1].delta,
-            (0, _) => !b.scene.lights[self.light.0 as usize].is_delta(),
+            (0, _) => !b.scene.lights[self.li()].is_delta(),
+            (1, _) if matches!(self.light, End::Sky(..)) => !x[t - 1].delta,
             _ => !x[t - 1].delta && !x[t].delta,
         }
     }
@@ -85,12 +137,22 @@ impl Whole {
         merging && i >= 1 && i < self.n() && self.x[i].merges()
     }
 
-    /// The density of the path by strategy (n + 1 - t, t) [m^-2 per vertex].
+    /// The density of the path by strategy (n + 1 - t, t) [m^-2 per vertex]; at
+    /// a light at infinity, s = 1 samples the direction at x_{n-1}.
     fn p_connect(&self, b: &Bdpt, t: usize) -> f64 {
         let n = self.n();
         let eye: f64 = (1..t).map(|i| self.p_eye(b, i) as f64).product();
-        let light: f64 = (t..=n).map(|i| self.p_light(b, i) as f64).product();
-        eye * light
+        if let End::Sky(li, wi) = self.light
+            && t == n
+        {
+            return eye * b.p_sample_sky(li as usize, &self.last_from_eye(), wi) as f64;
+        }
+        eye * self.p_light_side(b, t)
+    }
+
+    /// The density with which a light subpath makes x_n .. x_t.
+    fn p_light_side(&self, b: &Bdpt, t: usize) -> f64 {
+        (t..=self.n()).map(|i| self.p_light(b, i) as f64).product()
     }
 
     /// The density of the path by merging at x_i: the eye side makes x_1 .. x_i,
@@ -99,7 +161,8 @@ impl Whole {
     /// et al. 2012, eq. 20 with n_VC = 1).
     fn p_merge(&self, b: &Bdpt, i: usize, f: &Factors) -> f64 {
         let eta = f.merge_at(&self.x[i]).sqrt();
-        self.p_connect(b, i + 1) * self.p_light(b, i) as f64 * eta as f64
+        let eye: f64 = (1..=i).map(|j| self.p_eye(b, j) as f64).product();
+        eye * self.p_light_side(b, i) * eta as f64
     }
 
     /// The power heuristic's weights, worked out from the whole path's densities,
@@ -119,14 +182,15 @@ impl Whole {
     /// delta flag cleared; on the light for t = n + 1).
     fn eye_part(&self, b: &Bdpt, f: &Factors, t: usize) -> Vec<Vertex> {
         let n = self.n();
-        let (li, q) = self.light;
         let mut mis = Partial::camera(b.lens.pdf_dir(self.dir(0, 1)));
         (0..t)
             .map(|i| {
                 let mut v = self.x[i];
                 v.wo = if i == 0 { Vec3::ZERO } else { self.dir(i, i - 1) };
                 v.delta = i + 1 != t && v.delta;
-                if i == n {
+                if i == n
+                    && let End::Point(li, q) = self.light
+                {
                     let le = b.scene.lights[li as usize].emitted_toward(&q, v.wo);
                     v.kind = Kind::Surface { bsdf: Bsdf::Lambert { rho: Rgb::ZERO }, le, emitter: Some((li, q)) };
                 }
@@ -146,14 +210,41 @@ impl Whole {
     /// The light subpath x_n .. x_{n+1-s} likewise (its end's delta flag cleared).
     fn light_part(&self, b: &Bdpt, f: &Factors, s: usize) -> Vec<Vertex> {
         let n = self.n();
-        let (li, q) = self.light;
-        let light = &b.scene.lights[li as usize];
         let mut mis = Partial::default();
         (0..s)
             .map(|j| {
                 let i = n - j;
                 let mut v = self.x[i];
                 v.delta = j + 1 != s && v.delta;
+                if let End::Sky(li, wi) = self.light {
+                    if i == n {
+                        let emission = b.p_emit_sky(li as usize, wi);
+                        let vc = if b.scene.lights[li as usize].is_delta() { 0.0 } else { super::mis(1.0 / emission) };
+                        mis = Partial { vcm: super::mis(1.0 / emission), vc, vm: vc * f.vc };
+                        return v;
+                    }
+                    if i + 1 == n {
+                        v.wo = wi;
+                        mis.arrive_from_sky(b.p_sample_sky(li as usize, &v, wi), v.measure(wi));
+                        v.mis = mis;
+                        if j + 1 < s {
+                            let w = self.dir(i, i - 1);
+                            mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
+                        }
+                        return v;
+                    }
+                }
+                let End::Point(li, q) = self.light else {
+                    v.wo = self.dir(i, i + 1);
+                    mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.measure(v.wo));
+                    v.mis = mis;
+                    if j + 1 < s {
+                        let w = self.dir(i, i - 1);
+                        mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
+                    }
+                    return v;
+                };
+                let light = &b.scene.lights[li as usize];
                 if i == n {
                     v = as_light(&v, li, q);
                     v.wo = Vec3::ZERO;
@@ -186,6 +277,20 @@ impl Whole {
     fn renderer_weight(&self, b: &Bdpt, f: &Factors, strategy: Result<usize, usize>) -> f32 {
         let n = self.n();
         match strategy {
+            Ok(t) if matches!(self.light, End::Sky(..)) && t >= n => {
+                let End::Sky(li, wi) = self.light else { unreachable!() };
+                let eye = self.eye_part(b, f, n);
+                if t == n {
+                    // s = 1: the direction sampled at x_{n-1}.
+                    return b.sky_weight(f, &eye[n - 1], li as usize, wi);
+                }
+                // s = 0: the eye subpath leaves the scene from x_{n-1}.
+                let mut z = eye[n - 1];
+                z.delta = self.x[n - 1].delta;
+                let mut after = z.mis;
+                after.leave(z.measure(wi), z.pdf_dir(z.wo, wi), z.pdf_dir(wi, z.wo), z.delta, f.merge_at(&z), f);
+                b.escape_weight(&z, &after, &eye, li as usize, wi)
+            }
             Ok(t) => {
                 let s = n + 1 - t;
                 let (eye, light) = (self.eye_part(b, f, t), self.light_part(b, f, s));
@@ -229,11 +334,29 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
             .iter()
             .map(|n| (n.to_string(), scene(n)))
             .collect();
+    // Lit by an environment: spheres under an image with a bright spot (its
+    // density by the image), a room through its window under one colour (the
+    // s = 1 density over a vertex's hemisphere).
+    let mut hdri = scene("hdri_spheres.gltf");
+    let texels: Vec<Rgb> = (0..32 * 16)
+        .map(|i| {
+            let (x, y) = (i % 32, i / 32);
+            if (x, y) == (20, 4) {
+                Rgb::new(400.0, 380.0, 300.0)
+            } else {
+                Rgb::new(0.4, 0.6, 1.0) * (1.0 - y as f32 / 16.0)
+            }
+        })
+        .collect();
+    hdri.set_environment(pm_scene::Environment::image(32, 16, texels, 1.0, 30.0).unwrap());
+    scenes.push(("hdri_spheres.gltf under an image".into(), hdri));
+    let mut window = scene("window_room.gltf");
+    window.set_environment(pm_scene::Environment::constant(Rgb::new(1.0, 0.9, 0.8)).unwrap());
+    scenes.push(("window_room.gltf under one colour".into(), window));
     for (path, recipe) in generated {
         let s = pm_scene::load(&path).unwrap();
         let camera = s.camera.clone().unwrap();
-        // Light subpaths start only at lights with a position.
-        if Bdpt::new(&s, &camera, 8, 8, 1, BdptParams::default()).is_ok_and(|b| b.lights.is_some()) {
+        if Bdpt::new(&s, &camera, 8, 8, 1, BdptParams::default()).is_ok() {
             scenes.push((format!("generated {} ({:?}, {:?})", recipe.index, recipe.objects, recipe.lights), s));
         }
     }
@@ -244,7 +367,7 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
         // The fourth pass's radius, and no merging.
         for (f, merging) in [(b.factors(3), "merging"), (Factors::default(), "no merging")] {
             let (mut paths, mut longest, mut worst_sum, mut worst_one, mut delta_paths) = (0, 0, 0.0f32, 0.0f32, 0);
-            let (mut medium_paths, mut merges, mut volume_merges) = (0, 0, 0);
+            let (mut medium_paths, mut merges, mut volume_merges, mut sky_paths) = (0, 0, 0, 0);
             let mut stored: Vec<f32> = Vec::new();
             let (mut eye, mut light) = (Vec::new(), Vec::new());
             for i in 0..24 * 24 {
@@ -261,12 +384,15 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
                         }
                         let mut x: Vec<Vertex> = eye[..t].to_vec();
                         let light_at = if s == 0 {
-                            let Kind::Surface { emitter: Some(e), .. } = eye[t - 1].kind else { continue };
-                            e
+                            let Kind::Surface { emitter: Some((li, q)), .. } = eye[t - 1].kind else { continue };
+                            End::Point(li, q)
                         } else {
-                            let Kind::Light { light: li, q } = light[0].kind else { unreachable!() };
                             x.extend(light[..s].iter().rev());
-                            (li, q)
+                            match light[0].kind {
+                                Kind::Light { light: li, q } => End::Point(li, q),
+                                Kind::Sky { light: li, wi } => End::Sky(li, wi),
+                                _ => unreachable!(),
+                            }
                         };
                         // The join's ends must be able to join.
                         if (t >= 2 && s >= 1 && eye[t - 1].delta) || (s >= 1 && light[s - 1].delta) {
@@ -281,10 +407,14 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
                         // A path that carries nothing (x_n's light faces away, a
                         // join reaches a surface from behind, light tracing's
                         // vertex is off the film) has no weights.
-                        if b.scene.lights[light_at.0 as usize]
-                            .emitted_toward(&light_at.1, whole.dir(n, n - 1))
-                            .max_element()
-                            <= 0.0
+                        let sends = match light_at {
+                            End::Point(li, q) => b.scene.lights[li as usize].emitted_toward(&q, whole.dir(n, n - 1)),
+                            End::Sky(li, wi) => {
+                                let l = &b.scene.lights[li as usize];
+                                if l.is_delta() { Rgb::ONE } else { l.radiance_escaped(wi) }
+                            }
+                        };
+                        if sends.max_element() <= 0.0
                             || !b
                                 .lens
                                 .camera
@@ -343,6 +473,7 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
                         longest = longest.max(n);
                         delta_paths += whole.x.iter().any(|v| v.delta) as u32;
                         medium_paths += whole.x.iter().any(|v| matches!(v.kind, Kind::Medium { .. })) as u32;
+                        sky_paths += matches!(whole.light, End::Sky(..)) as u32;
                     }
                 }
             }
@@ -350,13 +481,16 @@ fn mis_weights_sum_to_one_and_match_the_whole_paths_densities() {
             let quantile = |q: f64| stored[((stored.len() - 1) as f64 * q) as usize];
             let (median, p99, worst) = (quantile(0.5), quantile(0.99), quantile(1.0));
             eprintln!(
-                "{name}, {merging}: {paths} paths ({delta_paths} through delta lobes, {medium_paths} scattered in a medium, {merges} merging strategies, {volume_merges} of them in a medium), up to {longest} segments; sums within {worst_sum:.1e}, weights within {worst_one:.1e}; stored MIS sums against the path's: median {median:.1e}, 99% {p99:.1e}, worst {worst:.1e}"
+                "{name}, {merging}: {paths} paths ({delta_paths} through delta lobes, {medium_paths} scattered in a medium, {merges} merging strategies, {volume_merges} of them in a medium, {sky_paths} from lights at infinity), up to {longest} segments; sums within {worst_sum:.1e}, weights within {worst_one:.1e}; stored MIS sums against the path's: median {median:.1e}, 99% {p99:.1e}, worst {worst:.1e}"
             );
             assert!(
                 median < 1e-5 && p99 < 3e-2,
                 "{name}, {merging}: stored MIS sums off by {median} (median), {p99} (99%)"
             );
             assert!(paths > 300, "{name}, {merging}: only {paths} paths");
+            if b.scene.lights.iter().any(at_infinity) {
+                assert!(sky_paths > 100, "{name}, {merging}: only {sky_paths} paths from lights at infinity");
+            }
             if f.vm > 0.0 {
                 assert!(merges > 100, "{name}: only {merges} merging strategies weighed");
                 if name.contains("fogbox") {
