@@ -216,55 +216,37 @@ impl Whole {
                 let i = n - j;
                 let mut v = self.x[i];
                 v.delta = j + 1 != s && v.delta;
-                if let End::Sky(li, wi) = self.light {
-                    if i == n {
-                        let emission = b.p_emit_sky(li as usize, wi);
-                        let vc = if b.scene.lights[li as usize].is_delta() { 0.0 } else { super::mis(1.0 / emission) };
-                        mis = Partial { vcm: super::mis(1.0 / emission), vc, vm: vc * f.vc };
-                        return v;
-                    }
-                    if i + 1 == n {
-                        v.wo = wi;
-                        mis.arrive_from_sky(b.p_sample_sky(li as usize, &v, wi), v.measure(wi));
-                        v.mis = mis;
-                        if j + 1 < s {
-                            let w = self.dir(i, i - 1);
-                            mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
+                if i == n {
+                    match self.light {
+                        End::Sky(li, _) => {
+                            let emission = b.p_emit_sky(li as usize, self.dir(n - 1, n));
+                            let delta = b.scene.lights[li as usize].is_delta();
+                            let vc = if delta { 0.0 } else { super::mis(1.0 / emission) };
+                            mis = Partial { vcm: super::mis(1.0 / emission), vc, vm: vc * f.vc };
                         }
-                        return v;
-                    }
-                }
-                let End::Point(li, q) = self.light else {
-                    v.wo = self.dir(i, i + 1);
-                    mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.measure(v.wo));
-                    v.mis = mis;
-                    if j + 1 < s {
-                        let w = self.dir(i, i - 1);
-                        mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
+                        End::Point(li, q) => {
+                            let light = &b.scene.lights[li as usize];
+                            v = as_light(&v, li, q);
+                            v.wo = Vec3::ZERO;
+                            let w = self.dir(n, n - 1);
+                            let cos = if q.n == Vec3::ZERO { 1.0 } else { q.n.dot(w).abs() };
+                            let pdf_dir = light.pdf_emitted_dir(&q, w);
+                            mis = Partial::light(b.light_pdf(li as usize, &q), pdf_dir, cos, light.is_delta(), f);
+                        }
                     }
                     return v;
-                };
-                let light = &b.scene.lights[li as usize];
-                if i == n {
-                    v = as_light(&v, li, q);
-                    v.wo = Vec3::ZERO;
-                    let w = self.dir(n, n - 1);
-                    let cos = if q.n == Vec3::ZERO { 1.0 } else { q.n.dot(w).abs() };
-                    mis = Partial::light(
-                        b.light_pdf(li as usize, &q),
-                        light.pdf_emitted_dir(&q, w),
-                        cos,
-                        light.is_delta(),
-                        f,
-                    );
-                } else {
-                    v.wo = self.dir(i, i + 1);
-                    mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.measure(v.wo));
-                    v.mis = mis;
-                    if j + 1 < s {
-                        let w = self.dir(i, i - 1);
-                        mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
+                }
+                v.wo = self.dir(i, i + 1);
+                match self.light {
+                    End::Sky(li, wi) if i + 1 == n => {
+                        mis.arrive_from_sky(b.p_sample_sky(li as usize, &v, wi), v.measure(wi))
                     }
+                    _ => mis.arrive(v.p.distance_squared(self.x[i + 1].p), v.measure(v.wo)),
+                }
+                v.mis = mis;
+                if j + 1 < s {
+                    let w = self.dir(i, i - 1);
+                    mis.leave(v.measure(w), v.pdf_dir(v.wo, w), v.pdf_dir(w, v.wo), v.delta, f.merge_at(&v), f);
                 }
                 v
             })

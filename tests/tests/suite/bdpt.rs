@@ -125,6 +125,22 @@ fn bdpt_agrees_with_the_path_tracer_layer_by_layer() {
     }
 }
 
+/// The furnace of the media tests filled with a conservative medium: a closed
+/// sphere of radius 2 m, albedo 0.8, emitting L_e = 1 inward, the medium's
+/// sigma_s 1.0, 0.5, 2.0 / m, g = 0.6 (radiance 5 everywhere).
+fn conservative_furnace() -> pm_scene::Scene {
+    use glam::Vec3;
+    let mut tris = Vec::new();
+    pm_tests::sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
+    let mats = vec![pm_tests::material("furnace", pm_bsdf::Bsdf::Lambert { rho: pm_color::Rgb::splat(0.8) }, 1.0)];
+    let cam = pm_tests::camera(Vec3::new(0.3, 0.2, 0.5), Vec3::new(1.0, 0.3, -2.0));
+    let mut scene = pm_scene::Scene::from_parts(tris, mats, vec![], Some(cam));
+    let fog = pm_scene::Medium::new("scene", pm_color::Rgb::ZERO, pm_color::Rgb::new(1.0, 0.5, 2.0), 0.6).unwrap();
+    scene.set_medium("scene", fog).unwrap();
+    scene.finish_media().unwrap();
+    scene
+}
+
 /// The furnace of the media tests (a closed sphere of albedo 0.8 emitting L_e = 1
 /// inward) filled with a conservative, forward-scattering (g = 0.6) medium of a
 /// different sigma_s per channel (1.0, 0.5, 2.0 / m in a sphere of radius 2 m):
@@ -140,14 +156,7 @@ fn bdpt_agrees_with_the_path_tracer_layer_by_layer() {
 #[test]
 fn bdpt_furnace_filled_with_a_conservative_medium_is_five() {
     use glam::Vec3;
-    let mut tris = Vec::new();
-    pm_tests::sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
-    let mats = vec![pm_tests::material("furnace", pm_bsdf::Bsdf::Lambert { rho: pm_color::Rgb::splat(0.8) }, 1.0)];
-    let cam = pm_tests::camera(Vec3::new(0.3, 0.2, 0.5), Vec3::new(1.0, 0.3, -2.0));
-    let mut scene = pm_scene::Scene::from_parts(tris, mats, vec![], Some(cam));
-    let fog = pm_scene::Medium::new("scene", pm_color::Rgb::ZERO, pm_color::Rgb::new(1.0, 0.5, 2.0), 0.6).unwrap();
-    scene.set_medium("scene", fog).unwrap();
-    scene.finish_media().unwrap();
+    let scene = conservative_furnace();
     let images = [
         ("BDPT", bdpt(&scene, 8, 8, 256, 2, false).image()),
         ("VCM", vcm(&scene, 8, 8, 256, 2, VcmParams::default()).image()),
@@ -341,14 +350,7 @@ fn merging_alone_carries_the_fog() {
 #[test]
 fn merging_alone_furnace_filled_with_a_conservative_medium_is_five() {
     use glam::Vec3;
-    let mut tris = Vec::new();
-    pm_tests::sphere(&mut tris, Vec3::ZERO, 2.0, true, 0);
-    let mats = vec![pm_tests::material("furnace", pm_bsdf::Bsdf::Lambert { rho: pm_color::Rgb::splat(0.8) }, 1.0)];
-    let cam = pm_tests::camera(Vec3::new(0.3, 0.2, 0.5), Vec3::new(1.0, 0.3, -2.0));
-    let mut scene = pm_scene::Scene::from_parts(tris, mats, vec![], Some(cam));
-    let fog = pm_scene::Medium::new("scene", pm_color::Rgb::ZERO, pm_color::Rgb::new(1.0, 0.5, 2.0), 0.6).unwrap();
-    scene.set_medium("scene", fog).unwrap();
-    scene.finish_media().unwrap();
+    let scene = conservative_furnace();
     let img = vcm(&scene, 16, 16, 1024, 2, VcmParams { vcm_connect: false, ..Default::default() }).image();
     for c in 0..3 {
         let px: Vec<Vec3> = img.total().iter().map(|p| Vec3::splat(p[c])).collect();
