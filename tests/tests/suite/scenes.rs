@@ -29,7 +29,7 @@ fn a_scene_needing_an_extension_not_read_stops_the_run_with_exit_code_2_and_no_o
     let out = dir.path().join("out");
     let args = pm_runner::run::RunArgs { scene: Some(scene.clone()), out: Some(out.clone()), ..Default::default() };
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let e = pm_runner::run::run_with(&args, &root, &pm_tests::bins()).err().expect("the run succeeded");
+    let e = pm_runner::run::run_with(&args, &root, &pm_tests::bins()).expect_err("the run succeeded");
     let msg = format!("{e:#}");
     assert!(pm_stage::is_unsupported(&e), "{msg}");
     assert!(
