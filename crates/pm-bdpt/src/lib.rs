@@ -173,10 +173,10 @@ impl Factors {
     /// can use, the ball's in a medium; zero where it does not merge (or the
     /// pass does not).
     fn merge_at(&self, v: &Vertex) -> f32 {
-        match &v.kind {
-            Kind::Surface { bsdf, .. } if !bsdf.is_specular() => self.vm,
-            Kind::Medium { .. } => self.vm_vol,
-            _ => 0.0,
+        match v.merge_set() {
+            Some(SURFACE) => self.vm,
+            Some(_) => self.vm_vol,
+            None => 0.0,
         }
     }
 }
@@ -240,10 +240,8 @@ impl Partial {
     /// light, which here depends on the vertex: an environment of one colour is
     /// sampled over its normal's hemisphere).
     fn arrive_from_sky(&mut self, p_sample: f32, cos: f32) {
-        let c = mis(cos);
-        self.vcm = self.vcm * mis(p_sample) / c;
-        self.vc /= c;
-        self.vm /= c;
+        // `arrive`'s arithmetic with p_sample in d^2's place.
+        self.arrive(p_sample, cos);
     }
 
     /// Leaving a vertex along a direction where its measure is `cos_out` (as in
@@ -338,13 +336,14 @@ impl Vertex {
         matches!(self.kind, Kind::Surface { .. } | Kind::Medium { .. })
     }
 
-    /// True where merging can use the vertex: a surface with a lobe that is not a
-    /// Dirac delta, or a point in a medium.
-    fn merges(&self) -> bool {
+    /// Which of merging's sets the vertex joins: [`SURFACE`] on a surface with a
+    /// lobe that is not a Dirac delta, [`VOLUME`] at a point in a medium; none
+    /// elsewhere.
+    fn merge_set(&self) -> Option<usize> {
         match &self.kind {
-            Kind::Surface { bsdf, .. } => !bsdf.is_specular(),
-            Kind::Medium { .. } => true,
-            _ => false,
+            Kind::Surface { bsdf, .. } if !bsdf.is_specular() => Some(SURFACE),
+            Kind::Medium { .. } => Some(VOLUME),
+            _ => None,
         }
     }
 
@@ -616,7 +615,7 @@ pub struct Bdpt<'a> {
     scene: &'a Scene,
     /// The choice among the lights, by power: where light subpaths start, and
     /// which light an eye vertex samples (s = 1).
-    lights: Option<LightSelector>,
+    lights: LightSelector,
     /// The lights at infinity (an environment, suns), which rays leaving the
     /// scene may find.
     sky: Vec<usize>,
@@ -692,7 +691,7 @@ impl<'a> Bdpt<'a> {
         let all = LightSelector::new(scene, &[]).map_err(|e| e.to_string())?;
         Ok(Bdpt {
             scene,
-            lights: Some(all),
+            lights: all,
             sky: (0..scene.lights.len()).filter(|&i| at_infinity(&scene.lights[i])).collect(),
             lens: Lens::new(camera, width, height),
             eye_medium: scene.eye_medium(camera.position),
@@ -816,9 +815,10 @@ impl<'a> Bdpt<'a> {
                 }
                 if self.config.merge.is_some() {
                     // Not the light's own point: merging needs a segment of light path.
-                    for k in (1..path.len()).filter(|&k| path[k].merges()) {
-                        let at = if matches!(path[k].kind, Kind::Medium { .. }) { VOLUME } else { SURFACE };
-                        out.photons[at].push(Photon::of(self.scene, &path, k));
+                    for k in 1..path.len() {
+                        if let Some(at) = path[k].merge_set() {
+                            out.photons[at].push(Photon::of(self.scene, &path, k));
+                        }
                     }
                 }
                 out.vertices.extend_from_slice(&path);
@@ -975,10 +975,8 @@ impl<'a> Bdpt<'a> {
     fn merge(&self, f: &Factors, m: &Merging, eye: &[Vertex], pixel: &mut [Rgb; LAYERS]) {
         let t = eye.len();
         let z = &eye[t - 1];
-        if !z.merges() {
-            return;
-        }
-        let volume = matches!(z.kind, Kind::Medium { .. });
+        let Some(at) = z.merge_set() else { return };
+        let volume = at == VOLUME;
         let nz = if volume { Vec3::ZERO } else { pm_scene::facing(z.ng, z.wo) };
         // SPPM's rule: light in a gap (between a lamp's panel and the ceiling)
         // is not merged with points outside it, nor the other way round (at
@@ -986,7 +984,6 @@ impl<'a> Bdpt<'a> {
         // 4-7% into the indirect layer of 5 of 40 generated rooms). The probe
         // is cast at the first photon that passes the normal's test.
         let mut covered = None;
-        let at = if volume { VOLUME } else { SURFACE };
         let mut sum = [Rgb::ZERO; LAYERS];
         m.grids[at].for_each_within(z.p, f.radius * f.radius, |gi, _| {
             let y = &m.photons[at][gi as usize];
@@ -1017,7 +1014,7 @@ impl<'a> Bdpt<'a> {
     /// are taken as one). The stored sums are relative to a surface's merge: in
     /// a medium, to the ball's, they scale by (eta / eta_vol)^2.
     fn merge_weight(&self, f: &Factors, z: &Vertex, y: &Photon) -> f32 {
-        let scale = if matches!(z.kind, Kind::Medium { .. }) { f.vm / f.vm_vol } else { 1.0 };
+        let scale = if z.merge_set() == Some(VOLUME) { f.vm / f.vm_vol } else { 1.0 };
         let w_light = (y.vcm * f.vc + y.vm * mis(z.pdf_dir(z.wo, y.wo))) * scale;
         let w_eye = (z.mis.vcm * f.vc + z.mis.vm * mis(z.pdf_dir(y.wo, z.wo))) * scale;
         finite_or_zero(1.0 / (w_light + 1.0 + w_eye))
@@ -1047,7 +1044,7 @@ impl<'a> Bdpt<'a> {
         path.clear();
         let (u_light, u_sel, u_pos) = (s.next_1d(), s.next_1d(), s.next_2d());
         let (u_side, u_dir) = (s.next_1d(), s.next_2d());
-        let Some((li, prob)) = self.lights.as_ref().map(|l| l.pick(u_light)) else { return false };
+        let (li, prob) = self.lights.pick(u_light);
         if at_infinity(&self.scene.lights[li]) {
             return self.sky_subpath(li, prob as f32, u_pos, u_dir, s, f, path);
         }
@@ -1304,7 +1301,7 @@ impl<'a> Bdpt<'a> {
     fn p_sample_sky(&self, li: usize, v: &Vertex, wi: Vec3) -> f32 {
         let light = &self.scene.lights[li];
         let pdf = if light.is_delta() { 1.0 } else { light.pdf_escaped(v.p, Self::sky_normal(v), wi) };
-        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * pdf
+        self.lights.probs[li] as f32 * pdf
     }
 
     /// The density with which a light subpath starts at light at infinity `li`
@@ -1313,7 +1310,7 @@ impl<'a> Bdpt<'a> {
     fn p_emit_sky(&self, li: usize, wi: Vec3) -> f32 {
         let light = &self.scene.lights[li];
         let pdf = if light.is_delta() { 1.0 } else { light.pdf_sky_dir(wi) };
-        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * pdf * light.pdf_sky_origin()
+        self.lights.probs[li] as f32 * pdf * light.pdf_sky_origin()
     }
 
     /// Strategy s = 1 for light at infinity `li` at eye vertex `z`: a direction
@@ -1396,7 +1393,7 @@ impl<'a> Bdpt<'a> {
         // The light-side end: y_{s-1}, or for s = 1 a new point on a light.
         let picked = if s == 1 {
             let (u_light, u_sel, u_pos) = u?;
-            let (li, _) = self.lights.as_ref()?.pick(u_light);
+            let (li, _) = self.lights.pick(u_light);
             if at_infinity(&self.scene.lights[li]) {
                 return self.sky_connect(f, z, li, u_sel, u_pos).map(|(c, w)| (c, w, true));
             }
@@ -1439,7 +1436,7 @@ impl<'a> Bdpt<'a> {
     /// The area density [m^-2] with which light subpaths start at light `li`'s
     /// point `q`: the light's choice times the point's density.
     fn light_pdf(&self, li: usize, q: &EmitterPoint) -> f32 {
-        self.lights.as_ref().map_or(0.0, |l| l.probs[li] as f32) * q.pdf_pos
+        self.lights.probs[li] as f32 * q.pdf_pos
     }
 
     /// A point on light `li` (not at infinity) picked as a light subpath's first

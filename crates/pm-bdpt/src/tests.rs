@@ -89,7 +89,7 @@ impl Whole {
             End::Point(li, q) => (li, q),
             End::Sky(li, wi) => {
                 let light = &b.scene.lights[li as usize];
-                let prob = b.lights.as_ref().unwrap().probs[li as usize] as f32;
+                let prob = b.lights.probs[li as usize] as f32;
                 // x_n: the direction [sr^-1]; x_{n-1}: the disc's point seen
                 // across it [m^-2] (no 1 / d^2 from infinity).
                 return one_if_zero(if i == n {
@@ -105,7 +105,7 @@ impl Whole {
             }
         };
         let pdf = if i == n {
-            return one_if_zero(b.lights.as_ref().unwrap().probs[li as usize] as f32 * q.pdf_pos);
+            return one_if_zero(b.lights.probs[li as usize] as f32 * q.pdf_pos);
         } else if i + 1 == n {
             b.scene.lights[li as usize].pdf_emitted_dir(&q, self.dir(n, i))
         } else if self.x[i + 1].delta {
@@ -134,7 +134,7 @@ impl Whole {
 
     /// True when merging at x_i can make this path (`merging`: the pass merges).
     fn can_merge(&self, i: usize, merging: bool) -> bool {
-        merging && i >= 1 && i < self.n() && self.x[i].merges()
+        merging && i >= 1 && i < self.n() && self.x[i].merge_set().is_some()
     }
 
     /// The density of the path by strategy (n + 1 - t, t) [m^-2 per vertex]; at
