@@ -6,7 +6,6 @@
 
 use anyhow::{Context, Result};
 use pm_pipeline::jobs::{TaskTime, estimate, openjd, slurm};
-use pm_runner::bins::Bins;
 use pm_runner::run::{LiveArgs, RunArgs, live_plan, plan_for};
 use std::path::{Path, PathBuf};
 
@@ -53,7 +52,7 @@ pub enum Emit {
 
 /// Write `plan.json` (and the job files) for `args`.
 pub fn run(args: &Args, root: &Path) -> Result<()> {
-    let bins = Bins::build(root)?;
+    let bins = args.run.binaries(root)?;
     let plan = if args.live {
         let live = LiveArgs {
             pipeline: args.run.pipeline.clone(),

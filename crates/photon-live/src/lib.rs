@@ -189,9 +189,10 @@ fn run_frames<M: pm_live::FrameMethod>(
     let progress = Progress::new("frames", frames.end as u64);
     let mut rows: Vec<M::Row> = Vec::new();
     let mut apng = Vec::new();
+    let fixed = cli.scene_options.time_s().map_err(|e| anyhow::anyhow!(e))?;
     for i in 0..frames.end {
         // Frame i shows time i / fps: animated lights and camera move there.
-        live.set_time(cli.scene_options.time.unwrap_or(i as f32 / f.fps));
+        live.set_time(fixed.unwrap_or(i as f32 / f.fps));
         if i < frames.start {
             // Another task draws it; this one needs only the state it leaves.
             live.skip().map_err(|e| anyhow::anyhow!(e))?;

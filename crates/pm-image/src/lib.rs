@@ -289,6 +289,25 @@ pub fn radiance_hdr_bytes(width: usize, height: usize, pixels: &[Vec3]) -> Resul
     Ok(bytes)
 }
 
+/// Write an image as a Portable Float Map (`PF`, 32-bit float RGB,
+/// little-endian, the bottom row first), atomically: the plainest float image a
+/// program without an EXR reader can take (the Blender add-on's render passes
+/// are rows from the bottom too). `pixels` has row 0 at the top.
+pub fn write_pfm(path: &Path, width: usize, height: usize, pixels: &[Vec3]) -> Result<()> {
+    if pixels.len() != width * height {
+        bail!("{}: {} pixels for a {width}x{height} image", path.display(), pixels.len());
+    }
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    bytes.reserve(12 * pixels.len());
+    for row in pixels.chunks(width.max(1)).rev() {
+        for v in row.iter().flat_map(|p| p.to_array()) {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    pm_format::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
 /// [`read_exr`] with where the file's pixels sit in its image (a region written by
 /// [`write_exr_region`]; a whole image sits at 0, 0 in itself).
 pub fn read_exr_placed(path: &Path) -> Result<(Layers, Placement)> {

@@ -45,19 +45,99 @@ pub trait Value: PartialOrd + Copy + fmt::Display {
     fn is_finite_value(&self) -> bool {
         true
     }
+
+    /// The value as a double (a user interface's limit).
+    fn as_f64(self) -> f64;
 }
-impl Value for u32 {}
-impl Value for u64 {}
-impl Value for usize {}
+impl Value for u32 {
+    fn as_f64(self) -> f64 {
+        self.into()
+    }
+}
+impl Value for u64 {
+    fn as_f64(self) -> f64 {
+        self as f64
+    }
+}
+impl Value for usize {
+    fn as_f64(self) -> f64 {
+        self as f64
+    }
+}
 impl Value for f32 {
     fn is_finite_value(&self) -> bool {
         self.is_finite()
+    }
+    fn as_f64(self) -> f64 {
+        self.into()
     }
 }
 impl Value for f64 {
     fn is_finite_value(&self) -> bool {
         self.is_finite()
     }
+    fn as_f64(self) -> f64 {
+        self
+    }
+}
+
+/// The limits of a check as a user interface shows them: the lowest and highest
+/// accepted value, `None` where unbounded (an open bound is given as its limit:
+/// the interface keeps it, the check refuses it).
+pub trait Bounds {
+    /// (lowest, highest).
+    fn bounds(&self) -> (Option<f64>, Option<f64>) {
+        (None, None)
+    }
+}
+
+impl<T: Value> Bounds for Range<T> {
+    fn bounds(&self) -> (Option<f64>, Option<f64>) {
+        let f = |b: &Bound<T>| match b {
+            Bound::Included(v) | Bound::Excluded(v) => Some(v.as_f64()),
+            Bound::Unbounded => None,
+        };
+        (f(&self.lo), f(&self.hi))
+    }
+}
+/// The bounds of `check` on the values of one field (`values` says the type the
+/// check is on).
+pub fn bounds_of<'a, V: 'a, C: Accepts<V> + Bounds>(
+    check: &C,
+    _values: impl Iterator<Item = &'a V>,
+) -> (Option<f64>, Option<f64>) {
+    check.bounds()
+}
+
+impl Bounds for Any {}
+impl Bounds for Valid {}
+
+/// One parameter as a program that builds a user interface reads it (the
+/// Blender add-on's settings): its key in the file section, its command-line
+/// option, its documentation (with its unit), its Rust type, its default as the
+/// option's text (none for an optional or repeatable one), the range it accepts
+/// and, for a choice, its words.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Param {
+    /// Key in the file section.
+    pub key: &'static str,
+    /// Command-line option, `--gather-rays`.
+    pub option: String,
+    /// The doc comment, one paragraph.
+    pub doc: String,
+    /// The field's Rust type (`u32`, `f32`, `bool`, a choice's path,
+    /// `core::option::Option<f32>`).
+    pub rust_type: &'static str,
+    /// The default, as the option's text.
+    pub default: Option<String>,
+    /// What the check accepts, in words ("at least 1").
+    pub accepts: String,
+    /// Lowest accepted value.
+    pub min: Option<f64>,
+    /// Highest accepted value.
+    pub max: Option<f64>,
+    /// A choice's words (and `true`, `false` for a switch).
+    pub choices: Vec<String>,
 }
 
 /// What a parameter accepts; displayed in errors ("at least 1", "in (0, 1]").
@@ -276,6 +356,38 @@ macro_rules! params {
                 Ok(())
             }
 
+            /// Every parameter as a user interface reads it ([`Param`]), in
+            /// declaration order.
+            ///
+            /// [`Param`]: $crate::Param
+            pub fn schema() -> Vec<$crate::Param> {
+                let cmd = <Self as clap::Args>::augment_args(clap::Command::new("schema"));
+                let default = Self::default();
+                let choices = |id: &str| -> Vec<String> {
+                    cmd.get_arguments()
+                        .find(|a| a.get_id() == id)
+                        .map(|a| a.get_possible_values().iter().map(|v| v.get_name().to_string()).collect())
+                        .unwrap_or_default()
+                };
+                vec![$({
+                    let check = $check;
+                    let values = $crate::params!(@values default.$field $(, $default)?);
+                    let (min, max) = $crate::bounds_of(&check, values);
+                    let doc: Vec<&str> = vec![$($doc.trim()),*];
+                    $crate::Param {
+                        key: $crate::params!(@key $field $($key)?),
+                        option: format!("--{}", stringify!($field).replace('_', "-")),
+                        doc: doc.join(" "),
+                        rust_type: std::any::type_name::<$ty>(),
+                        default: $crate::params!(@values default.$field $(, $default)?).next().map(|v| v.to_string()),
+                        accepts: check.to_string(),
+                        min,
+                        max,
+                        choices: choices(stringify!($field)),
+                    }
+                }),*]
+            }
+
             /// The command-line arguments that give every field its value.
             pub fn to_args(&self) -> Vec<String> {
                 let mut v = Vec::new();
@@ -445,6 +557,30 @@ mod tests {
         let bad: P = toml::from_str("rate = 2").unwrap();
         assert_eq!(bad.validate(Naming::File("s")).unwrap_err(), "s.rate = 2 is out of range (in [0, 1])");
         assert!(bad.validate(Naming::Cli).unwrap_err().starts_with("--p-rate = 2"));
+    }
+
+    /// The schema says what the declaration says: keys, options, defaults as the
+    /// options' text, bounds, choices and the doc comment.
+    #[test]
+    fn the_schema_is_the_declaration() {
+        let s = P::schema();
+        let keys: Vec<&str> = s.iter().map(|p| p.key).collect();
+        assert_eq!(keys, P::FIELDS);
+        assert_eq!(
+            (s[0].option.as_str(), s[0].default.as_deref(), s[0].min, s[0].max),
+            ("--k", Some("50"), Some(1.0), None)
+        );
+        assert_eq!(s[1].doc, "A radius [m].");
+        assert_eq!((s[2].min, s[2].max, s[2].accepts.as_str()), (Some(0.0), Some(1.0), "in (0, 1]"));
+        assert_eq!(s[3].choices, ["true", "false"]);
+        assert_eq!(
+            (s[4].choices.clone(), s[4].default.as_deref()),
+            (vec!["first".to_string(), "second-one".into()], Some("second-one"))
+        );
+        assert_eq!((s[5].key, s[5].option.as_str()), ("rate", "--p-rate"));
+        let l = Lists::schema();
+        assert_eq!((l[0].default.as_ref(), l[0].rust_type), (None, "core::option::Option<f32>"));
+        assert_eq!(l[1].min, None);
     }
 
     #[test]

@@ -51,7 +51,16 @@ pub struct Pipeline {
     /// tables (moved here from the top level when the file is read).
     #[serde(default)]
     pub scene_options: pm_stage::SceneOptions,
-    /// `"auto"` (the scene analysis decides) or a list of effects to simulate.
+    /// An animation's frames to render, first and last (inclusive; Blender's
+    /// frame numbers at `fps` frames a second, frame F at time F / fps): one
+    /// output folder per frame (`frame-F/`, photon maps traced per frame), one
+    /// array task per frame in the job plan. None: one image (at `time`, `frame`
+    /// or the rest pose).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<[u32; 2]>,
+    /// `"auto"` (the scene analysis decides; the default) or a list of effects
+    /// to simulate.
+    #[serde(default = "auto")]
     pub effects: EffectsCfg,
     /// Stage 1.
     #[serde(default)]
@@ -127,6 +136,10 @@ pub enum EffectName {
 
 fn one() -> u64 {
     1
+}
+
+fn auto() -> EffectsCfg {
+    EffectsCfg::Auto(AutoWord::Auto)
 }
 
 /// Set `key` of the serialisable `section` to `value` through its file form, so the
@@ -246,6 +259,18 @@ impl Pipeline {
         }
         let fail = |e: String| anyhow::anyhow!("{file}: {e}");
         p.scene_options.validate(Naming::File("")).map_err(fail)?;
+        p.scene_options.time_s().map_err(|e| fail(e.replace("--", "")))?;
+        if let Some([first, last]) = p.frames {
+            if first > last {
+                return Err(fail(format!("frames = [{first}, {last}]: the first frame is after the last")));
+            }
+            if p.scene_options.fps.is_none() {
+                return Err(fail("frames needs fps (frames a second, the scene's frame rate)".into()));
+            }
+            if p.scene_options.time.is_some() || p.scene_options.frame.is_some() {
+                return Err(fail("frames renders an animation: leave out time and frame".into()));
+            }
+        }
         p.trace.validate(Naming::File("trace")).map_err(fail)?;
         p.irradiance.validate(Naming::File("irradiance")).map_err(fail)?;
         p.settings().check(false).map_err(fail)?;
@@ -380,6 +405,36 @@ impl Setup {
         };
         Setup { cfg, scene, out, analysis, caustics, indirect, volume }
     }
+}
+
+/// The words of a choice with their documentation, for a user interface.
+fn words<T: clap::ValueEnum>() -> Vec<serde_json::Value> {
+    T::value_variants()
+        .iter()
+        .filter_map(T::to_possible_value)
+        .map(|v| serde_json::json!({"name": v.get_name(), "help": v.get_help().map(ToString::to_string)}))
+        .collect()
+}
+
+/// pipeline.toml's parameters as a user interface reads them, from their one
+/// definition: each section's [`pm_params::Param`]s (the top level's scene
+/// options under `""`), the render methods (`[render] mode`) and the quality
+/// words, each with its documentation. What `cargo xtask schema` prints and the
+/// Blender add-on's settings are made from.
+pub fn schema() -> serde_json::Value {
+    serde_json::json!({
+        "sections": {
+            "": pm_stage::SceneOptions::schema(),
+            "trace": TraceParams::schema(),
+            "irradiance": IrradianceParams::schema(),
+            "render": RenderParams::schema(),
+            "sppm": SppmParams::schema(),
+            "bdpt": BdptParams::schema(),
+            "vcm": VcmParams::schema(),
+        },
+        "modes": words::<Method>(),
+        "qualities": words::<Quality>(),
+    })
 }
 
 #[cfg(test)]

@@ -4,7 +4,9 @@
 //! `tiles` array tasks (`photon-render --tile K/N`, each writing its own region EXR)
 //! and an assemble step; progressive photon mapping as `runs` independent runs
 //! (`photon-render --run K/N`, each with its own seed and resumable state) and a
-//! step that averages their images; or the real-time animation as runs of frames
+//! step that averages their images; an animation (`frames` in pipeline.toml) as
+//! every step an array of one task per frame, each frame's maps and image in its
+//! own folder `frame-F/`; or the real-time animation as runs of frames
 //! and an assemble step. Every step has its command line, inputs, outputs and the steps it
 //! waits for (those that write its inputs). Written as Slurm sbatch scripts (one
 //! job array per parallel step, chained by `--dependency=afterok` in `submit.sh`)
@@ -33,6 +35,11 @@ pub struct JobStep {
     pub args: Vec<String>,
     /// Array tasks (1: a single task).
     pub tasks: u32,
+    /// The first task's index (its [`TASK`]); the tasks are `first_task` to
+    /// `first_task + tasks - 1`. 0 but for an animation's frame tasks, whose
+    /// index is the frame.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub first_task: u32,
     /// Files it reads.
     pub inputs: Vec<String>,
     /// Files it writes.
@@ -60,11 +67,29 @@ impl JobStep {
             program: program.into(),
             args,
             tasks,
+            first_task: 0,
             inputs,
             outputs,
             after: vec![],
             resumable: false,
         }
+    }
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
+}
+
+impl JobStep {
+    /// Its tasks' indices.
+    pub fn task_indices(&self) -> std::ops::Range<u32> {
+        self.first_task..self.first_task + self.tasks
+    }
+
+    /// True when it is an array of tasks, each given its index (one frame task
+    /// is one too: its index is the frame).
+    pub fn is_array(&self) -> bool {
+        self.tasks > 1 || self.first_task > 0
     }
 }
 
@@ -118,6 +143,15 @@ impl Default for Parts {
 pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) -> Result<JobPlan> {
     let Setup { cfg, scene, out, caustics, indirect, volume, .. } = setup;
     let Parts { tiles, slices, runs, run_budget_s } = parts;
+    // An animation: every step an array of one task per frame, each frame in its
+    // own folder with its own photon maps, the stages that load the scene posed
+    // at --frame TASK.
+    let frames = cfg.frames.map(|[first, last]| (first, last - first + 1));
+    if frames.is_some() && parts != Parts::default() {
+        bail!("frames: an animation is planned as one task per frame; leave out --tiles, --trace-slices and --runs");
+    }
+    let frame_dir = out.join(format!("frame-{TASK}"));
+    let out: &Path = if frames.is_some() { &frame_dir } else { out };
     if tiles == 0 || tiles > cfg.render.height {
         bail!("--tiles {tiles}: needs 1 to the image's {} rows", cfg.render.height);
     }
@@ -219,11 +253,18 @@ pub fn job_plan(setup: &Setup, program: &dyn Fn(&str) -> PathBuf, parts: Parts) 
             }
             _ => {
                 args.extend(step.write_args());
-                jobs.push(JobStep::array(&step.name, &bin, args, 1, inputs, outputs));
+                let mut job = JobStep::array(&step.name, &bin, args, 1, inputs, outputs);
+                if let Some((first, n)) = frames {
+                    if step.loads_scene() {
+                        job.args.extend(["--frame".into(), TASK.into()]);
+                    }
+                    (job.first_task, job.tasks) = (first, n);
+                }
+                jobs.push(job);
             }
         }
     }
-    Ok(JobPlan::new(s(out), jobs))
+    Ok(JobPlan::new(s(&setup.out), jobs))
 }
 
 /// The job graph of a real-time animation of `frames` frames drawn by `photon`
@@ -317,8 +358,9 @@ pub fn slurm(plan: &JobPlan) -> Vec<(String, String)> {
         let mut t = String::from("#!/bin/bash\n");
         let _ = writeln!(t, "#SBATCH --job-name=pm-{}", step.name.replace(' ', "-"));
         let _ = writeln!(t, "#SBATCH --output=logs/{stem}-%A_%a.log");
-        if step.tasks > 1 {
-            let _ = writeln!(t, "#SBATCH --array=0-{}", step.tasks - 1);
+        if step.is_array() {
+            let ks = step.task_indices();
+            let _ = writeln!(t, "#SBATCH --array={}-{}", ks.start, ks.end - 1);
         }
         let _ = writeln!(
             t,
@@ -366,9 +408,10 @@ pub fn openjd(plan: &JobPlan) -> serde_json::Value {
                 "name": step.name,
                 "script": {"actions": {"onRun": {"command": step.program, "args": args}}},
             });
-            if step.tasks > 1 {
+            if step.is_array() {
+                let ks = step.task_indices();
                 v["parameterSpace"] = serde_json::json!({
-                    "taskParameterDefinitions": [{"name": "Index", "type": "INT", "range": format!("0-{}", step.tasks - 1)}]
+                    "taskParameterDefinitions": [{"name": "Index", "type": "INT", "range": format!("{}-{}", ks.start, ks.end - 1)}]
                 });
             }
             if !step.after.is_empty() {

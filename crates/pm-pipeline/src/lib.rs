@@ -16,4 +16,4 @@ pub mod jobs;
 pub mod quality;
 pub mod steps;
 
-pub use config::{AutoWord, EffectName, EffectsCfg, Pipeline, Quality, Setup};
+pub use config::{AutoWord, EffectName, EffectsCfg, Pipeline, Quality, Setup, schema};

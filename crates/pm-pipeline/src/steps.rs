@@ -67,6 +67,12 @@ impl Step {
         self.kind.program()
     }
 
+    /// True when its stage loads the scene (and so takes the scene options:
+    /// the time or frame its animation is posed at).
+    pub fn loads_scene(&self) -> bool {
+        self.args.iter().any(|a| a == "--scene")
+    }
+
     /// The options that say where it writes and its statistics file.
     pub fn write_args(&self) -> Vec<String> {
         let mut a = Vec::new();

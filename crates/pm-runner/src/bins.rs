@@ -145,7 +145,9 @@ fn wait_for(
         let mut last = String::new();
         for line in err.into_iter().flat_map(|e| BufReader::new(e).lines()) {
             let line = line.unwrap_or_default();
-            if !quiet {
+            // Progress lines (asked for by pm_stage::PROGRESS_LINES) go to
+            // whoever watches this runner, even from a quiet stage.
+            if !quiet || line.starts_with(pm_stage::PROGRESS_PREFIX) {
                 let _ = writeln!(std::io::stderr(), "{line}");
             }
             if !line.trim().is_empty() {

@@ -17,8 +17,12 @@ pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
     for step in &plan.steps {
         let run_task = |k: u32| -> Result<TaskTime> {
             let args: Vec<String> = step.args.iter().map(|a| a.replace(TASK, &k.to_string())).collect();
-            let name =
-                if step.tasks > 1 { format!("{} (task {k} of {})", step.name, step.tasks) } else { step.name.clone() };
+            let ks = step.task_indices();
+            let name = match (step.is_array(), step.first_task) {
+                (false, _) => step.name.clone(),
+                (true, 0) => format!("{} (task {k} of {})", step.name, step.tasks),
+                (true, first) => format!("{} (task {k} of {first} to {})", step.name, ks.end - 1),
+            };
             let t = std::time::Instant::now();
             let program = Path::new(&step.program);
             let intact = |e: anyhow::Error| anyhow::anyhow!("{e}; earlier outputs in {} are intact", plan.out);
@@ -40,7 +44,7 @@ pub fn execute(plan: &JobPlan, workers: u32) -> Result<(Vec<TaskTime>, f64)> {
             Ok(TaskTime { step: step.name.clone(), tasks: step.tasks, task: k, seconds })
         };
         // Tasks in waves of `workers`, each wave's processes side by side.
-        let ks: Vec<u32> = (0..step.tasks).collect();
+        let ks: Vec<u32> = step.task_indices().collect();
         for wave in ks.chunks(workers.max(1) as usize) {
             let results: Vec<Result<TaskTime>> = std::thread::scope(|sc| {
                 let handles: Vec<_> = wave.iter().map(|&k| sc.spawn(move || run_task(k))).collect();

@@ -62,6 +62,11 @@ pub struct RunArgs {
     /// The image is the same as without it.
     #[arg(long, value_name = "SECONDS")]
     pub run_time_budget: Option<f64>,
+    /// The folder of the stage binaries to run (as built by `cargo build
+    /// --release`); given, nothing is built (what the Blender add-on passes)
+    /// [default: build them and use cargo's target/release].
+    #[arg(long, value_name = "DIR")]
+    pub bins: Option<PathBuf>,
 }
 
 impl RunArgs {
@@ -72,6 +77,14 @@ impl RunArgs {
             slices: self.trace_slices.max(1),
             runs: self.runs.max(1),
             run_budget_s: self.run_time_budget,
+        }
+    }
+
+    /// The stage binaries: `--bins` as they are, else built.
+    pub fn binaries(&self, root: &Path) -> Result<Bins> {
+        match &self.bins {
+            Some(dir) => Ok(Bins::at(dir.clone())),
+            None => Bins::build(root),
         }
     }
 
@@ -90,9 +103,10 @@ pub struct Outcome {
     pub ran: bool,
 }
 
-/// Run the pipeline with the repository's release binaries, building them first.
+/// Run the pipeline with the repository's release binaries, building them first
+/// (or with those in `--bins`, as they are).
 pub fn run(args: &RunArgs, root: &Path) -> Result<Vec<Outcome>> {
-    let bins = Bins::build(root)?;
+    let bins = args.binaries(root)?;
     run_with(args, root, &bins)
 }
 
@@ -133,8 +147,8 @@ pub fn setup(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Setup> {
 /// Run the pipeline with the stage binaries in `bins`.
 pub fn run_with(args: &RunArgs, root: &Path, bins: &Bins) -> Result<Vec<Outcome>> {
     let set = setup(args, root, bins)?;
-    if args.planned() {
-        // The job plan, executed here.
+    if args.planned() || set.cfg.frames.is_some() {
+        // The job plan, executed here (an animation: a task per frame).
         let program = |name: &str| bins.path(name);
         let plan = pm_pipeline::jobs::job_plan(&set, &program, args.parts())?;
         println!(

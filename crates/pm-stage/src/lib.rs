@@ -121,7 +121,7 @@ pub fn thread_count() -> usize {
 pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneOptions) -> Result<()> {
     how.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let in_file = |e: String| anyhow::anyhow!("{}: {e}", path.display());
-    if let Some(t) = how.time {
+    if let Some(t) = how.time_s().map_err(|e| anyhow::anyhow!(e))? {
         scene.set_time(t);
     }
     let spec = match &how.environment {
@@ -224,12 +224,32 @@ pub fn write_text(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Progress of a long step: a bar on a terminal; on a pipe or in CI, a start line
-/// and a finish line with the elapsed time (indicatif hides itself there).
+/// and a finish line with the elapsed time (indicatif hides itself there). With
+/// the environment variable [`PROGRESS_LINES`] set (what the Blender add-on
+/// sets), also a line `progress: PROGRAM: LABEL DONE/TOTAL` on stderr at most
+/// every quarter second, for a program that shows another's progress.
 pub struct Progress {
     bar: indicatif::ProgressBar,
     label: String,
     start: Instant,
     terminal: bool,
+    lines: Option<std::sync::Mutex<(Instant, u64)>>,
+    total: u64,
+}
+
+/// The environment variable that asks every stage for progress lines
+/// ([`Progress`]); the runner passes them on even when it keeps a stage quiet.
+pub const PROGRESS_LINES: &str = "PHOTON_MAP_PROGRESS";
+
+/// How a progress line starts.
+pub const PROGRESS_PREFIX: &str = "progress: ";
+
+/// This program's name, for progress lines.
+fn program_name() -> String {
+    std::env::args()
+        .next()
+        .and_then(|a| Path::new(&a).file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .unwrap_or_default()
 }
 
 impl Progress {
@@ -249,12 +269,24 @@ impl Progress {
             eprintln!("{label}: started");
             indicatif::ProgressBar::hidden()
         };
-        Progress { bar, label: label.to_owned(), start: Instant::now(), terminal }
+        let lines = std::env::var_os(PROGRESS_LINES).map(|_| {
+            eprintln!("{PROGRESS_PREFIX}{}: {label} 0/{total}", program_name());
+            std::sync::Mutex::new((Instant::now(), 0))
+        });
+        Progress { bar, label: label.to_owned(), start: Instant::now(), terminal, lines, total }
     }
 
     /// Set the number of units done.
     pub fn set(&self, done: u64) {
         self.bar.set_position(done);
+        if let Some(lines) = &self.lines
+            && let Ok(mut last) = lines.lock()
+            && last.0.elapsed().as_secs_f64() >= 0.25
+            && done != last.1
+        {
+            *last = (Instant::now(), done);
+            eprintln!("{PROGRESS_PREFIX}{}: {} {done}/{}", program_name(), self.label, self.total);
+        }
     }
 
     /// True when the bar is drawn (stderr is a terminal), so a message is seen.

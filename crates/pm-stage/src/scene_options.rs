@@ -6,7 +6,7 @@
 //! (serde), prints back as the option (`Display`) and says what is wrong with it
 //! ([`pm_params::SelfChecked`]).
 
-use pm_params::{Any, SelfChecked, Valid, at_least, finite};
+use pm_params::{Any, SelfChecked, Valid, above, at_least, finite};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::PathBuf;
@@ -30,6 +30,17 @@ pm_params::params! {
         #[serde(skip_serializing_if = "Option::is_none")]
         #[arg(value_name = "SECONDS")]
         time: Option<f32> => finite();
+        /// Pose the animations at this frame of --fps frames a second instead of
+        /// --time: time frame / fps [s], Blender's frame numbers as its glTF
+        /// exporter writes them (frame F at F / fps; 0 at the file's time 0).
+        /// What a job plan's frame tasks give each stage (`frames` in pipeline.toml).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        #[arg(value_name = "N")]
+        frame: Option<u32> => Any;
+        /// Frames a second of --frame [1/s] (Blender's scene frame rate).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        #[arg(value_name = "RATE")]
+        fps: Option<f32> => above(0.0);
         /// Light from infinitely far away, FILE or R,G,B: an equirectangular image
         /// (.exr or Radiance .hdr, twice as wide as high, oriented as Blender's
         /// Environment Texture: the image's centre faces +X, its top row the zenith)
@@ -77,6 +88,18 @@ pm_params::params! {
 }
 
 impl SceneOptions {
+    /// The time to pose the animations at [s]: --time, or --frame over --fps;
+    /// none for the rest pose. An error when both --time and --frame are given,
+    /// or --frame without --fps.
+    pub fn time_s(&self) -> Result<Option<f32>, String> {
+        match (self.time, self.frame, self.fps) {
+            (Some(_), Some(_), _) => Err("--time and --frame both pose the animation: give one".into()),
+            (None, Some(_), None) => Err("--frame needs --fps (the frame rate)".into()),
+            (None, Some(f), Some(r)) => Ok(Some(f as f32 / r)),
+            (t, None, _) => Ok(t),
+        }
+    }
+
     /// The environment image file, if the options name one (an input of every
     /// step that loads the scene).
     pub fn environment_file(&self) -> Option<&std::path::Path> {

@@ -132,6 +132,7 @@ fn the_local_executor_names_the_failing_task() {
         program: "/bin/sh".into(),
         args: vec!["-c".into(), script],
         tasks: 1,
+        first_task: 0,
         inputs: vec![],
         outputs: vec![],
         after: vec![],
@@ -285,4 +286,50 @@ fn sppm_runs_average_and_continue_after_a_time_budget() {
     let e =
         plan_for(&RunArgs { method: Some(pm_methods::Method::Path), ..a }, &root(), &bins()).unwrap_err().to_string();
     assert!(e.contains("progressive photon mapping's"), "{e}");
+}
+
+/// An animation in the job plan: `frames = [24, 25]` plans every step as an array
+/// of one task per frame (the frame's index), each frame's photon maps and image
+/// in its own folder, and the frames equal the same frames rendered one by one
+/// (`frame = F`) byte for byte; the Slurm scripts give the array its frame
+/// numbers.
+#[test]
+fn an_animations_frame_tasks_equal_its_frames_rendered_one_by_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = root().join("tests/scenes/blender_room/blender_room.gltf");
+    let write = |name: &str, frames: Option<[u32; 2]>, frame: Option<u32>| {
+        let p = pm_tests::small_pipeline(dir.path(), &scene.display().to_string(), "\"auto\"", 4, name);
+        pm_tests::edit_pipeline(&p, |p| {
+            (p.frames, p.scene_options.frame, p.scene_options.fps) = (frames, frame, Some(24.0));
+        });
+        p
+    };
+    let frames = write("frames", Some([24, 25]), None);
+    let args = RunArgs { pipeline: Some(frames), out: Some(dir.path().join("anim")), workers: 2, ..Default::default() };
+    let plan = plan_for(&args, &root(), &bins()).unwrap();
+    assert!(plan.steps.iter().all(|s| (s.first_task, s.tasks) == (24, 2)), "{:?}", plan.steps);
+    assert!(
+        plan.steps
+            .iter()
+            .filter(|s| s.args.iter().any(|a| a == "--scene"))
+            .all(|s| s.args.ends_with(&["--frame".into(), "{TASK}".into()]))
+    );
+    let sbatch = slurm(&plan);
+    assert!(sbatch.iter().filter(|(n, _)| n.ends_with(".sbatch")).all(|(_, t)| t.contains("#SBATCH --array=24-25")));
+    run_with(&args, &root(), &bins()).unwrap();
+    for f in [24u32, 25] {
+        let one = write(&format!("frame{f}"), None, Some(f));
+        let out = dir.path().join(format!("one-{f}"));
+        run_with(&RunArgs { pipeline: Some(one), out: Some(out.clone()), ..Default::default() }, &root(), &bins())
+            .unwrap();
+        for file in ["global.pmap", "image.exr"] {
+            let a = std::fs::read(dir.path().join(format!("anim/frame-{f}")).join(file)).unwrap();
+            assert!(a == std::fs::read(out.join(file)).unwrap(), "frame {f}: {file} differs");
+        }
+    }
+    let (a, b) = (
+        std::fs::read(dir.path().join("anim/frame-24/image.exr")).unwrap(),
+        std::fs::read(dir.path().join("anim/frame-25/image.exr")).unwrap(),
+    );
+    assert!(a != b, "the lamp and the box move between frames");
 }
