@@ -78,6 +78,36 @@ enum Task {
     /// judged by the bound its documentation states, in mean and 8 x 8 blocks per
     /// layer; OUT/report.json and a one-line summary.
     Differential(differential::Args),
+    /// Every layer of an EXR image (the image itself as `total`) as a Portable
+    /// Float Map, DIR/<layer>.pfm: float RGB from the bottom row up, what the
+    /// Blender add-on loads into its render passes.
+    Layers {
+        /// The image (OpenEXR, as photon-render writes it).
+        image: PathBuf,
+        /// The folder to write the maps into.
+        #[arg(long)]
+        pfm: PathBuf,
+    },
+    /// The Blender add-on (blender/photon_map) as an extension zip,
+    /// target/blender/photon_map-VERSION.zip, with schema.json (the settings,
+    /// from pipeline.toml's parameter definitions) and the folder of this
+    /// repository's release programs; builds them first. Install it with
+    /// Blender's Preferences > Get Extensions > Install from Disk.
+    BlenderAddon,
+    /// The Blender add-on's tests (tests/blender/test_addon.py) under Blender as a
+    /// Python module (bpy 4.5.4, installed into target/bpy when missing): renders
+    /// through the add-on against Cycles, world orientation, volume conversion,
+    /// passes, cancelling, an animation.
+    BlenderTest {
+        /// Run only the test of this name.
+        #[arg(long)]
+        only: Option<String>,
+    },
+    /// Print pipeline.toml's parameters as JSON, from their one definition:
+    /// each section's keys with option, documentation (units), type, default,
+    /// accepted range and choices; the render methods and quality words. The
+    /// Blender add-on's settings are made from it.
+    Schema,
     /// Write scenes/*.gltf + .bin from code.
     GenScenes {
         /// Fail if the committed files differ from what the code generates.
@@ -159,6 +189,13 @@ fn main() -> std::process::ExitCode {
         Task::Scale(a) => scale::run(&a, &root),
         Task::Peer(a) => peer::run(&a, &root),
         Task::Differential(a) => differential::run(&a, &root).map(|_| ()),
+        Task::BlenderAddon => blender_addon(&root),
+        Task::BlenderTest { only } => blender_test(&root, only.as_deref()),
+        Task::Layers { image, pfm } => write_layers(&image, &pfm),
+        Task::Schema => {
+            println!("{}", serde_json::to_string_pretty(&pm_pipeline::schema()).expect("the schema serialises"));
+            Ok(())
+        }
         Task::GenScenes { big: true, .. } => gen_scenes::run_big(&root.join("out/big-scenes")),
         Task::GenScenes { check, .. } => gen_scenes::run(&root.join("scenes"), check),
     };
@@ -186,6 +223,44 @@ fn emit_plan(run: run::RunArgs, emit: &[String], root: &std::path::Path) -> Resu
         frame_tasks: 1,
     };
     plan::run(&args, root)
+}
+
+/// `cargo xtask blender-addon`.
+fn blender_addon(root: &std::path::Path) -> Result<()> {
+    use pm_runner::blender;
+    let bins = pm_runner::bins::Bins::build(root)?;
+    let dir = bins.dir.parent().unwrap_or(root).join("blender");
+    let staged = blender::stage_addon(root, &bins.dir, &dir)?;
+    let zip = dir.join(format!("photon_map-{}.zip", blender::addon_version(root)?));
+    blender::zip_addon(&staged, &zip)?;
+    println!(
+        "wrote {} (the add-on, for Blender 4.2 and newer; it runs the programs in {})",
+        zip.display(),
+        bins.dir.display()
+    );
+    Ok(())
+}
+
+/// `cargo xtask blender-test`.
+fn blender_test(root: &std::path::Path, only: Option<&str>) -> Result<()> {
+    use pm_runner::blender;
+    let bins = pm_runner::bins::Bins::build(root)?;
+    let python = blender::ensure_bpy(root)?;
+    let work = bins.dir.parent().unwrap_or(root).join("blender-test");
+    std::fs::create_dir_all(&work)?;
+    blender::run_tests(root, &python, &bins.dir, &work, only)
+}
+
+/// `cargo xtask layers IMAGE --pfm DIR`.
+fn write_layers(image: &std::path::Path, dir: &std::path::Path) -> Result<()> {
+    let img = pm_image::read_exr(image)?;
+    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: cannot create: {e}", dir.display()))?;
+    for (name, px) in &img.layers {
+        pm_image::write_pfm(&dir.join(format!("{name}.pfm")), img.width as usize, img.height as usize, px)?;
+    }
+    let names: Vec<&str> = img.layers.iter().map(|l| l.0.as_str()).collect();
+    println!("wrote {} layers of {} to {}: {}", names.len(), image.display(), dir.display(), names.join(", "));
+    Ok(())
 }
 
 /// A layer named on the command line.

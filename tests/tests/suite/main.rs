@@ -3,6 +3,7 @@
 //! module is one area; TESTING.md says what each test compares against.
 
 mod bdpt;
+mod blender;
 mod differential;
 mod effects;
 mod environment;
