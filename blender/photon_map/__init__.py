@@ -102,8 +102,9 @@ GROUPS = {s: _section_group(s) for s in SECTIONS}
 
 
 def _words(kind):
-    return [(w["name"], w["name"].upper() if len(w["name"]) < 5 else w["name"].capitalize(), w["help"] or "")
-            for w in SCHEMA[kind]]
+    """EnumProperty items of the schema's words (methods, qualities)."""
+    label = {"sppm": "SPPM", "bdpt": "BDPT", "vcm": "VCM"}
+    return [(w["name"], label.get(w["name"], w["name"].capitalize()), w["help"] or "") for w in SCHEMA[kind]]
 
 
 class PhotonMapSettings(bpy.types.PropertyGroup):
@@ -127,9 +128,10 @@ class PhotonMapSettings(bpy.types.PropertyGroup):
         **{s: bpy.props.PointerProperty(type=g) for s, g in GROUPS.items()},
     }
 
-    def toml(self):
-        """The settings as pipeline.toml text: top-level keys, then a table per
-        section with the values that differ from the renderer's defaults."""
+    def toml(self, width, height):
+        """The settings as pipeline.toml text for an image of `width` x `height`
+        pixels: top-level keys, and a table per section with the values that
+        differ from the renderer's defaults."""
         top = [f"seed = {self.seed}"]
         if self.quality != "CUSTOM":
             top.append(f'quality = "{self.quality}"')
@@ -138,7 +140,7 @@ class PhotonMapSettings(bpy.types.PropertyGroup):
         tables = []
         for s, g in GROUPS.items():
             group = getattr(self, s)
-            lines = [f'mode = "{self.method}"'] if s == "render" else []
+            lines = [f'mode = "{self.method}"', f"width = {width}", f"height = {height}"] if s == "render" else []
             for p in g.params:
                 v = getattr(group, p["key"])
                 text = _toml_value(p, v)
@@ -239,9 +241,7 @@ class PhotonMapEngine(bpy.types.RenderEngine):
             last_warnings = ex.warnings
             if ex.warnings:
                 self.report({"WARNING"}, "Photon Map: not converted: " + "; ".join(ex.warnings))
-            top, tables = settings.toml()
-            (width, height) = (w, h)
-            tables = [t.replace("[render]\n", f"[render]\nwidth = {width}\nheight = {height}\n") for t in tables]
+            top, tables = settings.toml(w, h)
             pipeline = os.path.join(folder, "pipeline.toml")
             with open(pipeline, "w", encoding="utf-8") as f:
                 f.write("# Written by the Blender add-on photon_map.\n" + ex.keys + top + "\n" + "\n".join(

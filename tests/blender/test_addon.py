@@ -197,6 +197,25 @@ def test_cancel():
     print(f"the render returned {returned - pressed:.3f} s after Esc")
 
 
+def test_failed_stage():
+    """A stage that fails (the world's image on disk is not an image) shows its
+    one-line error, naming the file, as the render's error; nothing is left."""
+    scene = addon_scenes.stage()
+    bad = path("broken.hdr")
+    with open(bad, "wb") as f:
+        f.write(b"not an image")
+    env = scene.world.node_tree.nodes["Environment Texture"]
+    env.image = bpy.data.images.load(bad, check_existing=False)
+    scene.render.engine = "PHOTON_MAP"
+    try:
+        bpy.ops.render.render()
+        raise AssertionError("the render did not fail")
+    except RuntimeError as e:
+        msg = str(e)
+    assert "Photon Map:" in msg and bad in msg and "not a Radiance HDR" in msg and "\n" not in msg.strip(), msg
+    assert photon_map.last_folder is None or not os.path.exists(photon_map.last_folder)
+
+
 def test_animation():
     """Render Animation of frames 23 and 24 of the animated room (a lamp circling,
     a box sliding) through the add-on: both frames written where the output path
@@ -215,7 +234,8 @@ def test_animation():
     assert abs(bias) < 0.05 and worst < 0.20, (bias, worst)
 
 
-TESTS = [test_stage_against_cycles, test_volume_conversion, test_world_orientation, test_cancel, test_animation]
+TESTS = [test_stage_against_cycles, test_volume_conversion, test_world_orientation, test_cancel, test_failed_stage,
+         test_animation]
 
 
 def main():
