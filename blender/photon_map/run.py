@@ -17,6 +17,10 @@ from . import exr
 PROGRESS = re.compile(r"^progress: ([^:]+): (.*) (\d+)/(\d+)\s*$")
 
 
+# The process group of the last program run (its pid), for scripts and tests.
+last_group = None
+
+
 class Cancelled(Exception):
     """The user stopped the render."""
 
@@ -52,12 +56,12 @@ def _stop(proc):
         pass
     proc.wait()
     for _ in range(100):
-        if not _running_in_group(proc.pid):
+        if not running_in_group(proc.pid):
             return
         time.sleep(0.01)
 
 
-def _running_in_group(pgid):
+def running_in_group(pgid):
     """True while a process of group `pgid` runs (a killed one waiting to be
     reaped, a zombie, does not)."""
     if not os.path.isdir("/proc"):
@@ -86,8 +90,10 @@ def run(cmd, engine, what, stop=None):
     the program's one-line error when it fails."""
     stop = stop or engine.test_break
     env = dict(os.environ, PHOTON_MAP_PROGRESS="1")
+    global last_group
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                             env=env, text=True, errors="replace", start_new_session=(os.name != "nt"))
+    last_group = proc.pid
     lines = queue.Queue()
 
     def read():
