@@ -201,6 +201,17 @@ def _prefs(context):
 _animation = {}
 
 
+def export(scene_name, view_layer_name, folder, animation):
+    """Export the scene `scene_name` as its view layer `view_layer_name` sees it
+    into `folder` (convert.export). Called on Blender's main thread
+    (run.on_main_thread), from the original data, not the render's evaluated copy:
+    the glTF exporter reads bpy.context's scene and view layer, which are set here."""
+    scene = bpy.data.scenes[scene_name]
+    layer = scene.view_layers.get(view_layer_name) or bpy.context.view_layer
+    with bpy.context.temp_override(scene=scene, view_layer=layer):
+        return convert.export(scene, folder, animation)
+
+
 class PhotonMapEngine(bpy.types.RenderEngine):
     bl_idname = "PHOTON_MAP"
     bl_label = "Photon Map"
@@ -232,12 +243,28 @@ class PhotonMapEngine(bpy.types.RenderEngine):
         w, h = int(scene.render.resolution_x * scale), int(scene.render.resolution_y * scale)
         frame = scene.frame_current
         key = (scene.name, scene.frame_start, scene.frame_end, w, h)
-        if self.is_animation and _animation.get("key") == key:
+        animation = self.is_animation
+        started = time.time()
+
+        def stop():
+            global stop_requested_at
+            pressed = self.test_break() or (break_after is not None and time.time() - started > break_after)
+            if pressed and stop_requested_at is None:
+                stop_requested_at = time.time()
+            return pressed
+
+        if animation and _animation.get("key") == key:
             folder = _animation["folder"]
         else:
             folder = tempfile.mkdtemp(prefix="photon_map_")
             self.update_stats("Photon Map", "exporting the scene")
-            ex = convert.export(scene, depsgraph, folder, self.is_animation)
+            names = (scene.name, depsgraph.view_layer.name)
+            try:
+                ex = run.on_main_thread(lambda: export(*names, folder, animation), stop, bpy.app.timers.register)
+            except BaseException:
+                if not keep:
+                    shutil.rmtree(folder, ignore_errors=True)
+                raise
             last_warnings = ex.warnings
             if ex.warnings:
                 self.report({"WARNING"}, "Photon Map: not converted: " + "; ".join(ex.warnings))
@@ -246,15 +273,6 @@ class PhotonMapEngine(bpy.types.RenderEngine):
             with open(pipeline, "w", encoding="utf-8") as f:
                 f.write("# Written by the Blender add-on photon_map.\n" + ex.keys + top + "\n" + "\n".join(
                     ex.tables + tables))
-            started = time.time()
-
-            def stop():
-                global stop_requested_at
-                pressed = self.test_break() or (break_after is not None and time.time() - started > break_after)
-                if pressed and stop_requested_at is None:
-                    stop_requested_at = time.time()
-                return pressed
-
             try:
                 run.run([xtask, "run", "--bins", bins, "--pipeline", pipeline, "--out", os.path.join(folder, "out")],
                         self, "Photon Map", stop)
@@ -262,7 +280,7 @@ class PhotonMapEngine(bpy.types.RenderEngine):
                 if not keep:
                     shutil.rmtree(folder, ignore_errors=True)
                 raise
-            if self.is_animation:
+            if animation:
                 _animation.clear()
                 _animation.update(key=key, folder=folder)
         out = os.path.join(folder, "out")

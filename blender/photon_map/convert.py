@@ -223,7 +223,7 @@ def world(scene, folder, warnings):
             return w
         if colour.bl_idname != "ShaderNodeTexEnvironment" or colour.projection != "EQUIRECTANGULAR":
             raise Unconvertible(f"the world's colour comes from a {colour.bl_idname}")
-        w.rotation_deg = _mapping_rotation(colour.inputs["Vector"], warnings)
+        w.rotation_deg = _mapping_rotation(colour.inputs["Vector"])
         w.environment = _environment_file(colour.image, folder)
     except Unconvertible as e:
         # Anything else the world shows (a Sky Texture, gradients, mixes): render
@@ -233,7 +233,7 @@ def world(scene, folder, warnings):
     return w
 
 
-def _mapping_rotation(vector, warnings):
+def _mapping_rotation(vector):
     """The Environment Texture's rotation about the up axis [degrees], from a
     Mapping node on its Vector input: a Point mapping's rotation about Z of
     +a turns the environment by -a, the renderer's environment_rotation_deg
@@ -342,7 +342,7 @@ def _needs_tangents(materials):
     return False
 
 
-def export(scene, depsgraph, folder, animation):
+def export(scene, folder, animation):
     """Export `scene` into `folder` (scene.gltf, its buffers and images, the world
     image) and return the pipeline file's scene keys (world, sun sizes, media;
     the frame range when `animation`)."""

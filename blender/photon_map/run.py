@@ -29,6 +29,48 @@ class Failed(Exception):
     """A stage failed; the message is its one-line error."""
 
 
+def on_main_thread(fn, stop, schedule):
+    """`fn()`'s value, `fn` run on Blender's main thread.
+
+    F12 in Blender's window renders on a job thread, where `bpy.context` has no
+    window, view layer or active object, and the glTF exporter fails
+    (KhronosGroup/glTF-Blender-IO issue 1943: "'Context' object has no attribute
+    'active_object'"); an operator run there would also race the interface. From
+    any thread but the main one, `fn` is handed to `schedule` (`bpy.app.timers.register`:
+    Blender's main loop runs timers with its first window as the context) and the
+    caller waits for it, a tenth of a second at a time, asking `stop()` between.
+    Headless (`bpy.ops.render.render()` from a script) the render runs on the main
+    thread, where `fn` is called at once (timers never run there). `fn`'s
+    exception is raised here; `Cancelled` when `stop()` says so before `fn`
+    started (once it runs it runs to its end: an export is not interruptible)."""
+    if threading.current_thread() is threading.main_thread():
+        return fn()
+    done, box, lock = threading.Event(), {}, threading.Lock()
+
+    def task():
+        with lock:  # either it starts or the waiter cancels it, not both
+            if box.get("state") == "cancelled":
+                return None
+            box["state"] = "started"
+        try:
+            box["value"] = fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = e
+        finally:
+            done.set()
+        return None  # once, not again
+
+    schedule(task)
+    while not done.wait(0.1):
+        with lock:
+            if box.get("state") is None and stop():
+                box["state"] = "cancelled"
+                raise Cancelled()
+    if "error" in box:
+        raise box["error"]
+    return box.get("value")
+
+
 def binaries(preference, default):
     """The folder of the renderer's programs: $PHOTON_MAP_BIN, else the add-on's
     preference, else where they were built when the add-on was made."""

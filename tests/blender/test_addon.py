@@ -120,7 +120,7 @@ def test_volume_conversion():
     for kind in ("principled", "scatter+absorb"):
         scene = addon_scenes.stage(kind)
         scene.render.resolution_x = scene.render.resolution_y = 32
-        ex = photon_map.convert.export(scene, bpy.context.evaluated_depsgraph_get(), path(f"vol_{kind}"), False)
+        ex = photon_map.convert.export(scene, path(f"vol_{kind}"), False)
         table = [t for t in ex.tables if t.startswith('[media."fog"]')][0]
         media.append([float(x) for x in re.findall(r"[-0-9.e]+(?=[,\]\n])", table)])
         render(scene, path(f"vol_{kind}.exr"))
@@ -199,6 +199,65 @@ def test_cancel():
     print(f"the render returned {returned - pressed:.3f} s after Esc")
 
 
+def test_export_from_job_thread():
+    """F12 in Blender's window renders on a job thread, where the glTF exporter
+    fails for want of a context; the engine hands its export to the main thread
+    (run.on_main_thread, by Blender's timers) and waits. Here a thread stands for
+    the job thread and this test's loop for Blender's main loop (headless, timers
+    never run): the export runs on the main thread and writes what it writes
+    when called there directly; its error reaches the job thread; Esc before it
+    starts cancels it unrun."""
+    import queue
+    import threading
+
+    scene = addon_scenes.stage()
+    layer = bpy.context.view_layer.name
+    jobs, results = queue.Queue(), {}
+    ran_on = []
+
+    def export(folder):
+        ran_on.append(threading.current_thread() is threading.main_thread())
+        return photon_map.export(scene.name, layer, folder, False)
+
+    def job(name, fn, stop=lambda: False):
+        try:
+            results[name] = photon_map.run.on_main_thread(fn, stop, jobs.put)
+        except BaseException as e:  # noqa: BLE001 - the test looks at it
+            results[name] = e
+
+    def main_loop(worker):
+        while worker.is_alive():
+            try:
+                jobs.get(timeout=0.05)()
+            except queue.Empty:
+                continue
+
+    for name, fn in [("export", lambda: export(path("job_thread"))),
+                     ("error", lambda: photon_map.export("no such scene", layer, path("job_error"), False))]:
+        worker = threading.Thread(target=job, args=(name, fn))
+        worker.start()
+        main_loop(worker)
+        worker.join()
+    assert ran_on == [True], ran_on
+    direct = photon_map.export(scene.name, layer, path("main_thread"), False)
+    ex = results["export"]
+    assert isinstance(ex, photon_map.convert.Export), ex
+    keys = ex.keys.replace(path("job_thread"), path("main_thread"))  # the world image's path
+    assert (keys, ex.tables, ex.warnings) == (direct.keys, direct.tables, direct.warnings), (ex.keys, direct.keys)
+    for f in ("scene.gltf", "scene.bin", "world.exr"):
+        with open(path(f"job_thread/{f}"), "rb") as a, open(path(f"main_thread/{f}"), "rb") as b:
+            assert a.read() == b.read(), f
+    assert isinstance(results["error"], KeyError), results["error"]
+    # Esc while the export waits for the main loop: cancelled, never run.
+    worker = threading.Thread(target=job, args=("esc", lambda: export(path("job_esc")), lambda: True))
+    worker.start()
+    worker.join()  # a main loop busy elsewhere
+    assert isinstance(results["esc"], photon_map.run.Cancelled), results["esc"]
+    task = jobs.get_nowait()
+    task()  # Blender's main loop gets to it after all: it does nothing
+    assert ran_on == [True] and not os.path.exists(path("job_esc")), ran_on
+
+
 def test_failed_stage():
     """A stage that fails (the world's image on disk is not an image) shows its
     one-line error, naming the file, as the render's error; nothing is left."""
@@ -236,8 +295,8 @@ def test_animation():
     assert abs(bias) < 0.05 and worst < 0.20, (bias, worst)
 
 
-TESTS = [test_stage_against_cycles, test_volume_conversion, test_world_orientation, test_cancel, test_failed_stage,
-         test_animation]
+TESTS = [test_stage_against_cycles, test_volume_conversion, test_world_orientation, test_cancel,
+         test_export_from_job_thread, test_failed_stage, test_animation]
 
 
 def main():

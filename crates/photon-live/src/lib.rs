@@ -189,7 +189,7 @@ fn run_frames<M: pm_live::FrameMethod>(
     let progress = Progress::new("frames", frames.end as u64);
     let mut rows: Vec<M::Row> = Vec::new();
     let mut apng = Vec::new();
-    let fixed = cli.scene_options.time_s().map_err(|e| anyhow::anyhow!(e))?;
+    let fixed = cli.scene_options.time_s(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     for i in 0..frames.end {
         // Frame i shows time i / fps: animated lights and camera move there.
         live.set_time(fixed.unwrap_or(i as f32 / f.fps));

@@ -259,7 +259,7 @@ impl Pipeline {
         }
         let fail = |e: String| anyhow::anyhow!("{file}: {e}");
         p.scene_options.validate(Naming::File("")).map_err(fail)?;
-        p.scene_options.time_s().map_err(|e| fail(e.replace("--", "")))?;
+        p.scene_options.time_s(Naming::File("")).map_err(fail)?;
         if let Some([first, last]) = p.frames {
             if first > last {
                 return Err(fail(format!("frames = [{first}, {last}]: the first frame is after the last")));

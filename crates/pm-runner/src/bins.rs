@@ -21,6 +21,22 @@ pub struct Bins {
     pub time_limit: Option<std::time::Duration>,
 }
 
+/// Cargo's target folder for the workspace at `root`: `$CARGO_TARGET_DIR` when
+/// that is set (relative to the current folder, as cargo reads it), else
+/// `root/target`.
+pub fn target_dir(root: &Path) -> PathBuf {
+    let cwd = std::env::current_dir().unwrap_or_default();
+    target_dir_with(root, std::env::var_os("CARGO_TARGET_DIR"), &cwd)
+}
+
+/// [`target_dir`] with the variable's value and the current folder given.
+fn target_dir_with(root: &Path, target_dir: Option<std::ffi::OsString>, cwd: &Path) -> PathBuf {
+    match target_dir {
+        Some(t) if !t.is_empty() => cwd.join(t),
+        _ => root.join("target"),
+    }
+}
+
 impl Bins {
     /// The binaries in `dir`, with no time limit.
     pub fn at(dir: PathBuf) -> Bins {
@@ -31,17 +47,7 @@ impl Bins {
     /// `$CARGO_TARGET_DIR/release` when that is set (relative to the current
     /// folder, as cargo reads it), else `root/target/release`.
     pub fn locate(root: &Path) -> Bins {
-        let cwd = std::env::current_dir().unwrap_or_default();
-        Bins::locate_with(root, std::env::var_os("CARGO_TARGET_DIR"), &cwd)
-    }
-
-    /// [`Bins::locate`] with the variable's value and the current folder given.
-    fn locate_with(root: &Path, target_dir: Option<std::ffi::OsString>, cwd: &Path) -> Bins {
-        let target = match target_dir {
-            Some(t) if !t.is_empty() => cwd.join(t),
-            _ => root.join("target"),
-        };
-        Bins::at(target.join("release"))
+        Bins::at(target_dir(root).join("release"))
     }
 
     /// Build every stage binary (release) and locate them.
@@ -204,11 +210,11 @@ mod tests {
     #[test]
     fn binaries_are_found_where_cargo_puts_them() {
         let (root, cwd) = (Path::new("/repo"), Path::new("/home/u/work"));
-        let at = |t: Option<&str>| Bins::locate_with(root, t.map(Into::into), cwd).dir;
-        assert_eq!(at(None), Path::new("/repo/target/release"));
-        assert_eq!(at(Some("")), Path::new("/repo/target/release"));
-        assert_eq!(at(Some("/tmp/t")), Path::new("/tmp/t/release"));
-        assert_eq!(at(Some("build")), Path::new("/home/u/work/build/release"));
+        let at = |t: Option<&str>| target_dir_with(root, t.map(Into::into), cwd);
+        assert_eq!(at(None), Path::new("/repo/target"));
+        assert_eq!(at(Some("")), Path::new("/repo/target"));
+        assert_eq!(at(Some("/tmp/t")), Path::new("/tmp/t"));
+        assert_eq!(at(Some("build")), Path::new("/home/u/work/build"));
     }
 
     /// A stage that runs past the time limit is stopped and its step fails

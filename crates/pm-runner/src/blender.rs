@@ -43,8 +43,7 @@ pub fn stage_addon(root: &Path, bins: &Path, dest: &Path) -> Result<PathBuf> {
     }
     let mut schema = pm_pipeline::schema();
     schema["bins"] = serde_json::Value::String(std::path::absolute(bins)?.display().to_string());
-    let text = serde_json::to_string_pretty(&schema)? + "\n";
-    pm_format::write_atomically(&out.join("schema.json"), |f| f.write_all(text.as_bytes()))?;
+    pm_stage::write_json(&out.join("schema.json"), &schema)?;
     Ok(out)
 }
 
@@ -122,8 +121,7 @@ fn zip_bytes(files: &[(String, Vec<u8>)]) -> Result<Vec<u8>> {
 /// made when missing: `python3.11 -m venv`, then `pip install bpy` from PyPI
 /// (about 350 MB to download, 950 MB installed; a minute or two).
 pub fn ensure_bpy(root: &Path) -> Result<PathBuf> {
-    let venv =
-        crate::bins::Bins::locate(root).dir.parent().map_or_else(|| root.join("target"), Path::to_owned).join("bpy");
+    let venv = crate::bins::target_dir(root).join("bpy");
     let python = venv.join("bin/python");
     let has = |p: &Path| {
         Command::new(p)

@@ -121,7 +121,7 @@ pub fn thread_count() -> usize {
 pub fn light_scene(scene: &mut pm_scene::Scene, path: &Path, how: &SceneOptions) -> Result<()> {
     how.validate(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))?;
     let in_file = |e: String| anyhow::anyhow!("{}: {e}", path.display());
-    if let Some(t) = how.time_s().map_err(|e| anyhow::anyhow!(e))? {
+    if let Some(t) = how.time_s(pm_params::Naming::Cli).map_err(|e| anyhow::anyhow!(e))? {
         scene.set_time(t);
     }
     let spec = match &how.environment {

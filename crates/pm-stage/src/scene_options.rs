@@ -89,12 +89,13 @@ pm_params::params! {
 
 impl SceneOptions {
     /// The time to pose the animations at [s]: --time, or --frame over --fps;
-    /// none for the rest pose. An error when both --time and --frame are given,
-    /// or --frame without --fps.
-    pub fn time_s(&self) -> Result<Option<f32>, String> {
+    /// none for the rest pose. An error, naming the options as `naming` does,
+    /// when both --time and --frame are given, or --frame without --fps.
+    pub fn time_s(&self, naming: pm_params::Naming) -> Result<Option<f32>, String> {
+        let [time, frame, fps] = ["time", "frame", "fps"].map(|f| naming.name(f));
         match (self.time, self.frame, self.fps) {
-            (Some(_), Some(_), _) => Err("--time and --frame both pose the animation: give one".into()),
-            (None, Some(_), None) => Err("--frame needs --fps (the frame rate)".into()),
+            (Some(_), Some(_), _) => Err(format!("{time} and {frame} both pose the animation: give one")),
+            (None, Some(_), None) => Err(format!("{frame} needs {fps} (the frame rate)")),
             (None, Some(f), Some(r)) => Ok(Some(f as f32 / r)),
             (t, None, _) => Ok(t),
         }
