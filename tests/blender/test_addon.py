@@ -120,6 +120,9 @@ def test_volume_conversion():
     for kind in ("principled", "scatter+absorb"):
         scene = addon_scenes.stage(kind)
         scene.render.resolution_x = scene.render.resolution_y = 32
+        # Two conversions against each other, not against a reference: fewer photons.
+        scene.photon_map.trace.global_photons = 50000
+        scene.photon_map.trace.volume_photons = 25000
         ex = photon_map.convert.export(scene, path(f"vol_{kind}"), False)
         table = [t for t in ex.tables if t.startswith('[media."fog"]')][0]
         media.append([float(x) for x in re.findall(r"[-0-9.e]+(?=[,\]\n])", table)])
@@ -136,7 +139,8 @@ def test_world_orientation():
     and 45 degrees up toward +X, seen by cameras looking each way, as the
     Environment Texture itself, turned 90 degrees by a Mapping node, and baked
     (a node set-up the add-on renders with Cycles): the same colours as Cycles
-    shows."""
+    shows. The turned and baked worlds are seen toward +X and +Y only (each spot
+    its own colour, two views tell a turn or a mirror from the right one)."""
     spots = [(0.5, 0.5, (8, 0.2, 0.2)), (0.25, 0.5, (0.2, 8, 0.2)), (0.0, 0.5, (0.2, 0.2, 8)),
              (0.75, 0.5, (8, 8, 0.2)), (0.5, 0.75, (8, 0.2, 8))]
     views = [(1, 0, 0), (0, 1, 0), (-1, 0, 0), (0, -1, 0), (1, 0, 1)]
@@ -156,7 +160,7 @@ def test_world_orientation():
         bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0, -50))
         cam = addon_scenes.camera(scene, (0, 0, 0), (1, 0, 0), fov_deg=10.0)
         scene.photon_map.method = "path"
-        for k, v in enumerate(views):
+        for k, v in enumerate(views if setup == "plain" else views[:2]):
             import mathutils
 
             cam.rotation_euler = mathutils.Vector(v).to_track_quat("-Z", "Z" if v[2] == 0 else "Y").to_euler()
