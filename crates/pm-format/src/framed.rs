@@ -1,6 +1,6 @@
 //! The frame that this crate's record files other than photon maps share (the
 //! irradiance cache, [`crate::icache`], and the progressive state,
-//! [`crate::sppm`]): a fixed header, a parameter text, a check, then a flat array
+//! [`crate::sppm`], [`crate::passes`]): a fixed header, a parameter text, a check, then a flat array
 //! of fixed-size records.
 //!
 //! ```text
@@ -150,4 +150,64 @@ pub(crate) fn read(path: &Path, kind: &Kind) -> Result<(Fields, Vec<u8>), Format
 /// The error for a record that holds an impossible value.
 pub(crate) fn bad_record(path: &Path, kind: &Kind, index: usize, what: &str) -> FormatError {
     unusable(path, kind, format!("record {index} {what}"))
+}
+
+/// A progressive method's state in memory: one record `R` a pixel, row by row,
+/// over the passes the records hold ([`crate::sppm`]'s per-pixel SPPM state,
+/// [`crate::passes`]' pass sums). Its frame's count is the passes, its source
+/// hash zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageState<R> {
+    /// Image width \[pixels\].
+    pub width: u32,
+    /// Image height \[pixels\].
+    pub height: u32,
+    /// Passes accumulated in the records.
+    pub passes: u32,
+    /// blake3 of the scene.
+    pub scene_hash: [u8; 32],
+    /// The method and the settings that shaped the state ("name=value" words):
+    /// a reader refuses a state made with other settings.
+    pub params: String,
+    /// One record a pixel, row by row.
+    pub records: Vec<R>,
+}
+
+/// Write the state `s` as a file of `kind` to `path` atomically.
+pub(crate) fn write_state<R: bytemuck::Pod>(path: &Path, kind: &Kind, s: &ImageState<R>) -> Result<(), FormatError> {
+    let fields = Fields {
+        width: s.width,
+        height: s.height,
+        count: s.passes,
+        scene_hash: s.scene_hash,
+        source_hash: [0; 32],
+        params: s.params.clone(),
+    };
+    write(path, kind, &fields, bytemuck::cast_slice(&s.records))
+}
+
+/// Read a state file of `kind` and check it: one record a pixel, and no record
+/// that `bad` finds something wrong with (it says what).
+pub(crate) fn read_state<R: bytemuck::Pod>(
+    path: &Path,
+    kind: &Kind,
+    bad: impl Fn(&R) -> Option<&'static str>,
+) -> Result<ImageState<R>, FormatError> {
+    let (f, payload) = read(path, kind)?;
+    let records: Vec<R> = payload.chunks_exact(kind.record_size).map(bytemuck::pod_read_unaligned).collect();
+    if records.len() as u64 != f.width as u64 * f.height as u64 {
+        let what = format!("{} records for a {}x{} image", records.len(), f.width, f.height);
+        return Err(unusable(path, kind, what));
+    }
+    if let Some((i, what)) = records.iter().enumerate().find_map(|(i, r)| bad(r).map(|w| (i, w))) {
+        return Err(bad_record(path, kind, i, what));
+    }
+    Ok(ImageState {
+        width: f.width,
+        height: f.height,
+        passes: f.count,
+        scene_hash: f.scene_hash,
+        params: f.params,
+        records,
+    })
 }

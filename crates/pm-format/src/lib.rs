@@ -31,6 +31,7 @@ pub mod sppm;
 
 pub use atomic::write_atomically;
 pub use direction::{DIRECTION_MAX_ERROR_RAD, decode_direction, encode_direction};
+pub use framed::ImageState;
 pub use header::{FormatError, Header, Layout, MapKind, Order, ReadExpect};
 pub use icache::{CacheFile, CacheRecord, read_cache, write_cache};
 pub use passes::{PassRecord, PassStateFile, read_pass_state, write_pass_state};

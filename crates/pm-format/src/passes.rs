@@ -10,7 +10,7 @@
 //! [`PassRecord`]s, one a pixel, row by row.
 
 use crate::FormatError;
-use crate::framed::{self, Fields, Kind};
+use crate::framed::{self, Kind};
 use bytemuck::{Pod, Zeroable};
 use std::path::Path;
 
@@ -40,57 +40,19 @@ pub struct PassRecord {
 }
 
 /// A pass-sums state file in memory.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PassStateFile {
-    /// Image width \[pixels\].
-    pub width: u32,
-    /// Image height \[pixels\].
-    pub height: u32,
-    /// Passes summed in the records.
-    pub passes: u32,
-    /// blake3 of the scene.
-    pub scene_hash: [u8; 32],
-    /// The method and the settings that shaped the state ("name=value" words).
-    pub params: String,
-    /// One record a pixel, row by row.
-    pub records: Vec<PassRecord>,
-}
+pub type PassStateFile = framed::ImageState<PassRecord>;
 
 /// Write `s` to `path` atomically.
 pub fn write_pass_state(path: &Path, s: &PassStateFile) -> Result<(), FormatError> {
-    let fields = Fields {
-        width: s.width,
-        height: s.height,
-        count: s.passes,
-        scene_hash: s.scene_hash,
-        source_hash: [0; 32],
-        params: s.params.clone(),
-    };
-    framed::write(path, &KIND, &fields, bytemuck::cast_slice(&s.records))
+    framed::write_state(path, &KIND, s)
 }
 
 /// Read and check a pass-sums state file: one record a pixel, every value finite
 /// and not negative.
 pub fn read_pass_state(path: &Path) -> Result<PassStateFile, FormatError> {
-    let (f, payload) = framed::read(path, &KIND)?;
-    let records: Vec<PassRecord> = payload.chunks_exact(KIND.record_size).map(bytemuck::pod_read_unaligned).collect();
-    if records.len() as u64 != f.width as u64 * f.height as u64 {
-        let what = format!("{} records for a {}x{} image", records.len(), f.width, f.height);
-        return Err(framed::unusable(path, &KIND, what));
-    }
-    for (i, r) in records.iter().enumerate() {
+    framed::read_state(path, &KIND, |r: &PassRecord| {
         let mut values = [r.l_sum, r.l_sq].into_iter().chain(r.sum.into_iter().flatten());
-        if values.any(|v| !v.is_finite() || v < 0.0) {
-            return Err(framed::bad_record(path, &KIND, i, "holds a non-finite or negative value"));
-        }
-    }
-    Ok(PassStateFile {
-        width: f.width,
-        height: f.height,
-        passes: f.count,
-        scene_hash: f.scene_hash,
-        params: f.params,
-        records,
+        values.any(|v| !v.is_finite() || v < 0.0).then_some("holds a non-finite or negative value")
     })
 }
 

@@ -9,7 +9,7 @@
 //! row by row.
 
 use crate::FormatError;
-use crate::framed::{self, Fields, Kind};
+use crate::framed::{self, Kind};
 use bytemuck::{Pod, Zeroable};
 use std::path::Path;
 
@@ -53,60 +53,22 @@ pub struct StateRecord {
 }
 
 /// A progressive state file in memory.
-#[derive(Clone, Debug, PartialEq)]
-pub struct StateFile {
-    /// Image width \[pixels\].
-    pub width: u32,
-    /// Image height \[pixels\].
-    pub height: u32,
-    /// Passes accumulated in the records.
-    pub passes: u32,
-    /// blake3 of the scene.
-    pub scene_hash: [u8; 32],
-    /// The settings that shaped the state ("name=value" words).
-    pub params: String,
-    /// One record a pixel, row by row.
-    pub records: Vec<StateRecord>,
-}
+pub type StateFile = framed::ImageState<StateRecord>;
 
 /// Write `s` to `path` atomically.
 pub fn write_state(path: &Path, s: &StateFile) -> Result<(), FormatError> {
-    let fields = Fields {
-        width: s.width,
-        height: s.height,
-        count: s.passes,
-        scene_hash: s.scene_hash,
-        source_hash: [0; 32],
-        params: s.params.clone(),
-    };
-    framed::write(path, &KIND, &fields, bytemuck::cast_slice(&s.records))
+    framed::write_state(path, &KIND, s)
 }
 
 /// Read and check a progressive state file: one record a pixel, every value
 /// finite, radii above zero, counts, fluxes and sums not negative.
 pub fn read_state(path: &Path) -> Result<StateFile, FormatError> {
-    let (f, payload) = framed::read(path, &KIND)?;
-    let records: Vec<StateRecord> = payload.chunks_exact(KIND.record_size).map(bytemuck::pod_read_unaligned).collect();
-    if records.len() as u64 != f.width as u64 * f.height as u64 {
-        let what = format!("{} records for a {}x{} image", records.len(), f.width, f.height);
-        return Err(framed::unusable(path, &KIND, what));
-    }
-    for (i, r) in records.iter().enumerate() {
+    framed::read_state(path, &KIND, |r: &StateRecord| {
         let values = [r.radius, r.n, r.l_sum, r.l_sq, r.share, r.seen]
             .into_iter()
             .chain(r.tau.into_iter().flatten())
             .chain(r.ld.into_iter().flatten());
-        if !(r.radius > 0.0) || r.share > 1.0 || values.into_iter().any(|v| !v.is_finite() || v < 0.0) {
-            let what = "holds a non-finite or negative value, a radius <= 0 or a share above 1";
-            return Err(framed::bad_record(path, &KIND, i, what));
-        }
-    }
-    Ok(StateFile {
-        width: f.width,
-        height: f.height,
-        passes: f.count,
-        scene_hash: f.scene_hash,
-        params: f.params,
-        records,
+        let bad = !(r.radius > 0.0) || r.share > 1.0 || values.into_iter().any(|v| !v.is_finite() || v < 0.0);
+        bad.then_some("holds a non-finite or negative value, a radius <= 0 or a share above 1")
     })
 }
