@@ -17,6 +17,7 @@ their names, documentation, defaults and ranges are not repeated here.
 
 import json
 import os
+import queue
 import shutil
 import tempfile
 import time
@@ -201,6 +202,24 @@ def _prefs(context):
 _animation = {}
 
 
+# Work a render thread hands to Blender's main thread (run.on_main_thread): put
+# here from any thread, run by _run_main_tasks, a timer registered on the main
+# thread. (Registering a timer from the render thread would touch Blender's timer
+# list while the main loop walks it.)
+_main_tasks = queue.Queue()
+
+
+def _run_main_tasks():
+    """Run the tasks waiting for the main thread; Blender calls this again in a
+    tenth of a second (a timer of the main loop, which never runs headless)."""
+    while True:
+        try:
+            task = _main_tasks.get_nowait()
+        except queue.Empty:
+            return 0.1
+        task()
+
+
 def export(scene_name, view_layer_name, folder, animation):
     """Export the scene `scene_name` as its view layer `view_layer_name` sees it
     into `folder` (convert.export). Called on Blender's main thread
@@ -260,7 +279,7 @@ class PhotonMapEngine(bpy.types.RenderEngine):
             self.update_stats("Photon Map", "exporting the scene")
             names = (scene.name, depsgraph.view_layer.name)
             try:
-                ex = run.on_main_thread(lambda: export(*names, folder, animation), stop, bpy.app.timers.register)
+                ex = run.on_main_thread(lambda: export(*names, folder, animation), stop, _main_tasks.put)
             except BaseException:
                 if not keep:
                     shutil.rmtree(folder, ignore_errors=True)
@@ -386,9 +405,12 @@ def register():
     bpy.types.Scene.photon_map = bpy.props.PointerProperty(type=PhotonMapSettings)
     for p in _generic_panels():
         p.COMPAT_ENGINES.add("PHOTON_MAP")
+    bpy.app.timers.register(_run_main_tasks, persistent=True)
 
 
 def unregister():
+    if bpy.app.timers.is_registered(_run_main_tasks):
+        bpy.app.timers.unregister(_run_main_tasks)
     for p in _generic_panels():
         p.COMPAT_ENGINES.discard("PHOTON_MAP")
     del bpy.types.Scene.photon_map

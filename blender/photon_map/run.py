@@ -36,9 +36,10 @@ def on_main_thread(fn, stop, schedule):
     window, view layer or active object, and the glTF exporter fails
     (KhronosGroup/glTF-Blender-IO issue 1943: "'Context' object has no attribute
     'active_object'"); an operator run there would also race the interface. From
-    any thread but the main one, `fn` is handed to `schedule` (`bpy.app.timers.register`:
-    Blender's main loop runs timers with its first window as the context) and the
-    caller waits for it, a tenth of a second at a time, asking `stop()` between.
+    any thread but the main one, `fn` is handed to `schedule` (a queue that a
+    timer of Blender's main loop empties: timers run with its first window as
+    the context) and the caller waits for it, a tenth of a second at a time,
+    asking `stop()` between.
     Headless (`bpy.ops.render.render()` from a script) the render runs on the main
     thread, where `fn` is called at once (timers never run there). `fn`'s
     exception is raised here; `Cancelled` when `stop()` says so before `fn`
@@ -50,7 +51,7 @@ def on_main_thread(fn, stop, schedule):
     def task():
         with lock:  # either it starts or the waiter cancels it, not both
             if box.get("state") == "cancelled":
-                return None
+                return
             box["state"] = "started"
         try:
             box["value"] = fn()
@@ -58,7 +59,6 @@ def on_main_thread(fn, stop, schedule):
             box["error"] = e
         finally:
             done.set()
-        return None  # once, not again
 
     schedule(task)
     while not done.wait(0.1):

@@ -206,18 +206,18 @@ def test_cancel():
 def test_export_from_job_thread():
     """F12 in Blender's window renders on a job thread, where the glTF exporter
     fails for want of a context; the engine hands its export to the main thread
-    (run.on_main_thread, by Blender's timers) and waits. Here a thread stands for
-    the job thread and this test's loop for Blender's main loop (headless, timers
-    never run): the export runs on the main thread and writes what it writes
-    when called there directly; its error reaches the job thread; Esc before it
-    starts cancels it unrun."""
-    import queue
+    (run.on_main_thread, through the queue the add-on's main-loop timer
+    empties) and waits. Here a thread stands for the job thread and this test's
+    loop, calling that timer's function, for Blender's main loop (headless,
+    timers never run): the export runs on the main thread and writes what it
+    writes when called there directly; its error reaches the job thread; Esc
+    before it starts cancels it unrun."""
     import threading
 
     scene = addon_scenes.stage()
     layer = bpy.context.view_layer.name
-    jobs, results = queue.Queue(), {}
-    ran_on = []
+    results, ran_on = {}, []
+    tasks = photon_map._main_tasks
 
     def export(folder):
         ran_on.append(threading.current_thread() is threading.main_thread())
@@ -225,16 +225,14 @@ def test_export_from_job_thread():
 
     def job(name, fn, stop=lambda: False):
         try:
-            results[name] = photon_map.run.on_main_thread(fn, stop, jobs.put)
+            results[name] = photon_map.run.on_main_thread(fn, stop, tasks.put)
         except BaseException as e:  # noqa: BLE001 - the test looks at it
             results[name] = e
 
     def main_loop(worker):
         while worker.is_alive():
-            try:
-                jobs.get(timeout=0.05)()
-            except queue.Empty:
-                continue
+            assert photon_map._run_main_tasks() == 0.1  # the timer's next call
+            time.sleep(0.01)
 
     for name, fn in [("export", lambda: export(path("job_thread"))),
                      ("error", lambda: photon_map.export("no such scene", layer, path("job_error"), False))]:
@@ -257,9 +255,10 @@ def test_export_from_job_thread():
     worker.start()
     worker.join()  # a main loop busy elsewhere
     assert isinstance(results["esc"], photon_map.run.Cancelled), results["esc"]
-    task = jobs.get_nowait()
-    task()  # Blender's main loop gets to it after all: it does nothing
-    assert ran_on == [True] and not os.path.exists(path("job_esc")), ran_on
+    assert tasks.qsize() == 1
+    photon_map._run_main_tasks()  # the main loop gets to it after all: it does nothing
+    assert ran_on == [True] and not os.path.exists(path("job_esc")) and tasks.empty(), ran_on
+    assert bpy.app.timers.is_registered(photon_map._run_main_tasks)
 
 
 def test_failed_stage():
