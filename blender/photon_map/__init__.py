@@ -280,21 +280,16 @@ class PhotonMapEngine(bpy.types.RenderEngine):
             names = (scene.name, depsgraph.view_layer.name)
             try:
                 ex = run.on_main_thread(lambda: export(*names, folder, animation), stop, _main_tasks.put)
-            except BaseException:
-                if not keep:
-                    shutil.rmtree(folder, ignore_errors=True)
-                raise
-            last_warnings = ex.warnings
-            if ex.warnings:
-                self.report({"WARNING"}, "Photon Map: not converted: " + "; ".join(ex.warnings))
-            top, tables = settings.toml(w, h)
-            pipeline = os.path.join(folder, "pipeline.toml")
-            with open(pipeline, "w", encoding="utf-8") as f:
-                f.write("# Written by the Blender add-on photon_map.\n" + ex.keys + top + "\n" + "\n".join(
-                    ex.tables + tables))
-            try:
-                run.run([xtask, "run", "--bins", bins, "--pipeline", pipeline, "--out", os.path.join(folder, "out")],
-                        self, "Photon Map", stop)
+                last_warnings = ex.warnings
+                if ex.warnings:
+                    self.report({"WARNING"}, "Photon Map: not converted: " + "; ".join(ex.warnings))
+                top, tables = settings.toml(w, h)
+                pipeline = os.path.join(folder, "pipeline.toml")
+                with open(pipeline, "w", encoding="utf-8") as f:
+                    f.write("# Written by the Blender add-on photon_map.\n" + ex.keys + top + "\n" + "\n".join(
+                        ex.tables + tables))
+                run.run([xtask, "run", "--bins", bins, "--pipeline", pipeline, "--out",
+                         os.path.join(folder, "out")], self, "Photon Map", stop)
             except BaseException:
                 if not keep:
                     shutil.rmtree(folder, ignore_errors=True)
@@ -303,12 +298,11 @@ class PhotonMapEngine(bpy.types.RenderEngine):
                 _animation.clear()
                 _animation.update(key=key, folder=folder)
         out = os.path.join(folder, "out")
-        image = os.path.join(out, f"frame-{frame}", "image.exr") if self.is_animation else os.path.join(out,
-                                                                                                        "image.exr")
+        image = os.path.join(out, f"frame-{frame}" if animation else "", "image.exr")
         layers = run.layers(xtask, image, os.path.join(folder, f"layers-{frame}"), self)
         self._fill(layers, w, h)
         last_folder = folder
-        last = not self.is_animation or frame >= scene.frame_end
+        last = not animation or frame >= scene.frame_end
         if last:
             _animation.clear()
             if not keep:

@@ -229,7 +229,7 @@ fn emit_plan(run: run::RunArgs, emit: &[String], root: &std::path::Path) -> Resu
 fn blender_addon(root: &std::path::Path) -> Result<()> {
     use pm_runner::blender;
     let bins = pm_runner::bins::Bins::build(root)?;
-    let dir = bins.dir.parent().unwrap_or(root).join("blender");
+    let dir = pm_runner::bins::target_dir(root).join("blender");
     let staged = blender::stage_addon(root, &bins.dir, &dir)?;
     let zip = dir.join(format!("photon_map-{}.zip", blender::addon_version(root)?));
     blender::zip_addon(&staged, &zip)?;
@@ -246,7 +246,7 @@ fn blender_test(root: &std::path::Path, only: Option<&str>) -> Result<()> {
     use pm_runner::blender;
     let bins = pm_runner::bins::Bins::build(root)?;
     let python = blender::ensure_bpy(root)?;
-    let work = bins.dir.parent().unwrap_or(root).join("blender-test");
+    let work = pm_runner::bins::target_dir(root).join("blender-test");
     std::fs::create_dir_all(&work)?;
     blender::run_tests(root, &python, &bins.dir, &work, only)
 }
